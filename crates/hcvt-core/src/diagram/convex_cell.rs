@@ -1,0 +1,45 @@
+//! What a convex Voronoi cell must offer the dimension-generic clipping (DESIGN §3).
+
+use crate::geometry::{Aabb, HalfSpace};
+use crate::moments::Moments;
+
+/// What made a face of a convex cell.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Face {
+    /// A side of the domain's bounding box, where every cell starts.
+    Box,
+    /// The bisector with site `j`: a dual (Delaunay) edge.
+    Neighbor(u32),
+    /// The hyperplane of boundary simplex `t`.
+    Boundary(u32),
+    /// A side of a cone from the apex through a boundary simplex.
+    Cone,
+}
+
+/// A convex polytope in coordinates relative to its site, clipped one half-space at a time.
+pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
+    /// The box `b` (relative to the site); all its faces are [`Face::Box`].
+    fn from_box(b: &Aabb<D>) -> Self;
+
+    /// Keep the part in `h`, tagging the new face with `face`.
+    fn clip(&mut self, h: &HalfSpace<D>, face: Face);
+
+    /// Nothing (of positive measure) is left.
+    fn is_empty(&self) -> bool;
+
+    /// Largest squared distance of a vertex from the site (the security radius², Ray et al.
+    /// 2018): a site farther than twice that distance cannot cut the cell.
+    fn max_dist2(&self) -> f64;
+
+    /// Bounding box relative to the site.
+    fn bounds(&self) -> Aabb<D>;
+
+    /// Mean of the vertices: a point strictly inside a non-empty cell.
+    fn vertex_mean(&self) -> [f64; D];
+
+    /// Mass, first and second moments about the site.
+    fn moments(&self) -> Moments<D>;
+
+    /// Call `f(face, measure)` for every face (length in 2D, area in 3D).
+    fn for_each_face(&self, f: impl FnMut(Face, f64));
+}

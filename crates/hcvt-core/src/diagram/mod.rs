@@ -1,0 +1,390 @@
+//! The clipped Voronoi diagram, exact to round-off (DESIGN §3).
+//!
+//! Per site, independently and in parallel:
+//! 1. the convex Voronoi cell: the domain's bounding box clipped by the bisectors of the
+//!    nearest sites in order of distance, until the next site is farther than twice the
+//!    cell's radius (security radius);
+//! 2. its intersection with the domain, integrated exactly through the identity
+//!    `1_Ω(x) = w(q) + Σ_T σ_T 1_K(q,T)(x)` for every `x` in the cell, where `q` is a point
+//!    of the cell (the site when possible), `K(q, T)` the part of the cone from `q`
+//!    through boundary simplex `T` beyond `T`, and `σ_T = ±1` the side of `T` that `q` is
+//!    on. Each `C ∩ K(q, T)` is the cell clipped by `d + 1` more half-spaces.
+
+pub mod convex_cell;
+mod knn;
+pub mod polygon_cell;
+
+use rayon::prelude::*;
+
+use crate::domain::{Boundary, WindingNumber};
+use crate::error::CoreError;
+use crate::geometry::{dot, norm2, scale, sub, Aabb, Euclid, HalfSpace, Space};
+use crate::moments::Moments;
+pub use convex_cell::{ConvexCell, Face};
+pub use knn::SiteIndex;
+pub use polygon_cell::PolygonCell;
+
+/// How to treat unusual input.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Options {
+    /// Accept sites outside the domain. The cell of such a site is the part of its Voronoi
+    /// cell that lies inside the domain: possibly empty, and not containing its site.
+    pub allow_outside: bool,
+}
+
+/// The clipped diagram: row `i` of every array is site `i`.
+#[derive(Debug, Clone, Default)]
+pub struct Diagram<const D: usize> {
+    /// Moments of each clipped cell about its own site.
+    pub moments: Vec<Moments<D>>,
+    /// Measure of each cell's share of the domain boundary (length in 2D, area in 3D).
+    pub boundary_measure: Vec<f64>,
+    /// Faces shared with other cells: those of site `i` are `neighbor_offsets[i]..[i + 1]`.
+    pub neighbor_offsets: Vec<usize>,
+    /// The other site of each shared face.
+    pub neighbor_sites: Vec<u32>,
+    /// Measure of each shared face inside the domain (length in 2D, area in 3D).
+    pub neighbor_measures: Vec<f64>,
+}
+
+/// One cell's results before they are packed into a [`Diagram`].
+struct CellOutput<const D: usize> {
+    moments: Moments<D>,
+    boundary_measure: f64,
+    neighbors: Vec<(u32, f64)>,
+}
+
+/// The clipped Voronoi diagram of `sites` in `boundary`, and, if `keep_cells`, each site's
+/// unclipped convex cell (relative to its site) for pictures and export.
+///
+/// Errors name the first offending site in index order: non-finite coordinates, a site
+/// outside the domain (unless allowed), two coinciding sites.
+pub fn clipped_diagram<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    options: Options,
+    keep_cells: bool,
+) -> Result<(Diagram<D>, Vec<C>), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    if sites.is_empty() {
+        return Err(CoreError::NoSites);
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    let windings: Vec<Option<i32>> = sites
+        .par_iter()
+        .map(|s| Euclid::winding_number(boundary, s))
+        .collect();
+    if !options.allow_outside {
+        if let Some(index) = windings.iter().position(|w| *w == Some(0)) {
+            return Err(CoreError::SiteOutsideDomain {
+                index,
+                point: sites[index].to_vec(),
+            });
+        }
+    }
+    let index = SiteIndex::new(sites)?;
+    let results: Vec<Result<(CellOutput<D>, Option<C>), CoreError>> = (0..sites.len())
+        .into_par_iter()
+        .map(|i| {
+            let cell = voronoi_cell::<D, C>(boundary, &index, sites, i)?;
+            let out = clip_by_domain(boundary, &cell, sites[i], windings[i]);
+            Ok((out, keep_cells.then_some(cell)))
+        })
+        .collect();
+    let mut diagram = Diagram {
+        moments: Vec::with_capacity(sites.len()),
+        boundary_measure: Vec::with_capacity(sites.len()),
+        neighbor_offsets: Vec::with_capacity(sites.len() + 1),
+        ..Diagram::default()
+    };
+    let mut cells = Vec::new();
+    diagram.neighbor_offsets.push(0);
+    for result in results {
+        let (out, cell) = result?;
+        diagram.moments.push(out.moments);
+        diagram.boundary_measure.push(out.boundary_measure);
+        for (j, measure) in out.neighbors {
+            diagram.neighbor_sites.push(j);
+            diagram.neighbor_measures.push(measure);
+        }
+        diagram.neighbor_offsets.push(diagram.neighbor_sites.len());
+        cells.extend(cell);
+    }
+    Ok((diagram, cells))
+}
+
+/// Number of nearest sites fetched first; doubled while the security radius is not reached.
+const FIRST_K: usize = 16;
+
+/// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the site.
+pub fn voronoi_cell<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    i: usize,
+) -> Result<C, CoreError>
+where
+    Euclid: Space<D>,
+{
+    let site = sites[i];
+    let mut cell = C::from_box(&boundary.bounds().relative_to(site));
+    let mut radius2 = cell.max_dist2();
+    let mut clipped: Vec<u32> = Vec::new();
+    let mut k = FIRST_K.min(sites.len());
+    loop {
+        let mut reached = false;
+        let neighbors = index.nearest(&site, k);
+        let requery = !clipped.is_empty();
+        for &(j, dist2) in &neighbors {
+            if j as usize == i || (requery && clipped.contains(&j)) {
+                continue;
+            }
+            if dist2 > 4.0 * radius2 {
+                reached = true;
+                break;
+            }
+            let q = sub(sites[j as usize], site);
+            if norm2(q) == 0.0 {
+                let (first, second) = (i.min(j as usize), i.max(j as usize));
+                return Err(CoreError::DuplicateSites {
+                    first,
+                    second,
+                    point: site.to_vec(),
+                });
+            }
+            cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
+            radius2 = cell.max_dist2();
+            clipped.push(j);
+        }
+        if reached || neighbors.len() < k || k >= sites.len() {
+            return Ok(cell);
+        }
+        k = (2 * k).min(sites.len());
+    }
+}
+
+/// Integrate `cell` (relative to `site`) restricted to the domain, through signed cones.
+fn clip_by_domain<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+    site_winding: Option<i32>,
+) -> CellOutput<D>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let mut faces = FaceSums::default();
+    let mut total = Moments::zero();
+    if cell.is_empty() {
+        return CellOutput {
+            moments: total,
+            boundary_measure: 0.0,
+            neighbors: Vec::new(),
+        };
+    }
+    let bounds = cell.bounds();
+    let query = Aabb {
+        lo: add_point(bounds.lo, site),
+        hi: add_point(bounds.hi, site),
+    };
+    let mut candidates = Vec::new();
+    boundary.bvh().query(&query, &mut candidates);
+    let (apex, winding) = choose_apex(boundary, cell, site, site_winding);
+    total.add_scaled(&cell.moments(), winding as f64);
+    if winding != 0 {
+        cell.for_each_face(|f, m| faces.add(f, winding as f64 * m));
+    }
+    let apex_abs = add_point(apex, site);
+    for t in candidates {
+        let simplex = boundary.simplex(t);
+        let side = Euclid::side(&simplex, &apex_abs);
+        if side == 0.0 {
+            continue; // the apex is on T's hyperplane: the cone is flat
+        }
+        let sigma = if side > 0.0 { 1.0 } else { -1.0 };
+        let rel = simplex.map(|v| sub(v, site));
+        let mut piece = cell.clone();
+        for h in cone_sides(&rel, apex) {
+            piece.clip(&h, Face::Cone);
+            if piece.is_empty() {
+                break;
+            }
+        }
+        if piece.is_empty() {
+            continue;
+        }
+        // Beyond T as seen from the apex: the inner side when the apex is outside T.
+        let normal = Euclid::normal(&rel);
+        let beyond = HalfSpace::through(
+            rel[0],
+            if sigma > 0.0 {
+                normal
+            } else {
+                scale(normal, -1.0)
+            },
+        );
+        piece.clip(&beyond, Face::Boundary(t));
+        if piece.is_empty() {
+            continue;
+        }
+        total.add_scaled(&piece.moments(), sigma);
+        piece.for_each_face(|f, m| faces.add(f, sigma * m));
+    }
+    CellOutput {
+        moments: total,
+        boundary_measure: faces.boundary,
+        neighbors: faces.into_neighbors(),
+    }
+}
+
+/// The `D` side half-spaces of the cone from `apex` through the simplex `rel` (both
+/// relative to the site): the hyperplane through the apex and each facet of the simplex,
+/// keeping the side of the remaining vertex.
+fn cone_sides<const D: usize>(
+    rel: &[[f64; D]; D],
+    apex: [f64; D],
+) -> impl Iterator<Item = HalfSpace<D>> + '_
+where
+    Euclid: Space<D>,
+{
+    (0..D).map(move |k| {
+        // Replace vertex k by the apex: the facet opposite vertex k, coned to the apex.
+        let mut points = *rel;
+        points[k] = apex;
+        let mut normal = Euclid::normal(&points);
+        if dot(normal, sub(rel[k], apex)) > 0.0 {
+            normal = scale(normal, -1.0);
+        }
+        HalfSpace::through(apex, normal)
+    })
+}
+
+/// A point of the cell to cone from, relative to the site, and its winding number.
+///
+/// The site itself when it lies strictly inside or outside the domain and inside its
+/// (box-limited) cell; otherwise the vertex mean of the cell, nudged towards successive
+/// vertices until it is off the boundary (a site on the boundary has no winding number).
+fn choose_apex<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+    site_winding: Option<i32>,
+) -> ([f64; D], i32)
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let site_in_box = {
+        let b = boundary.bounds();
+        (0..D).all(|k| b.lo[k] <= site[k] && site[k] <= b.hi[k])
+    };
+    if let (Some(w), true) = (site_winding, site_in_box) {
+        return ([0.0; D], w);
+    }
+    let mean = cell.vertex_mean();
+    let mut candidate = mean;
+    for step in 1..=64 {
+        if let Some(w) = Euclid::winding_number(boundary, &add_point(candidate, site)) {
+            return (candidate, w);
+        }
+        // Deterministic nudge that stays inside the convex cell.
+        let t = 1.0 / (step as f64 + 2.0);
+        let far = cell.bounds().hi;
+        candidate = std::array::from_fn(|k| {
+            mean[k] + t * 0.5 * (far[k] - mean[k]) * (1.0 / (k as f64 + 2.0))
+        });
+    }
+    (mean, 0)
+}
+
+#[inline]
+fn add_point<const D: usize>(a: [f64; D], b: [f64; D]) -> [f64; D] {
+    std::array::from_fn(|k| a[k] + b[k])
+}
+
+/// Signed face measures of a cell, summed over its pieces.
+#[derive(Default)]
+struct FaceSums {
+    neighbors: Vec<(u32, f64)>,
+    boundary: f64,
+}
+
+impl FaceSums {
+    fn add(&mut self, face: Face, measure: f64) {
+        match face {
+            Face::Neighbor(j) => match self.neighbors.iter_mut().find(|(k, _)| *k == j) {
+                Some((_, m)) => *m += measure,
+                None => self.neighbors.push((j, measure)),
+            },
+            // Each piece's face on T is T ∩ C itself, whatever the piece's sign.
+            Face::Boundary(_) => self.boundary += measure.abs(),
+            Face::Box | Face::Cone => {}
+        }
+    }
+
+    fn into_neighbors(mut self) -> Vec<(u32, f64)> {
+        self.neighbors.retain(|&(_, m)| m > 0.0);
+        self.neighbors.sort_unstable_by_key(|&(j, _)| j);
+        self.neighbors
+    }
+}
+
+impl<const D: usize> Diagram<D> {
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        self.moments.len()
+    }
+
+    /// No cells.
+    pub fn is_empty(&self) -> bool {
+        self.moments.is_empty()
+    }
+
+    /// Cell volumes (areas in 2D), `L^d`.
+    pub fn volumes(&self) -> Vec<f64> {
+        self.moments.iter().map(|m| m.mass).collect()
+    }
+
+    /// Cell centroids in absolute coordinates, `L`; the site itself for an empty cell.
+    pub fn centroids(&self, sites: &[[f64; D]]) -> Vec<[f64; D]> {
+        self.moments
+            .iter()
+            .zip(sites)
+            .map(|(m, &s)| m.centroid().map_or(s, |c| add_point(s, c)))
+            .collect()
+    }
+
+    /// `∫ |x - c_i|²` over each cell, about its centroid, `L^(d+2)`.
+    pub fn second_moments(&self) -> Vec<f64> {
+        self.moments.iter().map(Moments::central_second).collect()
+    }
+
+    /// Dimensionless second moment of each cell (paper eq. 2); NaN for an empty cell,
+    /// which only a site outside the domain can have.
+    pub fn g_values(&self) -> Vec<f64> {
+        self.moments
+            .iter()
+            .map(|m| m.dimensionless_second_moment().unwrap_or(f64::NAN))
+            .collect()
+    }
+
+    /// Each cell's energy term `∫ |x - x_i|²` about its site, `L^(d+2)`.
+    pub fn energy_terms(&self) -> Vec<f64> {
+        self.moments.iter().map(|m| m.second).collect()
+    }
+
+    /// CVT energy `E = Σ_i ∫ |x - x_i|²`, summed in index order.
+    pub fn energy(&self) -> f64 {
+        self.moments.iter().map(|m| m.second).sum()
+    }
+
+    /// Energy gradient `∂E/∂x_i = 2 m_i (x_i - c_i) = -2 ∫(x - x_i)` (DESIGN §4), `L^(d+1)`.
+    pub fn gradient(&self) -> Vec<[f64; D]> {
+        self.moments.iter().map(|m| scale(m.first, -2.0)).collect()
+    }
+}

@@ -1,0 +1,170 @@
+//! The 2D convex cell: a counter-clockwise polygon whose edges remember their face.
+
+use super::convex_cell::{ConvexCell, Face};
+use crate::geometry::{dot, norm2, sub, Aabb, HalfSpace};
+use crate::moments::{triangle_moments, Moments};
+
+/// Convex polygon, counter-clockwise; edge `i` runs from vertex `i` to vertex `i + 1`.
+#[derive(Debug, Clone, Default)]
+pub struct PolygonCell {
+    vertices: Vec<[f64; 2]>,
+    faces: Vec<Face>,
+    // Buffers reused by `clip`, so that clipping allocates only while a cell grows.
+    spare_vertices: Vec<[f64; 2]>,
+    spare_faces: Vec<Face>,
+}
+
+impl PolygonCell {
+    /// Vertices, counter-clockwise, relative to the site.
+    pub fn vertices(&self) -> &[[f64; 2]] {
+        &self.vertices
+    }
+
+    /// `faces()[i]` made the edge from vertex `i` to vertex `i + 1`.
+    pub fn faces(&self) -> &[Face] {
+        &self.faces
+    }
+}
+
+/// The point where the segment from `a` (signed distance `da`) to `b` (`db`) crosses the line.
+#[inline]
+fn crossing(a: [f64; 2], b: [f64; 2], da: f64, db: f64) -> [f64; 2] {
+    let t = da / (da - db);
+    [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+}
+
+impl ConvexCell<2> for PolygonCell {
+    fn from_box(b: &Aabb<2>) -> Self {
+        let (lo, hi) = (b.lo, b.hi);
+        Self {
+            vertices: vec![lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]],
+            faces: vec![Face::Box; 4],
+            spare_vertices: Vec::with_capacity(16),
+            spare_faces: Vec::with_capacity(16),
+        }
+    }
+
+    /// Sutherland–Hodgman against one half-plane. A vertex exactly on the line counts as
+    /// inside, so a cell is never cut twice by the same line.
+    fn clip(&mut self, h: &HalfSpace<2>, face: Face) {
+        let n = self.vertices.len();
+        let dist = |v: [f64; 2]| dot(h.normal, v) - h.offset;
+        if n == 0 || self.vertices.iter().all(|&v| dist(v) <= 0.0) {
+            return;
+        }
+        let mut vertices = std::mem::take(&mut self.spare_vertices);
+        let mut faces = std::mem::take(&mut self.spare_faces);
+        vertices.clear();
+        faces.clear();
+        let mut di = dist(self.vertices[0]);
+        for i in 0..n {
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            let (vi, vj) = (self.vertices[i], self.vertices[j]);
+            let dj = dist(vj);
+            let inside_i = di <= 0.0;
+            if inside_i {
+                vertices.push(vi);
+                faces.push(self.faces[i]);
+            }
+            if inside_i && dj > 0.0 {
+                // Leaving the half-plane: the next edge lies on the clipping line.
+                if di < 0.0 {
+                    vertices.push(crossing(vi, vj, di, dj));
+                    faces.push(face);
+                } else if let Some(last) = faces.last_mut() {
+                    *last = face; // vi is on the line already
+                }
+            } else if !inside_i && dj < 0.0 {
+                // Entering it: the edge continues the old one from the crossing point.
+                vertices.push(crossing(vi, vj, di, dj));
+                faces.push(self.faces[i]);
+            }
+            di = dj;
+        }
+        if vertices.len() < 3 {
+            vertices.clear();
+            faces.clear();
+        }
+        self.spare_vertices = std::mem::replace(&mut self.vertices, vertices);
+        self.spare_faces = std::mem::replace(&mut self.faces, faces);
+    }
+
+    fn is_empty(&self) -> bool {
+        self.vertices.len() < 3
+    }
+
+    fn max_dist2(&self) -> f64 {
+        self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max)
+    }
+
+    fn bounds(&self) -> Aabb<2> {
+        Aabb::of_points(&self.vertices)
+    }
+
+    fn vertex_mean(&self) -> [f64; 2] {
+        let n = self.vertices.len().max(1) as f64;
+        let s = self
+            .vertices
+            .iter()
+            .fold([0.0, 0.0], |a, v| [a[0] + v[0], a[1] + v[1]]);
+        [s[0] / n, s[1] / n]
+    }
+
+    fn moments(&self) -> Moments<2> {
+        let mut m = Moments::zero();
+        let n = self.vertices.len();
+        for i in 0..n {
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            m.add_scaled(&triangle_moments(self.vertices[i], self.vertices[j]), 1.0);
+        }
+        m
+    }
+
+    fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
+        let n = self.vertices.len();
+        for i in 0..n {
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            f(
+                self.faces[i],
+                norm2(sub(self.vertices[j], self.vertices[i])).sqrt(),
+            );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clipping_a_square_by_a_diagonal_keeps_a_triangle() {
+        let mut c = PolygonCell::from_box(&Aabb {
+            lo: [-1.0, -1.0],
+            hi: [1.0, 1.0],
+        });
+        c.clip(
+            &HalfSpace {
+                normal: [1.0, 1.0],
+                offset: 0.0,
+            },
+            Face::Neighbor(7),
+        );
+        assert_eq!(c.vertices().len(), 3);
+        assert_eq!(c.moments().mass, 2.0);
+        let mut diagonal = 0.0;
+        c.for_each_face(|f, len| {
+            if f == Face::Neighbor(7) {
+                diagonal += len;
+            }
+        });
+        assert!((diagonal - 8f64.sqrt()).abs() < 1e-15);
+        c.clip(
+            &HalfSpace {
+                normal: [-1.0, -1.0],
+                offset: -0.5,
+            },
+            Face::Neighbor(8),
+        );
+        assert!(c.is_empty());
+    }
+}

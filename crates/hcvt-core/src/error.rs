@@ -1,0 +1,88 @@
+//! Why the core refused an input.
+
+/// Why the core refused an input. Every variant names the offending index.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CoreError {
+    /// No sites at all.
+    #[error("no sites given: a diagram needs n >= 1 sites")]
+    NoSites,
+    /// A site coordinate is NaN or infinite.
+    #[error("site {index} has a non-finite coordinate ({value})")]
+    NonFiniteSite {
+        /// Row of the site.
+        index: usize,
+        /// The offending coordinate.
+        value: f64,
+    },
+    /// Two sites share the same position.
+    #[error("sites {first} and {second} coincide at {point:?}; remove duplicates first")]
+    DuplicateSites {
+        /// Lower row.
+        first: usize,
+        /// Higher row.
+        second: usize,
+        /// The shared position.
+        point: Vec<f64>,
+    },
+    /// A site lies outside the domain and outside sites were not allowed.
+    #[error("site {index} at {point:?} lies outside the domain")]
+    SiteOutsideDomain {
+        /// Row of the site.
+        index: usize,
+        /// Its position.
+        point: Vec<f64>,
+    },
+    /// The sites could not be indexed (more than `u32::MAX`, or too many coinciding).
+    #[error("cannot index the sites: {reason}")]
+    SiteIndex {
+        /// What the kd-tree reported.
+        reason: String,
+    },
+    /// A boundary vertex coordinate is NaN or infinite.
+    #[error("boundary vertex {index} has a non-finite coordinate ({value})")]
+    NonFiniteVertex {
+        /// Index of the vertex.
+        index: usize,
+        /// The offending coordinate.
+        value: f64,
+    },
+    /// A boundary simplex refers to a vertex that does not exist.
+    #[error(
+        "boundary element {element} refers to vertex {vertex}, but there are only {count} vertices"
+    )]
+    VertexIndexOutOfRange {
+        /// Index of the segment or triangle.
+        element: usize,
+        /// The bad vertex index.
+        vertex: u32,
+        /// Number of vertices.
+        count: usize,
+    },
+    /// A directed boundary edge has no reverse, so the boundary is not a closed cycle.
+    #[error("boundary is not closed: {count} directed edge(s) have no reverse, first {edge:?}")]
+    OpenBoundary {
+        /// First unmatched directed edge (vertex indices).
+        edge: Vec<u32>,
+        /// How many are unmatched.
+        count: usize,
+    },
+    /// The enclosed volume (area in 2D) is zero or negative.
+    #[error("the domain encloses no positive volume (signed volume {volume:e}); is it inside out or flat?")]
+    NonPositiveVolume {
+        /// Signed volume of the boundary cycle.
+        volume: f64,
+    },
+    /// The boundary has no elements.
+    #[error("the domain boundary is empty")]
+    EmptyBoundary,
+    /// An array length does not match what the caller said.
+    #[error("{what}: expected length {expected}, got {got}")]
+    ShapeMismatch {
+        /// Which array.
+        what: &'static str,
+        /// Expected length.
+        expected: usize,
+        /// Actual length.
+        got: usize,
+    },
+}

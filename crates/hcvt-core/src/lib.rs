@@ -1,0 +1,25 @@
+//! Exact clipped Voronoi diagrams and regular centroidal Voronoi tessellations.
+//!
+//! Module map (DESIGN §2), each layer using only those above it:
+//!
+//! | module      | owns                                                                 |
+//! |-------------|----------------------------------------------------------------------|
+//! | [`geometry`]| small vector helpers and the per-dimension primitives ([`geometry::Space`]) |
+//! | [`moments`] | closed-form mass, first and second moments of simplices; `G`          |
+//! | [`domain`]  | the oriented boundary of a 2D polygon or 3D solid, its BVH and winding number |
+//! | [`diagram`] | convex Voronoi cells by kNN + half-space clipping, clipped exactly by the domain |
+//!
+//! Units: every length is in the unit of the input coordinates (`L`); volumes are `L^d`,
+//! first moments `L^(d+1)`, second moments `L^(d+2)`.
+//!
+//! Determinism: work is per cell; results are collected in site order and every sum over
+//! cells runs in index order, so the output does not depend on the number of threads.
+#![forbid(unsafe_code)]
+
+pub mod diagram;
+pub mod domain;
+pub mod error;
+pub mod geometry;
+pub mod moments;
+
+pub use error::CoreError;

@@ -1,0 +1,35 @@
+//! numpy <-> fixed-size rows.
+
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+/// Copy an `(n, D)` array into rows. Copying before the GIL is released keeps another
+/// Python thread from writing under us; `as_slice` fails unless C-contiguous, which the
+/// Python layer guarantees.
+pub fn rows<T: numpy::Element + Copy, const D: usize>(
+    array: &PyReadonlyArray2<'_, T>,
+    what: &str,
+) -> PyResult<Vec<[T; D]>> {
+    let shape = array.shape();
+    if shape.len() != 2 || shape.get(1) != Some(&D) {
+        return Err(PyValueError::new_err(format!(
+            "{what} must have shape (n, {D}), got {shape:?}"
+        )));
+    }
+    let flat = array.as_slice()?;
+    flat.chunks_exact(D)
+        .map(|c| {
+            <[T; D]>::try_from(c).map_err(|_| PyValueError::new_err(format!("{what}: bad row")))
+        })
+        .collect()
+}
+
+/// Rows back into an `(n, D)` array.
+pub fn to_array2<'py, const D: usize>(
+    py: Python<'py>,
+    rows: &[[f64; D]],
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+    PyArray1::from_vec(py, flat).reshape([rows.len(), D])
+}

@@ -1,0 +1,84 @@
+//! The clipped Voronoi diagram as numpy arrays.
+
+use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolygonCell};
+use numpy::{PyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{rows, to_array2};
+use crate::domain::PolygonDomain;
+use crate::errors::to_py_err;
+
+/// Clipped diagram of `sites` (n, 2) in `domain`: a dict of arrays, row i = site i
+/// (see `hcvt.voronoi`). With `keep_cells`, also `cell_offsets` (n+1,) and
+/// `cell_vertices` (m, 2): each site's unclipped convex cell, counter-clockwise, absolute.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false))]
+pub fn voronoi_2d<'py>(
+    py: Python<'py>,
+    domain: &PolygonDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    allow_outside: bool,
+    keep_cells: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let points = rows::<f64, 2>(&sites, "sites")?;
+    let options = Options { allow_outside };
+    let (diagram, cells) = py
+        .detach(|| {
+            crate::threads::run(|| {
+                clipped_diagram::<2, PolygonCell>(&domain.0, &points, options, keep_cells)
+            })
+        })
+        .map_err(to_py_err)?;
+    let out = diagram_dict(py, &diagram, &points)?;
+    if keep_cells {
+        let mut offsets = vec![0usize];
+        let mut vertices: Vec<[f64; 2]> = Vec::new();
+        for (cell, s) in cells.iter().zip(&points) {
+            vertices.extend(cell.vertices().iter().map(|v| [v[0] + s[0], v[1] + s[1]]));
+            offsets.push(vertices.len());
+        }
+        out.set_item("cell_offsets", PyArray1::from_vec(py, offsets))?;
+        out.set_item("cell_vertices", to_array2(py, &vertices)?)?;
+    }
+    Ok(out)
+}
+
+/// The arrays every diagram carries, in any dimension.
+fn diagram_dict<'py, const D: usize>(
+    py: Python<'py>,
+    diagram: &Diagram<D>,
+    sites: &[[f64; D]],
+) -> PyResult<Bound<'py, PyDict>> {
+    let out = PyDict::new(py);
+    out.set_item("volume", PyArray1::from_vec(py, diagram.volumes()))?;
+    out.set_item("centroid", to_array2(py, &diagram.centroids(sites))?)?;
+    out.set_item(
+        "second_moment",
+        PyArray1::from_vec(py, diagram.second_moments()),
+    )?;
+    out.set_item("G", PyArray1::from_vec(py, diagram.g_values()))?;
+    out.set_item(
+        "energy_terms",
+        PyArray1::from_vec(py, diagram.energy_terms()),
+    )?;
+    out.set_item("energy", diagram.energy())?;
+    out.set_item("gradient", to_array2(py, &diagram.gradient())?)?;
+    out.set_item(
+        "boundary_measure",
+        PyArray1::from_vec(py, diagram.boundary_measure.clone()),
+    )?;
+    out.set_item(
+        "neighbor_offsets",
+        PyArray1::from_vec(py, diagram.neighbor_offsets.clone()),
+    )?;
+    out.set_item(
+        "neighbor_sites",
+        PyArray1::from_vec(py, diagram.neighbor_sites.clone()),
+    )?;
+    out.set_item(
+        "neighbor_measures",
+        PyArray1::from_vec(py, diagram.neighbor_measures.clone()),
+    )?;
+    Ok(out)
+}

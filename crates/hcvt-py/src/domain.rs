@@ -1,0 +1,78 @@
+//! Domains: a checked, indexed boundary held by Python.
+
+use hcvt_core::domain::{Polygon, WindingNumber};
+use hcvt_core::geometry::Euclid;
+use numpy::{PyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+
+use crate::arrays::{rows, to_array2};
+use crate::errors::to_py_err;
+
+/// Winding numbers (m,) and on-boundary flags (m,).
+type Windings<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<bool>>);
+
+/// A polygonal domain: `vertices` (V, 2) float64 and `segments` (S, 2) uint32, outer rings
+/// counter-clockwise and holes clockwise (interior on the left of every segment).
+#[pyclass(frozen, module = "hcvt._core")]
+pub struct PolygonDomain(pub Polygon);
+
+#[pymethods]
+impl PolygonDomain {
+    #[new]
+    fn new(
+        vertices: PyReadonlyArray2<'_, f64>,
+        segments: PyReadonlyArray2<'_, u32>,
+    ) -> PyResult<Self> {
+        let v = rows::<f64, 2>(&vertices, "vertices")?;
+        let s = rows::<u32, 2>(&segments, "segments")?;
+        Polygon::new(v, s).map(Self).map_err(to_py_err)
+    }
+
+    /// Area of the domain.
+    #[getter]
+    fn volume(&self) -> f64 {
+        self.0.volume()
+    }
+
+    /// First moment `∫ x dx` (2,) about the coordinate origin.
+    #[getter]
+    fn first_moment(&self) -> [f64; 2] {
+        let m = self.0.moments();
+        let o = self.0.moments_origin();
+        [m.first[0] + m.mass * o[0], m.first[1] + m.mass * o[1]]
+    }
+
+    /// `(lo, hi)` corners of the bounding box.
+    #[getter]
+    fn bounds(&self) -> ([f64; 2], [f64; 2]) {
+        let b = self.0.bounds();
+        (b.lo, b.hi)
+    }
+
+    /// `vertices` (V, 2) as indexed.
+    #[getter]
+    fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        to_array2(py, self.0.vertices())
+    }
+
+    /// Winding number of each point (m,), exact; `on_boundary` marks points on a segment
+    /// (their winding number is reported as 0).
+    fn winding_numbers<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Windings<'py>> {
+        let p = rows::<f64, 2>(&points, "points")?;
+        let w: Vec<Option<i32>> = py.detach(|| {
+            crate::threads::run(|| {
+                use rayon::prelude::*;
+                p.par_iter()
+                    .map(|q| Euclid::winding_number(&self.0, q))
+                    .collect()
+            })
+        });
+        let on = w.iter().map(Option::is_none).collect::<Vec<_>>();
+        let w = w.iter().map(|x| x.unwrap_or(0)).collect::<Vec<_>>();
+        Ok((PyArray1::from_vec(py, w), PyArray1::from_vec(py, on)))
+    }
+}

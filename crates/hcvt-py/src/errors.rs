@@ -1,0 +1,25 @@
+//! The one place where core errors become Python exceptions.
+
+use hcvt_core::CoreError;
+use pyo3::prelude::*;
+
+pyo3::import_exception!(hcvt.errors, InvalidSitesError);
+pyo3::import_exception!(hcvt.errors, InvalidDomainError);
+
+/// No wildcard arm: a new `CoreError` variant does not compile until it is given a class.
+pub fn to_py_err(err: CoreError) -> PyErr {
+    let message = err.to_string();
+    match err {
+        CoreError::NoSites
+        | CoreError::NonFiniteSite { .. }
+        | CoreError::DuplicateSites { .. }
+        | CoreError::SiteOutsideDomain { .. }
+        | CoreError::SiteIndex { .. }
+        | CoreError::ShapeMismatch { .. } => InvalidSitesError::new_err(message),
+        CoreError::NonFiniteVertex { .. }
+        | CoreError::VertexIndexOutOfRange { .. }
+        | CoreError::OpenBoundary { .. }
+        | CoreError::NonPositiveVolume { .. }
+        | CoreError::EmptyBoundary => InvalidDomainError::new_err(message),
+    }
+}

@@ -1,0 +1,24 @@
+"""hcvt: regular centroidal Voronoi tessellations of polygons and closed meshes.
+
+The public API (DESIGN §1): :class:`Domain` and :func:`load_domain` build domains,
+:func:`voronoi` computes exact clipped Voronoi diagrams.
+"""
+
+from hcvt._core import get_num_threads, set_num_threads
+from hcvt.diagram import Diagram, voronoi
+from hcvt.domain import Domain, RepairReport
+from hcvt.errors import InvalidDomainError, InvalidSitesError
+from hcvt.io import load_domain
+
+__all__ = [
+    "Diagram",
+    "Domain",
+    "InvalidDomainError",
+    "InvalidSitesError",
+    "RepairReport",
+    "get_num_threads",
+    "load_domain",
+    "set_num_threads",
+    "voronoi",
+]
+__version__ = "0.1.0"

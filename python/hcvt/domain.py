@@ -1,0 +1,300 @@
+"""Domains: 2D polygons with holes and 3D solids bounded by closed triangle meshes.
+
+A domain is stored by its oriented boundary only (outer rings counter-clockwise, holes
+clockwise; mesh triangles counter-clockwise seen from outside), checked once, and indexed
+by a BVH in the Rust core. Every diagram, CVT and initialisation takes a :class:`Domain`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import shapely
+from numpy.typing import ArrayLike, NDArray
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.polygon import orient
+
+from hcvt import _core
+from hcvt.errors import InvalidDomainError
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    """What ``repair=True`` changed in an input.
+
+    Attributes
+    ----------
+    changed : bool
+        Whether anything was changed at all.
+    actions : list of str
+        One line per change, in the order applied.
+    volume_before, volume_after : float
+        Area (2D) or volume (3D) before and after, where defined (NaN otherwise).
+    """
+
+    changed: bool
+    actions: list[str] = field(default_factory=list)
+    volume_before: float = float("nan")
+    volume_after: float = float("nan")
+
+    def __str__(self) -> str:
+        if not self.changed:
+            return "repair: nothing to change"
+        return "repair: " + "; ".join(self.actions)
+
+
+class Domain:
+    """A 2D polygon with holes or a 3D solid, checked and indexed for exact clipping.
+
+    Build one with :meth:`from_polygon`, :meth:`from_mesh` or :func:`hcvt.load_domain`.
+
+    Attributes
+    ----------
+    dim : int
+        2 or 3.
+    volume : float
+        Area (2D) or volume (3D), in L^d.
+    bounds : tuple of ndarray
+        ``(lo, hi)`` corners of the bounding box, each shape (d,).
+    repair_report : RepairReport or None
+        What ``repair=True`` changed, when it was asked for.
+    """
+
+    def __init__(
+        self,
+        core: Any,
+        dim: int,
+        geometry: Any = None,
+        repair_report: RepairReport | None = None,
+    ) -> None:
+        self._core = core
+        self.dim = dim
+        self.geometry = geometry
+        self.repair_report = repair_report
+
+    # ------------------------------------------------------------------ 2D
+    @classmethod
+    def from_polygon(
+        cls,
+        polygon: Polygon | MultiPolygon | ArrayLike | tuple[ArrayLike, Sequence[ArrayLike]],
+        holes: Sequence[ArrayLike] | None = None,
+        *,
+        repair: bool = False,
+    ) -> Domain:
+        """Domain bounded by a polygon with any number of holes (non-convex allowed).
+
+        Parameters
+        ----------
+        polygon : shapely Polygon or MultiPolygon, array_like (k, 2), or (outer, holes)
+            The outline; a bare ring of vertices, or a pair ``(outer, [hole, ...])``.
+        holes : sequence of array_like (k, 2), optional
+            Hole rings, when ``polygon`` is a bare outer ring.
+        repair : bool, default False
+            Fix invalid input with ``shapely.make_valid`` (self-intersections become
+            several parts, zero-width spikes are cut off), drop zero-area parts, and say what
+            changed in ``domain.repair_report``. Without it invalid input raises.
+
+        Raises
+        ------
+        InvalidDomainError
+            Non-finite coordinates, a ring with fewer than 3 distinct vertices, a
+            self-intersection (with its location), zero area; each message names the ring.
+
+        Examples
+        --------
+        >>> import hcvt
+        >>> square = hcvt.Domain.from_polygon([(0, 0), (2, 0), (2, 2), (0, 2)],
+        ...                                   holes=[[(0.5, 0.5), (1, 0.5), (1, 1)]])
+        >>> float(square.volume)
+        3.875
+        """
+        geometry = _as_shapely(polygon, holes)
+        report = None
+        if repair:
+            geometry, report = _repair_polygon(geometry)
+        else:
+            _check_polygon(geometry)
+        geometry = _normalise_polygon(geometry)
+        vertices, segments = _polygon_boundary(geometry)
+        return cls(_core.PolygonDomain(vertices, segments), 2, geometry, report)
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def volume(self) -> float:
+        """Area (2D) or volume (3D) of the domain, L^d."""
+        return float(self._core.volume)
+
+    @property
+    def first_moment(self) -> NDArray[np.float64]:
+        """``∫ x dx`` over the domain, shape (d,), L^(d+1)."""
+        return np.asarray(self._core.first_moment, dtype=np.float64)
+
+    @property
+    def centroid(self) -> NDArray[np.float64]:
+        """Centre of mass of the domain, shape (d,)."""
+        return self.first_moment / self.volume
+
+    @property
+    def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(lo, hi)`` corners of the bounding box, each shape (d,)."""
+        lo, hi = self._core.bounds
+        return np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+
+    def winding_numbers(self, points: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.bool_]]:
+        """Exact winding number of each point, and whether it lies on the boundary.
+
+        Parameters
+        ----------
+        points : array_like, shape (m, d)
+
+        Returns
+        -------
+        winding : ndarray of int32, shape (m,)
+            1 inside, 0 outside (0 as well on the boundary).
+        on_boundary : ndarray of bool, shape (m,)
+        """
+        pts = _as_points(points, self.dim, "points")
+        return self._core.winding_numbers(pts)
+
+    def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
+        """Whether each point (m, d) lies strictly inside the domain, shape (m,)."""
+        winding, on_boundary = self.winding_numbers(points)
+        return (winding != 0) & ~on_boundary
+
+    def __repr__(self) -> str:
+        kind = "polygon" if self.dim == 2 else "solid"
+        return f"<hcvt.Domain {kind}, volume={self.volume:.6g}>"
+
+
+def _as_points(points: ArrayLike, dim: int, name: str) -> NDArray[np.float64]:
+    """``points`` as a C-contiguous float64 array of shape (m, dim), or a ValueError."""
+    arr = np.asarray(points)
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be real numbers, got dtype {arr.dtype}")
+    arr = np.ascontiguousarray(arr, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != dim:
+        raise ValueError(f"{name} must have shape (m, {dim}), got {arr.shape}")
+    return arr
+
+
+def _as_shapely(polygon: Any, holes: Sequence[ArrayLike] | None) -> Polygon | MultiPolygon:
+    """Coerce the accepted polygon inputs to a shapely geometry, checking coordinates."""
+    if isinstance(polygon, Polygon | MultiPolygon):
+        geometry = polygon
+    else:
+        if (
+            isinstance(polygon, tuple)
+            and len(polygon) == 2
+            and holes is None
+            and np.asarray(polygon[0], dtype=object).ndim == 2
+        ):
+            polygon, holes = polygon
+        rings = [("outer ring", polygon)] + [
+            (f"hole {k}", h) for k, h in enumerate(holes or [])
+        ]
+        checked = [_as_ring(coords, name) for name, coords in rings]
+        geometry = Polygon(checked[0], checked[1:])
+    if geometry.is_empty:
+        raise InvalidDomainError("the polygon is empty")
+    for part_index, part in enumerate(_parts(geometry)):
+        for name, ring in [("outer ring", part.exterior)] + [
+            (f"hole {k}", r) for k, r in enumerate(part.interiors)
+        ]:
+            coords = np.asarray(ring.coords)
+            where = f"{name} of part {part_index}" if len(_parts(geometry)) > 1 else name
+            bad = ~np.isfinite(coords).all(axis=1)
+            if bad.any():
+                raise InvalidDomainError(
+                    f"{where} has a non-finite coordinate at vertex {int(np.argmax(bad))}"
+                )
+            distinct = len(np.unique(coords, axis=0))
+            if distinct < 3:
+                raise InvalidDomainError(
+                    f"{where} has {distinct} distinct vertices; a ring needs at least 3"
+                )
+    return geometry
+
+
+def _as_ring(coords: ArrayLike, name: str) -> NDArray[np.float64]:
+    arr = np.asarray(coords)
+    if arr.dtype.kind not in "iuf":
+        raise InvalidDomainError(f"{name}: coordinates must be real numbers, got {arr.dtype}")
+    arr = arr.astype(np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise InvalidDomainError(f"{name} must have shape (k, 2), got {arr.shape}")
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        raise InvalidDomainError(f"{name} has a non-finite coordinate at vertex {int(np.argmax(bad))}")
+    if len(np.unique(arr, axis=0)) < 3:
+        raise InvalidDomainError(f"{name} has fewer than 3 distinct vertices")
+    return arr
+
+
+def _parts(geometry: Polygon | MultiPolygon) -> list[Polygon]:
+    return list(geometry.geoms) if isinstance(geometry, MultiPolygon) else [geometry]
+
+
+def _check_polygon(geometry: Polygon | MultiPolygon) -> None:
+    """Raise InvalidDomainError unless shapely calls the polygon valid and it has area."""
+    if not geometry.is_valid:
+        reason = shapely.is_valid_reason(geometry)
+        raise InvalidDomainError(
+            f"invalid polygon: {reason}; pass repair=True to fix it with shapely.make_valid"
+        )
+    if not geometry.area > 0:
+        raise InvalidDomainError(f"the polygon has zero area ({geometry.area})")
+
+
+def _repair_polygon(geometry: Polygon | MultiPolygon) -> tuple[Polygon | MultiPolygon, RepairReport]:
+    """``shapely.make_valid``, keeping the polygonal parts, with a report of the changes."""
+    actions = []
+    before = float(geometry.area)
+    fixed = geometry
+    if not geometry.is_valid:
+        actions.append(f"made valid ({shapely.is_valid_reason(geometry)})")
+        fixed = shapely.make_valid(geometry)
+    polygons = [g for g in shapely.get_parts(fixed) if isinstance(g, Polygon) and g.area > 0]
+    dropped = len(shapely.get_parts(fixed)) - len(polygons)
+    if dropped:
+        actions.append(f"dropped {dropped} part(s) of zero area (lines, points)")
+    if not polygons:
+        raise InvalidDomainError("nothing of positive area is left after repair")
+    result: Polygon | MultiPolygon = (
+        polygons[0] if len(polygons) == 1 else shapely.unary_union(polygons)
+    )
+    if isinstance(result, MultiPolygon) and len(result.geoms) > 1:
+        actions.append(f"the domain now has {len(result.geoms)} separate parts")
+    after = float(result.area)
+    if abs(after - before) > 1e-12 * max(abs(before), abs(after), 1e-300):
+        actions.append(f"area {before:.6g} -> {after:.6g}")
+    return result, RepairReport(bool(actions), actions, before, after)
+
+
+def _normalise_polygon(geometry: Polygon | MultiPolygon) -> Polygon | MultiPolygon:
+    """Outer rings counter-clockwise, holes clockwise, repeated vertices removed."""
+    geometry = shapely.remove_repeated_points(geometry)
+    parts = [orient(p, sign=1.0) for p in _parts(geometry)]
+    return parts[0] if len(parts) == 1 else MultiPolygon(parts)
+
+
+def _polygon_boundary(
+    geometry: Polygon | MultiPolygon,
+) -> tuple[NDArray[np.float64], NDArray[np.uint32]]:
+    """Vertices (V, 2) and segments (S, 2) of every ring, interior on the left."""
+    vertices, segments = [], []
+    start = 0
+    for part in _parts(geometry):
+        for ring in [part.exterior, *part.interiors]:
+            coords = np.asarray(ring.coords, dtype=np.float64)[:-1]
+            k = len(coords)
+            idx = np.arange(k, dtype=np.uint32) + start
+            vertices.append(coords)
+            segments.append(np.column_stack([idx, np.roll(idx, -1)]))
+            start += k
+    return (
+        np.ascontiguousarray(np.concatenate(vertices)),
+        np.ascontiguousarray(np.concatenate(segments), dtype=np.uint32),
+    )

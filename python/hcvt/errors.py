@@ -1,0 +1,15 @@
+"""Exceptions raised by hcvt; all are ``ValueError`` subclasses, so ``except ValueError`` works."""
+
+
+class InvalidDomainError(ValueError):
+    """The polygon or mesh cannot bound a domain (open, self-intersecting, flat, ...).
+
+    The message names the defect and where it is, and says whether ``repair=True`` can fix it.
+    """
+
+
+class InvalidSitesError(ValueError):
+    """The sites cannot generate a diagram (non-finite, coinciding, outside the domain, ...).
+
+    The message names the first offending site by its row index.
+    """

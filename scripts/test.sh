@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Install everything the project needs, then run every check and test: rustfmt, clippy,
+# cargo test (core), ruff, pytest (Python API, doctests). Exit non-zero on any failure.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export OPENBLAS_NUM_THREADS=1
+
+python -m pip install --quiet --disable-pip-version-check -e '.[test]'
+
+echo "== rustfmt";  cargo fmt --all -- --check
+echo "== clippy";   cargo clippy --workspace --all-targets --release -- -D warnings
+echo "== cargo test"; cargo test --workspace --release
+echo "== ruff";     python -m ruff check python tests benchmarks examples
+python -m ruff format --check python tests benchmarks examples
+echo "== pytest";   python -m pytest python tests
