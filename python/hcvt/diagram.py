@@ -74,19 +74,22 @@ class Diagram:
         owner = np.repeat(np.arange(self.n, dtype=np.int64), counts)
         other = self.neighbor_sites.astype(np.int64)
         h = (self.domain.volume / self.n) ** (1.0 / self.domain.dim)
-        keep = (owner < other) & (self.neighbor_measures > NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1))
+        keep = (owner < other) & (
+            self.neighbor_measures > NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1)
+        )
         return np.column_stack([owner[keep], other[keep]]), self.neighbor_measures[keep]
 
     @property
     def neighbors(self) -> NDArray[np.int64]:
-        """Restricted Delaunay edges, shape (k, 2), ``i < j``: cells sharing a face of
-        positive measure inside the domain (DESIGN §3.5), sorted by ``(i, j)``."""
+        """Restricted Delaunay edges, shape (k, 2), ``i < j``, sorted.
+
+        Pairs of cells sharing a face of positive measure inside the domain (DESIGN §3.5).
+        """
         return self._pairs[0]
 
     @property
     def face_measures(self) -> NDArray[np.float64]:
-        """Length (2D) or area (3D) inside the domain of the face of each pair in
-        :attr:`neighbors`, shape (k,)."""
+        """Length (2D) or area (3D) of each :attr:`neighbors` pair's face, shape (k,)."""
         return self._pairs[1]
 
     def cell_neighbors(self, i: int) -> tuple[NDArray[np.uint32], NDArray[np.float64]]:
@@ -106,9 +109,10 @@ class Diagram:
         arrays = _core.voronoi_2d(
             self.domain._core, self.sites, allow_outside=self._allow_outside, keep_cells=True
         )
-        offsets, vertices = arrays["cell_offsets"], arrays["cell_vertices"]
+        vertices = arrays["cell_vertices"]
+        counts = np.diff(arrays["cell_offsets"].astype(np.int64))
         convex = shapely.polygons(
-            shapely.linearrings(vertices, indices=np.repeat(np.arange(self.n), np.diff(offsets)))
+            shapely.linearrings(vertices, indices=np.repeat(np.arange(self.n), counts))
         )
         clipped = convex.copy()
         touching = self.boundary_measure > 0
@@ -118,7 +122,10 @@ class Diagram:
         return list(clipped)
 
     def __repr__(self) -> str:
-        return f"<hcvt.Diagram n={self.n} d={self.domain.dim} mean G={self.mean_G:.6f} energy={self.energy:.6g}>"
+        return (
+            f"<hcvt.Diagram n={self.n} d={self.domain.dim} "
+            f"mean G={self.mean_G:.6f} energy={self.energy:.6g}>"
+        )
 
 
 def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) -> Diagram:
@@ -164,7 +171,9 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
     points = as_sites(sites, domain.dim)
-    compute = {2: getattr(_core, "voronoi_2d", None), 3: getattr(_core, "voronoi_3d", None)}[domain.dim]
+    compute = {2: getattr(_core, "voronoi_2d", None), 3: getattr(_core, "voronoi_3d", None)}[
+        domain.dim
+    ]
     if compute is None:
         raise NotImplementedError(f"no diagram for dimension {domain.dim} in this build")
     arrays = compute(domain._core, points, allow_outside=allow_outside)

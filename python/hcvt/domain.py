@@ -93,9 +93,13 @@ class Domain:
         holes : sequence of array_like (k, 2), optional
             Hole rings, when ``polygon`` is a bare outer ring.
         repair : bool, default False
-            Fix invalid input with ``shapely.make_valid`` (self-intersections become
-            several parts, zero-width spikes are cut off), drop zero-area parts, and say what
-            changed in ``domain.repair_report``. Without it invalid input raises.
+            Fix invalid input with ``shapely.make_valid(method="structure")``: the union of
+            the outer rings minus the holes, so a bow-tie becomes two triangles, a zero-width
+            spike is cut off and a hole sharing an edge with the outline becomes a notch;
+            parts of zero area are dropped. ``domain.repair_report`` says what changed.
+            Without it invalid input raises. Repeated consecutive vertices are always
+            removed (zero-length edges change nothing), and a hole touching the outline at a
+            single vertex is valid (OGC) and accepted: the domain is pinched there.
 
         Raises
         ------
@@ -192,9 +196,7 @@ def _as_shapely(polygon: Any, holes: Sequence[ArrayLike] | None) -> Polygon | Mu
             and np.asarray(polygon[0], dtype=object).ndim == 2
         ):
             polygon, holes = polygon
-        rings = [("outer ring", polygon)] + [
-            (f"hole {k}", h) for k, h in enumerate(holes or [])
-        ]
+        rings = [("outer ring", polygon)] + [(f"hole {k}", h) for k, h in enumerate(holes or [])]
         checked = [_as_ring(coords, name) for name, coords in rings]
         geometry = Polygon(checked[0], checked[1:])
     if geometry.is_empty:
@@ -227,7 +229,9 @@ def _as_ring(coords: ArrayLike, name: str) -> NDArray[np.float64]:
         raise InvalidDomainError(f"{name} must have shape (k, 2), got {arr.shape}")
     bad = ~np.isfinite(arr).all(axis=1)
     if bad.any():
-        raise InvalidDomainError(f"{name} has a non-finite coordinate at vertex {int(np.argmax(bad))}")
+        raise InvalidDomainError(
+            f"{name} has a non-finite coordinate at vertex {int(np.argmax(bad))}"
+        )
     if len(np.unique(arr, axis=0)) < 3:
         raise InvalidDomainError(f"{name} has fewer than 3 distinct vertices")
     return arr
@@ -238,24 +242,29 @@ def _parts(geometry: Polygon | MultiPolygon) -> list[Polygon]:
 
 
 def _check_polygon(geometry: Polygon | MultiPolygon) -> None:
-    """Raise InvalidDomainError unless shapely calls the polygon valid and it has area."""
+    """Raise InvalidDomainError unless the polygon has area and shapely calls it valid."""
+    # A flat outline is also "self-intersecting", but zero area says more.
+    if not geometry.convex_hull.area > 0 or (geometry.is_valid and not geometry.area > 0):
+        raise InvalidDomainError(f"the polygon has zero area ({geometry.area})")
     if not geometry.is_valid:
         reason = shapely.is_valid_reason(geometry)
         raise InvalidDomainError(
             f"invalid polygon: {reason}; pass repair=True to fix it with shapely.make_valid"
         )
-    if not geometry.area > 0:
-        raise InvalidDomainError(f"the polygon has zero area ({geometry.area})")
 
 
-def _repair_polygon(geometry: Polygon | MultiPolygon) -> tuple[Polygon | MultiPolygon, RepairReport]:
+def _repair_polygon(
+    geometry: Polygon | MultiPolygon,
+) -> tuple[Polygon | MultiPolygon, RepairReport]:
     """``shapely.make_valid``, keeping the polygonal parts, with a report of the changes."""
     actions = []
     before = float(geometry.area)
     fixed = geometry
     if not geometry.is_valid:
         actions.append(f"made valid ({shapely.is_valid_reason(geometry)})")
-        fixed = shapely.make_valid(geometry)
+        # "structure": union of the outer rings minus the holes, collapsed parts dropped;
+        # unlike "linework" it keeps a hole that touches the outline as a notch.
+        fixed = shapely.make_valid(geometry, method="structure", keep_collapsed=False)
     polygons = [g for g in shapely.get_parts(fixed) if isinstance(g, Polygon) and g.area > 0]
     dropped = len(shapely.get_parts(fixed)) - len(polygons)
     if dropped:

@@ -38,13 +38,11 @@ def load_domain(path: str | Path, *, repair: bool = False) -> Domain:
     suffix = path.suffix.lower()
     if suffix in POLYGON_SUFFIXES:
         return Domain.from_polygon(read_polygon(path), repair=repair)
-    raise InvalidDomainError(
-        f"{path.name}: unknown file type {suffix!r}; polygons: .wkt, .geojson"
-    )
+    raise InvalidDomainError(f"{path.name}: unknown file type {suffix!r}; polygons: .wkt, .geojson")
 
 
 def read_polygon(path: Path) -> Polygon | MultiPolygon:
-    """The polygonal content of a ``.wkt`` or ``.geojson`` file as one shapely geometry."""
+    """Read the polygonal content of a ``.wkt`` or ``.geojson`` file as one geometry."""
     text = path.read_text()
     try:
         if path.suffix.lower() == ".wkt":
