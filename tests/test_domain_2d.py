@@ -55,7 +55,7 @@ def test_real_polygons_load_with_the_documented_area(path):
         ([(0, 0), (1, 0)], "distinct vertices"),
         ([(0, 0), (1, np.nan), (1, 1)], "non-finite coordinate at vertex 1"),
         ([(0, 0), (1, 0), (np.inf, 1)], "non-finite coordinate at vertex 2"),
-        ([(0, 0), (1, 0), (1, 1), (1, 0)], r"Self-intersection\[1 0\]"),
+        ([(0, 0), (1, 0), (1, 1), (1, 0)], r"Self-intersection\[1 1\]"),
     ],
 )
 def test_invalid_polygons_raise_naming_the_problem(polygon, match):
