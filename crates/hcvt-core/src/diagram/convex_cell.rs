@@ -21,8 +21,9 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// The box `b` (relative to the site); all its faces are [`Face::Box`].
     fn from_box(b: &Aabb<D>) -> Self;
 
-    /// Keep the part in `h`, tagging the new face with `face`.
-    fn clip(&mut self, h: &HalfSpace<D>, face: Face);
+    /// Keep the part in `h`, tagging the new face with `face`; `false` when `h` held the
+    /// whole cell already and nothing changed.
+    fn clip(&mut self, h: &HalfSpace<D>, face: Face) -> bool;
 
     /// Nothing (of positive measure) is left.
     fn is_empty(&self) -> bool;

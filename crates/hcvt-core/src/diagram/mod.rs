@@ -47,6 +47,9 @@ pub struct Diagram<const D: usize> {
     pub neighbor_measures: Vec<f64>,
 }
 
+/// A cell's outcome: its results and, when kept, its convex cell.
+type CellResult<const D: usize, C> = Result<(CellOutput<D>, Option<C>), CoreError>;
+
 /// One cell's results before they are packed into a [`Diagram`].
 struct CellOutput<const D: usize> {
     moments: Moments<D>,
@@ -89,14 +92,22 @@ where
         }
     }
     let index = SiteIndex::new(sites)?;
-    let results: Vec<Result<(CellOutput<D>, Option<C>), CoreError>> = (0..sites.len())
-        .into_par_iter()
-        .map(|i| {
+    // Visit the sites along a Morton curve: neighbouring cells then share kd-tree nodes
+    // and boundary elements in cache. Results go back to index order afterwards.
+    let order = morton_order(sites);
+    let visited: Vec<CellResult<D, C>> = order
+        .par_iter()
+        .map(|&i| {
+            let i = i as usize;
             let cell = voronoi_cell::<D, C>(boundary, &index, sites, i)?;
             let out = clip_by_domain(boundary, &cell, sites[i], windings[i]);
             Ok((out, keep_cells.then_some(cell)))
         })
         .collect();
+    let mut results: Vec<Option<CellResult<D, C>>> = (0..sites.len()).map(|_| None).collect();
+    for (&i, result) in order.iter().zip(visited) {
+        results[i as usize] = Some(result);
+    }
     let mut diagram = Diagram {
         moments: Vec::with_capacity(sites.len()),
         boundary_measure: Vec::with_capacity(sites.len()),
@@ -105,7 +116,7 @@ where
     };
     let mut cells = Vec::new();
     diagram.neighbor_offsets.push(0);
-    for result in results {
+    for result in results.into_iter().flatten() {
         let (out, cell) = result?;
         diagram.moments.push(out.moments);
         diagram.boundary_measure.push(out.boundary_measure);
@@ -119,8 +130,34 @@ where
     Ok((diagram, cells))
 }
 
+/// Site indices sorted along a Z-order (Morton) curve over the sites' bounding box, ties
+/// broken by index so that the order is deterministic.
+fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
+    let bounds = Aabb::of_points(sites);
+    let bits = 63 / D as u32;
+    let cells = (1u64 << bits) as f64;
+    let key = |p: &[f64; D]| -> u64 {
+        let mut key = 0u64;
+        for (k, &x) in p.iter().enumerate() {
+            let extent = (bounds.hi[k] - bounds.lo[k]).max(f64::MIN_POSITIVE);
+            let q = (((x - bounds.lo[k]) / extent) * (cells - 1.0)) as u64;
+            for b in 0..bits {
+                key |= ((q >> b) & 1) << (b * D as u32 + k as u32);
+            }
+        }
+        key
+    };
+    let mut keyed: Vec<(u64, u32)> = sites
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (key(p), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
 /// Number of nearest sites fetched first; doubled while the security radius is not reached.
-const FIRST_K: usize = 16;
+const FIRST_K: usize = 24;
 
 /// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the site.
 pub fn voronoi_cell<const D: usize, C: ConvexCell<D>>(
@@ -158,8 +195,9 @@ where
                     point: site.to_vec(),
                 });
             }
-            cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
-            radius2 = cell.max_dist2();
+            if cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j)) {
+                radius2 = cell.max_dist2();
+            }
             clipped.push(j);
         }
         if reached || neighbors.len() < k || k >= sites.len() {
@@ -211,7 +249,7 @@ where
         let rel = simplex.map(|v| sub(v, site));
         let mut piece = cell.clone();
         for h in cone_sides(&rel, apex) {
-            piece.clip(&h, Face::Cone);
+            let _ = piece.clip(&h, Face::Cone);
             if piece.is_empty() {
                 break;
             }
@@ -229,7 +267,7 @@ where
                 scale(normal, -1.0)
             },
         );
-        piece.clip(&beyond, Face::Boundary(t));
+        let _ = piece.clip(&beyond, Face::Boundary(t));
         if piece.is_empty() {
             continue;
         }

@@ -46,11 +46,11 @@ impl ConvexCell<2> for PolygonCell {
 
     /// Sutherland–Hodgman against one half-plane. A vertex exactly on the line counts as
     /// inside, so a cell is never cut twice by the same line.
-    fn clip(&mut self, h: &HalfSpace<2>, face: Face) {
+    fn clip(&mut self, h: &HalfSpace<2>, face: Face) -> bool {
         let n = self.vertices.len();
         let dist = |v: [f64; 2]| dot(h.normal, v) - h.offset;
         if n == 0 || self.vertices.iter().all(|&v| dist(v) <= 0.0) {
-            return;
+            return false;
         }
         let mut vertices = std::mem::take(&mut self.spare_vertices);
         let mut faces = std::mem::take(&mut self.spare_faces);
@@ -87,6 +87,7 @@ impl ConvexCell<2> for PolygonCell {
         }
         self.spare_vertices = std::mem::replace(&mut self.vertices, vertices);
         self.spare_faces = std::mem::replace(&mut self.faces, faces);
+        true
     }
 
     fn is_empty(&self) -> bool {
@@ -142,7 +143,7 @@ mod tests {
             lo: [-1.0, -1.0],
             hi: [1.0, 1.0],
         });
-        c.clip(
+        let _ = c.clip(
             &HalfSpace {
                 normal: [1.0, 1.0],
                 offset: 0.0,
@@ -158,7 +159,7 @@ mod tests {
             }
         });
         assert!((diagonal - 8f64.sqrt()).abs() < 1e-15);
-        c.clip(
+        let _ = c.clip(
             &HalfSpace {
                 normal: [-1.0, -1.0],
                 offset: -0.5,

@@ -1,0 +1,54 @@
+//! Time the stages of one 2D diagram of uniform random sites in the unit square.
+//! `cargo run --release --example diagram_2d_profile -- 1000000`
+
+use std::time::Instant;
+
+use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, SiteIndex};
+use hcvt_core::domain::{Polygon, WindingNumber};
+use hcvt_core::geometry::Euclid;
+use rayon::prelude::*;
+
+fn main() -> Result<(), hcvt_core::CoreError> {
+    let n: usize = std::env::args()
+        .nth(1)
+        .and_then(|a| a.parse().ok())
+        .unwrap_or(1_000_000);
+    let square = Polygon::new(
+        vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        vec![[0, 1], [1, 2], [2, 3], [3, 0]],
+    )?;
+    let mut state = 7u64;
+    let mut rand = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let sites: Vec<[f64; 2]> = (0..n).map(|_| [rand(), rand()]).collect();
+    let t = Instant::now();
+    let w: Vec<_> = sites
+        .par_iter()
+        .map(|s| Euclid::winding_number(&square, s))
+        .collect();
+    println!(
+        "winding numbers {:.3} s ({})",
+        t.elapsed().as_secs_f64(),
+        w.len()
+    );
+    let t = Instant::now();
+    let index = SiteIndex::new(&sites)?;
+    println!("kd-tree build   {:.3} s", t.elapsed().as_secs_f64());
+    let t = Instant::now();
+    let k: usize = sites.par_iter().map(|s| index.nearest(s, 17).len()).sum();
+    println!("kNN 17          {:.3} s ({k})", t.elapsed().as_secs_f64());
+    for _ in 0..6 {
+        let t = Instant::now();
+        let (d, _) = clipped_diagram::<2, PolygonCell>(&square, &sites, Options::default(), false)?;
+        println!(
+            "full diagram    {:.3} s (area {})",
+            t.elapsed().as_secs_f64(),
+            d.volumes().iter().sum::<f64>()
+        );
+    }
+    Ok(())
+}
