@@ -96,6 +96,14 @@ impl<const D: usize> Aabb<D> {
         norm2(sub(self.hi, self.lo)).sqrt()
     }
 
+    /// The box grown by `margin` on every side.
+    pub fn expanded(&self, margin: f64) -> Self {
+        Self {
+            lo: self.lo.map(|x| x - margin),
+            hi: self.hi.map(|x| x + margin),
+        }
+    }
+
     /// The box translated by `-origin`.
     pub fn relative_to(&self, origin: [f64; D]) -> Self {
         Self {

@@ -156,6 +156,9 @@ fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
     keyed.into_iter().map(|(_, i)| i).collect()
 }
 
+/// Margin of the starting box around the domain, relative to the domain's diagonal.
+const BOX_MARGIN: f64 = 1e-3;
+
 /// Number of nearest sites fetched first; doubled while the security radius is not reached.
 const FIRST_K: usize = 24;
 
@@ -170,7 +173,13 @@ where
     Euclid: Space<D>,
 {
     let site = sites[i];
-    let mut cell = C::from_box(&boundary.bounds().relative_to(site));
+    // Start a little outside the domain's box: a cell face lying on the domain boundary
+    // would otherwise be a box face, and the boundary pieces that measure it would be flat.
+    let bounds = boundary.bounds();
+    let start = bounds
+        .expanded(BOX_MARGIN * bounds.diagonal())
+        .relative_to(site);
+    let mut cell = C::from_box(&start);
     let mut radius2 = cell.max_dist2();
     let mut clipped: Vec<u32> = Vec::new();
     let mut k = FIRST_K.min(sites.len());
