@@ -1,0 +1,69 @@
+"""The hierarchical method: the level schedule of the paper and lattice-preserving
+subdivision along restricted Delaunay edges."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import hcvt
+from hcvt.hierarchy import max_subdivisions, schedule, subdivide
+
+G_HEXAGON = 5.0 / (36.0 * np.sqrt(3.0))
+
+
+@pytest.mark.parametrize(
+    ("n", "s", "k0", "targets"),
+    [
+        # The paper's Table 1: k_i + (b_i - k_i) = b_i at every level.
+        (1033, 4, 4, (5 + 11, 49 + 15, 233 + 25, 995 + 38)),
+        (2560, 4, 10, (27 + 13, 145 + 15, 609 + 31, 2535 + 25)),
+        (10025, 5, 9, (23 + 16, 130 + 26, 568 + 58, 2373 + 133, 9780 + 245)),
+    ],
+)
+def test_schedule_reproduces_table_1(n, s, k0, targets):
+    plan = schedule(n, s, 2)
+    assert plan.k0 == k0 and plan.targets == targets and plan.subdivisions == s
+
+
+def test_schedule_caps_subdivisions_at_floor_log():
+    assert schedule(1033, 9, 2).subdivisions == 5  # ⌊log_4 1033⌋ = 5
+    assert schedule(1024, 9, 2).subdivisions == 5  # exact power: ⌊log_4 1024⌋ = 5
+    assert schedule(1023, 9, 2).subdivisions == 4
+    assert schedule(5000, 9, 3).subdivisions == 4  # ⌊log_8 5000⌋ = 4
+    assert schedule(10, 0, 2) == schedule(10, 0, 2) and schedule(10, 0, 2).k0 == 10
+    # The paper's "maximum possible" runs: 1033 -> 4, 10025 -> 5, ball 1000 -> 2, 5000 -> 3.
+    assert [max_subdivisions(n, d) for n, d in [(1033, 2), (10025, 2), (1000, 3), (5000, 3)]] == [
+        4,
+        5,
+        2,
+        3,
+    ]
+    with pytest.raises(ValueError, match="positive integer"):
+        schedule(0, 2, 2)
+
+
+def _hex_patch(rows: int, spacing: float):
+    """A hexagonal lattice and a rectangle around it with a margin of half a row."""
+    i, j = np.meshgrid(np.arange(rows), np.arange(rows))
+    sites = spacing * np.column_stack([(i + 0.5 * (j % 2)).ravel(), (j * np.sqrt(3) / 2).ravel()])
+    lo, hi = sites.min(axis=0) - spacing / 2, sites.max(axis=0) + spacing / 2
+    domain = hcvt.Domain.from_polygon([lo, (hi[0], lo[1]), hi, (lo[0], hi[1])])
+    return domain, sites
+
+
+def test_subdividing_a_hexagonal_lattice_gives_the_finer_lattice():
+    domain, sites = _hex_patch(16, 1.0)
+    coarse = hcvt.voronoi(domain, sites)
+    midpoints, edges = subdivide(coarse)
+    assert len(midpoints) == len(coarse.neighbors)  # all inside: a convex domain
+    fine = hcvt.voronoi(domain, np.vstack([sites, midpoints]))
+    # Away from the patch boundary every cell is a perfect hexagon of a quarter the area.
+    centre = sites.mean(axis=0)
+    far_inside = np.linalg.norm(fine.sites - centre, axis=1) < 4.0
+    assert far_inside.sum() > 100
+    np.testing.assert_allclose(fine.G[far_inside], G_HEXAGON, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fine.volume[far_inside], np.sqrt(3) / 8, rtol=1e-12)
+    # The count grows by the number of restricted Delaunay edges, towards 4x.
+    assert fine.n == coarse.n + len(coarse.neighbors)
+    assert 3.6 < fine.n / coarse.n < 4.0
