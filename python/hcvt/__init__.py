@@ -4,20 +4,26 @@ The public API (DESIGN §1): :class:`Domain` and :func:`load_domain` build domai
 :func:`voronoi` computes exact clipped Voronoi diagrams.
 """
 
+from hcvt import io, plot
 from hcvt._core import get_num_threads, set_num_threads
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
+from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.io import load_domain
 
 __all__ = [
     "Diagram",
     "Domain",
+    "HierarchicalResult",
     "InvalidDomainError",
     "InvalidSitesError",
     "RepairReport",
     "get_num_threads",
+    "hierarchical_cvt",
+    "io",
     "load_domain",
+    "plot",
     "set_num_threads",
     "voronoi",
 ]

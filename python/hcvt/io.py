@@ -5,9 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon, shape
 
+from hcvt.diagram import Diagram
 from hcvt.domain import Domain
 from hcvt.errors import InvalidDomainError
 
@@ -71,3 +73,31 @@ def _geojson_geometries(obj: dict) -> list[dict]:
     if kind == "GeometryCollection":
         return list(obj["geometries"])
     return [obj]
+
+
+def write_cells(diagram: Diagram, path: str | Path) -> None:
+    """Write the clipped cells with per-cell ``id``, ``G``, ``volume``.
+
+    2D: a GeoJSON FeatureCollection (``.geojson``), one Feature per cell.
+    """
+    path = Path(path)
+    if diagram.domain.dim == 2:
+        if path.suffix.lower() not in (".geojson", ".json"):
+            raise ValueError(f"2D cells are written as .geojson, got {path.name}")
+        features = [
+            {
+                "type": "Feature",
+                "geometry": shapely.geometry.mapping(cell),
+                "properties": {"id": i, "G": _finite(g), "volume": float(v)},
+            }
+            for i, (cell, g, v) in enumerate(
+                zip(diagram.cells(), diagram.G, diagram.volume, strict=True)
+            )
+        ]
+        path.write_text(json.dumps({"type": "FeatureCollection", "features": features}))
+        return
+    raise NotImplementedError("3D cells are written by hcvt.io.write_vtu / write_ply")
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None

@@ -1,0 +1,159 @@
+"""The ``hcvt`` command line: CVTs of built-in shapes, polygons and meshes.
+
+hcvt run star -n 2000 --plot star.png
+hcvt run polygon.geojson -n 10000 --method lbfgs --init halton --out sites.npy
+hcvt show result.json --plot cells.png
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+METHODS = ("hierarchical", "lbfgs", "lloyd", "voronoi")
+INITS = ("random", "halton", "hammersley", "lattice")
+
+
+class _OneLineErrors(click.Group):
+    """Print library errors as one readable line and exit with status 2: no traceback."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except (ValueError, FileNotFoundError, NotImplementedError, OSError) as err:
+            click.echo(f"hcvt: error: {err}", err=True)
+            sys.exit(2)
+
+
+@click.group(cls=_OneLineErrors)
+@click.version_option(package_name="hcvt")
+def main() -> None:
+    """Regular centroidal Voronoi tessellations of polygons and closed meshes."""
+
+
+def _load(input_: str, repair: bool):
+    import hcvt
+    from hcvt.shapes import BUILTIN, builtin_domain
+
+    if input_ in BUILTIN:
+        return builtin_domain(input_)
+    return hcvt.load_domain(input_, repair=repair)
+
+
+@main.command()
+@click.argument("input_", metavar="INPUT")
+@click.option("-n", "--sites", "n", type=int, required=True, help="Number of sites.")
+@click.option("--method", type=click.Choice(METHODS), default="hierarchical", show_default=True)
+@click.option("--init", type=click.Choice(INITS), default="random", show_default=True)
+@click.option("--subdivisions", type=int, default=None, help="Hierarchy levels s.")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--tol", type=float, default=1e-10, show_default=True, help="‖g‖/‖X‖ stop.")
+@click.option("--max-iter", type=int, default=10_000, show_default=True)
+@click.option("--repair", is_flag=True, help="Repair an invalid polygon or mesh first.")
+@click.option("--out", type=click.Path(dir_okay=False), help="Sites: .npy or .csv.")
+@click.option("--cells", "cells_path", type=click.Path(dir_okay=False), help="Cells file.")
+@click.option("--summary", type=click.Path(dir_okay=False), help="Summary JSON file.")
+@click.option("--plot", type=click.Path(dir_okay=False), help="PNG of the cells by G.")
+def run(
+    input_: str,
+    n: int,
+    method: str,
+    init: str,
+    subdivisions: int | None,
+    seed: int,
+    tol: float,
+    max_iter: int,
+    repair: bool,
+    out: str | None,
+    cells_path: str | None,
+    summary: str | None,
+    plot: str | None,
+) -> None:
+    """CVT of N sites in INPUT: a built-in shape (square, star, ...) or a polygon/mesh file."""
+    import hcvt
+
+    domain = _load(input_, repair)
+    start = time.perf_counter()
+    iterations: int | None = None
+    if method == "hierarchical":
+        result = hcvt.hierarchical_cvt(
+            domain, n, subdivisions, init=init, seed=seed, tol=tol, max_iter=max_iter
+        )
+        sites, diagram = result.sites, result.diagram
+        iterations = sum(level.iterations for level in result.levels)
+    else:
+        sites = hcvt.initialise(domain, n, method=init, seed=seed)
+        if method == "voronoi":
+            diagram = hcvt.voronoi(domain, sites)
+        else:
+            result = hcvt.cvt(domain, sites, method=method, tol=tol, max_iter=max_iter)
+            sites, diagram, iterations = result.sites, result.diagram, result.iterations
+    seconds = time.perf_counter() - start
+    info = {
+        "input": input_,
+        "method": method,
+        "init": init,
+        "n": int(diagram.n),
+        "mean_G": diagram.mean_G,
+        "energy": diagram.energy,
+        "iterations": iterations,
+        "seconds": seconds,
+        "seed": seed,
+    }
+    click.echo(
+        f"n = {info['n']}  mean G = {info['mean_G']:.6f}  energy = {info['energy']:.6g}  "
+        f"iterations = {iterations}  seconds = {seconds:.2f}"
+    )
+    if out:
+        _write_sites(Path(out), sites)
+        info["sites"] = str(out)
+    if cells_path:
+        hcvt.io.write_cells(diagram, cells_path)
+        info["cells"] = str(cells_path)
+    if plot:
+        _plot(diagram, plot)
+    if summary:
+        Path(summary).write_text(json.dumps(info, indent=2))
+
+
+def _write_sites(path: Path, sites: np.ndarray) -> None:
+    if path.suffix == ".npy":
+        np.save(path, sites)
+    elif path.suffix == ".csv":
+        header = ",".join("xyz"[: sites.shape[1]])
+        np.savetxt(path, sites, delimiter=",", header=header, comments="")
+    else:
+        raise ValueError(f"--out must end in .npy or .csv, got {path.name}")
+
+
+def _plot(diagram: Any, path: str) -> None:
+    from hcvt import plot
+
+    ax = plot.plot_cells(diagram)
+    plot.save(ax, path)
+
+
+@main.command()
+@click.argument("summary", type=click.Path(exists=True, dir_okay=False))
+@click.option("--plot", type=click.Path(dir_okay=False), required=True, help="PNG to write.")
+def show(summary: str, plot: str) -> None:
+    """Picture of a saved result: a summary JSON written by ``hcvt run --summary``."""
+    import hcvt
+
+    info = json.loads(Path(summary).read_text())
+    if "sites" not in info:
+        raise ValueError(f"{summary} has no sites file; run with --out and --summary")
+    sites_path = Path(info["sites"])
+    sites = (
+        np.load(sites_path)
+        if sites_path.suffix == ".npy"
+        else np.loadtxt(sites_path, delimiter=",", skiprows=1)
+    )
+    domain = _load(info["input"], False)
+    _plot(hcvt.voronoi(domain, sites), plot)
