@@ -10,6 +10,6 @@ python -m pip install --quiet --disable-pip-version-check -e '.[test]'
 echo "== rustfmt";  cargo fmt --all -- --check
 echo "== clippy";   cargo clippy --workspace --all-targets --release -- -D warnings
 echo "== cargo test"; cargo test --workspace --release
-echo "== ruff";     python -m ruff check python tests benchmarks examples
-python -m ruff format --check python tests benchmarks examples
+echo "== ruff";     python -m ruff check python tests benchmarks
+python -m ruff format --check python tests benchmarks
 echo "== pytest";   python -m pytest python tests
