@@ -13,6 +13,7 @@
 pub mod convex_cell;
 mod knn;
 pub mod polygon_cell;
+pub mod polyhedron_cell;
 
 use rayon::prelude::*;
 
@@ -23,6 +24,7 @@ use crate::moments::Moments;
 pub use convex_cell::{ConvexCell, Face};
 pub use knn::SiteIndex;
 pub use polygon_cell::PolygonCell;
+pub use polyhedron_cell::PolyhedronCell;
 
 /// How to treat unusual input.
 #[derive(Debug, Clone, Copy, Default)]
