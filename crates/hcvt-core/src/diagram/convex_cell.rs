@@ -34,6 +34,13 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// Bounding box relative to the site.
     fn bounds(&self) -> Aabb<D>;
 
+    /// The vertices, relative to the site.
+    fn vertices(&self) -> &[[f64; D]];
+
+    /// Some face's half-space has every one of `points` (relative to the site) strictly
+    /// outside, so their convex hull misses the cell.
+    fn excludes(&self, points: &[[f64; D]]) -> bool;
+
     /// Mean of the vertices: a point strictly inside a non-empty cell.
     fn vertex_mean(&self) -> [f64; D];
 

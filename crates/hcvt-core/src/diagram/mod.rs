@@ -122,9 +122,23 @@ where
 }
 
 /// Number of nearest sites fetched first; doubled while the security radius is not reached.
-const FIRST_K: usize = 16;
+/// A cell has about 6 neighbours in 2D and 15.5 in 3D, and the security radius usually
+/// needs about twice that.
+const FIRST_K: [usize; 4] = [2, 4, 16, 40];
 
-/// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the site.
+/// Neighbour count after which a cell that has not reached its security radius is
+/// localised to the domain (see [`domain_radius2`]).
+const LOCALISE_K: usize = 64;
+
+/// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the
+/// site, exact wherever it meets the domain.
+///
+/// A site near the boundary of a non-convex domain has a Voronoi cell reaching far into
+/// the empty part of the bounding box, and the security radius would pull in most sites.
+/// Only the cell's part inside the domain matters, so once `LOCALISE_K` neighbours did not
+/// suffice the radius is replaced by a bound `R` on the distance of that part from the
+/// site, and the cell is cut to the box of half-width `R` (nothing of the domain is lost);
+/// `R` is recomputed at each doubling of the neighbour count.
 pub fn voronoi_cell<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     index: &SiteIndex<D>,
@@ -132,19 +146,25 @@ pub fn voronoi_cell<const D: usize, C: ConvexCell<D>>(
     i: usize,
 ) -> Result<C, CoreError>
 where
-    Euclid: Space<D>,
+    Euclid: Space<D> + WindingNumber<D>,
 {
     let site = sites[i];
     let mut cell = C::from_box(&boundary.bounds().relative_to(site));
+    let mut bound2 = f64::INFINITY;
     let mut radius2 = cell.max_dist2();
-    let mut clipped: Vec<u32> = Vec::new();
-    let mut k = FIRST_K.min(sites.len());
+    // Sites at the largest distance clipped so far: a re-query returns the nearer ones
+    // again (all clipped already), and ties at that distance in any order.
+    let mut last_dist2 = f64::NEG_INFINITY;
+    let mut at_last: Vec<u32> = Vec::new();
+    let mut k = FIRST_K.get(D).copied().unwrap_or(64).min(sites.len());
     loop {
         let mut reached = false;
         let neighbors = index.nearest(&site, k);
-        let requery = !clipped.is_empty();
         for &(j, dist2) in &neighbors {
-            if j as usize == i || (requery && clipped.contains(&j)) {
+            if j as usize == i
+                || dist2 < last_dist2
+                || (dist2 == last_dist2 && at_last.contains(&j))
+            {
                 continue;
             }
             if dist2 > 4.0 * radius2 {
@@ -161,14 +181,68 @@ where
                 });
             }
             cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
-            radius2 = cell.max_dist2();
-            clipped.push(j);
+            radius2 = cell.max_dist2().min(bound2);
+            if dist2 > last_dist2 {
+                last_dist2 = dist2;
+                at_last.clear();
+            }
+            at_last.push(j);
         }
         if reached || neighbors.len() < k || k >= sites.len() {
             return Ok(cell);
         }
+        if k >= LOCALISE_K && !cell.is_empty() {
+            // Recomputed at every doubling: the cell shrinks, and so does the bound.
+            bound2 = bound2.min(domain_radius2(boundary, &cell, site));
+            let r = bound2.sqrt();
+            for axis in 0..D {
+                let unit: [f64; D] = std::array::from_fn(|j| if j == axis { 1.0 } else { 0.0 });
+                cell.clip(&HalfSpace::through(scale(unit, r), unit), Face::Box);
+                cell.clip(
+                    &HalfSpace::through(scale(unit, -r), scale(unit, -1.0)),
+                    Face::Box,
+                );
+            }
+            radius2 = cell.max_dist2().min(bound2);
+        }
         k = (2 * k).min(sites.len());
     }
+}
+
+/// An upper bound on `|x|²` over the part of `cell` (relative to `site`) inside the domain.
+///
+/// The farthest point of that part is one of its vertices: a vertex of the cell inside
+/// the domain, or a point where the boundary meets the cell, which lies on a boundary
+/// simplex that the cell does not exclude. Exact winding numbers decide the first kind;
+/// the farthest vertex of each simplex bounds the second.
+fn domain_radius2<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+) -> f64
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let mut r2: f64 = 0.0;
+    for &v in cell.vertices() {
+        if Euclid::winding_number(boundary, &add_point(v, site)) != Some(0) {
+            r2 = r2.max(norm2(v));
+        }
+    }
+    let bounds = cell.bounds();
+    let query = Aabb {
+        lo: add_point(bounds.lo, site),
+        hi: add_point(bounds.hi, site),
+    };
+    let mut candidates = Vec::new();
+    boundary.bvh().query(&query, &mut candidates);
+    for t in candidates {
+        let rel = boundary.simplex(t).map(|v| sub(v, site));
+        if !cell.excludes(&rel) {
+            r2 = rel.iter().map(|&v| norm2(v)).fold(r2, f64::max);
+        }
+    }
+    r2
 }
 
 /// Integrate `cell` (relative to `site`) restricted to the domain, through signed cones.

@@ -11,10 +11,11 @@ use super::convex_cell::{ConvexCell, Face};
 use crate::geometry::{add, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{tetra_moments, Moments};
 
-/// A plane of the cell, `normal · x <= offset`, and what made it. Only the offset is kept:
-/// vertices are computed once, when their triangle is made, and never from the planes.
+/// A plane of the cell, `normal · x <= offset`, and what made it. Vertices are computed
+/// once, when their triangle is made, never from the planes.
 #[derive(Debug, Clone, Copy)]
 struct Plane {
+    normal: [f64; 3],
     offset: f64,
     face: Face,
 }
@@ -87,6 +88,41 @@ impl PolyhedronCell {
         });
     }
 
+    /// The closed, outward boundary triangulation of the cell: every face fanned from its
+    /// first vertex, as indices into [`PolyhedronCell::vertices`], appended to `out`.
+    pub fn boundary_triangles(&self, out: &mut Vec<[u32; 3]>) {
+        let mut walk = Vec::new();
+        self.face_walk(&mut walk);
+        let mut start = 0;
+        let mut ring = Vec::new();
+        while start < walk.len() {
+            let end = start
+                + walk[start..]
+                    .iter()
+                    .take_while(|e| e.0 == walk[start].0)
+                    .count();
+            Self::walk_one_face(&walk[start..end], &mut ring);
+            for k in 1..ring.len().saturating_sub(1) {
+                out.push([ring[0], ring[k], ring[k + 1]]);
+            }
+            start = end;
+        }
+    }
+
+    /// The triangles (vertex indices) around one face, in counter-clockwise order.
+    fn walk_one_face(face: &[(u16, u16, u16, u32)], ring: &mut Vec<u32>) {
+        ring.clear();
+        let mut at = 0;
+        for _ in 0..face.len() {
+            ring.push(face[at].3);
+            let next = face[at].2;
+            match face.iter().position(|e| e.1 == next) {
+                Some(k) if k != 0 => at = k,
+                _ => break,
+            }
+        }
+    }
+
     /// Entries `(plane p, q, r, t)` for every triangle `t = (p, q, r)` rotated to start at
     /// each of its planes, sorted by `p`: around face `p`, vertex `t` leads from the edge
     /// with `q` to the edge with `r`.
@@ -111,26 +147,16 @@ impl PolyhedronCell {
         mut f: impl FnMut(u16, &[[f64; 3]]),
     ) {
         let mut start = 0;
+        let mut ring = Vec::new();
         while start < walk.len() {
             let plane = walk[start].0;
             let mut end = start;
             while end < walk.len() && walk[end].0 == plane {
                 end += 1;
             }
-            let face = &walk[start..end];
+            Self::walk_one_face(&walk[start..end], &mut ring);
             polygon.clear();
-            let mut at = 0;
-            for _ in 0..face.len() {
-                polygon.push(self.vertices[face[at].3 as usize]);
-                let next = face[at].2;
-                match face.iter().position(|e| e.1 == next) {
-                    Some(k) => at = k,
-                    None => break, // broken topology: cannot happen after a valid clip
-                }
-                if at == 0 {
-                    break;
-                }
-            }
+            polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
             if polygon.len() >= 3 {
                 f(plane, polygon);
             }
@@ -217,6 +243,7 @@ impl PolyhedronCell {
     fn replace_by_rim(&mut self, scratch: &Scratch, h: &HalfSpace<3>, face: Face) {
         let p = self.planes.len() as u16;
         self.planes.push(Plane {
+            normal: h.normal,
             offset: h.offset,
             face,
         });
@@ -243,11 +270,14 @@ impl ConvexCell<3> for PolyhedronCell {
         // Planes 2k and 2k+1 bound axis k below and above.
         let mut planes = Vec::with_capacity(32);
         for k in 0..3 {
+            let axis: [f64; 3] = std::array::from_fn(|j| if j == k { 1.0 } else { 0.0 });
             planes.push(Plane {
+                normal: scale(axis, -1.0),
                 offset: -b.lo[k],
                 face: Face::Box,
             });
             planes.push(Plane {
+                normal: axis,
                 offset: b.hi[k],
                 face: Face::Box,
             });
@@ -303,6 +333,16 @@ impl ConvexCell<3> for PolyhedronCell {
 
     fn bounds(&self) -> Aabb<3> {
         Aabb::of_points(&self.vertices)
+    }
+
+    fn vertices(&self) -> &[[f64; 3]] {
+        &self.vertices
+    }
+
+    fn excludes(&self, points: &[[f64; 3]]) -> bool {
+        self.planes
+            .iter()
+            .any(|h| points.iter().all(|&v| dot(h.normal, v) > h.offset))
     }
 
     fn vertex_mean(&self) -> [f64; 3] {

@@ -14,7 +14,7 @@ use crate::error::CoreError;
 use crate::geometry::{Aabb, Euclid, Space};
 use crate::moments::Moments;
 pub use bvh::Bvh;
-pub use winding::WindingNumber;
+pub use winding::{generalized_winding_number, WindingNumber};
 
 /// A domain bounded by a closed, oriented cycle of `(D-1)`-simplices.
 #[derive(Debug, Clone)]
