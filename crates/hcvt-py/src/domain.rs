@@ -106,7 +106,8 @@ impl SolidDomain {
     fn first_moment(&self) -> [f64; 3] {
         let m = self.0.moments();
         let o = self.0.moments_origin();
-        [0, 1, 2].map(|k| m.first[k] + m.mass * o[k])
+        let [x, y, z] = m.first;
+        [x + m.mass * o[0], y + m.mass * o[1], z + m.mass * o[2]]
     }
 
     /// `(lo, hi)` corners of the bounding box.
