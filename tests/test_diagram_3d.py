@@ -203,3 +203,46 @@ def test_results_do_not_depend_on_threads(domains: dict[str, hcvt.Domain]) -> No
     for name in ("volume", "centroid", "second_moment", "neighbor_sites", "neighbor_measures"):
         assert np.array_equal(getattr(one, name), getattr(two, name)), name
     assert one.energy == two.energy
+
+
+def _surface_volume(v: np.ndarray, f: np.ndarray) -> float:
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6)
+
+
+def _is_closed(f: np.ndarray) -> bool:
+    """Every directed edge has its reverse, once."""
+    directed = np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
+    fwd = {tuple(e) for e in directed.tolist()}
+    return len(fwd) == len(directed) and all((b, a) in fwd for a, b in fwd)
+
+
+@needs_data
+def test_cells_are_closed_outward_and_export(
+    domains: dict[str, hcvt.Domain], tmp_path: Path
+) -> None:
+    import xml.etree.ElementTree as ET
+
+    import trimesh
+
+    pytest.importorskip("manifold3d")
+    domain = domains["bunny.off"]
+    sites = interior_sites(domain, 150, seed=9)
+    d = hcvt.voronoi(domain, sites)
+    cells = d.cells()
+    assert len(cells) == d.n
+    for i, (v, f) in enumerate(cells):
+        assert _is_closed(f), f"cell {i} is not closed"
+        vol = _surface_volume(v, f)
+        assert vol > 0 and abs(vol - d.volume[i]) <= 1e-9 * d.volume[i], i
+    assert (d.boundary_measure == 0).any() and (d.boundary_measure > 0).any()
+
+    vtu = hcvt.io.write_cells(d, tmp_path / "cells.vtu")
+    piece = ET.parse(vtu).getroot().find("UnstructuredGrid/Piece")
+    assert piece is not None and int(piece.get("NumberOfCells")) == d.n
+    names = {a.get("Name") for a in piece.iter("DataArray")}
+    assert {"id", "G", "volume", "faces", "faceoffsets"} <= names
+
+    ply = hcvt.io.write_cells(d, tmp_path / "cells.ply")
+    mesh = trimesh.load(ply, process=False)
+    assert abs(_surface_volume(mesh.vertices, mesh.faces) - domain.volume) < 1e-9 * domain.volume

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import base64
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
@@ -13,6 +15,9 @@ from shapely.geometry import MultiPolygon, Polygon, shape
 
 from hcvt.domain import Domain
 from hcvt.errors import InvalidDomainError
+
+if TYPE_CHECKING:
+    from hcvt.diagram import Diagram
 
 POLYGON_SUFFIXES = {".wkt", ".geojson", ".json"}
 MESH_SUFFIXES = {".obj", ".off", ".ply", ".stl"}
@@ -126,3 +131,127 @@ def _geojson_geometries(obj: dict) -> list[dict]:
     if kind == "GeometryCollection":
         return list(obj["geometries"])
     return [obj]
+
+
+# ---------------------------------------------------------------------------- export
+def write_cells(diagram: Diagram, path: str | Path) -> Path:
+    """Write the clipped cells of a 3D diagram for ParaView (``.vtu``) or as one mesh (``.ply``).
+
+    ``.vtu``: an UnstructuredGrid with one VTK polyhedron per non-empty cell (its closed
+    boundary triangulation from :meth:`Diagram.cells`) and cell data ``id`` (the site's
+    row), ``G``, ``volume``. ``.ply``: binary PLY of every cell's triangles with the face
+    property ``cell`` (the site's row).
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
+    path = Path(path)
+    if diagram.domain.dim != 3:
+        raise ValueError("write_cells exports 3D diagrams; 2D cells are shapely polygons")
+    ids, points, faces = _stack_cells(diagram.cells())
+    suffix = path.suffix.lower()
+    if suffix == ".vtu":
+        _write_vtu(path, ids, points, faces, diagram)
+    elif suffix == ".ply":
+        _write_ply(path, points, faces)
+    else:
+        raise ValueError(f"{path.name}: write_cells writes .vtu or .ply")
+    return path
+
+
+def _stack_cells(
+    cells: list[tuple[NDArray[np.float64], NDArray[np.int64]]],
+) -> tuple[NDArray[np.int64], NDArray[np.float64], list[tuple[int, NDArray[np.int64]]]]:
+    """Non-empty cells' ids, all their points (P, 3), and (id, global faces) per cell."""
+    ids, points, faces = [], [], []
+    start = 0
+    for i, (v, f) in enumerate(cells):
+        if len(f) == 0:
+            continue
+        ids.append(i)
+        points.append(v)
+        faces.append((i, f + start))
+        start += len(v)
+    pts = np.concatenate(points) if points else np.zeros((0, 3))
+    return np.asarray(ids, dtype=np.int64), pts, faces
+
+
+def _b64(array: NDArray) -> str:
+    """VTK inline binary: a UInt64 byte count, then the data, base64 together."""
+    raw = np.ascontiguousarray(array).tobytes()
+    return base64.b64encode(np.uint64(len(raw)).tobytes() + raw).decode("ascii")
+
+
+def _data_array(name: str, array: NDArray, vtk_type: str, components: int = 1) -> str:
+    return (
+        f'<DataArray type="{vtk_type}" Name="{name}" NumberOfComponents="{components}" '
+        f'format="binary">{_b64(array)}</DataArray>'
+    )
+
+
+def _write_vtu(
+    path: Path,
+    ids: NDArray[np.int64],
+    points: NDArray[np.float64],
+    faces: list[tuple[int, NDArray[np.int64]]],
+    diagram: Diagram,
+) -> None:
+    connectivity, offsets, face_stream, face_offsets = [], [], [], []
+    n_conn = n_face = 0
+    for _, f in faces:
+        used = np.unique(f)
+        connectivity.append(used)
+        n_conn += len(used)
+        offsets.append(n_conn)
+        stream = np.column_stack([np.full(len(f), 3), f]).ravel()
+        face_stream.append(np.concatenate([[len(f)], stream]))
+        n_face += len(stream) + 1
+        face_offsets.append(n_face)
+    i64 = np.int64
+    body = "".join(
+        [
+            '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" ',
+            'byte_order="LittleEndian" header_type="UInt64"><UnstructuredGrid>',
+            f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{len(ids)}">',
+            "<Points>",
+            _data_array("Points", points.astype(np.float64), "Float64", 3),
+            "</Points><Cells>",
+            _data_array("connectivity", np.concatenate(connectivity).astype(i64), "Int64"),
+            _data_array("offsets", np.asarray(offsets, dtype=i64), "Int64"),
+            _data_array("types", np.full(len(ids), 42, dtype=np.uint8), "UInt8"),
+            _data_array("faces", np.concatenate(face_stream).astype(i64), "Int64"),
+            _data_array("faceoffsets", np.asarray(face_offsets, dtype=i64), "Int64"),
+            '</Cells><CellData Scalars="G">',
+            _data_array("id", ids, "Int64"),
+            _data_array("G", diagram.G[ids].astype(np.float64), "Float64"),
+            _data_array("volume", diagram.volume[ids].astype(np.float64), "Float64"),
+            "</CellData></Piece></UnstructuredGrid></VTKFile>\n",
+        ]
+    )
+    path.write_text(body)
+
+
+def _write_ply(
+    path: Path, points: NDArray[np.float64], faces: list[tuple[int, NDArray[np.int64]]]
+) -> None:
+    n_faces = sum(len(f) for _, f in faces)
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        f"element vertex {len(points)}\nproperty double x\nproperty double y\nproperty double z\n"
+        f"element face {n_faces}\nproperty list uchar int vertex_indices\nproperty int cell\n"
+        "end_header\n"
+    )
+    record = np.dtype([("n", "u1"), ("v", "<i4", (3,)), ("cell", "<i4")])
+    table = np.zeros(n_faces, dtype=record)
+    at = 0
+    for i, f in faces:
+        table["n"][at : at + len(f)] = 3
+        table["v"][at : at + len(f)] = f
+        table["cell"][at : at + len(f)] = i
+        at += len(f)
+    with path.open("wb") as out:
+        out.write(header.encode("ascii"))
+        out.write(np.ascontiguousarray(points, dtype="<f8").tobytes())
+        out.write(table.tobytes())
