@@ -15,6 +15,8 @@ mod knn;
 pub mod polygon_cell;
 pub mod polyhedron_cell;
 
+use std::collections::HashSet;
+
 use rayon::prelude::*;
 
 use crate::domain::{Boundary, WindingNumber};
@@ -136,9 +138,8 @@ const LOCALISE_K: usize = 64;
 /// A site near the boundary of a non-convex domain has a Voronoi cell reaching far into
 /// the empty part of the bounding box, and the security radius would pull in most sites.
 /// Only the cell's part inside the domain matters, so once `LOCALISE_K` neighbours did not
-/// suffice the radius is replaced by a bound `R` on the distance of that part from the
-/// site, and the cell is cut to the box of half-width `R` (nothing of the domain is lost);
-/// `R` is recomputed at each doubling of the neighbour count.
+/// suffice the cell is cut to a box that holds that part ([`localise`]) and finished by
+/// checking its vertices' nearest sites ([`validate_vertices`]).
 pub fn voronoi_cell<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     index: &SiteIndex<D>,
@@ -150,7 +151,6 @@ where
 {
     let site = sites[i];
     let mut cell = C::from_box(&boundary.bounds().relative_to(site));
-    let mut bound2 = f64::INFINITY;
     let mut radius2 = cell.max_dist2();
     // Sites at the largest distance clipped so far: a re-query returns the nearer ones
     // again (all clipped already), and ties at that distance in any order.
@@ -181,7 +181,7 @@ where
                 });
             }
             cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
-            radius2 = cell.max_dist2().min(bound2);
+            radius2 = cell.max_dist2();
             if dist2 > last_dist2 {
                 last_dist2 = dist2;
                 at_last.clear();
@@ -192,21 +192,86 @@ where
             return Ok(cell);
         }
         if k >= LOCALISE_K && !cell.is_empty() {
-            // Recomputed at every doubling: the cell shrinks, and so does the bound.
-            bound2 = bound2.min(domain_radius2(boundary, &cell, site));
-            let r = bound2.sqrt();
-            for axis in 0..D {
-                let unit: [f64; D] = std::array::from_fn(|j| if j == axis { 1.0 } else { 0.0 });
-                cell.clip(&HalfSpace::through(scale(unit, r), unit), Face::Box);
-                cell.clip(
-                    &HalfSpace::through(scale(unit, -r), scale(unit, -1.0)),
-                    Face::Box,
-                );
-            }
-            radius2 = cell.max_dist2().min(bound2);
+            localise(boundary, &mut cell, site);
+            validate_vertices(&mut cell, index, sites, i)?;
+            return Ok(cell);
         }
         k = (2 * k).min(sites.len());
     }
+}
+
+/// Cut `cell` (relative to `site`) to the box of half-width `R` around the site, `R` a
+/// bound on the distance of its part inside the domain: nothing of the domain is lost, and
+/// the far reaches of the cell outside it stop costing neighbours and boundary pieces.
+fn localise<const D: usize, C: ConvexCell<D>>(boundary: &Boundary<D>, cell: &mut C, site: [f64; D])
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let r = domain_radius2(boundary, cell, site).sqrt();
+    for axis in 0..D {
+        let unit: [f64; D] = std::array::from_fn(|j| if j == axis { 1.0 } else { 0.0 });
+        cell.clip(&HalfSpace::through(scale(unit, r), unit), Face::Box);
+        cell.clip(
+            &HalfSpace::through(scale(unit, -r), scale(unit, -1.0)),
+            Face::Box,
+        );
+    }
+}
+
+/// Most vertex checks one cell may need before it is accepted as it is.
+const MAX_VALIDATIONS: usize = 100_000;
+
+/// Clip `cell` until each of its vertices has site `i` as a nearest site, so that the cell
+/// (the convex hull of its vertices) lies in the Voronoi cell; as it already contains the
+/// Voronoi cell's part in the box it started from, the two are then equal there.
+///
+/// Used instead of the security radius for cells localised by [`localise`]: each vertex
+/// asks the kd-tree for its own nearest site, so the work follows where the cell is, not
+/// a ball around the site. A vertex within round-off of a bisector already clipped counts
+/// as valid; vertices that survive a clip keep their bits and are not checked again.
+fn validate_vertices<const D: usize, C: ConvexCell<D>>(
+    cell: &mut C,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    i: usize,
+) -> Result<(), CoreError> {
+    let site = sites[i];
+    let mut valid: HashSet<[u64; D]> = HashSet::new();
+    let mut used: Vec<u32> = Vec::new();
+    for _ in 0..MAX_VALIDATIONS {
+        let mut cut = None;
+        for &v in cell.vertices() {
+            let key = v.map(f64::to_bits);
+            if valid.contains(&key) {
+                continue;
+            }
+            let (j, dist2) = index.nearest_one(&add_point(v, site));
+            let closer = dist2 < norm2(v) * (1.0 - 1e-12);
+            if j as usize != i && closer && !used.contains(&j) {
+                cut = Some(j);
+                break;
+            }
+            valid.insert(key);
+        }
+        let Some(j) = cut else {
+            return Ok(());
+        };
+        let q = sub(sites[j as usize], site);
+        if norm2(q) == 0.0 {
+            let (first, second) = (i.min(j as usize), i.max(j as usize));
+            return Err(CoreError::DuplicateSites {
+                first,
+                second,
+                point: site.to_vec(),
+            });
+        }
+        cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
+        used.push(j);
+        if cell.is_empty() {
+            return Ok(());
+        }
+    }
+    Ok(())
 }
 
 /// An upper bound on `|x|²` over the part of `cell` (relative to `site`) inside the domain.
