@@ -49,4 +49,11 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
 
     /// Call `f(face, measure)` for every face (length in 2D, area in 3D).
     fn for_each_face(&self, f: impl FnMut(Face, f64));
+
+    /// [`ConvexCell::for_each_face`] and [`ConvexCell::moments`] together, for cells that
+    /// can do both in one pass over their faces.
+    fn moments_and_faces(&self, f: impl FnMut(Face, f64)) -> Moments<D> {
+        self.for_each_face(f);
+        self.moments()
+    }
 }

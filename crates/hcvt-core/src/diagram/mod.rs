@@ -337,11 +337,12 @@ where
     let mut candidates = Vec::new();
     boundary.bvh().query(&query, &mut candidates);
     let (apex, winding) = choose_apex(boundary, cell, site, site_winding);
-    total.add_scaled(&cell.moments(), winding as f64);
     if winding != 0 {
-        cell.for_each_face(|f, m| faces.add(f, winding as f64 * m));
+        let m = cell.moments_and_faces(|f, m| faces.add(f, winding as f64 * m));
+        total.add_scaled(&m, winding as f64);
     }
     let apex_abs = add_point(apex, site);
+    let mut piece = cell.clone(); // reused: clone_from keeps its buffers
     for t in candidates {
         let simplex = boundary.simplex(t);
         let side = Euclid::side(&simplex, &apex_abs);
@@ -350,7 +351,12 @@ where
         }
         let sigma = if side > 0.0 { 1.0 } else { -1.0 };
         let rel = simplex.map(|v| sub(v, site));
-        let mut piece = cell.clone();
+        // A segment from the apex to a point of C ∩ K(T) crosses T inside the convex C, so
+        // a simplex that some face of C separates from C has an empty piece.
+        if cell.excludes(&rel) {
+            continue;
+        }
+        piece.clone_from(cell);
         for h in cone_sides(&rel, apex) {
             piece.clip(&h, Face::Cone);
             if piece.is_empty() {
@@ -374,8 +380,8 @@ where
         if piece.is_empty() {
             continue;
         }
-        total.add_scaled(&piece.moments(), sigma);
-        piece.for_each_face(|f, m| faces.add(f, sigma * m));
+        let m = piece.moments_and_faces(|f, m| faces.add(f, sigma * m));
+        total.add_scaled(&m, sigma);
     }
     CellOutput {
         moments: total,

@@ -67,6 +67,17 @@ impl Clone for PolyhedronCell {
     }
 }
 
+/// Scratch of [`PolyhedronCell::for_each_polygon`].
+#[derive(Default)]
+struct WalkBuffers {
+    walk: Vec<(u16, u16, u16, u32)>,
+    polygon: Vec<[f64; 3]>,
+}
+
+thread_local! {
+    static WALK_BUFFERS: std::cell::RefCell<WalkBuffers> = std::cell::RefCell::default();
+}
+
 /// Planes a cell may have: plane indices are `u16`.
 const MAX_PLANES: usize = u16::MAX as usize;
 
@@ -80,11 +91,19 @@ impl PolyhedronCell {
     /// counter-clockwise seen from outside, relative to the site. Vertices where more than
     /// three planes meet appear once per triangle, so a polygon may repeat a point.
     pub fn for_each_polygon(&self, mut f: impl FnMut(Face, &[[f64; 3]])) {
-        let mut walk = Vec::new();
-        let mut polygon = Vec::new();
-        self.face_walk(&mut walk);
-        self.walk_faces(&walk, &mut polygon, |plane, poly| {
-            f(self.planes[plane as usize].face, poly)
+        // Per-thread buffers: a cell is walked once per boundary piece. A nested walk (from
+        // inside `f`) finds them taken and uses fresh ones.
+        WALK_BUFFERS.with(|cell| {
+            let mut fresh = WalkBuffers::default();
+            let mut taken = cell.try_borrow_mut();
+            let buffers = match taken.as_deref_mut() {
+                Ok(b) => b,
+                Err(_) => &mut fresh,
+            };
+            self.face_walk(&mut buffers.walk);
+            self.walk_faces(&buffers.walk, &mut buffers.polygon, |plane, poly| {
+                f(self.planes[plane as usize].face, poly)
+            });
         });
     }
 
@@ -315,8 +334,11 @@ impl ConvexCell<3> for PolyhedronCell {
         if self.triangles.is_empty() || self.planes.len() >= MAX_PLANES {
             return;
         }
+        if self.try_clip(h, face, 0.0) {
+            return;
+        }
         let scale_len = norm2(h.normal).sqrt() * self.max_dist2().sqrt() + h.offset.abs();
-        for rel_tol in [0.0, 1e-15, 1e-13, 1e-11] {
+        for rel_tol in [1e-15, 1e-13, 1e-11] {
             if self.try_clip(h, face, rel_tol * scale_len) {
                 return;
             }
@@ -354,23 +376,21 @@ impl ConvexCell<3> for PolyhedronCell {
     /// Fan every face from its first vertex and cone the fan to the site.
     fn moments(&self) -> Moments<3> {
         let mut m = Moments::zero();
-        let mut walk = Vec::new();
-        let mut polygon = Vec::new();
-        self.face_walk(&mut walk);
-        self.walk_faces(&walk, &mut polygon, |plane, poly| {
-            // A face whose plane passes through the site spans cones of zero volume.
-            if self.planes[plane as usize].offset == 0.0 {
-                return;
-            }
-            for k in 1..poly.len() - 1 {
-                m.add_scaled(&tetra_moments(poly[0], poly[k], poly[k + 1]), 1.0);
-            }
-        });
+        self.for_each_polygon(|_, poly| m.add_scaled(&fan_moments(poly), 1.0));
         m
     }
 
     fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
         self.for_each_polygon(|face, poly| f(face, polygon_area(poly)));
+    }
+
+    fn moments_and_faces(&self, mut f: impl FnMut(Face, f64)) -> Moments<3> {
+        let mut m = Moments::zero();
+        self.for_each_polygon(|face, poly| {
+            f(face, polygon_area(poly));
+            m.add_scaled(&fan_moments(poly), 1.0);
+        });
+        m
     }
 }
 
@@ -392,6 +412,16 @@ fn is_simple_cycle(rim: &[RimEdge]) -> bool {
         }
     }
     at == first.a
+}
+
+/// Moments about the origin of the cone from the origin over a face polygon, fanned from
+/// its first vertex.
+fn fan_moments(poly: &[[f64; 3]]) -> Moments<3> {
+    let mut m = Moments::zero();
+    for k in 1..poly.len().saturating_sub(1) {
+        m.add_scaled(&tetra_moments(poly[0], poly[k], poly[k + 1]), 1.0);
+    }
+    m
 }
 
 /// Area of a planar polygon in space, `|Σ (v_k - v_0) × (v_{k+1} - v_0)| / 2`.
