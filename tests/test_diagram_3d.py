@@ -75,6 +75,18 @@ def test_bcc_lattice_gives_truncated_octahedra() -> None:
     np.testing.assert_allclose(first, side**3 * side / 2, rtol=1e-12)
 
 
+def test_sites_on_the_boundary_count_as_inside() -> None:
+    # Integer grid in [0, 2]³: 26 of 27 sites on faces, edges and corners of the cube, so
+    # cell faces lie on the mesh faces and cell vertices on its edges.
+    grid = np.stack(np.meshgrid(*[np.arange(3.0)] * 3, indexing="ij"), axis=-1).reshape(-1, 3)
+    d = hcvt.voronoi(box_domain(0.0, 2.0), grid)
+    on_boundary = (grid == 0) | (grid == 2)
+    expected = 0.5 ** on_boundary.sum(axis=1)  # halved once per boundary coordinate
+    np.testing.assert_allclose(d.volume, expected, rtol=1e-14)
+    shift = np.where(grid == 0, 0.25, np.where(grid == 2, -0.25, 0.0))
+    np.testing.assert_allclose(d.centroid, grid + shift, atol=1e-14)
+
+
 def _assert_sums(domain: hcvt.Domain, d: hcvt.Diagram, what: str) -> None:
     rel = abs(d.volume.sum() - domain.volume) / domain.volume
     assert rel < 1e-12, f"{what}: Σ volume off by {rel:.2e}"

@@ -126,7 +126,7 @@ where
 /// Number of nearest sites fetched first; doubled while the security radius is not reached.
 /// A cell has about 6 neighbours in 2D and 15.5 in 3D, and the security radius usually
 /// needs about twice that.
-const FIRST_K: [usize; 4] = [2, 4, 16, 40];
+const FIRST_K: [usize; 4] = [2, 4, 16, 64];
 
 /// Neighbour count after which a cell that has not reached its security radius is
 /// localised to the domain (see [`domain_radius2`]).
