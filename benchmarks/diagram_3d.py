@@ -130,27 +130,31 @@ def box_peers(sites: np.ndarray, repeat: int) -> dict[str, float | None]:
 
 
 MEMORY_PROBE = """
-import os, resource, sys, numpy as np, hcvt
+import sys, numpy as np, hcvt
 sys.path.insert(0, {bench!r})
 from diagram_3d import box_domain
+
+def status_kib(key):
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith(key))
+
 n = int(sys.argv[1])
 dom = box_domain()
 sites = np.random.default_rng(0).uniform(0, 1, size=(n, 3))
 hcvt.voronoi(dom, sites[:10])
-page = os.sysconf("SC_PAGE_SIZE")
-with open("/proc/self/statm") as f:
-    current = int(f.read().split()[1]) * page
+with open("/proc/self/clear_refs", "w") as f:
+    f.write("5")  # reset the peak (VmHWM) to the current resident set
+before = status_kib("VmRSS")
 diagram = hcvt.voronoi(dom, sites)
-peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-print(max(peak - current, 0) / n)
+print((status_kib("VmHWM") - before) * 1024 / n)
 """
 
 
 def bytes_per_site(n: int) -> float:
     """Peak resident-set growth of one box diagram, bytes per site, in a fresh process.
 
-    The peak over the process's life minus the resident set just before the diagram: an
-    upper bound on what the diagram needs (worker stacks, kd-tree, cells, output arrays).
+    The peak resident set during the diagram (VmHWM, reset just before it) minus the
+    resident set before it: kd-tree, per-cell results, output arrays, allocator slack.
     """
     code = MEMORY_PROBE.format(bench=str(Path(__file__).resolve().parent))
     out = subprocess.run(
@@ -169,6 +173,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--quick", action="store_true", help="sites / 10, one geogram run")
     parser.add_argument("--no-geogram", action="store_true")
+    parser.add_argument("--geogram-repeat", type=int, default=1, help="runs per geogram timing")
     args = parser.parse_args()
     hcvt.set_num_threads(args.threads)
     scale = 10 if args.quick else 1
@@ -184,11 +189,7 @@ def main() -> None:
         domain = hcvt.load_domain(path)
         sites = interior_sites(domain, n // scale)
         ours = median_seconds(lambda d=domain, s=sites: hcvt.voronoi(d, s), args.repeat)
-        geo = (
-            None
-            if args.no_geogram
-            else geogram_seconds(domain, sites, 1 if args.quick else args.repeat)
-        )
+        geo = None if args.no_geogram else geogram_seconds(domain, sites, args.geogram_repeat)
         ratio = f"{geo / ours:14.1f}" if geo else f"{'n/a':>14}"
         row = f"{label:<22}{len(sites):>8}{ours:10.3f}{paper:10.2f}{paper / ours:12.1f}"
         print(f"{row}{fmt(geo):>11}{ratio}")

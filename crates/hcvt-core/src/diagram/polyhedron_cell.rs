@@ -32,16 +32,19 @@ pub struct PolyhedronCell {
     scratch: Scratch,
 }
 
-/// Buffers reused across clips and face walks, so a cell allocates only while it grows.
+/// Buffers reused across clips, so a cell allocates only while it grows.
 #[derive(Debug, Default)]
 struct Scratch {
+    /// Per triangle: its vertex lies beyond the clipping plane.
     outside: Vec<bool>,
-    /// Boundary edges of the removed region: `(a, b, kept neighbour position, its distance,
-    /// removed position, its distance)`.
+    /// Boundary edges of the removed region.
     rim: Vec<RimEdge>,
+    /// Slots of the removed triangles, refilled by the new ones.
     free: Vec<usize>,
 }
 
+/// A directed edge `a -> b` (two planes) of a removed triangle whose neighbour across is
+/// kept, and the new vertex where the clipping plane cuts the primal edge `a ∩ b`.
 #[derive(Debug, Clone, Copy)]
 struct RimEdge {
     a: u16,
