@@ -74,6 +74,7 @@ impl Clone for PolyhedronCell {
 #[derive(Default)]
 struct WalkBuffers {
     walk: Vec<(u16, u16, u16, u32)>,
+    starts: Vec<u32>,
     polygon: Vec<[f64; 3]>,
 }
 
@@ -103,7 +104,7 @@ impl PolyhedronCell {
                 Ok(b) => b,
                 Err(_) => &mut fresh,
             };
-            self.face_walk(&mut buffers.walk);
+            self.face_walk(&mut buffers.walk, &mut buffers.starts);
             self.walk_faces(&buffers.walk, &mut buffers.polygon, |plane, poly| {
                 f(self.planes[plane as usize].face, poly)
             });
@@ -113,8 +114,8 @@ impl PolyhedronCell {
     /// The closed, outward boundary triangulation of the cell: every face fanned from its
     /// first vertex, as indices into [`PolyhedronCell::vertices`], appended to `out`.
     pub fn boundary_triangles(&self, out: &mut Vec<[u32; 3]>) {
-        let mut walk = Vec::new();
-        self.face_walk(&mut walk);
+        let (mut walk, mut starts) = (Vec::new(), Vec::new());
+        self.face_walk(&mut walk, &mut starts);
         let mut start = 0;
         let mut ring = Vec::new();
         while start < walk.len() {
@@ -148,15 +149,27 @@ impl PolyhedronCell {
     /// Entries `(plane p, q, r, t)` for every triangle `t = (p, q, r)` rotated to start at
     /// each of its planes, sorted by `p`: around face `p`, vertex `t` leads from the edge
     /// with `q` to the edge with `r`.
-    fn face_walk(&self, walk: &mut Vec<(u16, u16, u16, u32)>) {
-        walk.clear();
-        for (t, &[a, b, c]) in self.triangles.iter().enumerate() {
-            let t = t as u32;
-            walk.push((a, b, c, t));
-            walk.push((b, c, a, t));
-            walk.push((c, a, b, t));
+    fn face_walk(&self, walk: &mut Vec<(u16, u16, u16, u32)>, starts: &mut Vec<u32>) {
+        // Counting sort by plane; triangles are visited in order, so ties stay by triangle.
+        starts.clear();
+        starts.resize(self.planes.len() + 1, 0);
+        for tri in &self.triangles {
+            for &p in tri {
+                starts[p as usize + 1] += 1;
+            }
         }
-        walk.sort_unstable_by_key(|e| (e.0, e.3));
+        for p in 0..self.planes.len() {
+            starts[p + 1] += starts[p];
+        }
+        walk.clear();
+        walk.resize(3 * self.triangles.len(), (0, 0, 0, 0));
+        for (t, &[a, b, c]) in self.triangles.iter().enumerate() {
+            for entry in [(a, b, c), (b, c, a), (c, a, b)] {
+                let at = &mut starts[entry.0 as usize];
+                walk[*at as usize] = (entry.0, entry.1, entry.2, t as u32);
+                *at += 1;
+            }
+        }
     }
 
     /// Walk each face's vertices in order (counter-clockwise from outside) and hand them to
@@ -237,13 +250,25 @@ impl PolyhedronCell {
     fn find_rim(&self, scratch: &mut Scratch, dist: &impl Fn(&[f64; 3]) -> f64) {
         scratch.rim.clear();
         scratch.free.clear();
-        for (t, &tri) in self.triangles.iter().enumerate() {
+        for t in 0..self.triangles.len() {
             if !scratch.outside[t] {
                 continue;
             }
             scratch.free.push(t);
+        }
+        // The removed region is small: look for an edge's twin among the removed
+        // triangles first, and search the whole cell only for the rim's kept neighbours.
+        for &t in &scratch.free {
+            let tri = self.triangles[t];
             for k in 0..3 {
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                let internal = scratch.free.iter().any(|&u| {
+                    let [x, y, z] = self.triangles[u];
+                    (x == b && y == a) || (y == b && z == a) || (z == b && x == a)
+                });
+                if internal {
+                    continue;
+                }
                 let Some(s) = self.triangle_with_edge(b, a) else {
                     continue;
                 };
