@@ -289,25 +289,46 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let mut r2: f64 = 0.0;
-    for &v in cell.vertices() {
-        if Euclid::winding_number(boundary, &add_point(v, site)) != Some(0) {
-            r2 = r2.max(norm2(v));
-        }
-    }
-    let bounds = cell.bounds();
-    let query = Aabb {
-        lo: add_point(bounds.lo, site),
-        hi: add_point(bounds.hi, site),
-    };
     let mut candidates = Vec::new();
-    boundary.bvh().query(&query, &mut candidates);
+    boundary_candidates(boundary, cell, site, &mut candidates);
     for t in candidates {
         let rel = boundary.simplex(t).map(|v| sub(v, site));
         if !cell.excludes(&rel) {
             r2 = rel.iter().map(|&v| norm2(v)).fold(r2, f64::max);
         }
     }
+    // Only vertices beyond the simplices' bound can raise it: test them farthest first
+    // and stop at the first inside the domain (each test is a ray cast).
+    let mut far: Vec<(f64, [f64; D])> = cell
+        .vertices()
+        .iter()
+        .map(|&v| (norm2(v), v))
+        .filter(|&(d2, _)| d2 > r2)
+        .collect();
+    far.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    for (d2, v) in far {
+        if Euclid::winding_number(boundary, &add_point(v, site)) != Some(0) {
+            return d2;
+        }
+    }
     r2
+}
+
+/// The boundary simplices whose boxes meet the cell's box (the cell relative to `site`).
+fn boundary_candidates<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+    out: &mut Vec<u32>,
+) where
+    Euclid: Space<D>,
+{
+    let bounds = cell.bounds();
+    let query = Aabb {
+        lo: add_point(bounds.lo, site),
+        hi: add_point(bounds.hi, site),
+    };
+    boundary.bvh().query(&query, out);
 }
 
 /// Integrate `cell` (relative to `site`) restricted to the domain, through signed cones.
@@ -329,13 +350,8 @@ where
             neighbors: Vec::new(),
         };
     }
-    let bounds = cell.bounds();
-    let query = Aabb {
-        lo: add_point(bounds.lo, site),
-        hi: add_point(bounds.hi, site),
-    };
     let mut candidates = Vec::new();
-    boundary.bvh().query(&query, &mut candidates);
+    boundary_candidates(boundary, cell, site, &mut candidates);
     let (apex, winding) = choose_apex(boundary, cell, site, site_winding);
     if winding != 0 {
         let m = cell.moments_and_faces(|f, m| faces.add(f, winding as f64 * m));
