@@ -29,6 +29,9 @@ pub struct PolyhedronCell {
     planes: Vec<Plane>,
     triangles: Vec<[u16; 3]>,
     vertices: Vec<[f64; 3]>,
+    /// Largest `|v|²` over the vertices, kept up to date by every change: the driver asks
+    /// for it after each clip, and most clips change nothing.
+    max_dist2: f64,
     scratch: Scratch,
 }
 
@@ -58,6 +61,7 @@ impl Clone for PolyhedronCell {
             planes: self.planes.clone(),
             triangles: self.triangles.clone(),
             vertices: self.vertices.clone(),
+            max_dist2: self.max_dist2,
             scratch: Scratch::default(),
         }
     }
@@ -67,6 +71,7 @@ impl Clone for PolyhedronCell {
         self.planes.clone_from(&source.planes);
         self.triangles.clone_from(&source.triangles);
         self.vertices.clone_from(&source.vertices);
+        self.max_dist2 = source.max_dist2;
     }
 }
 
@@ -231,6 +236,7 @@ impl PolyhedronCell {
         } else if removed == self.triangles.len() {
             self.triangles.clear();
             self.vertices.clear();
+            self.max_dist2 = 0.0;
             true
         } else {
             self.find_rim(&mut scratch, &dist);
@@ -309,6 +315,7 @@ impl PolyhedronCell {
             self.triangles.swap_remove(slot);
             self.vertices.swap_remove(slot);
         }
+        self.max_dist2 = self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
     }
 }
 
@@ -343,10 +350,12 @@ impl ConvexCell<3> for PolyhedronCell {
                 if bit(2) == 1 { b.hi[2] } else { b.lo[2] },
             ]);
         }
+        let max_dist2 = vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
         Self {
             planes,
             triangles,
             vertices,
+            max_dist2,
             scratch: Scratch::default(),
         }
     }
@@ -378,7 +387,7 @@ impl ConvexCell<3> for PolyhedronCell {
     }
 
     fn max_dist2(&self) -> f64 {
-        self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max)
+        self.max_dist2
     }
 
     fn bounds(&self) -> Aabb<3> {
