@@ -28,6 +28,8 @@ struct Plane {
 pub struct PolyhedronCell {
     planes: Vec<Plane>,
     triangles: Vec<[u16; 3]>,
+    /// `neighbors[t][k]`: the triangle across edge `triangles[t][k] -> triangles[t][k + 1]`.
+    neighbors: Vec<[u32; 3]>,
     vertices: Vec<[f64; 3]>,
     /// Largest `|v|²` over the vertices, kept up to date by every change: the driver asks
     /// for it after each clip, and most clips change nothing.
@@ -53,6 +55,9 @@ struct RimEdge {
     a: u16,
     b: u16,
     vertex: [f64; 3],
+    /// The kept triangle across the edge, and the index of the edge in it.
+    kept: u32,
+    kept_edge: u8,
 }
 
 impl Clone for PolyhedronCell {
@@ -60,6 +65,7 @@ impl Clone for PolyhedronCell {
         Self {
             planes: self.planes.clone(),
             triangles: self.triangles.clone(),
+            neighbors: self.neighbors.clone(),
             vertices: self.vertices.clone(),
             max_dist2: self.max_dist2,
             scratch: Scratch::default(),
@@ -70,6 +76,7 @@ impl Clone for PolyhedronCell {
     fn clone_from(&mut self, source: &Self) {
         self.planes.clone_from(&source.planes);
         self.triangles.clone_from(&source.triangles);
+        self.neighbors.clone_from(&source.neighbors);
         self.vertices.clone_from(&source.vertices);
         self.max_dist2 = source.max_dist2;
     }
@@ -235,13 +242,14 @@ impl PolyhedronCell {
             true
         } else if removed == self.triangles.len() {
             self.triangles.clear();
+            self.neighbors.clear();
             self.vertices.clear();
             self.max_dist2 = 0.0;
             true
         } else {
             self.find_rim(&mut scratch, &dist);
             // The removed region of a convex cell is a disk: its rim is one simple cycle.
-            let ok = is_simple_cycle(&scratch.rim);
+            let ok = order_cycle(&mut scratch.rim);
             if ok {
                 self.replace_by_rim(&scratch, h, face);
             }
@@ -262,30 +270,24 @@ impl PolyhedronCell {
             }
             scratch.free.push(t);
         }
-        // The removed region is small: look for an edge's twin among the removed
-        // triangles first, and search the whole cell only for the rim's kept neighbours.
         for &t in &scratch.free {
             let tri = self.triangles[t];
             for k in 0..3 {
+                let s = self.neighbors[t][k] as usize;
+                if s >= self.triangles.len() || scratch.outside[s] {
+                    continue;
+                }
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                let internal = scratch.free.iter().any(|&u| {
-                    let [x, y, z] = self.triangles[u];
-                    (x == b && y == a) || (y == b && z == a) || (z == b && x == a)
-                });
-                if internal {
-                    continue;
-                }
-                let Some(s) = self.triangle_with_edge(b, a) else {
-                    continue;
-                };
-                if scratch.outside[s] {
-                    continue;
-                }
+                let kept_edge = (0..3)
+                    .find(|&j| self.neighbors[s][j] as usize == t)
+                    .unwrap_or(0) as u8;
                 let (v_in, v_out) = (self.vertices[s], self.vertices[t]);
                 scratch.rim.push(RimEdge {
                     a,
                     b,
                     vertex: Self::crossing(v_in, v_out, dist(&v_in).min(0.0), dist(&v_out)),
+                    kept: s as u32,
+                    kept_edge,
                 });
             }
         }
@@ -300,20 +302,48 @@ impl PolyhedronCell {
             offset: h.offset,
             face,
         });
+        // The rim is a cycle in order (`order_cycle`): new triangle k meets triangle k + 1
+        // across its edge `b -> p` and triangle k - 1 across `p -> a`.
+        let n = scratch.rim.len();
+        let first_new = self.triangles.len();
+        let free = &scratch.free;
+        let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len());
         for (k, e) in scratch.rim.iter().enumerate() {
             let tri = [e.a, e.b, p];
-            if let Some(&slot) = scratch.free.get(k) {
-                self.triangles[slot] = tri;
-                self.vertices[slot] = e.vertex;
+            let here = slot(k) as u32;
+            let next = slot((k + 1) % n) as u32;
+            let prev = slot((k + n - 1) % n) as u32;
+            let row = [e.kept, next, prev];
+            if let Some(&at) = scratch.free.get(k) {
+                self.triangles[at] = tri;
+                self.neighbors[at] = row;
+                self.vertices[at] = e.vertex;
             } else {
                 self.triangles.push(tri);
+                self.neighbors.push(row);
                 self.vertices.push(e.vertex);
             }
+            self.neighbors[e.kept as usize][e.kept_edge as usize] = here;
         }
-        // Descending order keeps the remaining indices valid under swap_remove.
-        for &slot in scratch.free.iter().skip(scratch.rim.len()).rev() {
-            self.triangles.swap_remove(slot);
-            self.vertices.swap_remove(slot);
+        // Descending order keeps the remaining indices valid under swap_remove; the
+        // triangle moved into a freed slot tells its neighbours where it went.
+        for &at in scratch.free.iter().skip(n).rev() {
+            let last = self.triangles.len() - 1;
+            self.triangles.swap_remove(at);
+            self.neighbors.swap_remove(at);
+            self.vertices.swap_remove(at);
+            if at < last {
+                for k in 0..3 {
+                    let s = self.neighbors[at][k] as usize;
+                    if let Some(row) = self.neighbors.get_mut(s) {
+                        for x in row.iter_mut() {
+                            if *x as usize == last {
+                                *x = at as u32;
+                            }
+                        }
+                    }
+                }
+            }
         }
         self.max_dist2 = self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
     }
@@ -351,13 +381,24 @@ impl ConvexCell<3> for PolyhedronCell {
             ]);
         }
         let max_dist2 = vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
-        Self {
+        let mut cell = Self {
             planes,
             triangles,
+            neighbors: Vec::with_capacity(64),
             vertices,
             max_dist2,
             scratch: Scratch::default(),
+        };
+        for t in 0..cell.triangles.len() {
+            let tri = cell.triangles[t];
+            let across = |k: usize| {
+                cell.triangle_with_edge(tri[(k + 1) % 3], tri[k])
+                    .map_or(u32::MAX, |s| s as u32)
+            };
+            let row = [across(0), across(1), across(2)];
+            cell.neighbors.push(row);
         }
+        cell
     }
 
     /// Remove the vertices strictly beyond `h`; a vertex exactly on it stays, so a plane
@@ -431,24 +472,26 @@ impl ConvexCell<3> for PolyhedronCell {
     }
 }
 
-/// The rim edges `a -> b` chain into one cycle through every edge, each plane starting
-/// one edge at most.
-fn is_simple_cycle(rim: &[RimEdge]) -> bool {
-    let Some(first) = rim.first() else {
+/// Put the rim edges `a -> b` in cycle order, each starting where the previous ends;
+/// `false` unless they form one simple cycle through every edge (each plane starting one
+/// edge at most).
+fn order_cycle(rim: &mut [RimEdge]) -> bool {
+    if rim.is_empty() {
         return false;
-    };
-    let mut at = first.b;
-    for _ in 1..rim.len() {
-        if at == first.a {
+    }
+    let first = rim[0].a;
+    for k in 1..rim.len() {
+        let at = rim[k - 1].b;
+        if at == first {
             return false; // closed before every edge was visited
         }
-        let mut starts = rim.iter().filter(|e| e.a == at);
+        let mut starts = (k..rim.len()).filter(|&j| rim[j].a == at);
         match (starts.next(), starts.next()) {
-            (Some(e), None) => at = e.b,
+            (Some(j), None) => rim.swap(k, j),
             _ => return false,
         }
     }
-    at == first.a
+    rim[rim.len() - 1].b == first && rim.iter().filter(|e| e.a == first).count() == 1
 }
 
 /// Moments about the origin of the cone from the origin over a face polygon, fanned from
@@ -640,6 +683,19 @@ mod tests {
         assert!(norm2(c0) < 1e-28);
     }
 
+    /// Every triangle's neighbour across edge `a -> b` holds the edge `b -> a` and points back.
+    fn assert_adjacency_consistent(c: &PolyhedronCell) {
+        assert_eq!(c.neighbors.len(), c.triangles.len());
+        for (t, tri) in c.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let s = c.neighbors[t][k] as usize;
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                assert_eq!(c.triangle_with_edge(b, a), Some(s), "triangle {t} edge {k}");
+                assert!(c.neighbors[s].contains(&(t as u32)));
+            }
+        }
+    }
+
     /// Clipping a random convex cell by random planes: volume agrees with a Monte-Carlo-free
     /// check, the divergence theorem over the faces (`V = Σ_f offset_f · area_f / (3 |n_f|)`).
     #[test]
@@ -663,6 +719,7 @@ mod tests {
                 planes.push(h);
                 c.clip(&h, Face::Neighbor(planes.len() as u32 - 1));
             }
+            assert_adjacency_consistent(&c);
             let m = c.moments();
             let mut v = 0.0;
             c.for_each_polygon(|f, poly| {
