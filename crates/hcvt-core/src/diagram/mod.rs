@@ -372,17 +372,9 @@ where
         if cell.excludes(&rel) {
             continue;
         }
-        piece.clone_from(cell);
-        for h in cone_sides(&rel, apex) {
-            piece.clip(&h, Face::Cone);
-            if piece.is_empty() {
-                break;
-            }
-        }
-        if piece.is_empty() {
-            continue;
-        }
-        // Beyond T as seen from the apex: the inner side when the apex is outside T.
+        // Beyond T as seen from the apex: the inner side when the apex is outside T. Cut
+        // there first: what is left beyond a small simplex is small, and the cone sides
+        // then clip few vertices.
         let normal = Euclid::normal(&rel);
         let beyond = HalfSpace::through(
             rel[0],
@@ -392,7 +384,14 @@ where
                 scale(normal, -1.0)
             },
         );
+        piece.clone_from(cell);
         piece.clip(&beyond, Face::Boundary(t));
+        for h in cone_sides(&rel, apex) {
+            if piece.is_empty() {
+                break;
+            }
+            piece.clip(&h, Face::Cone);
+        }
         if piece.is_empty() {
             continue;
         }
