@@ -109,3 +109,14 @@ def test_stl_and_off_round_trip(tmp_path: Path) -> None:
         path = tmp_path / f"tetra{suffix}"
         mesh.export(path)
         assert abs(hcvt.load_domain(path).volume - 1 / 6) < 1e-12, suffix
+
+
+@needs_data
+def test_generalized_winding_number_agrees_with_the_exact_one() -> None:
+    domain = hcvt.load_domain(BAD.parent / "bunny.off")
+    points = np.random.default_rng(4).uniform(*domain.bounds, size=(3000, 3))
+    exact = domain.contains(points)
+    gwn = domain.generalized_winding_numbers(points)
+    assert ((gwn > 0.5) == exact).mean() > 0.999
+    np.testing.assert_allclose(gwn[exact], 1.0, atol=0.05)
+    np.testing.assert_allclose(gwn[~exact], 0.0, atol=0.05)

@@ -74,19 +74,24 @@ class Diagram:
         owner = np.repeat(np.arange(self.n, dtype=np.int64), counts)
         other = self.neighbor_sites.astype(np.int64)
         h = (self.domain.volume / self.n) ** (1.0 / self.domain.dim)
-        keep = (owner < other) & (self.neighbor_measures > NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1))
+        floor = NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1)
+        keep = (owner < other) & (self.neighbor_measures > floor)
         return np.column_stack([owner[keep], other[keep]]), self.neighbor_measures[keep]
 
     @property
     def neighbors(self) -> NDArray[np.int64]:
-        """Restricted Delaunay edges, shape (k, 2), ``i < j``: cells sharing a face of
-        positive measure inside the domain (DESIGN §3.5), sorted by ``(i, j)``."""
+        """Restricted Delaunay edges, shape (k, 2), ``i < j``, sorted by ``(i, j)``.
+
+        Pairs of cells sharing a face of positive measure inside the domain (DESIGN §3.5).
+        """
         return self._pairs[0]
 
     @property
     def face_measures(self) -> NDArray[np.float64]:
-        """Length (2D) or area (3D) inside the domain of the face of each pair in
-        :attr:`neighbors`, shape (k,)."""
+        """Face measure inside the domain of each pair in :attr:`neighbors`, shape (k,).
+
+        Length in 2D, area in 3D.
+        """
         return self._pairs[1]
 
     def cell_neighbors(self, i: int) -> tuple[NDArray[np.uint32], NDArray[np.float64]]:
@@ -148,7 +153,10 @@ class Diagram:
         return out
 
     def __repr__(self) -> str:
-        return f"<hcvt.Diagram n={self.n} d={self.domain.dim} mean G={self.mean_G:.6f} energy={self.energy:.6g}>"
+        return (
+            f"<hcvt.Diagram n={self.n} d={self.domain.dim} "
+            f"mean G={self.mean_G:.6f} energy={self.energy:.6g}>"
+        )
 
 
 def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) -> Diagram:
@@ -194,7 +202,7 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
     points = as_sites(sites, domain.dim)
-    compute = {2: getattr(_core, "voronoi_2d", None), 3: getattr(_core, "voronoi_3d", None)}[domain.dim]
+    compute = getattr(_core, f"voronoi_{domain.dim}d", None)
     if compute is None:
         raise NotImplementedError(f"no diagram for dimension {domain.dim} in this build")
     arrays = compute(domain._core, points, allow_outside=allow_outside)

@@ -23,6 +23,9 @@ pub struct Boundary<const D: usize> {
     simplices: Vec<[u32; D]>,
     bvh: Bvh<D>,
     moments: Moments<D>,
+    /// Per BVH node, the far-field summary of its simplices for the generalised winding
+    /// number, built on first use.
+    dipoles: std::sync::OnceLock<Vec<winding::Dipole<D>>>,
 }
 
 /// A polygonal domain: segments `[a, b]` with the interior on their left.
@@ -69,6 +72,7 @@ where
             simplices,
             bvh,
             moments: Moments::zero(),
+            dipoles: std::sync::OnceLock::new(),
         };
         boundary.moments = boundary.integrate_from(boundary.bvh.bounds().center());
         let moments = boundary.moments;
@@ -105,6 +109,11 @@ where
     /// The BVH over the boundary simplices.
     pub fn bvh(&self) -> &Bvh<D> {
         &self.bvh
+    }
+
+    /// Per-node far-field summaries of the boundary (see [`winding::Dipole`]).
+    pub(crate) fn dipoles(&self) -> &[winding::Dipole<D>] {
+        self.dipoles.get_or_init(|| winding::dipoles(self))
     }
 
     /// Bounding box of the domain.
