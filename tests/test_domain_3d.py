@@ -120,3 +120,14 @@ def test_generalized_winding_number_agrees_with_the_exact_one() -> None:
     assert ((gwn > 0.5) == exact).mean() > 0.999
     np.testing.assert_allclose(gwn[exact], 1.0, atol=0.05)
     np.testing.assert_allclose(gwn[~exact], 0.0, atol=0.05)
+
+
+def test_crossing_surfaces_are_reported() -> None:
+    v = np.vstack([TETRA_V, TETRA_V + 0.2])
+    f = np.vstack([TETRA_F, TETRA_F + 4])
+    with pytest.raises(hcvt.InvalidDomainError, match="self-intersection: .* cross"):
+        hcvt.Domain.from_mesh(v, f)
+    domain = hcvt.Domain.from_mesh(v, f, repair=True)
+    assert "self-intersection" in str(domain.repair_report)
+    # The overlap counts twice: the volume is the sum of both tetrahedra.
+    assert abs(domain.volume - 2 / 6) < 1e-15

@@ -136,15 +136,17 @@ class Domain:
             and the faces on non-manifold edges, orient every component consistently, fill
             each hole with a fan from its centroid, split pinched vertices, and flip
             components whose volume is negative; ``domain.repair_report`` says what changed.
-            The diagram is then exact for the repaired surface. Self-intersections are not
-            detected: overlapping parts are counted with their winding number.
+            The diagram is then exact for the repaired surface. Crossing triangles cannot be
+            repaired: they are reported, and overlapping parts count with their winding
+            number.
 
         Raises
         ------
         InvalidDomainError
             Without ``repair``: any of degenerate faces, duplicate vertices, open boundary
             edges, non-manifold edges, inconsistent winding, pinched vertices, inward
-            orientation, zero volume, each with its count and first offending element.
+            orientation, zero volume, triangles crossing each other (exact test of pairs
+            sharing no vertex), each with its count and first offending element.
             Always: NaN/inf coordinates, out-of-range indices, nothing left after repair.
 
         Examples
@@ -156,15 +158,25 @@ class Domain:
         0.166666666667
         """
         v, f = mesh.as_mesh_arrays(vertices, faces)
+        actions: list[str] = []
+        before = mesh.signed_volume(v, f)
+        if repair:
+            v, f, actions = mesh.repair_mesh(v, f)
+        mesh.check_mesh(v, f, repaired=repair)
+        core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
+        count, pairs = core.crossing_triangles(1)
+        if count:
+            where = f"{count} pairs of triangles cross each other, first: faces {pairs[0]}"
+            if not repair:
+                raise InvalidDomainError(
+                    f"the mesh does not bound a solid:\n  - self-intersection: {where}\n"
+                    "pass repair=True to accept it (overlaps then count with their winding "
+                    "number)"
+                )
+            actions.append(f"left a self-intersection ({where}): overlaps count twice")
         report = None
         if repair:
-            before = mesh.signed_volume(v, f)
-            v, f, actions = mesh.repair_mesh(v, f)
-            mesh.check_mesh(v, f, repaired=True)
             report = RepairReport(bool(actions), actions, before, mesh.signed_volume(v, f))
-        else:
-            mesh.check_mesh(v, f)
-        core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
         return cls(core, 3, None, report)
 
     @property

@@ -150,6 +150,13 @@ impl SolidDomain {
         Ok((PyArray1::from_vec(py, w), PyArray1::from_vec(py, on)))
     }
 
+    /// Pairs of triangles sharing no vertex whose interiors cross: `(count, pairs)`, at
+    /// most `max` pairs `(s, t)`, `s < t`, in index order.
+    #[pyo3(signature = (max=10))]
+    fn crossing_triangles(&self, py: Python<'_>, max: usize) -> (usize, Vec<(u32, u32)>) {
+        py.detach(|| crate::threads::run(|| self.0.crossing_triangles(max)))
+    }
+
     /// Generalised winding number of each point (m,): the solid angle of the surface over
     /// 4π, robust to small holes and overlaps.
     fn generalized_winding_numbers<'py>(
