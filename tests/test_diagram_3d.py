@@ -258,3 +258,15 @@ def test_cells_are_closed_outward_and_export(
     ply = hcvt.io.write_cells(d, tmp_path / "cells.ply")
     mesh = trimesh.load(ply, process=False)
     assert abs(_surface_volume(mesh.vertices, mesh.faces) - domain.volume) < 1e-9 * domain.volume
+
+
+@needs_data
+def test_sites_on_mesh_vertices_and_a_single_site(domains: dict[str, hcvt.Domain]) -> None:
+    domain = domains["bunny.off"]
+    sites = np.vstack([interior_sites(domain, 200, seed=6), domain.vertices[::300]])
+    d = hcvt.voronoi(domain, sites)
+    _assert_sums(domain, d, "bunny with sites on mesh vertices")
+    assert np.isfinite(d.G).all()
+    one = hcvt.voronoi(domain, sites[:1])
+    assert abs(one.volume[0] - domain.volume) < 1e-13 * domain.volume
+    np.testing.assert_allclose(one.centroid[0], domain.centroid, rtol=0, atol=1e-14)
