@@ -120,7 +120,9 @@ class Diagram:
         )
         offsets, vertices = arrays["cell_offsets"], arrays["cell_vertices"]
         convex = shapely.polygons(
-            shapely.linearrings(vertices, indices=np.repeat(np.arange(self.n), np.diff(offsets)))
+            shapely.linearrings(
+                vertices, indices=np.repeat(np.arange(self.n), np.diff(offsets.astype(np.int64)))
+            )
         )
         clipped = convex.copy()
         touching = self.boundary_measure > 0
