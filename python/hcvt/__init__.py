@@ -10,7 +10,7 @@ from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
-from hcvt.io import load_domain
+from hcvt.io import load_domain, write_cells
 
 __all__ = [
     "Diagram",
@@ -26,5 +26,6 @@ __all__ = [
     "plot",
     "set_num_threads",
     "voronoi",
+    "write_cells",
 ]
 __version__ = "0.1.0"

@@ -74,14 +74,13 @@ class Diagram:
         owner = np.repeat(np.arange(self.n, dtype=np.int64), counts)
         other = self.neighbor_sites.astype(np.int64)
         h = (self.domain.volume / self.n) ** (1.0 / self.domain.dim)
-        keep = (owner < other) & (
-            self.neighbor_measures > NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1)
-        )
+        floor = NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1)
+        keep = (owner < other) & (self.neighbor_measures > floor)
         return np.column_stack([owner[keep], other[keep]]), self.neighbor_measures[keep]
 
     @property
     def neighbors(self) -> NDArray[np.int64]:
-        """Restricted Delaunay edges, shape (k, 2), ``i < j``, sorted.
+        """Restricted Delaunay edges, shape (k, 2), ``i < j``, sorted by ``(i, j)``.
 
         Pairs of cells sharing a face of positive measure inside the domain (DESIGN §3.5).
         """
@@ -89,7 +88,10 @@ class Diagram:
 
     @property
     def face_measures(self) -> NDArray[np.float64]:
-        """Length (2D) or area (3D) of each :attr:`neighbors` pair's face, shape (k,)."""
+        """Face measure inside the domain of each pair in :attr:`neighbors`, shape (k,).
+
+        Length in 2D, area in 3D.
+        """
         return self._pairs[1]
 
     def cell_neighbors(self, i: int) -> tuple[NDArray[np.uint32], NDArray[np.float64]]:
@@ -102,10 +104,17 @@ class Diagram:
 
         2D: a list of shapely Polygons or MultiPolygons (empty for an empty cell): the
         convex Voronoi cell intersected with the domain by GEOS, for pictures and export.
+
+        3D: a list of ``(vertices (k, 3), faces (f, 3))`` pairs, the closed, outward boundary
+        triangulation of each clipped cell (both empty for an empty cell). A cell that meets
+        no boundary triangle is the core's convex cell as is; a cell that does is
+        intersected with the domain by manifold3d in double precision (optional
+        dependency, ``pip install manifold3d``).
+
         The moments above do not come from these shapes but from the exact core.
         """
-        if self.domain.dim != 2:
-            raise NotImplementedError("cell geometry is available for 2D domains")
+        if self.domain.dim == 3:
+            return self._cells_3d()
         arrays = _core.voronoi_2d(
             self.domain._core, self.sites, allow_outside=self._allow_outside, keep_cells=True
         )
@@ -120,6 +129,29 @@ class Diagram:
             mask = touching | self._allow_outside
             clipped[mask] = shapely.intersection(convex[mask], self.domain.geometry)
         return list(clipped)
+
+    def _cells_3d(self) -> list[tuple[NDArray[np.float64], NDArray[np.int64]]]:
+        arrays = _core.voronoi_3d(
+            self.domain._core, self.sites, allow_outside=self._allow_outside, keep_cells=True
+        )
+        vo, vertices = arrays["cell_vertex_offsets"], arrays["cell_vertices"]
+        fo, faces = arrays["cell_face_offsets"], arrays["cell_faces"].astype(np.int64)
+        solid = None
+        out = []
+        empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+        for i in range(self.n):
+            v, f = vertices[vo[i] : vo[i + 1]], faces[fo[i] : fo[i + 1]]
+            if self.volume[i] <= 0:
+                out.append(empty)
+            elif self.boundary_measure[i] == 0:
+                out.append((v, f))  # inside the domain: the convex cell itself
+            else:
+                if solid is None:
+                    solid = _manifold(self.domain.vertices, self.domain.faces)
+                mesh = (_manifold_module().Manifold.hull_points(v) ^ solid).to_mesh64()
+                points = np.asarray(mesh.vert_properties)[:, :3]
+                out.append((points, mesh.tri_verts.astype(np.int64)))
+        return out
 
     def __repr__(self) -> str:
         return (
@@ -171,9 +203,7 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
     points = as_sites(sites, domain.dim)
-    compute = {2: getattr(_core, "voronoi_2d", None), 3: getattr(_core, "voronoi_3d", None)}[
-        domain.dim
-    ]
+    compute = getattr(_core, f"voronoi_{domain.dim}d", None)
     if compute is None:
         raise NotImplementedError(f"no diagram for dimension {domain.dim} in this build")
     arrays = compute(domain._core, points, allow_outside=allow_outside)
@@ -191,3 +221,23 @@ def as_sites(sites: ArrayLike, dim: int) -> NDArray[np.float64]:
     if arr.shape[0] == 0:
         raise InvalidSitesError("no sites given: a diagram needs n >= 1 sites")
     return np.array(arr, dtype=np.float64, order="C", copy=True)
+
+
+def _manifold_module() -> Any:
+    try:
+        import manifold3d
+    except ImportError as err:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "3D cells that meet the boundary are cut by manifold3d: pip install manifold3d"
+        ) from err
+    return manifold3d
+
+
+def _manifold(vertices: NDArray[np.float64], faces: NDArray[np.uint32]) -> Any:
+    """Build the domain as a manifold3d solid, in double precision."""
+    m3 = _manifold_module()
+    mesh = m3.Mesh64(
+        vert_properties=np.ascontiguousarray(vertices, dtype=np.float64),
+        tri_verts=np.ascontiguousarray(faces, dtype=np.uint32),
+    )
+    return m3.Manifold(mesh)

@@ -26,10 +26,10 @@ pub fn rows<T: numpy::Element + Copy, const D: usize>(
 }
 
 /// Rows back into an `(n, D)` array.
-pub fn to_array2<'py, const D: usize>(
+pub fn to_array2<'py, T: numpy::Element + Copy, const D: usize>(
     py: Python<'py>,
-    rows: &[[f64; D]],
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+    rows: &[[T; D]],
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let flat: Vec<T> = rows.iter().flatten().copied().collect();
     PyArray1::from_vec(py, flat).reshape([rows.len(), D])
 }

@@ -1,12 +1,12 @@
 //! The clipped Voronoi diagram as numpy arrays.
 
-use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolygonCell};
+use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolygonCell, PolyhedronCell};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{rows, to_array2};
-use crate::domain::PolygonDomain;
+use crate::domain::{PolygonDomain, SolidDomain};
 use crate::errors::to_py_err;
 
 /// Clipped diagram of `sites` (n, 2) in `domain`: a dict of arrays, row i = site i
@@ -40,6 +40,54 @@ pub fn voronoi_2d<'py>(
         }
         out.set_item("cell_offsets", PyArray1::from_vec(py, offsets))?;
         out.set_item("cell_vertices", to_array2(py, &vertices)?)?;
+    }
+    Ok(out)
+}
+
+/// Clipped diagram of `sites` (n, 3) in the solid `domain`: a dict of arrays, row i =
+/// site i (see `hcvt.voronoi`). With `keep_cells`, also each site's unclipped convex cell
+/// as a closed outward triangle mesh: `cell_vertex_offsets` (n+1,), `cell_vertices` (m, 3)
+/// absolute, `cell_face_offsets` (n+1,), `cell_faces` (f, 3) indices local to the cell.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false))]
+pub fn voronoi_3d<'py>(
+    py: Python<'py>,
+    domain: &SolidDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    allow_outside: bool,
+    keep_cells: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let points = rows::<f64, 3>(&sites, "sites")?;
+    let options = Options { allow_outside };
+    let (diagram, cells) = py
+        .detach(|| {
+            crate::threads::run(|| {
+                clipped_diagram::<3, PolyhedronCell>(&domain.0, &points, options, keep_cells)
+            })
+        })
+        .map_err(to_py_err)?;
+    let out = diagram_dict(py, &diagram, &points)?;
+    if keep_cells {
+        let (mut vertex_offsets, mut face_offsets) = (vec![0usize], vec![0usize]);
+        let mut vertices: Vec<[f64; 3]> = Vec::new();
+        let mut faces: Vec<[u32; 3]> = Vec::new();
+        for (cell, s) in cells.iter().zip(&points) {
+            vertices.extend(
+                cell.vertices()
+                    .iter()
+                    .map(|v| [v[0] + s[0], v[1] + s[1], v[2] + s[2]]),
+            );
+            cell.boundary_triangles(&mut faces);
+            vertex_offsets.push(vertices.len());
+            face_offsets.push(faces.len());
+        }
+        out.set_item(
+            "cell_vertex_offsets",
+            PyArray1::from_vec(py, vertex_offsets),
+        )?;
+        out.set_item("cell_vertices", to_array2(py, &vertices)?)?;
+        out.set_item("cell_face_offsets", PyArray1::from_vec(py, face_offsets))?;
+        out.set_item("cell_faces", to_array2(py, &faces)?)?;
     }
     Ok(out)
 }

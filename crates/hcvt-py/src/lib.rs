@@ -12,7 +12,9 @@ use pyo3::prelude::*;
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::PolygonDomain>()?;
+    m.add_class::<domain::SolidDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(diagram::voronoi_3d, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(threads::get_num_threads, m)?)?;
     Ok(())

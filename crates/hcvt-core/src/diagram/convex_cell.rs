@@ -35,6 +35,13 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// Bounding box relative to the site.
     fn bounds(&self) -> Aabb<D>;
 
+    /// The vertices, relative to the site.
+    fn vertices(&self) -> &[[f64; D]];
+
+    /// Some face's half-space has every one of `points` (relative to the site) strictly
+    /// outside, so their convex hull misses the cell.
+    fn excludes(&self, points: &[[f64; D]]) -> bool;
+
     /// Mean of the vertices: a point strictly inside a non-empty cell.
     fn vertex_mean(&self) -> [f64; D];
 
@@ -43,4 +50,11 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
 
     /// Call `f(face, measure)` for every face (length in 2D, area in 3D).
     fn for_each_face(&self, f: impl FnMut(Face, f64));
+
+    /// [`ConvexCell::for_each_face`] and [`ConvexCell::moments`] together, for cells that
+    /// can do both in one pass over their faces.
+    fn moments_and_faces(&self, f: impl FnMut(Face, f64)) -> Moments<D> {
+        self.for_each_face(f);
+        self.moments()
+    }
 }

@@ -34,4 +34,14 @@ impl<const D: usize> SiteIndex<D> {
             .map(|r| (r.item, r.distance))
             .collect()
     }
+
+    /// The nearest site of `p` as `(index, squared distance)`.
+    pub fn nearest_one(&self, p: &[f64; D]) -> (u32, f64) {
+        let r = self
+            .tree
+            .query(p)
+            .nearest_one::<SquaredEuclidean<f64>>()
+            .execute();
+        (r.item, r.distance)
+    }
 }

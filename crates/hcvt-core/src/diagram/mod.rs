@@ -13,6 +13,9 @@
 pub mod convex_cell;
 mod knn;
 pub mod polygon_cell;
+pub mod polyhedron_cell;
+
+use std::collections::HashSet;
 
 use rayon::prelude::*;
 
@@ -23,6 +26,7 @@ use crate::moments::Moments;
 pub use convex_cell::{ConvexCell, Face};
 pub use knn::SiteIndex;
 pub use polygon_cell::PolygonCell;
+pub use polyhedron_cell::PolyhedronCell;
 
 /// How to treat unusual input.
 #[derive(Debug, Clone, Copy, Default)]
@@ -160,9 +164,22 @@ fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
 const BOX_MARGIN: f64 = 1e-3;
 
 /// Number of nearest sites fetched first; doubled while the security radius is not reached.
-const FIRST_K: usize = 24;
+/// A cell has about 6 neighbours in 2D and 15.5 in 3D, and the security radius usually
+/// needs about twice that.
+const FIRST_K: [usize; 4] = [2, 4, 16, 64];
 
-/// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the site.
+/// Neighbour count after which a cell that has not reached its security radius is
+/// localised to the domain (see [`domain_radius2`]).
+const LOCALISE_K: usize = 64;
+
+/// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the
+/// site, exact wherever it meets the domain.
+///
+/// A site near the boundary of a non-convex domain has a Voronoi cell reaching far into
+/// the empty part of the bounding box, and the security radius would pull in most sites.
+/// Only the cell's part inside the domain matters, so once `LOCALISE_K` neighbours did not
+/// suffice the cell is cut to a box that holds that part ([`localise`]) and finished by
+/// checking its vertices' nearest sites ([`validate_vertices`]).
 pub fn voronoi_cell<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     index: &SiteIndex<D>,
@@ -170,7 +187,7 @@ pub fn voronoi_cell<const D: usize, C: ConvexCell<D>>(
     i: usize,
 ) -> Result<C, CoreError>
 where
-    Euclid: Space<D>,
+    Euclid: Space<D> + WindingNumber<D>,
 {
     let site = sites[i];
     // Start a little outside the domain's box: a cell face lying on the domain boundary
@@ -181,14 +198,19 @@ where
         .relative_to(site);
     let mut cell = C::from_box(&start);
     let mut radius2 = cell.max_dist2();
-    let mut clipped: Vec<u32> = Vec::new();
-    let mut k = FIRST_K.min(sites.len());
+    // Sites at the largest distance clipped so far: a re-query returns the nearer ones
+    // again (all clipped already), and ties at that distance in any order.
+    let mut last_dist2 = f64::NEG_INFINITY;
+    let mut at_last: Vec<u32> = Vec::new();
+    let mut k = FIRST_K.get(D).copied().unwrap_or(64).min(sites.len());
     loop {
         let mut reached = false;
         let neighbors = index.nearest(&site, k);
-        let requery = !clipped.is_empty();
         for &(j, dist2) in &neighbors {
-            if j as usize == i || (requery && clipped.contains(&j)) {
+            if j as usize == i
+                || dist2 < last_dist2
+                || (dist2 == last_dist2 && at_last.contains(&j))
+            {
                 continue;
             }
             if dist2 > 4.0 * radius2 {
@@ -207,13 +229,153 @@ where
             if cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j)) {
                 radius2 = cell.max_dist2();
             }
-            clipped.push(j);
+            if dist2 > last_dist2 {
+                last_dist2 = dist2;
+                at_last.clear();
+            }
+            at_last.push(j);
         }
         if reached || neighbors.len() < k || k >= sites.len() {
             return Ok(cell);
         }
+        if k >= LOCALISE_K && !cell.is_empty() {
+            localise(boundary, &mut cell, site);
+            validate_vertices(&mut cell, index, sites, i)?;
+            return Ok(cell);
+        }
         k = (2 * k).min(sites.len());
     }
+}
+
+/// Cut `cell` (relative to `site`) to the box of half-width `R` around the site, `R` a
+/// bound on the distance of its part inside the domain: nothing of the domain is lost, and
+/// the far reaches of the cell outside it stop costing neighbours and boundary pieces.
+fn localise<const D: usize, C: ConvexCell<D>>(boundary: &Boundary<D>, cell: &mut C, site: [f64; D])
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let r = domain_radius2(boundary, cell, site).sqrt();
+    for axis in 0..D {
+        let unit: [f64; D] = std::array::from_fn(|j| if j == axis { 1.0 } else { 0.0 });
+        cell.clip(&HalfSpace::through(scale(unit, r), unit), Face::Box);
+        cell.clip(
+            &HalfSpace::through(scale(unit, -r), scale(unit, -1.0)),
+            Face::Box,
+        );
+    }
+}
+
+/// Most vertex checks one cell may need before it is accepted as it is.
+const MAX_VALIDATIONS: usize = 100_000;
+
+/// Clip `cell` until each of its vertices has site `i` as a nearest site, so that the cell
+/// (the convex hull of its vertices) lies in the Voronoi cell; as it already contains the
+/// Voronoi cell's part in the box it started from, the two are then equal there.
+///
+/// Used instead of the security radius for cells localised by [`localise`]: each vertex
+/// asks the kd-tree for its own nearest site, so the work follows where the cell is, not
+/// a ball around the site. A vertex within round-off of a bisector already clipped counts
+/// as valid; vertices that survive a clip keep their bits and are not checked again.
+fn validate_vertices<const D: usize, C: ConvexCell<D>>(
+    cell: &mut C,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    i: usize,
+) -> Result<(), CoreError> {
+    let site = sites[i];
+    let mut valid: HashSet<[u64; D]> = HashSet::new();
+    let mut used: Vec<u32> = Vec::new();
+    for _ in 0..MAX_VALIDATIONS {
+        let mut cut = None;
+        for &v in cell.vertices() {
+            let key = v.map(f64::to_bits);
+            if valid.contains(&key) {
+                continue;
+            }
+            let (j, dist2) = index.nearest_one(&add_point(v, site));
+            let closer = dist2 < norm2(v) * (1.0 - 1e-12);
+            if j as usize != i && closer && !used.contains(&j) {
+                cut = Some(j);
+                break;
+            }
+            valid.insert(key);
+        }
+        let Some(j) = cut else {
+            return Ok(());
+        };
+        let q = sub(sites[j as usize], site);
+        if norm2(q) == 0.0 {
+            let (first, second) = (i.min(j as usize), i.max(j as usize));
+            return Err(CoreError::DuplicateSites {
+                first,
+                second,
+                point: site.to_vec(),
+            });
+        }
+        cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
+        used.push(j);
+        if cell.is_empty() {
+            return Ok(());
+        }
+    }
+    Ok(())
+}
+
+/// An upper bound on `|x|²` over the part of `cell` (relative to `site`) inside the domain.
+///
+/// The farthest point of that part is one of its vertices: a vertex of the cell inside
+/// the domain, or a point where the boundary meets the cell, which lies on a boundary
+/// simplex that the cell does not exclude. Exact winding numbers decide the first kind;
+/// the farthest vertex of each simplex bounds the second.
+fn domain_radius2<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+) -> f64
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let mut r2: f64 = 0.0;
+    let mut candidates = Vec::new();
+    boundary_candidates(boundary, cell, site, &mut candidates);
+    for t in candidates {
+        let rel = boundary.simplex(t).map(|v| sub(v, site));
+        if !cell.excludes(&rel) {
+            r2 = rel.iter().map(|&v| norm2(v)).fold(r2, f64::max);
+        }
+    }
+    // Only vertices beyond the simplices' bound can raise it: test them farthest first
+    // and stop at the first inside the domain (each test is a ray cast).
+    let mut far: Vec<(f64, [f64; D])> = cell
+        .vertices()
+        .iter()
+        .map(|&v| (norm2(v), v))
+        .filter(|&(d2, _)| d2 > r2)
+        .collect();
+    far.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    for (d2, v) in far {
+        if Euclid::winding_number(boundary, &add_point(v, site)) != Some(0) {
+            return d2;
+        }
+    }
+    r2
+}
+
+/// The boundary simplices whose boxes meet the cell's box (the cell relative to `site`).
+fn boundary_candidates<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+    out: &mut Vec<u32>,
+) where
+    Euclid: Space<D>,
+{
+    let bounds = cell.bounds();
+    let query = Aabb {
+        lo: add_point(bounds.lo, site),
+        hi: add_point(bounds.hi, site),
+    };
+    boundary.bvh().query(&query, out);
 }
 
 /// Integrate `cell` (relative to `site`) restricted to the domain, through signed cones.
@@ -235,19 +397,15 @@ where
             neighbors: Vec::new(),
         };
     }
-    let bounds = cell.bounds();
-    let query = Aabb {
-        lo: add_point(bounds.lo, site),
-        hi: add_point(bounds.hi, site),
-    };
     let mut candidates = Vec::new();
-    boundary.bvh().query(&query, &mut candidates);
+    boundary_candidates(boundary, cell, site, &mut candidates);
     let (apex, winding) = choose_apex(boundary, cell, site, site_winding);
-    total.add_scaled(&cell.moments(), winding as f64);
     if winding != 0 {
-        cell.for_each_face(|f, m| faces.add(f, winding as f64 * m));
+        let m = cell.moments_and_faces(|f, m| faces.add(f, winding as f64 * m));
+        total.add_scaled(&m, winding as f64);
     }
     let apex_abs = add_point(apex, site);
+    let mut piece = cell.clone(); // reused: clone_from keeps its buffers
     for t in candidates {
         let simplex = boundary.simplex(t);
         let side = Euclid::side(&simplex, &apex_abs);
@@ -256,17 +414,14 @@ where
         }
         let sigma = if side > 0.0 { 1.0 } else { -1.0 };
         let rel = simplex.map(|v| sub(v, site));
-        let mut piece = cell.clone();
-        for h in cone_sides(&rel, apex) {
-            let _ = piece.clip(&h, Face::Cone);
-            if piece.is_empty() {
-                break;
-            }
-        }
-        if piece.is_empty() {
+        // A segment from the apex to a point of C ∩ K(T) crosses T inside the convex C, so
+        // a simplex that some face of C separates from C has an empty piece.
+        if cell.excludes(&rel) {
             continue;
         }
-        // Beyond T as seen from the apex: the inner side when the apex is outside T.
+        // Beyond T as seen from the apex: the inner side when the apex is outside T. Cut
+        // there first: what is left beyond a small simplex is small, and the cone sides
+        // then clip few vertices.
         let normal = Euclid::normal(&rel);
         let beyond = HalfSpace::through(
             rel[0],
@@ -276,12 +431,19 @@ where
                 scale(normal, -1.0)
             },
         );
-        let _ = piece.clip(&beyond, Face::Boundary(t));
+        piece.clone_from(cell);
+        piece.clip(&beyond, Face::Boundary(t));
+        for h in cone_sides(&rel, apex) {
+            if piece.is_empty() {
+                break;
+            }
+            piece.clip(&h, Face::Cone);
+        }
         if piece.is_empty() {
             continue;
         }
-        total.add_scaled(&piece.moments(), sigma);
-        piece.for_each_face(|f, m| faces.add(f, sigma * m));
+        let m = piece.moments_and_faces(|f, m| faces.add(f, sigma * m));
+        total.add_scaled(&m, sigma);
     }
     CellOutput {
         moments: total,

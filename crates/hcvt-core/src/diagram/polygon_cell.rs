@@ -102,6 +102,22 @@ impl ConvexCell<2> for PolygonCell {
         Aabb::of_points(&self.vertices)
     }
 
+    fn vertices(&self) -> &[[f64; 2]] {
+        &self.vertices
+    }
+
+    /// Tested against the lines through consecutive vertices (counter-clockwise, so the
+    /// outside of edge `a -> b` is on its right).
+    fn excludes(&self, points: &[[f64; 2]]) -> bool {
+        let n = self.vertices.len();
+        (0..n).any(|i| {
+            let a = self.vertices[i];
+            let b = self.vertices[if i + 1 == n { 0 } else { i + 1 }];
+            let normal = [b[1] - a[1], a[0] - b[0]];
+            points.iter().all(|&p| dot(normal, sub(p, a)) > 0.0)
+        })
+    }
+
     fn vertex_mean(&self) -> [f64; 2] {
         let n = self.vertices.len().max(1) as f64;
         let s = self

@@ -14,6 +14,8 @@ struct Node<const D: usize> {
     /// Leaf: `items[start..start + count]`; inner node: children at `start`, `start + 1`.
     start: u32,
     count: u32,
+    /// The subtree's elements: `items[span.0..span.0 + span.1]` (contiguous by construction).
+    span: (u32, u32),
 }
 
 /// A static BVH over axis-aligned boxes.
@@ -34,6 +36,7 @@ impl<const D: usize> Bvh<D> {
             bounds: Aabb::empty(),
             start: 0,
             count: boxes.len() as u32,
+            span: (0, boxes.len() as u32),
         });
         let mut stack = vec![0usize];
         while let Some(at) = stack.pop() {
@@ -67,11 +70,13 @@ impl<const D: usize> Bvh<D> {
                 bounds: Aabb::empty(),
                 start: start as u32,
                 count: mid as u32,
+                span: (start as u32, mid as u32),
             });
             nodes.push(Node {
                 bounds: Aabb::empty(),
                 start: (start + mid) as u32,
                 count: (count - mid) as u32,
+                span: ((start + mid) as u32, (count - mid) as u32),
             });
             nodes[at].start = first_child as u32;
             nodes[at].count = 0;
@@ -93,6 +98,40 @@ impl<const D: usize> Bvh<D> {
     /// No elements at all.
     pub fn is_empty(&self) -> bool {
         self.boxes.is_empty()
+    }
+
+    /// Number of nodes; node `0` is the root.
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// The elements under node `i` (all of its subtree), empty for a bad index.
+    pub fn node_items(&self, i: usize) -> &[u32] {
+        self.nodes.get(i).map_or(&[], |n| {
+            let (s, c) = (n.span.0 as usize, n.span.1 as usize);
+            &self.items[s..s + c]
+        })
+    }
+
+    /// Depth-first walk from the root: `visit(node, is_leaf)` returns whether to descend
+    /// into the node's children (ignored at leaves). Fixed order, as [`Bvh::query`].
+    pub fn walk(&self, mut visit: impl FnMut(usize, bool) -> bool) {
+        if self.boxes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; 64];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let at = stack[top] as usize;
+            let node = &self.nodes[at];
+            let leaf = node.count > 0;
+            if visit(at, leaf) && !leaf && top + 2 <= stack.len() {
+                stack[top] = node.start;
+                stack[top + 1] = node.start + 1;
+                top += 2;
+            }
+        }
     }
 
     /// Box of the whole hierarchy.

@@ -14,7 +14,7 @@ use crate::error::CoreError;
 use crate::geometry::{Aabb, Euclid, Space};
 use crate::moments::Moments;
 pub use bvh::Bvh;
-pub use winding::WindingNumber;
+pub use winding::{generalized_winding_number, WindingNumber};
 
 /// A domain bounded by a closed, oriented cycle of `(D-1)`-simplices.
 #[derive(Debug, Clone)]
@@ -23,6 +23,9 @@ pub struct Boundary<const D: usize> {
     simplices: Vec<[u32; D]>,
     bvh: Bvh<D>,
     moments: Moments<D>,
+    /// Per BVH node, the far-field summary of its simplices for the generalised winding
+    /// number, built on first use.
+    dipoles: std::sync::OnceLock<Vec<winding::Dipole<D>>>,
 }
 
 /// A polygonal domain: segments `[a, b]` with the interior on their left.
@@ -69,6 +72,7 @@ where
             simplices,
             bvh,
             moments: Moments::zero(),
+            dipoles: std::sync::OnceLock::new(),
         };
         boundary.moments = boundary.integrate_from(boundary.bvh.bounds().center());
         let moments = boundary.moments;
@@ -105,6 +109,11 @@ where
     /// The BVH over the boundary simplices.
     pub fn bvh(&self) -> &Bvh<D> {
         &self.bvh
+    }
+
+    /// Per-node far-field summaries of the boundary (see [`winding::Dipole`]).
+    pub(crate) fn dipoles(&self) -> &[winding::Dipole<D>] {
+        self.dipoles.get_or_init(|| winding::dipoles(self))
     }
 
     /// Bounding box of the domain.
@@ -187,6 +196,76 @@ fn check_closed<const D: usize>(simplices: &[[u32; D]]) -> Result<(), CoreError>
     })
 }
 
+impl Solid {
+    /// Pairs `(s, t)`, `s < t`, of triangles sharing no vertex whose interiors cross: an
+    /// edge of one passes strictly through the inside of the other (exact `orient3d`).
+    /// Touching and coplanar contacts are not reported. At most `max` pairs, in index
+    /// order, with the total count.
+    ///
+    /// Where the surface crosses itself the winding number is 2 or -1, and the diagram
+    /// integrates it so (DESIGN §3.6): the front end reports these pairs.
+    pub fn crossing_triangles(&self, max: usize) -> (usize, Vec<(u32, u32)>) {
+        use rayon::prelude::*;
+        let per_triangle: Vec<Vec<u32>> = (0..self.simplices.len() as u32)
+            .into_par_iter()
+            .map(|s| {
+                let mut candidates = Vec::new();
+                let a = &self.simplices[s as usize];
+                self.bvh.query(
+                    &Aabb::of_points(a.iter().map(|&v| &self.vertices[v as usize])),
+                    &mut candidates,
+                );
+                candidates.retain(|&t| {
+                    let b = &self.simplices[t as usize];
+                    t > s
+                        && !a.iter().any(|v| b.contains(v))
+                        && triangles_cross(&self.simplex(s), &self.simplex(t))
+                });
+                candidates
+            })
+            .collect();
+        let total = per_triangle.iter().map(Vec::len).sum();
+        let pairs = per_triangle
+            .iter()
+            .enumerate()
+            .flat_map(|(s, ts)| ts.iter().map(move |&t| (s as u32, t)))
+            .take(max)
+            .collect();
+        (total, pairs)
+    }
+}
+
+fn coord(v: &[f64; 3]) -> robust::Coord3D<f64> {
+    robust::Coord3D {
+        x: v[0],
+        y: v[1],
+        z: v[2],
+    }
+}
+
+/// An edge of either triangle passes strictly through the interior of the other.
+fn triangles_cross(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> bool {
+    (0..3).any(|k| segment_crosses(&a[k], &a[(k + 1) % 3], b))
+        || (0..3).any(|k| segment_crosses(&b[k], &b[(k + 1) % 3], a))
+}
+
+/// The open segment `(u, v)` meets the open triangle `tri` in one point.
+fn segment_crosses(u: &[f64; 3], v: &[f64; 3], tri: &[[f64; 3]; 3]) -> bool {
+    let [p, q, r] = tri.map(|x| coord(&x));
+    let (cu, cv) = (coord(u), coord(v));
+    let su = robust::orient3d(p, q, r, cu);
+    let sv = robust::orient3d(p, q, r, cv);
+    if su == 0.0 || sv == 0.0 || (su > 0.0) == (sv > 0.0) {
+        return false;
+    }
+    let e = [
+        robust::orient3d(cu, cv, p, q),
+        robust::orient3d(cu, cv, q, r),
+        robust::orient3d(cu, cv, r, p),
+    ];
+    e.iter().all(|&x| x > 0.0) || e.iter().all(|&x| x < 0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -257,5 +336,30 @@ mod tests {
             matches!(err, CoreError::OpenBoundary { count: 3, .. }),
             "{err}"
         );
+    }
+
+    #[test]
+    fn two_tetrahedra_crossing_are_found() {
+        let mut v = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let t = vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let single = Solid::new(v.clone(), t.clone()).unwrap();
+        assert_eq!(single.crossing_triangles(10).0, 0);
+        v.extend([
+            [0.2, 0.2, 0.2],
+            [1.2, 0.2, 0.2],
+            [0.2, 1.2, 0.2],
+            [0.2, 0.2, 1.2],
+        ]);
+        let mut both = t.clone();
+        both.extend(t.iter().map(|s| s.map(|i| i + 4)));
+        let (count, pairs) = Solid::new(v, both).unwrap().crossing_triangles(2);
+        assert!(count >= 3, "{count}");
+        assert_eq!(pairs.len(), 2);
+        assert!(pairs.iter().all(|&(s, t)| s < 4 && t >= 4));
     }
 }

@@ -1,0 +1,743 @@
+//! The 3D convex cell in the dual representation of Ray et al. 2018 ("Meshless Voronoi on
+//! the GPU") and geogram's `ConvexCell`: the cell is a list of planes, and each vertex is a
+//! triangle of three plane indices. Clipping removes the triangles whose vertex lies
+//! beyond the new plane and cones the boundary edges of the removed region to it.
+//!
+//! Why this representation: the topology is combinatorial (triangles of plane indices),
+//! so faces can never disagree about a shared vertex; each vertex is computed once, when
+//! its triangle is created, so every face that uses it sees the same bits.
+
+use super::convex_cell::{ConvexCell, Face};
+use crate::geometry::{add, dot, norm2, scale, sub, Aabb, HalfSpace};
+use crate::moments::{tetra_moments, Moments};
+
+/// A plane of the cell, `normal · x <= offset`, and what made it. Vertices are computed
+/// once, when their triangle is made, never from the planes.
+#[derive(Debug, Clone, Copy)]
+struct Plane {
+    normal: [f64; 3],
+    offset: f64,
+    face: Face,
+}
+
+/// Convex polyhedron relative to its site.
+///
+/// `triangles[t] = [a, b, c]` are the planes meeting at vertex `vertices[t]`, ordered
+/// counter-clockwise seen from outside; an empty triangle list is the empty cell.
+#[derive(Debug, Default)]
+pub struct PolyhedronCell {
+    planes: Vec<Plane>,
+    triangles: Vec<[u16; 3]>,
+    /// `neighbors[t][k]`: the triangle across edge `triangles[t][k] -> triangles[t][k + 1]`.
+    neighbors: Vec<[u32; 3]>,
+    vertices: Vec<[f64; 3]>,
+    /// Largest `|v|²` over the vertices, kept up to date by every change: the driver asks
+    /// for it after each clip, and most clips change nothing.
+    max_dist2: f64,
+    scratch: Scratch,
+}
+
+/// Buffers reused across clips, so a cell allocates only while it grows.
+#[derive(Debug, Default)]
+struct Scratch {
+    /// Per triangle: its vertex lies beyond the clipping plane.
+    outside: Vec<bool>,
+    /// Boundary edges of the removed region.
+    rim: Vec<RimEdge>,
+    /// Slots of the removed triangles, refilled by the new ones.
+    free: Vec<usize>,
+}
+
+/// A directed edge `a -> b` (two planes) of a removed triangle whose neighbour across is
+/// kept, and the new vertex where the clipping plane cuts the primal edge `a ∩ b`.
+#[derive(Debug, Clone, Copy)]
+struct RimEdge {
+    a: u16,
+    b: u16,
+    vertex: [f64; 3],
+    /// The kept triangle across the edge, and the index of the edge in it.
+    kept: u32,
+    kept_edge: u8,
+}
+
+impl Clone for PolyhedronCell {
+    fn clone(&self) -> Self {
+        Self {
+            planes: self.planes.clone(),
+            triangles: self.triangles.clone(),
+            neighbors: self.neighbors.clone(),
+            vertices: self.vertices.clone(),
+            max_dist2: self.max_dist2,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// Reuses this cell's buffers: the driver clones a cell once per boundary piece.
+    fn clone_from(&mut self, source: &Self) {
+        self.planes.clone_from(&source.planes);
+        self.triangles.clone_from(&source.triangles);
+        self.neighbors.clone_from(&source.neighbors);
+        self.vertices.clone_from(&source.vertices);
+        self.max_dist2 = source.max_dist2;
+    }
+}
+
+/// Scratch of [`PolyhedronCell::for_each_polygon`].
+#[derive(Default)]
+struct WalkBuffers {
+    walk: Vec<(u16, u16, u16, u32)>,
+    starts: Vec<u32>,
+    polygon: Vec<[f64; 3]>,
+}
+
+thread_local! {
+    static WALK_BUFFERS: std::cell::RefCell<WalkBuffers> = std::cell::RefCell::default();
+}
+
+/// Planes a cell may have: plane indices are `u16`.
+const MAX_PLANES: usize = u16::MAX as usize;
+
+impl PolyhedronCell {
+    /// Vertices relative to the site; vertex `t` is where the planes of triangle `t` meet.
+    pub fn vertices(&self) -> &[[f64; 3]] {
+        &self.vertices
+    }
+
+    /// Call `f(face, polygon)` for every face with at least three vertices; the polygon is
+    /// counter-clockwise seen from outside, relative to the site. Vertices where more than
+    /// three planes meet appear once per triangle, so a polygon may repeat a point.
+    pub fn for_each_polygon(&self, mut f: impl FnMut(Face, &[[f64; 3]])) {
+        // Per-thread buffers: a cell is walked once per boundary piece. A nested walk (from
+        // inside `f`) finds them taken and uses fresh ones.
+        WALK_BUFFERS.with(|cell| {
+            let mut fresh = WalkBuffers::default();
+            let mut taken = cell.try_borrow_mut();
+            let buffers = match taken.as_deref_mut() {
+                Ok(b) => b,
+                Err(_) => &mut fresh,
+            };
+            self.face_walk(&mut buffers.walk, &mut buffers.starts);
+            self.walk_faces(&buffers.walk, &mut buffers.polygon, |plane, poly| {
+                f(self.planes[plane as usize].face, poly)
+            });
+        });
+    }
+
+    /// The closed, outward boundary triangulation of the cell: every face fanned from its
+    /// first vertex, as indices into [`PolyhedronCell::vertices`], appended to `out`.
+    pub fn boundary_triangles(&self, out: &mut Vec<[u32; 3]>) {
+        let (mut walk, mut starts) = (Vec::new(), Vec::new());
+        self.face_walk(&mut walk, &mut starts);
+        let mut start = 0;
+        let mut ring = Vec::new();
+        while start < walk.len() {
+            let end = start
+                + walk[start..]
+                    .iter()
+                    .take_while(|e| e.0 == walk[start].0)
+                    .count();
+            Self::walk_one_face(&walk[start..end], &mut ring);
+            for k in 1..ring.len().saturating_sub(1) {
+                out.push([ring[0], ring[k], ring[k + 1]]);
+            }
+            start = end;
+        }
+    }
+
+    /// The triangles (vertex indices) around one face, in counter-clockwise order.
+    fn walk_one_face(face: &[(u16, u16, u16, u32)], ring: &mut Vec<u32>) {
+        ring.clear();
+        let mut at = 0;
+        for _ in 0..face.len() {
+            ring.push(face[at].3);
+            let next = face[at].2;
+            match face.iter().position(|e| e.1 == next) {
+                Some(k) if k != 0 => at = k,
+                _ => break,
+            }
+        }
+    }
+
+    /// Entries `(plane p, q, r, t)` for every triangle `t = (p, q, r)` rotated to start at
+    /// each of its planes, sorted by `p`: around face `p`, vertex `t` leads from the edge
+    /// with `q` to the edge with `r`.
+    fn face_walk(&self, walk: &mut Vec<(u16, u16, u16, u32)>, starts: &mut Vec<u32>) {
+        // Counting sort by plane; triangles are visited in order, so ties stay by triangle.
+        starts.clear();
+        starts.resize(self.planes.len() + 1, 0);
+        for tri in &self.triangles {
+            for &p in tri {
+                starts[p as usize + 1] += 1;
+            }
+        }
+        for p in 0..self.planes.len() {
+            starts[p + 1] += starts[p];
+        }
+        walk.clear();
+        walk.resize(3 * self.triangles.len(), (0, 0, 0, 0));
+        for (t, &[a, b, c]) in self.triangles.iter().enumerate() {
+            for entry in [(a, b, c), (b, c, a), (c, a, b)] {
+                let at = &mut starts[entry.0 as usize];
+                walk[*at as usize] = (entry.0, entry.1, entry.2, t as u32);
+                *at += 1;
+            }
+        }
+    }
+
+    /// Walk each face's vertices in order (counter-clockwise from outside) and hand them to
+    /// `f(plane, polygon)`. From vertex `(p, q, r)` the next vertex of face `p` is the one
+    /// with triangle `(p, r, s)`: the two share the edge between faces `p` and `r`.
+    fn walk_faces(
+        &self,
+        walk: &[(u16, u16, u16, u32)],
+        polygon: &mut Vec<[f64; 3]>,
+        mut f: impl FnMut(u16, &[[f64; 3]]),
+    ) {
+        let mut start = 0;
+        let mut ring = Vec::new();
+        while start < walk.len() {
+            let plane = walk[start].0;
+            let mut end = start;
+            while end < walk.len() && walk[end].0 == plane {
+                end += 1;
+            }
+            Self::walk_one_face(&walk[start..end], &mut ring);
+            polygon.clear();
+            polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
+            if polygon.len() >= 3 {
+                f(plane, polygon);
+            }
+            start = end;
+        }
+    }
+
+    /// The vertex where the segment from `inside` (distance `d_in <= 0`) to `outside`
+    /// (`d_out > 0`) meets the plane. Interpolating along the old edge keeps the new vertex
+    /// on it even when the three planes are nearly dependent.
+    #[inline]
+    fn crossing(inside: [f64; 3], outside: [f64; 3], d_in: f64, d_out: f64) -> [f64; 3] {
+        let t = d_in / (d_in - d_out);
+        add(inside, scale(sub(outside, inside), t))
+    }
+
+    /// Index of the triangle holding the directed edge `a -> b`.
+    #[inline]
+    fn triangle_with_edge(&self, a: u16, b: u16) -> Option<usize> {
+        self.triangles
+            .iter()
+            .position(|&[x, y, z]| (x == a && y == b) || (y == a && z == b) || (z == a && x == b))
+    }
+
+    /// One attempt of [`ConvexCell::clip`]: remove the vertices farther than `tol` beyond
+    /// `h`. Returns `false`, changing nothing, when the removed region is not a disk.
+    fn try_clip(&mut self, h: &HalfSpace<3>, face: Face, tol: f64) -> Option<bool> {
+        let dist = |v: &[f64; 3]| dot(h.normal, *v) - h.offset;
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.outside.clear();
+        scratch
+            .outside
+            .extend(self.vertices.iter().map(|v| dist(v) > tol));
+        let removed = scratch.outside.iter().filter(|&&o| o).count();
+        let done = if removed == 0 {
+            Some(false)
+        } else if removed == self.triangles.len() {
+            self.triangles.clear();
+            self.neighbors.clear();
+            self.vertices.clear();
+            self.max_dist2 = 0.0;
+            Some(true)
+        } else {
+            self.find_rim(&mut scratch, &dist);
+            // The removed region of a convex cell is a disk: its rim is one simple cycle.
+            let ok = order_cycle(&mut scratch.rim);
+            if ok {
+                self.replace_by_rim(&scratch, h, face);
+            }
+            ok.then_some(true)
+        };
+        self.scratch = scratch;
+        done
+    }
+
+    /// The rim of the removed region (directed edges of removed triangles whose
+    /// neighbour across is kept, each with the new vertex on it), and the removed slots.
+    fn find_rim(&self, scratch: &mut Scratch, dist: &impl Fn(&[f64; 3]) -> f64) {
+        scratch.rim.clear();
+        scratch.free.clear();
+        for t in 0..self.triangles.len() {
+            if !scratch.outside[t] {
+                continue;
+            }
+            scratch.free.push(t);
+        }
+        for &t in &scratch.free {
+            let tri = self.triangles[t];
+            for k in 0..3 {
+                let s = self.neighbors[t][k] as usize;
+                if s >= self.triangles.len() || scratch.outside[s] {
+                    continue;
+                }
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                let kept_edge = (0..3)
+                    .find(|&j| self.neighbors[s][j] as usize == t)
+                    .unwrap_or(0) as u8;
+                let (v_in, v_out) = (self.vertices[s], self.vertices[t]);
+                scratch.rim.push(RimEdge {
+                    a,
+                    b,
+                    vertex: Self::crossing(v_in, v_out, dist(&v_in).min(0.0), dist(&v_out)),
+                    kept: s as u32,
+                    kept_edge,
+                });
+            }
+        }
+    }
+
+    /// Cone the rim to the new plane: one triangle `(a, b, new)` per rim edge, written
+    /// into the removed slots first; slots left over (planes that vanished) are dropped.
+    fn replace_by_rim(&mut self, scratch: &Scratch, h: &HalfSpace<3>, face: Face) {
+        let p = self.planes.len() as u16;
+        self.planes.push(Plane {
+            normal: h.normal,
+            offset: h.offset,
+            face,
+        });
+        // The rim is a cycle in order (`order_cycle`): new triangle k meets triangle k + 1
+        // across its edge `b -> p` and triangle k - 1 across `p -> a`.
+        let n = scratch.rim.len();
+        let first_new = self.triangles.len();
+        let free = &scratch.free;
+        let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len());
+        for (k, e) in scratch.rim.iter().enumerate() {
+            let tri = [e.a, e.b, p];
+            let here = slot(k) as u32;
+            let next = slot((k + 1) % n) as u32;
+            let prev = slot((k + n - 1) % n) as u32;
+            let row = [e.kept, next, prev];
+            if let Some(&at) = scratch.free.get(k) {
+                self.triangles[at] = tri;
+                self.neighbors[at] = row;
+                self.vertices[at] = e.vertex;
+            } else {
+                self.triangles.push(tri);
+                self.neighbors.push(row);
+                self.vertices.push(e.vertex);
+            }
+            self.neighbors[e.kept as usize][e.kept_edge as usize] = here;
+        }
+        // Descending order keeps the remaining indices valid under swap_remove; the
+        // triangle moved into a freed slot tells its neighbours where it went.
+        for &at in scratch.free.iter().skip(n).rev() {
+            let last = self.triangles.len() - 1;
+            self.triangles.swap_remove(at);
+            self.neighbors.swap_remove(at);
+            self.vertices.swap_remove(at);
+            if at < last {
+                for k in 0..3 {
+                    let s = self.neighbors[at][k] as usize;
+                    if let Some(row) = self.neighbors.get_mut(s) {
+                        for x in row.iter_mut() {
+                            if *x as usize == last {
+                                *x = at as u32;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        self.max_dist2 = self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
+    }
+}
+
+impl ConvexCell<3> for PolyhedronCell {
+    fn from_box(b: &Aabb<3>) -> Self {
+        // Planes 2k and 2k+1 bound axis k below and above.
+        let mut planes = Vec::with_capacity(32);
+        for k in 0..3 {
+            let axis: [f64; 3] = std::array::from_fn(|j| if j == k { 1.0 } else { 0.0 });
+            planes.push(Plane {
+                normal: scale(axis, -1.0),
+                offset: -b.lo[k],
+                face: Face::Box,
+            });
+            planes.push(Plane {
+                normal: axis,
+                offset: b.hi[k],
+                face: Face::Box,
+            });
+        }
+        let mut triangles = Vec::with_capacity(64);
+        let mut vertices = Vec::with_capacity(64);
+        for corner in 0..8u16 {
+            let bit = |k: u16| (corner >> k) & 1;
+            let (x, y, z) = (bit(0), 2 + bit(1), 4 + bit(2));
+            // det[n_x n_y n_z] > 0 means (x, y, z) turns counter-clockwise seen from outside.
+            let positive = (bit(0) + bit(1) + bit(2)) % 2 == 1;
+            triangles.push(if positive { [x, y, z] } else { [x, z, y] });
+            vertices.push([
+                if bit(0) == 1 { b.hi[0] } else { b.lo[0] },
+                if bit(1) == 1 { b.hi[1] } else { b.lo[1] },
+                if bit(2) == 1 { b.hi[2] } else { b.lo[2] },
+            ]);
+        }
+        let max_dist2 = vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
+        let mut cell = Self {
+            planes,
+            triangles,
+            neighbors: Vec::with_capacity(64),
+            vertices,
+            max_dist2,
+            scratch: Scratch::default(),
+        };
+        for t in 0..cell.triangles.len() {
+            let tri = cell.triangles[t];
+            let across = |k: usize| {
+                cell.triangle_with_edge(tri[(k + 1) % 3], tri[k])
+                    .map_or(u32::MAX, |s| s as u32)
+            };
+            let row = [across(0), across(1), across(2)];
+            cell.neighbors.push(row);
+        }
+        cell
+    }
+
+    /// Remove the vertices strictly beyond `h`; a vertex exactly on it stays, so a plane
+    /// through a vertex leaves the cell as it was.
+    ///
+    /// Round-off can classify vertices that lie on the plane up to a few ulps
+    /// inconsistently (lattices put many planes through one point), so that the removed
+    /// region is not a disk. The clip is then retried with a tolerance that keeps such
+    /// vertices: the result moves by at most that tolerance, far below the 1e-12 budget.
+    fn clip(&mut self, h: &HalfSpace<3>, face: Face) -> bool {
+        if self.triangles.is_empty() || self.planes.len() >= MAX_PLANES {
+            return false;
+        }
+        if let Some(changed) = self.try_clip(h, face, 0.0) {
+            return changed;
+        }
+        let scale_len = norm2(h.normal).sqrt() * self.max_dist2().sqrt() + h.offset.abs();
+        for rel_tol in [1e-15, 1e-13, 1e-11] {
+            if let Some(changed) = self.try_clip(h, face, rel_tol * scale_len) {
+                return changed;
+            }
+        }
+        false
+    }
+
+    fn is_empty(&self) -> bool {
+        self.triangles.len() < 4
+    }
+
+    fn max_dist2(&self) -> f64 {
+        self.max_dist2
+    }
+
+    fn bounds(&self) -> Aabb<3> {
+        Aabb::of_points(&self.vertices)
+    }
+
+    fn vertices(&self) -> &[[f64; 3]] {
+        &self.vertices
+    }
+
+    fn excludes(&self, points: &[[f64; 3]]) -> bool {
+        self.planes
+            .iter()
+            .any(|h| points.iter().all(|&v| dot(h.normal, v) > h.offset))
+    }
+
+    fn vertex_mean(&self) -> [f64; 3] {
+        let n = self.vertices.len().max(1) as f64;
+        let s = self.vertices.iter().fold([0.0; 3], |a, &v| add(a, v));
+        scale(s, 1.0 / n)
+    }
+
+    /// Fan every face from its first vertex and cone the fan to the site.
+    fn moments(&self) -> Moments<3> {
+        let mut m = Moments::zero();
+        self.for_each_polygon(|_, poly| m.add_scaled(&fan_moments(poly), 1.0));
+        m
+    }
+
+    fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
+        self.for_each_polygon(|face, poly| f(face, polygon_area(poly)));
+    }
+
+    fn moments_and_faces(&self, mut f: impl FnMut(Face, f64)) -> Moments<3> {
+        let mut m = Moments::zero();
+        self.for_each_polygon(|face, poly| {
+            f(face, polygon_area(poly));
+            m.add_scaled(&fan_moments(poly), 1.0);
+        });
+        m
+    }
+}
+
+/// Put the rim edges `a -> b` in cycle order, each starting where the previous ends;
+/// `false` unless they form one simple cycle through every edge (each plane starting one
+/// edge at most).
+fn order_cycle(rim: &mut [RimEdge]) -> bool {
+    if rim.is_empty() {
+        return false;
+    }
+    let first = rim[0].a;
+    for k in 1..rim.len() {
+        let at = rim[k - 1].b;
+        if at == first {
+            return false; // closed before every edge was visited
+        }
+        let mut starts = (k..rim.len()).filter(|&j| rim[j].a == at);
+        match (starts.next(), starts.next()) {
+            (Some(j), None) => rim.swap(k, j),
+            _ => return false,
+        }
+    }
+    rim[rim.len() - 1].b == first && rim.iter().filter(|e| e.a == first).count() == 1
+}
+
+/// Moments about the origin of the cone from the origin over a face polygon, fanned from
+/// its first vertex.
+fn fan_moments(poly: &[[f64; 3]]) -> Moments<3> {
+    let mut m = Moments::zero();
+    for k in 1..poly.len().saturating_sub(1) {
+        m.add_scaled(&tetra_moments(poly[0], poly[k], poly[k + 1]), 1.0);
+    }
+    m
+}
+
+/// Area of a planar polygon in space, `|Σ (v_k - v_0) × (v_{k+1} - v_0)| / 2`.
+pub fn polygon_area(poly: &[[f64; 3]]) -> f64 {
+    let mut s = [0.0; 3];
+    for k in 1..poly.len().saturating_sub(1) {
+        s = add(s, cross(sub(poly[k], poly[0]), sub(poly[k + 1], poly[0])));
+    }
+    0.5 * norm2(s).sqrt()
+}
+
+#[inline]
+fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(lo: f64, hi: f64) -> PolyhedronCell {
+        PolyhedronCell::from_box(&Aabb {
+            lo: [lo; 3],
+            hi: [hi; 3],
+        })
+    }
+
+    #[test]
+    fn box_moments_and_faces() {
+        let c = PolyhedronCell::from_box(&Aabb {
+            lo: [-0.2, -0.3, -0.4],
+            hi: [0.8, 0.7, 0.6],
+        });
+        let m = c.moments();
+        assert!((m.mass - 1.0).abs() < 1e-15);
+        let centroid = m.centroid().unwrap();
+        assert!(norm2(sub(centroid, [0.3, 0.2, 0.1])) < 1e-30);
+        let g = m.dimensionless_second_moment().unwrap();
+        assert!((g - 1.0 / 12.0).abs() < 1e-15, "G = {g}");
+        let mut area = 0.0;
+        let mut faces = 0;
+        c.for_each_face(|f, a| {
+            assert_eq!(f, Face::Box);
+            area += a;
+            faces += 1;
+        });
+        assert_eq!(faces, 6);
+        assert!((area - 6.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn cutting_a_corner_leaves_a_tetrahedron_and_the_rest() {
+        // The plane x + y + z <= 1 through three corners-adjacent points of [0, 1]³ keeps
+        // everything but the corner (1,1,1) region; its complement is the tetrahedron beyond.
+        let mut c = cube(0.0, 1.0);
+        c.clip(
+            &HalfSpace {
+                normal: [1.0, 1.0, 1.0],
+                offset: 2.5,
+            },
+            Face::Neighbor(3),
+        );
+        // The cut-off corner tetrahedron has legs 0.5: volume 0.5³/6.
+        let m = c.moments();
+        assert!((m.mass - (1.0 - 0.125 / 6.0)).abs() < 1e-15, "{}", m.mass);
+        let mut cut = 0.0;
+        c.for_each_face(|f, a| {
+            if f == Face::Neighbor(3) {
+                cut += a;
+            }
+        });
+        // Equilateral triangle with side 0.5·√2.
+        let side: f64 = 0.5 * 2f64.sqrt();
+        assert!((cut - 3f64.sqrt() / 4.0 * side * side).abs() < 1e-15);
+        // The opposite half-space keeps exactly that tetrahedron.
+        let mut t = cube(0.0, 1.0);
+        t.clip(
+            &HalfSpace {
+                normal: [-1.0, -1.0, -1.0],
+                offset: -2.5,
+            },
+            Face::Cone,
+        );
+        let mt = t.moments();
+        assert!((mt.mass - 0.125 / 6.0).abs() < 1e-16, "{mt:?} {t:?}");
+        let ct = mt.centroid().unwrap();
+        assert!(
+            ct.iter().all(|x| (x - (1.0 - 0.125)).abs() < 1e-15),
+            "{ct:?}"
+        );
+        c.clip(
+            &HalfSpace {
+                normal: [-1.0, 0.0, 0.0],
+                offset: -2.0,
+            },
+            Face::Cone,
+        );
+        assert!(c.is_empty());
+    }
+
+    #[test]
+    fn planes_through_vertices_and_faces_change_nothing() {
+        let mut c = cube(-0.5, 0.5);
+        let before = c.moments();
+        // A face plane again, and a plane touching one corner only.
+        c.clip(
+            &HalfSpace {
+                normal: [1.0, 0.0, 0.0],
+                offset: 0.5,
+            },
+            Face::Neighbor(1),
+        );
+        c.clip(
+            &HalfSpace {
+                normal: [1.0, 1.0, 1.0],
+                offset: 1.5,
+            },
+            Face::Neighbor(2),
+        );
+        assert_eq!(c.moments(), before);
+    }
+
+    /// Regular cubic grid: the Voronoi cell of a site clipped by its 26 neighbours is the cube.
+    #[test]
+    fn cubic_grid_cell_is_a_cube() {
+        let mut c = cube(-3.0, 3.0);
+        let mut offsets = Vec::new();
+        for i in -1..=1 {
+            for j in -1..=1 {
+                for k in -1..=1 {
+                    if (i, j, k) != (0, 0, 0) {
+                        offsets.push([i as f64, j as f64, k as f64]);
+                    }
+                }
+            }
+        }
+        offsets.sort_by(|a, b| norm2(*a).total_cmp(&norm2(*b)));
+        for (n, q) in offsets.iter().enumerate() {
+            c.clip(&HalfSpace::bisector(*q), Face::Neighbor(n as u32));
+        }
+        let m = c.moments();
+        assert!((m.mass - 1.0).abs() < 1e-15);
+        let g = m.dimensionless_second_moment().unwrap();
+        assert!((g - 1.0 / 12.0).abs() < 1e-12);
+    }
+
+    /// Body-centred cubic lattice: the cell is the truncated octahedron.
+    #[test]
+    fn bcc_cell_is_a_truncated_octahedron() {
+        let mut c = cube(-3.0, 3.0);
+        let mut offsets = Vec::new();
+        for i in -2..=2 {
+            for j in -2..=2 {
+                for k in -2..=2 {
+                    if (i, j, k) != (0, 0, 0) {
+                        offsets.push([i as f64, j as f64, k as f64]);
+                    }
+                    offsets.push([i as f64 + 0.5, j as f64 + 0.5, k as f64 + 0.5]);
+                }
+            }
+        }
+        offsets.sort_by(|a, b| norm2(*a).total_cmp(&norm2(*b)));
+        for (n, q) in offsets.iter().enumerate() {
+            c.clip(&HalfSpace::bisector(*q), Face::Neighbor(n as u32));
+        }
+        let m = c.moments();
+        assert!((m.mass - 0.5).abs() < 1e-15, "{}", m.mass);
+        let g = m.dimensionless_second_moment().unwrap();
+        let exact = 19.0 / (192.0 * 2f64.cbrt());
+        assert!((g - exact).abs() < 1e-12, "G = {g}, expected {exact}");
+        let mut faces = 0;
+        c.for_each_face(|_, a| faces += usize::from(a > 1e-12));
+        assert_eq!(faces, 14);
+        let c0 = m.centroid().unwrap();
+        assert!(norm2(c0) < 1e-28);
+    }
+
+    /// Every triangle's neighbour across edge `a -> b` holds the edge `b -> a` and points back.
+    fn assert_adjacency_consistent(c: &PolyhedronCell) {
+        assert_eq!(c.neighbors.len(), c.triangles.len());
+        for (t, tri) in c.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let s = c.neighbors[t][k] as usize;
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                assert_eq!(c.triangle_with_edge(b, a), Some(s), "triangle {t} edge {k}");
+                assert!(c.neighbors[s].contains(&(t as u32)));
+            }
+        }
+    }
+
+    /// Clipping a random convex cell by random planes: volume agrees with a Monte-Carlo-free
+    /// check, the divergence theorem over the faces (`V = Σ_f offset_f · area_f / (3 |n_f|)`).
+    #[test]
+    fn random_clips_satisfy_the_divergence_theorem() {
+        let mut state = 99u64;
+        let mut rand = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for _ in 0..50 {
+            let mut c = cube(-1.0, 1.0);
+            let mut planes = Vec::new();
+            for _ in 0..30 {
+                let n = [rand(), rand(), rand()];
+                let h = HalfSpace {
+                    normal: n,
+                    offset: 0.3 * norm2(n).sqrt() + 0.3 * rand().abs(),
+                };
+                planes.push(h);
+                c.clip(&h, Face::Neighbor(planes.len() as u32 - 1));
+            }
+            assert_adjacency_consistent(&c);
+            let m = c.moments();
+            let mut v = 0.0;
+            c.for_each_polygon(|f, poly| {
+                let (n, d) = match f {
+                    Face::Neighbor(j) => (planes[j as usize].normal, planes[j as usize].offset),
+                    _ => {
+                        // Box face: the normal is the axis the polygon is flat in.
+                        let e = sub(poly[1], poly[0]);
+                        let g = sub(poly[2], poly[0]);
+                        let n = cross(e, g);
+                        (n, dot(n, poly[0]))
+                    }
+                };
+                v += d * polygon_area(poly) / (3.0 * norm2(n).sqrt());
+            });
+            assert!((m.mass - v).abs() < 1e-13, "{} vs {}", m.mass, v);
+            assert!(m.mass > 0.0);
+        }
+    }
+}

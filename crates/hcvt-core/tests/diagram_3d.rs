@@ -1,0 +1,182 @@
+//! The 3D clipped diagram against closed forms (lattices in a cube) and against the
+//! domain's own integrals on the real meshes of `../shared/data/3d`.
+
+use std::path::PathBuf;
+
+use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolyhedronCell};
+use hcvt_core::domain::{Solid, WindingNumber};
+use hcvt_core::geometry::Euclid;
+
+/// Axis-aligned box `[0, s]³` as 12 outward triangles.
+fn cube(s: f64) -> Solid {
+    let v: Vec<[f64; 3]> = (0..8)
+        .map(|i: u32| [0, 1, 2].map(|k| f64::from((i >> k) & 1) * s))
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let t = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    Solid::new(v, t).unwrap()
+}
+
+fn diagram(solid: &Solid, sites: &[[f64; 3]]) -> Diagram<3> {
+    clipped_diagram::<3, PolyhedronCell>(solid, sites, Options::default(), false)
+        .unwrap()
+        .0
+}
+
+#[test]
+fn cubic_grid_in_a_cube_gives_cubes() {
+    let n = 5;
+    let solid = cube(1.0);
+    let h = 1.0 / n as f64;
+    let mut sites = Vec::new();
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                sites.push([i, j, k].map(|x| (x as f64 + 0.5) * h));
+            }
+        }
+    }
+    let d = diagram(&solid, &sites);
+    for (i, m) in d.moments.iter().enumerate() {
+        assert!((m.mass - h * h * h).abs() < 1e-15, "cell {i}: {}", m.mass);
+        let g = m.dimensionless_second_moment().unwrap();
+        assert!((g - 1.0 / 12.0).abs() < 1e-12, "cell {i}: G = {g}");
+        assert!(m.first.iter().all(|x| x.abs() < 1e-17), "cell {i}: {m:?}");
+    }
+    // Interior cells have 6 face neighbours; corner cells 3.
+    let degree = |i: usize| {
+        (d.neighbor_offsets[i]..d.neighbor_offsets[i + 1])
+            .filter(|&k| d.neighbor_measures[k] > 1e-9 * h * h)
+            .count()
+    };
+    assert_eq!(degree(0), 3);
+    assert_eq!(degree(n * n + n + 1), 6);
+}
+
+#[test]
+fn bcc_lattice_in_a_cube_gives_truncated_octahedra() {
+    let side = 5.0;
+    let solid = cube(side);
+    let mut sites = Vec::new();
+    for i in 0..5 {
+        for j in 0..5 {
+            for k in 0..5 {
+                sites.push([i, j, k].map(|x| x as f64 + 0.25));
+                sites.push([i, j, k].map(|x| x as f64 + 0.75));
+            }
+        }
+    }
+    let d = diagram(&solid, &sites);
+    let exact = 19.0 / (192.0 * 2f64.cbrt());
+    let mut interior = 0;
+    for (s, m) in sites.iter().zip(&d.moments) {
+        // Interior: all 14 lattice neighbours exist (the axis ones are 1 away).
+        if s.iter().all(|&x| (1.0..=side - 1.0).contains(&x)) {
+            interior += 1;
+            let g = m.dimensionless_second_moment().unwrap();
+            assert!((g - exact).abs() < 1e-12, "site {s:?}: G = {g}");
+            assert!((m.mass - 0.5).abs() < 1e-14);
+        }
+    }
+    assert_eq!(interior, 54);
+    let total: f64 = d.moments.iter().map(|m| m.mass).sum();
+    assert!(
+        (total - side.powi(3)).abs() < 1e-12 * side.powi(3),
+        "{total}"
+    );
+}
+
+fn data_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/3d");
+    dir.is_dir().then_some(dir)
+}
+
+/// Read an OFF file of triangles as indexed.
+fn read_off(path: &PathBuf) -> Solid {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut tokens = text
+        .lines()
+        .map(|l| l.split('#').next().unwrap_or(""))
+        .flat_map(str::split_whitespace)
+        .skip(1); // "OFF"
+    let mut next = || tokens.next().unwrap();
+    let nv: usize = next().parse().unwrap();
+    let nf: usize = next().parse().unwrap();
+    let _edges = next();
+    let v = (0..nv)
+        .map(|_| [0; 3].map(|_| next().parse::<f64>().unwrap()))
+        .collect();
+    let t = (0..nf)
+        .map(|_| {
+            assert_eq!(next(), "3");
+            [0; 3].map(|_| next().parse::<u32>().unwrap())
+        })
+        .collect();
+    Solid::new(v, t).unwrap()
+}
+
+/// `n` deterministic pseudo-random sites inside `solid`, by rejection.
+fn interior_sites(solid: &Solid, n: usize, seed: u64) -> Vec<[f64; 3]> {
+    let mut state = seed;
+    let mut rand = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let b = solid.bounds();
+    let mut sites = Vec::with_capacity(n);
+    while sites.len() < n {
+        let p = [0, 1, 2].map(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
+        if Euclid::winding_number(solid, &p) == Some(1) {
+            sites.push(p);
+        }
+    }
+    sites
+}
+
+#[test]
+fn sums_over_cells_match_the_mesh_integrals() {
+    let Some(dir) = data_dir() else {
+        eprintln!("skipped: ../shared/data/3d not found");
+        return;
+    };
+    for name in ["bunny.off", "fandisk.off", "anchor_dense.off", "cheese.off"] {
+        let solid = read_off(&dir.join(name));
+        for n in [100, 2000] {
+            let sites = interior_sites(&solid, n, 7);
+            let d = diagram(&solid, &sites);
+            let volume: f64 = d.moments.iter().map(|m| m.mass).sum();
+            let rel = (volume - solid.volume()).abs() / solid.volume();
+            assert!(rel < 1e-12, "{name}, n = {n}: Σ volume off by {rel:e}");
+            // First moments about the domain's reference point, summed in index order.
+            let o = solid.moments_origin();
+            let mut first = [0.0; 3];
+            for (m, s) in d.moments.iter().zip(&sites) {
+                for k in 0..3 {
+                    first[k] += m.first[k] + m.mass * (s[k] - o[k]);
+                }
+            }
+            let want = solid.moments().first;
+            let scale = solid.volume() * solid.bounds().diagonal();
+            for k in 0..3 {
+                let err = (first[k] - want[k]).abs() / scale;
+                assert!(
+                    err < 1e-12,
+                    "{name}, n = {n}: first moment {k} off by {err:e}"
+                );
+            }
+            assert!(d.moments.iter().all(|m| m.mass > 0.0), "{name}: empty cell");
+        }
+    }
+}
