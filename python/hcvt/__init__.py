@@ -10,6 +10,7 @@ from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
+from hcvt.initialise import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
 
 __all__ = [
@@ -18,9 +19,11 @@ __all__ = [
     "HierarchicalResult",
     "InvalidDomainError",
     "InvalidSitesError",
+    "LatticeResult",
     "RepairReport",
     "get_num_threads",
     "hierarchical_cvt",
+    "initialise",
     "io",
     "load_domain",
     "plot",
