@@ -162,14 +162,8 @@ def test_lattice_falls_back_to_a_trim_nearest_the_boundary(monkeypatch) -> None:
     result = lattice(domain, n, seed=0)
     assert result.sites.shape == (n, 2) and result.trimmed > 0
     monkeypatch.undo()
-    full = init._lattice_result(
-        domain,
-        init._boundary_pieces(domain),
-        result.offset,
-        result.rotation,
-        result.spacing / init.UNIT_SPACING[2],
-        10**9,
-    )
+    pose = init._Pose.of(init._boundary_pieces(domain), result.offset, result.rotation)
+    full = init._lattice_result(domain, pose, result.spacing / init.UNIT_SPACING[2], 10**9)
     assert len(full.sites) == n + result.trimmed
     boundary = domain.geometry.boundary
     kept = shapely.distance(boundary, shapely.points(result.sites))

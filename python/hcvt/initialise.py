@@ -331,21 +331,20 @@ def lattice(domain: Domain, n: int, seed: int = 0) -> LatticeResult:
     # Unit-lattice scale with the lattice's Voronoi cell volume V / n.
     cell_volume = {2: np.sqrt(3.0) / 2.0, 3: 0.5}[dim]
     scale0 = float((domain.volume / n / cell_volume) ** (1.0 / dim))
-    closest: tuple[int, int, NDArray, NDArray, float] | None = None
-    for attempt in range(LATTICE_POSES):
-        offset, rotation = _random_pose(domain, scale0, rng)
+    closest: tuple[int, _Pose, float] | None = None
+    for _ in range(LATTICE_POSES):
+        pose = _Pose.of(pieces, *_random_pose(domain, scale0, rng))
 
-        def count(scale: float, offset=offset, rotation=rotation) -> int:  # noqa: ANN001
-            return int(_gaps(domain, pieces, offset, rotation, scale).count.sum())
+        def count(scale: float, pose: _Pose = pose) -> int:
+            return int(_gaps(domain, pose, scale).count.sum())
 
         scale, found = _search_scale(count, n, scale0)
         if found == n:
-            return _lattice_result(domain, pieces, offset, rotation, scale, n)
-        if closest is None or found - n < closest[0] - n:
-            closest = (found, attempt, offset, rotation, scale)
+            return _lattice_result(domain, pose, scale, n)
+        if closest is None or found < closest[0]:
+            closest = (found, pose, scale)
     assert closest is not None
-    _, _, offset, rotation, scale = closest
-    return _lattice_result(domain, pieces, offset, rotation, scale, n)
+    return _lattice_result(domain, closest[1], closest[2], n)
 
 
 def _search_scale(count: Callable[[float], int], n: int, scale0: float) -> tuple[float, int]:
@@ -411,23 +410,18 @@ def _boundary_pieces(domain: Domain) -> NDArray[np.float64]:
 ROW_STEP = {2: np.sqrt(3.0), 3: 1.0}
 
 
-def _gaps(
-    domain: Domain,
-    pieces: NDArray[np.float64],
-    offset: NDArray[np.float64],
-    rotation: NDArray[np.float64],
-    scale: float,
-) -> _Gaps:
+def _gaps(domain: Domain, pose: _Pose, scale: float) -> _Gaps:
     """Free runs of lattice rows inside the domain for one pose and scale (unit coordinates)."""
     dim = domain.dim
-    unit = (pieces - offset) @ rotation / scale  # world -> unit lattice coordinates
     margin = LATTICE_MARGIN * UNIT_SPACING[dim]
-    normals, bounds = _blockers(unit, margin)
-    piece, family, index = _candidate_rows(unit, margin, dim)
+    lo = pose.frame[:, :, 1:].min(axis=1) / scale - margin
+    hi = pose.frame[:, :, 1:].max(axis=1) / scale + margin
+    piece, family, index = _candidate_rows(lo, hi, dim)
     transverse = (index + 0.5 * family[:, None]) * ROW_STEP[dim]
-    # Clip the row (t, transverse) by piece's half-spaces normals . x <= bounds.
-    a = normals[piece]  # (K, C, d)
-    rhs = bounds[piece] - np.einsum("kcj,kj->kc", a[:, :, 1:], transverse)
+    # Clip the row (t, transverse) by the piece's half-spaces a . x <= bounds.
+    a = pose.normals[piece]  # (K, C, d)
+    bounds = pose.heights[piece] / scale + np.where(pose.active[piece], margin, 1.0)
+    rhs = bounds - np.einsum("kcj,kj->kc", a[:, :, 1:], transverse)
     ax = a[:, :, 0]
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = rhs / ax
@@ -468,7 +462,7 @@ def _gaps(
     # Each free run lies wholly inside or outside (the blockers cover the boundary):
     # one exact test at its middle, well clear of the boundary.
     middle = np.column_stack([0.5 * (lo + hi), transverse])
-    inside = domain.contains(offset + scale * middle @ rotation.T)
+    inside = domain.contains(pose.offset + scale * middle @ pose.rotation.T)
     return _Gaps(lo[inside], hi[inside], shift[inside], transverse[inside], count[inside])
 
 
@@ -486,63 +480,69 @@ def _row_key(family: NDArray[np.int64], index: NDArray[np.int64]) -> NDArray[np.
     return 2 * key + family
 
 
-def _blockers(
-    unit: NDArray[np.float64], margin: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Half-spaces ``normals . x <= bounds`` of a convex superset of each piece's margin.
+@dataclass(frozen=True)
+class _Pose:
+    """A lattice pose and the boundary's blockers seen from it, computed once per pose.
 
-    A piece's points within ``margin`` lie in its slab ``|n . (x - p)| <= margin``, on the
-    inner side of each edge's plane moved out by ``margin``, and in its bounding box grown
-    by ``margin``; the intersection is the blocker. Returns normals (P, C, d), bounds (P, C).
+    ``frame`` holds the boundary pieces in the lattice frame about ``offset``, (P, d, d),
+    in L. At scale ``s`` (unit coordinates ``x / s``) piece ``p`` blocks the convex set
+    ``normals[p] . x <= heights[p] / s + margin`` over its ``active`` rows; inactive rows
+    (zero normal) always hold. It contains every point within ``margin`` of the piece.
     """
-    dim = unit.shape[2]
-    box_normals = np.concatenate([np.eye(dim), -np.eye(dim)])
-    box_bounds = np.concatenate([unit.max(axis=1), -unit.min(axis=1)], axis=1) + margin
-    if dim == 2:
-        p, q = unit[:, 0], unit[:, 1]
-        along = (q - p) / np.linalg.norm(q - p, axis=1, keepdims=True)
-        across = np.column_stack([-along[:, 1], along[:, 0]])
-        normals = np.stack([across, -across, along, -along], axis=1)
-        bounds = np.column_stack(
-            [
-                _dot(across, p) + margin,
-                -_dot(across, p) + margin,
-                _dot(along, q) + margin,
-                -_dot(along, p) + margin,
-            ]
-        )
-    else:
-        normals, bounds = _triangle_blockers(unit, margin)
-    normals = np.concatenate([normals, np.broadcast_to(box_normals, (len(unit), 2 * dim, dim))], 1)
-    return normals, np.concatenate([bounds, box_bounds], axis=1)
+
+    offset: NDArray[np.float64]
+    rotation: NDArray[np.float64]
+    frame: NDArray[np.float64]
+    normals: NDArray[np.float64]
+    heights: NDArray[np.float64]
+    active: NDArray[np.bool_]
+
+    @classmethod
+    def of(
+        cls,
+        pieces: NDArray[np.float64],
+        offset: NDArray[np.float64],
+        rotation: NDArray[np.float64],
+    ) -> _Pose:
+        frame = (pieces - offset) @ rotation
+        normals = _segment_normals(frame) if frame.shape[2] == 2 else _triangle_normals(frame)
+        active = (normals != 0).any(axis=2)
+        # Each half-space touches its piece at the vertex farthest along its normal.
+        heights = np.einsum("pcj,pvj->pcv", normals, frame).max(axis=2)
+        return cls(offset, rotation, frame, normals, heights, active)
 
 
-def _triangle_blockers(
-    unit: NDArray[np.float64], margin: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Slab and edge half-spaces of triangles (P, 3, 3): normals (P, 5, 3), bounds (P, 5).
+def _segment_normals(frame: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Slab and end half-space normals of segments (P, 2, 2): (P, 4, 2), a rectangle."""
+    p, q = frame[:, 0], frame[:, 1]
+    along = (q - p) / np.linalg.norm(q - p, axis=1, keepdims=True)
+    across = np.column_stack([-along[:, 1], along[:, 0]])
+    return np.stack([across, -across, along, -along], axis=1)
 
-    Near-degenerate triangles get no such half-spaces (normal 0, bound 1: always true),
-    leaving the grown bounding box, still a superset, as their blocker.
+
+def _triangle_normals(frame: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Slab and edge half-space normals of triangles (P, 3, 3): (P, 6, 3), a prism.
+
+    Regular triangles: both sides of the plane and the three edges, outward in the plane
+    (the sixth row inactive). Near-degenerate ones, whose plane is ill-defined: the six
+    faces of their bounding box instead.
     """
-    a, b, c = unit[:, 0], unit[:, 1], unit[:, 2]
+    a, b, c = frame[:, 0], frame[:, 1], frame[:, 2]
     normal = np.cross(b - a, c - a)
     length = np.linalg.norm(normal, axis=1)
     longest = np.max([_dot(e, e) for e in (b - a, c - b, a - c)], axis=0)
     flat = length <= 1e-10 * longest
     normal = normal / np.where(flat, 1.0, length)[:, None]
-    rows_n, rows_b = [normal, -normal], [_dot(normal, a) + margin, -_dot(normal, a) + margin]
+    rows = [normal, -normal]
     for v0, v1, w in ((a, b, c), (b, c, a), (c, a, b)):
         out = np.cross(v1 - v0, normal)
         out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
         out *= np.where(_dot(out, w - v0) > 0, -1.0, 1.0)[:, None]
-        rows_n.append(out)
-        rows_b.append(_dot(out, v0) + margin)
-    normals = np.stack(rows_n, axis=1)
-    bounds = np.stack(rows_b, axis=1)
-    normals[flat] = 0.0
-    bounds[flat] = 1.0
-    return normals, bounds
+        rows.append(out)
+    rows.append(np.zeros_like(normal))
+    normals = np.stack(rows, axis=1)
+    normals[flat] = np.concatenate([np.eye(3), -np.eye(3)])
+    return normals
 
 
 def _dot(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -550,18 +550,19 @@ def _dot(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _candidate_rows(
-    unit: NDArray[np.float64], margin: float, dim: int
+    lo: NDArray[np.float64], hi: NDArray[np.float64], dim: int
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """(piece, family, transverse index (K, d-1)) of every row meeting a piece's grown box."""
-    lo = unit[:, :, 1:].min(axis=1) - margin
-    hi = unit[:, :, 1:].max(axis=1) + margin
+    """(piece, family, transverse index (K, d-1)) of every row through a piece's box.
+
+    ``lo``, ``hi`` (P, d-1): transverse extent of each piece's grown box, unit coordinates.
+    """
     pieces, families, indices = [], [], []
     for family in (0, 1):
         first = np.ceil(lo / ROW_STEP[dim] - 0.5 * family).astype(np.int64)
         last = np.floor(hi / ROW_STEP[dim] - 0.5 * family).astype(np.int64)
         sizes = np.maximum(last - first + 1, 0)  # (P, d-1)
         total = sizes.prod(axis=1)
-        piece = np.repeat(np.arange(len(unit)), total)
+        piece = np.repeat(np.arange(len(lo)), total)
         local = np.arange(total.sum()) - np.repeat(np.cumsum(total) - total, total)
         index = np.empty((len(piece), dim - 1), dtype=np.int64)
         for axis in range(dim - 2, -1, -1):  # last axis fastest
@@ -574,16 +575,10 @@ def _candidate_rows(
     return np.concatenate(pieces), np.concatenate(families), np.concatenate(indices)
 
 
-def _lattice_result(
-    domain: Domain,
-    pieces: NDArray[np.float64],
-    offset: NDArray[np.float64],
-    rotation: NDArray[np.float64],
-    scale: float,
-    n: int,
-) -> LatticeResult:
+def _lattice_result(domain: Domain, pose: _Pose, scale: float, n: int) -> LatticeResult:
     """The sites of one pose and scale, trimmed to ``n`` nearest the boundary first."""
-    gaps = _gaps(domain, pieces, offset, rotation, scale)
+    gaps = _gaps(domain, pose, scale)
+    offset, rotation = pose.offset, pose.rotation
     run = np.repeat(np.arange(len(gaps.count)), gaps.count)
     first = np.floor(gaps.lo - gaps.shift) + 1
     local = np.arange(len(run)) - np.repeat(np.cumsum(gaps.count) - gaps.count, gaps.count)
