@@ -6,6 +6,7 @@ The public API (DESIGN §1): :class:`Domain` and :func:`load_domain` build domai
 
 from hcvt import io, plot
 from hcvt._core import get_num_threads, set_num_threads
+from hcvt.baselines import MonteCarloResult, global_monte_carlo
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
@@ -19,7 +20,9 @@ __all__ = [
     "InvalidDomainError",
     "InvalidSitesError",
     "RepairReport",
+    "MonteCarloResult",
     "get_num_threads",
+    "global_monte_carlo",
     "hierarchical_cvt",
     "io",
     "load_domain",
