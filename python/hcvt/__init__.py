@@ -1,7 +1,8 @@
 """hcvt: regular centroidal Voronoi tessellations of polygons and closed meshes.
 
 The public API (DESIGN §1): :class:`Domain` and :func:`load_domain` build domains,
-:func:`voronoi` computes exact clipped Voronoi diagrams.
+:func:`voronoi` computes exact clipped Voronoi diagrams, :func:`cvt` moves sites to a
+centroidal Voronoi tessellation.
 """
 
 from hcvt import io, plot
@@ -12,8 +13,10 @@ from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.io import load_domain, write_cells
+from hcvt.optimise import CVTResult, cvt
 
 __all__ = [
+    "CVTResult",
     "Diagram",
     "Domain",
     "HierarchicalResult",
@@ -21,6 +24,7 @@ __all__ = [
     "InvalidSitesError",
     "RepairReport",
     "MonteCarloResult",
+    "cvt",
     "get_num_threads",
     "global_monte_carlo",
     "hierarchical_cvt",
