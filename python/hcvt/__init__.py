@@ -12,6 +12,7 @@ from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
+from hcvt.initialise import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
 from hcvt.optimise import CVTResult, cvt
 
@@ -22,12 +23,14 @@ __all__ = [
     "HierarchicalResult",
     "InvalidDomainError",
     "InvalidSitesError",
+    "LatticeResult",
     "RepairReport",
     "MonteCarloResult",
     "cvt",
     "get_num_threads",
     "global_monte_carlo",
     "hierarchical_cvt",
+    "initialise",
     "io",
     "load_domain",
     "plot",
