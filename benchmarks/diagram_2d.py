@@ -118,15 +118,23 @@ def run_pysdot(assembly, sites):
     return pd.integrals(), pd.centroids()
 
 
-def peak_memory_1m() -> float:
-    """Peak resident memory (GB) of a fresh process computing one 1M-site diagram."""
+def peak_memory_1m() -> tuple[float, float]:
+    """Peak resident memory (GB) of a fresh process computing one 1M-site diagram, and its growth.
+
+    Read from VmHWM in /proc (the high-water mark of this address space): ru_maxrss would
+    carry the parent's peak across exec.
+    """
     code = (
-        "import numpy as np, hcvt, resource\n"
+        "import numpy as np, hcvt\n"
+        "def hwm():\n"
+        "    for line in open('/proc/self/status'):\n"
+        "        if line.startswith('VmHWM'):\n"
+        "            return int(line.split()[1])\n"
         "sq = hcvt.Domain.from_polygon([(0,0),(1,0),(1,1),(0,1)])\n"
         "s = np.random.default_rng(0).uniform(0, 1, (1_000_000, 2))\n"
-        "base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+        "base = hwm()\n"
         "d = hcvt.voronoi(sq, s)\n"
-        "print(base, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)\n"
+        "print(base, hwm())\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     base_kb, peak_kb = map(int, out.stdout.split())

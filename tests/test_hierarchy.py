@@ -67,3 +67,35 @@ def test_subdividing_a_hexagonal_lattice_gives_the_finer_lattice():
     # The count grows by the number of restricted Delaunay edges, towards 4x.
     assert fine.n == coarse.n + len(coarse.neighbors)
     assert 3.6 < fine.n / coarse.n < 4.0
+
+
+def _bcc_patch(cells: int, spacing: float):
+    """A BCC lattice (cube corners and centres) and a box mesh around it."""
+    import trimesh
+
+    g = np.arange(cells) * spacing
+    corners = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+    centres = corners[np.all(corners < g[-1], axis=1)] + spacing / 2
+    sites = np.vstack([corners, centres])
+    lo, hi = sites.min(axis=0) - spacing / 4, sites.max(axis=0) + spacing / 4
+    box = trimesh.creation.box(bounds=[lo, hi])
+    return hcvt.Domain.from_mesh(box.vertices, box.faces), sites
+
+
+def test_subdividing_a_bcc_lattice_gives_the_finer_bcc_lattice():
+    domain, sites = _bcc_patch(7, 1.0)
+    coarse = hcvt.voronoi(domain, sites)
+    midpoints, _ = subdivide(coarse)
+    assert len(midpoints) == len(coarse.neighbors)
+    fine = hcvt.voronoi(domain, np.vstack([sites, midpoints]))
+    # Away from the patch boundary every cell is a truncated octahedron of an eighth the
+    # volume of the coarse one (a BCC cell of spacing a has volume a^3 / 2).
+    centre = sites.mean(axis=0)
+    far_inside = np.max(np.abs(fine.sites - centre), axis=1) < 1.2
+    assert far_inside.sum() > 50
+    g_truncated_octahedron = 19.0 / (192.0 * 2.0 ** (1.0 / 3.0))
+    np.testing.assert_allclose(fine.G[far_inside], g_truncated_octahedron, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fine.volume[far_inside], 0.5 / 8, rtol=1e-12)
+    # The count grows by the number of restricted Delaunay edges, towards 8x.
+    assert fine.n == coarse.n + len(coarse.neighbors)
+    assert 5.0 < fine.n / coarse.n < 8.0

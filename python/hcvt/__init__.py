@@ -1,19 +1,23 @@
 """hcvt: regular centroidal Voronoi tessellations of polygons and closed meshes.
 
 The public API (DESIGN §1): :class:`Domain` and :func:`load_domain` build domains,
-:func:`voronoi` computes exact clipped Voronoi diagrams.
+:func:`voronoi` computes exact clipped Voronoi diagrams, :func:`cvt` moves sites to a
+centroidal Voronoi tessellation.
 """
 
 from hcvt import io, plot
 from hcvt._core import get_num_threads, set_num_threads
+from hcvt.baselines import MonteCarloResult, global_monte_carlo
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.initialise import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
+from hcvt.optimise import CVTResult, cvt
 
 __all__ = [
+    "CVTResult",
     "Diagram",
     "Domain",
     "HierarchicalResult",
@@ -21,7 +25,10 @@ __all__ = [
     "InvalidSitesError",
     "LatticeResult",
     "RepairReport",
+    "MonteCarloResult",
+    "cvt",
     "get_num_threads",
+    "global_monte_carlo",
     "hierarchical_cvt",
     "initialise",
     "io",

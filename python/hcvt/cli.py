@@ -3,6 +3,7 @@
 hcvt run star -n 2000 --plot star.png
 hcvt run polygon.geojson -n 10000 --method lbfgs --init halton --out sites.npy
 hcvt show result.json --plot cells.png
+hcvt reproduce table4 --runs 10 --out results
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from typing import Any
 import click
 import numpy as np
 
-METHODS = ("hierarchical", "lbfgs", "lloyd", "voronoi")
+METHODS = ("hierarchical", "lbfgs", "lloyd", "monte-carlo", "voronoi")
 INITS = ("random", "halton", "hammersley", "lattice")
 
 
@@ -91,8 +92,13 @@ def run(
         sites = hcvt.initialise(domain, n, method=init, seed=seed)
         if method == "voronoi":
             diagram = hcvt.voronoi(domain, sites)
+        elif method == "monte-carlo":
+            result = hcvt.global_monte_carlo(domain, sites, seed=seed, tol=tol, progress=True)
+            sites, diagram, iterations = result.sites, result.diagram, result.iterations
         else:
-            result = hcvt.cvt(domain, sites, method=method, tol=tol, max_iter=max_iter)
+            result = hcvt.cvt(
+                domain, sites, method=method, tol=tol, max_iter=max_iter, progress=True
+            )
             sites, diagram, iterations = result.sites, result.diagram, result.iterations
     seconds = time.perf_counter() - start
     info = {
@@ -135,7 +141,7 @@ def _write_sites(path: Path, sites: np.ndarray) -> None:
 def _plot(diagram: Any, path: str) -> None:
     from hcvt import plot
 
-    ax = plot.plot_cells(diagram)
+    ax = plot.plot_cells(diagram) if diagram.domain.dim == 2 else plot.plot_cut(diagram)
     plot.save(ax, path)
 
 
@@ -157,3 +163,35 @@ def show(summary: str, plot: str) -> None:
     )
     domain = _load(info["input"], False)
     _plot(hcvt.voronoi(domain, sites), plot)
+
+
+@main.command()
+@click.argument("experiment")
+@click.option("--runs", type=int, default=10, show_default=True, help="Seeds per random case.")
+@click.option("--quick", is_flag=True, help="Reduced sizes: every experiment in minutes.")
+@click.option("--scheduler", default=None, help="dask scheduler address (default: local).")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="results")
+def reproduce(experiment: str, runs: int, quick: bool, scheduler: str | None, out_dir: str) -> None:
+    """Reproduce a table or figure of the paper (EXPERIMENT: table2 … table8, fig5 … fig12, all).
+
+    Writes OUT/EXPERIMENT.md (ours beside the paper's), OUT/EXPERIMENT.csv and the figures.
+    """
+    from rich.progress import Progress
+
+    from hcvt.experiments import reproduce as run_experiment
+
+    if runs < 1:
+        raise ValueError(f"--runs must be at least 1, got {runs}")
+    with Progress(transient=True) as bar:
+        tasks: dict[str, Any] = {}
+
+        def step(name: str, done: int, total: int) -> None:
+            if name not in tasks:
+                tasks[name] = bar.add_task(name, total=total)
+            bar.update(tasks[name], completed=done)
+
+        report = run_experiment(
+            experiment, runs=runs, quick=quick, scheduler=scheduler, out=out_dir, progress=step
+        )
+    click.echo(report.read_text())
+    click.echo(f"written: {report}")

@@ -108,8 +108,7 @@ class Diagram:
         3D: a list of ``(vertices (k, 3), faces (f, 3))`` pairs, the closed, outward boundary
         triangulation of each clipped cell (both empty for an empty cell). A cell that meets
         no boundary triangle is the core's convex cell as is; a cell that does is
-        intersected with the domain by manifold3d in double precision (optional
-        dependency, ``pip install manifold3d``).
+        intersected with the domain by manifold3d in double precision.
 
         The moments above do not come from these shapes but from the exact core.
         """

@@ -198,6 +198,7 @@ class Level:
     added: int  # b_i - k_i: random sites put into boundary cells (negative: trimmed)
     iterations: int
     seconds: float
+    history: Any = None  # the level's L-BFGS history (hcvt.optimise), per iteration
 
     @property
     def n(self) -> int:
@@ -342,6 +343,7 @@ def _optimise_level(
         added=added,
         iterations=int(res.iterations),
         seconds=time.perf_counter() - start,
+        history=res.history,
     )
 
 

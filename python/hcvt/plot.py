@@ -113,3 +113,147 @@ def save(ax: Any, path: str) -> None:
     fig = ax.figure
     fig.savefig(path, dpi=150, bbox_inches="tight")
     plt.close(fig)
+
+
+def plot_cut(
+    diagram: Diagram,
+    ax: Any = None,
+    *,
+    axis: int = 0,
+    at: float | None = None,
+    vmin: float | None = None,
+    vmax: float | None = None,
+    colorbar: bool = True,
+    title: str | None = None,
+) -> Any:
+    """Cut view of a 3D diagram (paper Fig. 1(e)): the cells behind a plane, faces by G.
+
+    Cells whose centroid has coordinate ``axis`` at least ``at`` (default: the median
+    centroid) are drawn, seen from the cut side, so that the interior cells show.
+    ``at=-inf`` draws every cell: the boundary view.
+    """
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    if diagram.domain.dim != 3:
+        raise ValueError("plot_cut draws 3D diagrams; use plot_cells for 2D")
+    if ax is None:
+        fig = plt.figure(figsize=(7, 7))
+        ax = fig.add_subplot(projection="3d")
+    low, high = g_colour_range(diagram.G, 3)
+    vmin = low if vmin is None else vmin
+    vmax = high if vmax is None else vmax
+    at = float(np.median(diagram.centroid[:, axis])) if at is None else at
+    keep = np.flatnonzero((diagram.centroid[:, axis] >= at) & (diagram.volume > 0))
+    triangles, values = [], []
+    cells = diagram.cells()
+    for i in keep:
+        vertices, faces = cells[i]
+        if len(faces):
+            triangles.append(vertices[faces])
+            values.append(np.full(len(faces), diagram.G[i]))
+    collection = Poly3DCollection(
+        np.concatenate(triangles), cmap=CMAP, edgecolors="face", linewidths=0.1
+    )
+    collection.set_array(np.concatenate(values))
+    collection.set_clim(vmin, vmax)
+    ax.add_collection3d(collection)
+    lo, hi = diagram.domain.bounds
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(np.asarray(hi) - np.asarray(lo))
+    # Look along +axis, from the cut side.
+    ax.view_init(elev=20 if axis != 2 else -90, azim={0: 180, 1: -90, 2: -90}[axis], roll=0)
+    ax.set_axis_off()
+    if colorbar:
+        plt.colorbar(collection, ax=ax, shrink=0.6, label="G")
+    ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}")
+    return ax
+
+
+def plot_convergence(histories: dict[str, tuple[ArrayLike, ArrayLike]], axes: Any = None) -> Any:
+    """Mean G and energy against iterations (paper Fig. 12), one line per label.
+
+    ``histories`` maps a label to ``(mean_G, energy)`` per iteration; returns the two Axes.
+    """
+    if axes is None:
+        _, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for label, (mean_g, energy) in histories.items():
+        axes[0].plot(np.asarray(mean_g), label=label)
+        axes[1].plot(np.asarray(energy), label=label)
+    for ax, name in zip(axes, ("mean G", "energy"), strict=True):
+        ax.set_xlabel("L-BFGS iteration")
+        ax.set_ylabel(name)
+        ax.set_xscale("symlog", linthresh=10)
+    axes[0].legend(fontsize=7)
+    return axes
+
+
+def shared_range(G_sets: list[ArrayLike], dim: int) -> tuple[float, float]:
+    """One colour range for several diagrams: the widest of their default ranges."""
+    ranges = [g_colour_range(G, dim) for G in G_sets]
+    return min(r[0] for r in ranges), max(r[1] for r in ranges)
+
+
+def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any, *, kind: str):
+    """One panel per labelled run with a shared colour scale, saved to ``path``.
+
+    ``kind``: ``"cells"`` (2D cells by G), ``"histograms"`` (G histograms with shared
+    bins) or ``"cuts"`` (3D cut views). Each run holds ``sites`` and ``G``.
+    """
+    from hcvt.diagram import voronoi
+
+    labels = list(runs)
+    dim = next(iter(domains.values())).dim
+    vmin, vmax = shared_range([runs[k]["G"] for k in labels], dim)
+    cols = min(3, len(labels))
+    rows = -(-len(labels) // cols)
+    projection = "3d" if kind == "cuts" else None
+    fig = plt.figure(figsize=(5 * cols, 5 * rows if kind != "histograms" else 3.5 * rows))
+    for k, label in enumerate(labels):
+        ax = fig.add_subplot(rows, cols, k + 1, projection=projection)
+        run = runs[label]
+        if kind == "histograms":
+            plot_histogram(run["G"], ax, bins=40, range_=(G_OPTIMUM[dim] * 0.995, vmax))
+            ax.set_title(f"{label}\nmean G = {np.mean(run['G']):.5f}", fontsize=9)
+            continue
+        diagram = voronoi(domains[label], run["sites"])
+        draw = plot_cells if kind == "cells" else plot_cut
+        draw(
+            diagram,
+            ax,
+            vmin=vmin,
+            vmax=vmax,
+            colorbar=False,
+            title=f"{label}\nmean G = {diagram.mean_G:.5f}",
+        )
+    _shared_colorbar(fig, vmin, vmax, kind)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+
+def levels_figure(domain: Any, run: dict, path: Any) -> None:
+    """The CVT of every hierarchy level (paper Fig. 5), one shared colour scale."""
+    from hcvt.diagram import voronoi
+
+    diagrams = [voronoi(domain, sites) for sites in run["levels_sites"]]
+    vmin, vmax = shared_range([d.G for d in diagrams], domain.dim)
+    fig, axes = plt.subplots(1, len(diagrams), figsize=(4 * len(diagrams), 4.4))
+    for ax, diagram in zip(np.atleast_1d(axes), diagrams, strict=True):
+        plot_cells(diagram, ax, vmin=vmin, vmax=vmax, colorbar=False)
+    _shared_colorbar(fig, vmin, vmax, "cells")
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+
+
+def convergence_figure(runs: dict[str, dict], path: Any) -> None:
+    """Fig. 12 from runs holding ``history_G`` and ``history_energy``."""
+    axes = plot_convergence({k: (r["history_G"], r["history_energy"]) for k, r in runs.items()})
+    save(axes[0], path)
+
+
+def _shared_colorbar(fig: Any, vmin: float, vmax: float, kind: str) -> None:
+    if kind == "histograms":
+        return
+    mappable = plt.cm.ScalarMappable(cmap=CMAP, norm=matplotlib.colors.Normalize(vmin, vmax))
+    fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="G")

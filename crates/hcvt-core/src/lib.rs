@@ -8,6 +8,7 @@
 //! | [`moments`] | closed-form mass, first and second moments of simplices; `G`          |
 //! | [`domain`]  | the oriented boundary of a 2D polygon or 3D solid, its BVH and winding number |
 //! | [`diagram`] | convex Voronoi cells by kNN + half-space clipping, clipped exactly by the domain |
+//! | [`optimise`]| CVT energy and gradient from the diagram; Lloyd and L-BFGS to the stopping rule |
 //!
 //! Units: every length is in the unit of the input coordinates (`L`); volumes are `L^d`,
 //! first moments `L^(d+1)`, second moments `L^(d+2)`.
@@ -21,5 +22,6 @@ pub mod domain;
 pub mod error;
 pub mod geometry;
 pub mod moments;
+pub mod optimise;
 
 pub use error::CoreError;

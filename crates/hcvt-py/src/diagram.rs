@@ -93,7 +93,7 @@ pub fn voronoi_3d<'py>(
 }
 
 /// The arrays every diagram carries, in any dimension.
-fn diagram_dict<'py, const D: usize>(
+pub(crate) fn diagram_dict<'py, const D: usize>(
     py: Python<'py>,
     diagram: &Diagram<D>,
     sites: &[[f64; D]],

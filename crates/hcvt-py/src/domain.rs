@@ -1,6 +1,6 @@
 //! Domains: a checked, indexed boundary held by Python.
 
-use hcvt_core::domain::{generalized_winding_number, Polygon, Solid, WindingNumber};
+use hcvt_core::domain::{generalized_winding_number, Boundary, Polygon, Solid, WindingNumber};
 use hcvt_core::geometry::Euclid;
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -10,6 +10,30 @@ use crate::errors::to_py_err;
 
 /// Winding numbers (m,) and on-boundary flags (m,).
 type Windings<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<bool>>);
+
+/// Exact winding numbers of `points` about `boundary`, in parallel without the GIL; points
+/// on the boundary get 0 and an on-boundary flag.
+fn winding_numbers<'py, const D: usize>(
+    py: Python<'py>,
+    boundary: &Boundary<D>,
+    points: &[[f64; D]],
+) -> Windings<'py>
+where
+    Euclid: WindingNumber<D>,
+{
+    let w: Vec<Option<i32>> = py.detach(|| {
+        crate::threads::run(|| {
+            use rayon::prelude::*;
+            points
+                .par_iter()
+                .map(|q| Euclid::winding_number(boundary, q))
+                .collect()
+        })
+    });
+    let on = w.iter().map(Option::is_none).collect::<Vec<_>>();
+    let w = w.iter().map(|x| x.unwrap_or(0)).collect::<Vec<_>>();
+    (PyArray1::from_vec(py, w), PyArray1::from_vec(py, on))
+}
 
 /// A polygonal domain: `vertices` (V, 2) float64 and `segments` (S, 2) uint32, outer rings
 /// counter-clockwise and holes clockwise (interior on the left of every segment).
@@ -37,9 +61,7 @@ impl PolygonDomain {
     /// First moment `∫ x dx` (2,) about the coordinate origin.
     #[getter]
     fn first_moment(&self) -> [f64; 2] {
-        let m = self.0.moments();
-        let o = self.0.moments_origin();
-        [m.first[0] + m.mass * o[0], m.first[1] + m.mass * o[1]]
+        self.0.first_moment()
     }
 
     /// `(lo, hi)` corners of the bounding box.
@@ -63,17 +85,7 @@ impl PolygonDomain {
         points: PyReadonlyArray2<'py, f64>,
     ) -> PyResult<Windings<'py>> {
         let p = rows::<f64, 2>(&points, "points")?;
-        let w: Vec<Option<i32>> = py.detach(|| {
-            crate::threads::run(|| {
-                use rayon::prelude::*;
-                p.par_iter()
-                    .map(|q| Euclid::winding_number(&self.0, q))
-                    .collect()
-            })
-        });
-        let on = w.iter().map(Option::is_none).collect::<Vec<_>>();
-        let w = w.iter().map(|x| x.unwrap_or(0)).collect::<Vec<_>>();
-        Ok((PyArray1::from_vec(py, w), PyArray1::from_vec(py, on)))
+        Ok(winding_numbers(py, &self.0, &p))
     }
 }
 
@@ -104,10 +116,7 @@ impl SolidDomain {
     /// First moment `∫ x dx` (3,) about the coordinate origin.
     #[getter]
     fn first_moment(&self) -> [f64; 3] {
-        let m = self.0.moments();
-        let o = self.0.moments_origin();
-        let [x, y, z] = m.first;
-        [x + m.mass * o[0], y + m.mass * o[1], z + m.mass * o[2]]
+        self.0.first_moment()
     }
 
     /// `(lo, hi)` corners of the bounding box.
@@ -137,17 +146,7 @@ impl SolidDomain {
         points: PyReadonlyArray2<'py, f64>,
     ) -> PyResult<Windings<'py>> {
         let p = rows::<f64, 3>(&points, "points")?;
-        let w: Vec<Option<i32>> = py.detach(|| {
-            crate::threads::run(|| {
-                use rayon::prelude::*;
-                p.par_iter()
-                    .map(|q| Euclid::winding_number(&self.0, q))
-                    .collect()
-            })
-        });
-        let on = w.iter().map(Option::is_none).collect::<Vec<_>>();
-        let w = w.iter().map(|x| x.unwrap_or(0)).collect::<Vec<_>>();
-        Ok((PyArray1::from_vec(py, w), PyArray1::from_vec(py, on)))
+        Ok(winding_numbers(py, &self.0, &p))
     }
 
     /// Pairs of triangles sharing no vertex whose interiors cross: `(count, pairs)`, at

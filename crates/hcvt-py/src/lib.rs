@@ -5,6 +5,7 @@ mod arrays;
 mod diagram;
 mod domain;
 mod errors;
+mod optimise;
 mod threads;
 
 use pyo3::prelude::*;
@@ -15,6 +16,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::SolidDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi_2d, m)?)?;
     m.add_function(wrap_pyfunction!(diagram::voronoi_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::cvt_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::cvt_3d, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(threads::get_num_threads, m)?)?;
     Ok(())

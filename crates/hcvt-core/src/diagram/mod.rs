@@ -217,15 +217,7 @@ where
                 reached = true;
                 break;
             }
-            let q = sub(sites[j as usize], site);
-            if norm2(q) == 0.0 {
-                let (first, second) = (i.min(j as usize), i.max(j as usize));
-                return Err(CoreError::DuplicateSites {
-                    first,
-                    second,
-                    point: site.to_vec(),
-                });
-            }
+            let q = offset_to(sites, i, j)?;
             if cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j)) {
                 radius2 = cell.max_dist2();
             }
@@ -245,6 +237,20 @@ where
         }
         k = (2 * k).min(sites.len());
     }
+}
+
+/// Site `j` relative to site `i`; two sites at one point have no bisector.
+fn offset_to<const D: usize>(sites: &[[f64; D]], i: usize, j: u32) -> Result<[f64; D], CoreError> {
+    let q = sub(sites[j as usize], sites[i]);
+    if norm2(q) == 0.0 {
+        let (first, second) = (i.min(j as usize), i.max(j as usize));
+        return Err(CoreError::DuplicateSites {
+            first,
+            second,
+            point: sites[i].to_vec(),
+        });
+    }
+    Ok(q)
 }
 
 /// Cut `cell` (relative to `site`) to the box of half-width `R` around the site, `R` a
@@ -303,15 +309,7 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
         let Some(j) = cut else {
             return Ok(());
         };
-        let q = sub(sites[j as usize], site);
-        if norm2(q) == 0.0 {
-            let (first, second) = (i.min(j as usize), i.max(j as usize));
-            return Err(CoreError::DuplicateSites {
-                first,
-                second,
-                point: site.to_vec(),
-            });
-        }
+        let q = offset_to(sites, i, j)?;
         cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
         used.push(j);
         if cell.is_empty() {

@@ -136,6 +136,12 @@ where
         self.bvh.bounds().center()
     }
 
+    /// First moment `∫ x dx` about the coordinate origin.
+    pub fn first_moment(&self) -> [f64; D] {
+        let o = self.moments_origin();
+        std::array::from_fn(|k| self.moments.first[k] + self.moments.mass * o[k])
+    }
+
     /// Moments of the enclosed region about `origin`: the sum of the signed cones from
     /// `origin` over the boundary (DESIGN §3 with `w = 0` taken far away).
     fn integrate_from(&self, origin: [f64; D]) -> Moments<D> {

@@ -1,0 +1,264 @@
+//! CVT optimisation in the core: exact gradient, Lloyd's monotonicity, lattice fixed
+//! points, convergence in a non-convex polygon, reseeding of empty cells.
+
+use std::ops::ControlFlow;
+
+use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, PolyhedronCell};
+use hcvt_core::domain::{Boundary, Polygon, Solid, WindingNumber};
+use hcvt_core::geometry::{Euclid, Space};
+use hcvt_core::optimise::lloyd::reseed_empty;
+use hcvt_core::optimise::{cvt, evaluate, Method, Point, Settings, Step, StopReason};
+
+/// Closed rings as one polygon: outer rings counter-clockwise, holes clockwise.
+fn polygon(rings: &[&[[f64; 2]]]) -> Polygon {
+    let mut vertices = Vec::new();
+    let mut segments = Vec::new();
+    for ring in rings {
+        let start = vertices.len() as u32;
+        let n = ring.len() as u32;
+        vertices.extend_from_slice(ring);
+        segments.extend((0..n).map(|k| [start + k, start + (k + 1) % n]));
+    }
+    Polygon::new(vertices, segments).unwrap()
+}
+
+/// An L-shaped polygon with a square hole: non-convex, and with a hole.
+fn l_shape() -> Polygon {
+    polygon(&[
+        &[[0., 0.], [4., 0.], [4., 2.], [2., 2.], [2., 4.], [0., 4.]],
+        &[[0.5, 0.5], [0.5, 1.0], [1.0, 1.0], [1.0, 0.5]],
+    ])
+}
+
+/// The box `[lo, hi]` as 12 outward triangles.
+fn cuboid(lo: [f64; 3], hi: [f64; 3]) -> Solid {
+    let v: Vec<[f64; 3]> = (0..8u32)
+        .map(|i| [0, 1, 2].map(|k| if (i >> k) & 1 == 1 { hi[k] } else { lo[k] }))
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let t = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    Solid::new(v, t).unwrap()
+}
+
+/// `n` deterministic pseudo-random sites strictly inside `boundary`, by rejection.
+fn interior_sites<const D: usize>(boundary: &Boundary<D>, n: usize, seed: u64) -> Vec<[f64; D]>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let mut state = seed;
+    let mut rand = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let b = boundary.bounds();
+    let mut sites = Vec::with_capacity(n);
+    while sites.len() < n {
+        let p: [f64; D] = std::array::from_fn(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
+        if Euclid::winding_number(boundary, &p) == Some(1) {
+            sites.push(p);
+        }
+    }
+    sites
+}
+
+/// Cell centres of a `counts` grid over `[lo, hi]`.
+fn grid<const D: usize>(counts: [usize; D], lo: [f64; D], hi: [f64; D]) -> Vec<[f64; D]> {
+    let total: usize = counts.iter().product();
+    (0..total)
+        .map(|mut index| {
+            std::array::from_fn(|k| {
+                let i = index % counts[k];
+                index /= counts[k];
+                lo[k] + (i as f64 + 0.5) * (hi[k] - lo[k]) / counts[k] as f64
+            })
+        })
+        .collect()
+}
+
+/// Relative error of central differences of the energy against the exact gradient, over
+/// the coordinates of every third site.
+fn gradient_error<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+) -> f64
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
+    let step = 1e-6 * h;
+    let point = evaluate::<D, C>(boundary, sites.clone()).unwrap();
+    let (mut err2, mut norm2) = (0.0, 0.0);
+    for i in (0..sites.len()).step_by(3) {
+        for k in 0..D {
+            let energy_at = |delta: f64| {
+                let mut moved = sites.clone();
+                moved[i][k] += delta;
+                evaluate::<D, C>(boundary, moved).unwrap().energy
+            };
+            let fd = (energy_at(step) - energy_at(-step)) / (2.0 * step);
+            err2 += (fd - point.gradient[i][k]).powi(2);
+            norm2 += point.gradient[i][k].powi(2);
+        }
+    }
+    (err2 / norm2).sqrt()
+}
+
+#[test]
+fn gradient_matches_central_differences() {
+    let l = l_shape();
+    let err = gradient_error::<2, PolygonCell>(&l, interior_sites(&l, 60, 1));
+    assert!(err < 1e-6, "2D: relative error {err:e}");
+    let cube = cuboid([0.0, -1.0, 0.5], [2.0, 1.0, 1.5]);
+    let err = gradient_error::<3, PolyhedronCell>(&cube, interior_sites(&cube, 40, 2));
+    assert!(err < 1e-6, "3D: relative error {err:e}");
+}
+
+fn settings(method: Method, tol: f64, max_iter: usize) -> Settings {
+    Settings {
+        method,
+        tol,
+        max_iter,
+        ..Settings::default()
+    }
+}
+
+fn run<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+    settings: &Settings,
+) -> hcvt_core::optimise::Outcome<D>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    cvt::<D, C>(boundary, sites, settings, &mut |_, _| {
+        ControlFlow::Continue(())
+    })
+    .unwrap()
+}
+
+#[test]
+fn lloyd_never_increases_the_energy() {
+    let l = l_shape();
+    let out = run::<2, PolygonCell>(
+        &l,
+        interior_sites(&l, 100, 3),
+        &settings(Method::Lloyd, 0.0, 30),
+    );
+    assert_eq!(out.stop_reason, StopReason::MaxIter);
+    assert_eq!(out.iterations(), 30);
+    for pair in out.history.windows(2) {
+        let (a, b) = (pair[0].energy, pair[1].energy);
+        assert!(b <= a * (1.0 + 1e-13), "energy rose from {a} to {b}");
+        assert_eq!(pair[1].step, Step::Lloyd);
+    }
+}
+
+#[test]
+fn lattices_are_fixed_points() {
+    let rectangle = polygon(&[&[[-1., 2.], [5., 2.], [5., 6.], [-1., 6.]]]);
+    let squares = grid([6, 4], [-1., 2.], [5., 6.]);
+    let cube = cuboid([0.5, -1.0, 2.0], [2.5, 1.0, 3.5]);
+    let cubes = grid([4, 4, 3], [0.5, -1.0, 2.0], [2.5, 1.0, 3.5]);
+    for method in [Method::Lbfgs, Method::Lloyd] {
+        // tol = 0: every iteration runs, on gradients that are round-off.
+        let s = settings(method, 0.0, 4);
+        let out = run::<2, PolygonCell>(&rectangle, squares.clone(), &s);
+        let moved = max_move(&out.sites, &squares);
+        assert!(moved < 1e-12, "{method:?}: a square moved by {moved:e}");
+        let out = run::<3, PolyhedronCell>(&cube, cubes.clone(), &s);
+        let moved = max_move(&out.sites, &cubes);
+        assert!(moved < 1e-12, "{method:?}: a cube moved by {moved:e}");
+    }
+}
+
+fn max_move<const D: usize>(a: &[[f64; D]], b: &[[f64; D]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| (0..D).map(move |k| (x[k] - y[k]).abs()))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn lbfgs_converges_in_a_non_convex_polygon_and_beats_lloyd() {
+    let l = l_shape();
+    let sites = interior_sites(&l, 150, 4);
+    let lbfgs = run::<2, PolygonCell>(&l, sites.clone(), &settings(Method::Lbfgs, 1e-10, 2000));
+    assert_eq!(lbfgs.stop_reason, StopReason::Converged);
+    let last = lbfgs.history.last().unwrap();
+    assert!(last.grad_norm < 1e-10 && last.gap < 1e-3, "{last:?}");
+    assert!(lbfgs
+        .sites
+        .iter()
+        .all(|p| Euclid::winding_number(&l, p) != Some(0)));
+    let lloyd = run::<2, PolygonCell>(&l, sites, &settings(Method::Lloyd, 1e-6, 2000));
+    let to_1e6 = lbfgs.history.iter().find(|r| r.grad_norm < 1e-6).unwrap();
+    assert!(
+        to_1e6.evaluations < lloyd.evaluations(),
+        "L-BFGS {} diagrams to 1e-6, Lloyd {}",
+        to_1e6.evaluations,
+        lloyd.evaluations()
+    );
+}
+
+#[test]
+fn observer_can_stop_the_run() {
+    let l = l_shape();
+    let mut seen = 0;
+    let out = cvt::<2, PolygonCell>(
+        &l,
+        interior_sites(&l, 30, 5),
+        &Settings::default(),
+        &mut |_, _| {
+            seen += 1;
+            if seen == 3 {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        },
+    )
+    .unwrap();
+    assert_eq!(out.stop_reason, StopReason::Interrupted);
+    assert_eq!(out.iterations(), 2);
+}
+
+#[test]
+fn empty_cells_are_reseeded_deterministically_inside() {
+    let l = l_shape();
+    let mut sites = interior_sites(&l, 20, 6);
+    sites[7] = [3.5, 3.5]; // outside the L, in its missing corner: an empty cell
+    let options = Options {
+        allow_outside: true,
+    };
+    let (diagram, _) = clipped_diagram::<2, PolygonCell>(&l, &sites, options, false).unwrap();
+    assert_eq!(diagram.moments[7].mass, 0.0);
+    let point = Point {
+        energy: diagram.energy(),
+        gradient: diagram.gradient(),
+        diagram,
+        sites: sites.clone(),
+    };
+    let reseeded = reseed_empty(&l, &point, 0.5).unwrap();
+    assert_eq!(
+        reseeded,
+        reseed_empty(&l, &point, 0.5).unwrap(),
+        "deterministic"
+    );
+    assert_ne!(reseeded[7], sites[7]);
+    assert_eq!(Euclid::winding_number(&l, &reseeded[7]), Some(1));
+    assert!((0..20).filter(|&i| i != 7).all(|i| reseeded[i] == sites[i]));
+    let out = run::<2, PolygonCell>(&l, reseeded, &settings(Method::Lbfgs, 1e-8, 500));
+    assert_eq!(out.stop_reason, StopReason::Converged);
+}

@@ -1,0 +1,168 @@
+//! CVTs as numpy arrays: `cvt_2d` and `cvt_3d` run the whole iteration in the core with
+//! the GIL released, taking it back once per iteration only to check for Ctrl-C and to
+//! call the optional callback.
+
+use std::ops::ControlFlow;
+
+use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
+use hcvt_core::domain::{Boundary, WindingNumber};
+use hcvt_core::geometry::{Euclid, Space};
+use hcvt_core::optimise::{cvt, Method, Outcome, Record, Settings};
+use numpy::{PyArray1, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{rows, to_array2};
+use crate::diagram::diagram_dict;
+use crate::domain::{PolygonDomain, SolidDomain};
+use crate::errors::to_py_err;
+
+/// CVT of `sites` (n, 2) in `domain` (see `hcvt.cvt`): a dict with `sites`, `diagram` (the
+/// arrays of `voronoi_2d`), `history` (a dict of per-iterate arrays), `stop_reason`.
+/// `callback(record)`, if given, gets a dict per iterate; a true return value stops.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, method="lbfgs", tol=1e-10, max_iter=10_000, memory=7, callback=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn cvt_2d<'py>(
+    py: Python<'py>,
+    domain: &PolygonDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    method: &str,
+    tol: f64,
+    max_iter: usize,
+    memory: usize,
+    callback: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let settings = settings(method, tol, max_iter, memory)?;
+    let points = rows::<f64, 2>(&sites, "sites")?;
+    run::<2, PolygonCell>(py, &domain.0, points, &settings, callback)
+}
+
+/// CVT of `sites` (n, 3) in the solid `domain`; as `cvt_2d`.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, method="lbfgs", tol=1e-10, max_iter=10_000, memory=7, callback=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn cvt_3d<'py>(
+    py: Python<'py>,
+    domain: &SolidDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    method: &str,
+    tol: f64,
+    max_iter: usize,
+    memory: usize,
+    callback: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let settings = settings(method, tol, max_iter, memory)?;
+    let points = rows::<f64, 3>(&sites, "sites")?;
+    run::<3, PolyhedronCell>(py, &domain.0, points, &settings, callback)
+}
+
+fn settings(method: &str, tol: f64, max_iter: usize, memory: usize) -> PyResult<Settings> {
+    let method = match method {
+        "lbfgs" => Method::Lbfgs,
+        "lloyd" => Method::Lloyd,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "method must be 'lbfgs' or 'lloyd', got {other:?}"
+            )))
+        }
+    };
+    if tol.is_nan() || tol < 0.0 {
+        return Err(PyValueError::new_err(format!(
+            "tol must be a number >= 0, got {tol}"
+        )));
+    }
+    Ok(Settings {
+        method,
+        tol,
+        max_iter,
+        memory,
+        ..Settings::default()
+    })
+}
+
+fn run<'py, const D: usize, C: ConvexCell<D>>(
+    py: Python<'py>,
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+    settings: &Settings,
+    callback: Option<Py<PyAny>>,
+) -> PyResult<Bound<'py, PyDict>>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    // An error raised by the callback or by a signal handler, re-raised after the run.
+    let mut raised: Option<PyErr> = None;
+    let mut observer = |record: &Record, sites: &[[f64; D]]| -> ControlFlow<()> {
+        Python::attach(|py| match observe(py, record, sites, callback.as_ref()) {
+            Ok(false) => ControlFlow::Continue(()),
+            Ok(true) => ControlFlow::Break(()),
+            Err(err) => {
+                raised = Some(err);
+                ControlFlow::Break(())
+            }
+        })
+    };
+    let outcome = py
+        .detach(|| crate::threads::run(|| cvt::<D, C>(boundary, sites, settings, &mut observer)))
+        .map_err(to_py_err)?;
+    if let Some(err) = raised {
+        return Err(err);
+    }
+    outcome_dict(py, &outcome)
+}
+
+/// Check for Ctrl-C, then call the callback; `true` asks to stop.
+fn observe<const D: usize>(
+    py: Python<'_>,
+    record: &Record,
+    sites: &[[f64; D]],
+    callback: Option<&Py<PyAny>>,
+) -> PyResult<bool> {
+    py.check_signals()?;
+    let Some(callback) = callback else {
+        return Ok(false);
+    };
+    let info = PyDict::new(py);
+    info.set_item("energy", record.energy)?;
+    info.set_item("mean_G", record.mean_g)?;
+    info.set_item("grad_norm", record.grad_norm)?;
+    info.set_item("gap", record.gap)?;
+    info.set_item("seconds", record.seconds)?;
+    info.set_item("evaluations", record.evaluations)?;
+    info.set_item("step", record.step.as_str())?;
+    info.set_item("sites", to_array2(py, sites)?)?;
+    callback.bind(py).call1((info,))?.is_truthy()
+}
+
+fn outcome_dict<'py, const D: usize>(
+    py: Python<'py>,
+    outcome: &Outcome<D>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let h = &outcome.history;
+    let column = |f: fn(&Record) -> f64| PyArray1::from_iter(py, h.iter().map(f));
+    let history = PyDict::new(py);
+    history.set_item("energy", column(|r| r.energy))?;
+    history.set_item("mean_G", column(|r| r.mean_g))?;
+    history.set_item("grad_norm", column(|r| r.grad_norm))?;
+    history.set_item("gap", column(|r| r.gap))?;
+    history.set_item("seconds", column(|r| r.seconds))?;
+    history.set_item(
+        "evaluations",
+        PyArray1::from_iter(py, h.iter().map(|r| r.evaluations as u64)),
+    )?;
+    let steps: Vec<&str> = h.iter().map(|r| r.step.as_str()).collect();
+    history.set_item("step", steps)?;
+    let out = PyDict::new(py);
+    out.set_item("sites", to_array2(py, &outcome.sites)?)?;
+    out.set_item(
+        "diagram",
+        diagram_dict(py, &outcome.diagram, &outcome.sites)?,
+    )?;
+    out.set_item("history", history)?;
+    out.set_item("stop_reason", outcome.stop_reason.as_str())?;
+    out.set_item("iterations", outcome.iterations())?;
+    out.set_item("evaluations", outcome.evaluations())?;
+    Ok(out)
+}
