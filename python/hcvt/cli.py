@@ -44,6 +44,9 @@ def _load(input_: str, repair: bool):
 
     if input_ in BUILTIN:
         return builtin_domain(input_)
+    if not Path(input_).suffix and not Path(input_).exists():
+        known = ", ".join(sorted(BUILTIN))
+        raise ValueError(f"{input_!r} is no file and no built-in shape ({known})")
     return hcvt.load_domain(input_, repair=repair)
 
 

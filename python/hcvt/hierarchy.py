@@ -84,8 +84,21 @@ def _floor_log(n: int, a: int) -> int:
     return s
 
 
-def subdivide(diagram: Diagram) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Midpoints of the restricted Delaunay edges that lie inside the domain.
+EDGE_KINDS = ("restricted", "delaunay")
+
+
+def subdivide(
+    diagram: Diagram, edges: str = "restricted"
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Midpoints of the Delaunay edges that lie inside the domain.
+
+    ``edges="restricted"``: pairs of cells sharing a face inside the domain (the paper's
+    scheme as DESIGN §3.5 reads it). ``edges="delaunay"``: every edge of the Delaunay
+    triangulation of the sites (scipy/Qhull), as a CGAL implementation would take it;
+    near a straight boundary it also joins boundary sites whose cells meet only outside
+    the domain, which puts midpoints where the restricted scheme leaves room for random
+    top-up sites (measured on the 20 x 20 square, n = 1033, s = 4, 12 seeds: median mean G
+    0.08088 against 0.08093).
 
     Returns
     -------
@@ -97,11 +110,32 @@ def subdivide(diagram: Diagram) -> tuple[NDArray[np.float64], NDArray[np.int64]]
     -----
     A midpoint can fall outside a non-convex domain even though the two cells share a face
     inside it; such midpoints are left out (and the top-up fills the count).
+
+    Symmetric CVTs have co-circular (co-spherical) sites, whose Voronoi cells meet in a
+    face of round-off size across both diagonals of a planar quad: two "edges" then share a
+    midpoint. Only the first of midpoints closer than ``1e-9 h`` (``h`` the mean cell
+    size) is kept, so that no two sites coincide.
     """
-    edges = diagram.neighbors
-    midpoints = 0.5 * (diagram.sites[edges[:, 0]] + diagram.sites[edges[:, 1]])
-    inside = diagram.domain.contains(midpoints)
-    return midpoints[inside], edges[inside]
+    if edges not in EDGE_KINDS:
+        raise ValueError(f"edges must be one of {EDGE_KINDS}, got {edges!r}")
+    pairs = diagram.neighbors if edges == "restricted" else delaunay_edges(diagram.sites)
+    midpoints = 0.5 * (diagram.sites[pairs[:, 0]] + diagram.sites[pairs[:, 1]])
+    keep = diagram.domain.contains(midpoints)
+    h = (diagram.domain.volume / diagram.n) ** (1.0 / diagram.domain.dim)
+    for i, j in sorted(cKDTree(midpoints).query_pairs(1e-9 * h)):
+        if keep[i]:
+            keep[j] = False
+    return midpoints[keep], pairs[keep]
+
+
+def delaunay_edges(sites: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Edges ``(i, j)``, ``i < j``, of the Delaunay triangulation of ``sites``, sorted."""
+    from scipy.spatial import Delaunay
+
+    simplices = Delaunay(sites).simplices
+    d = sites.shape[1]
+    pairs = [simplices[:, [a, b]] for a in range(d + 1) for b in range(a + 1, d + 1)]
+    return np.unique(np.sort(np.vstack(pairs), axis=1), axis=0).astype(np.int64)
 
 
 def boundary_cells(diagram: Diagram) -> NDArray[np.int64]:
@@ -112,36 +146,38 @@ def boundary_cells(diagram: Diagram) -> NDArray[np.int64]:
 def sample_in_cells(
     diagram: Diagram, cells: NDArray[np.int64], rng: np.random.Generator
 ) -> NDArray[np.float64]:
-    """One uniform random point in each listed cell (rejection sampling), shape (m, d).
+    """One random point in each listed cell (rejection sampling), shape (m, d).
 
-    Candidates are drawn in a ball around the site, wide enough to cover the cell, and kept
-    when they are inside the domain and nearest to that cell's site.
+    Candidates are drawn uniformly in a ball around the site of radius twice the cell's
+    size ``volume^(1/d)`` and kept when they are inside the domain and nearest to that
+    cell's site: uniform in the part of the cell within the ball. A cell that rejects a
+    batch shrinks its ball (a site near the boundary has most of the ball outside), which
+    always ends, as the site is inside the domain and its own cell; the result is then
+    biased towards the site, still inside the cell and never on an existing site.
     """
     dim = diagram.domain.dim
     tree = cKDTree(diagram.sites)
     out = np.empty((len(cells), dim))
     todo = np.arange(len(cells))
-    radius = 2.0 * diagram.volume[cells] ** (1.0 / dim) + 1e-300
-    for _ in range(200):
-        if len(todo) == 0:
-            return out
-        batch = 16
+    radius = 2.0 * diagram.volume[cells] ** (1.0 / dim)
+    batch = 32
+    while len(todo):
         owner = np.repeat(todo, batch)
         direction = rng.normal(size=(len(owner), dim))
         direction /= np.linalg.norm(direction, axis=1, keepdims=True)
         r = radius[owner] * rng.random(len(owner)) ** (1.0 / dim)
         candidates = diagram.sites[cells[owner]] + direction * r[:, None]
-        ok = diagram.domain.contains(candidates)
+        ok = (r > 0) & diagram.domain.contains(candidates)
         ok[ok] &= tree.query(candidates[ok])[1] == cells[owner[ok]]
+        hit = np.zeros(len(cells), dtype=bool)
         first = {}
         for k in np.flatnonzero(ok):
             first.setdefault(owner[k], k)
         for j, k in first.items():
             out[j] = candidates[k]
-        todo = np.array([j for j in todo if j not in first], dtype=np.int64)
-        radius[todo] *= 1.5
-    # Fall back to the site itself shifted to the cell centroid side: always in the cell.
-    out[todo] = 0.5 * (diagram.sites[cells[todo]] + diagram.centroid[cells[todo]])
+            hit[j] = True
+        todo = todo[~hit[todo]]
+        radius[todo] *= 0.7
     return out
 
 
@@ -264,6 +300,7 @@ def hierarchical_cvt(
     seed: int = 0,
     tol: float = 1e-10,
     max_iter: int = 10_000,
+    edges: str = "restricted",
     callback: Any = None,
 ) -> HierarchicalResult:
     """Regular CVT of exactly ``n`` sites by the hierarchical method of the paper (§4).
@@ -284,6 +321,8 @@ def hierarchical_cvt(
         The paper's stopping rule ``‖g‖/‖X‖ < tol`` at every level.
     max_iter : int
         L-BFGS iterations per level at most.
+    edges : {"restricted", "delaunay"}
+        Which Delaunay edges are subdivided (see :func:`subdivide`).
     callback : callable, optional
         Called with each finished :class:`Level`.
 
@@ -297,6 +336,8 @@ def hierarchical_cvt(
 
     if init not in ("random", "lattice"):
         raise ValueError(f"init must be 'random' or 'lattice', got {init!r}")
+    if edges not in EDGE_KINDS:
+        raise ValueError(f"edges must be one of {EDGE_KINDS}, got {edges!r}")
     if subdivisions is None:
         subdivisions = max_subdivisions(int(n), domain.dim)
     plan = schedule(n, subdivisions, domain.dim)
@@ -312,10 +353,10 @@ def hierarchical_cvt(
     for target in plan.targets:
         start = time.perf_counter()
         previous = result.levels[-1]
-        midpoints, edges = subdivide(previous.diagram)
+        midpoints, pairs = subdivide(previous.diagram, edges)
         k = previous.n + len(midpoints)
         if k > target:
-            midpoints = trim(previous.diagram, midpoints, edges, k - target)
+            midpoints = trim(previous.diagram, midpoints, pairs, k - target)
         sites = np.vstack([previous.sites, midpoints])
         sites = top_up(previous.diagram, sites, target, rng)
         level = _optimise_level(cvt, domain, sites, k, target - k, tol, max_iter, start)

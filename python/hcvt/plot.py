@@ -151,12 +151,13 @@ def plot_cut(
         if len(faces):
             triangles.append(vertices[faces])
             values.append(np.full(len(faces), diagram.G[i]))
-    collection = Poly3DCollection(
-        np.concatenate(triangles), cmap=CMAP, edgecolors="face", linewidths=0.1
+    norm = matplotlib.colors.Normalize(vmin, vmax)
+    colours = matplotlib.colormaps[CMAP](norm(np.concatenate(values)))
+    ax.add_collection3d(
+        Poly3DCollection(
+            np.concatenate(triangles), facecolors=colours, edgecolors=colours, linewidths=0.1
+        )
     )
-    collection.set_array(np.concatenate(values))
-    collection.set_clim(vmin, vmax)
-    ax.add_collection3d(collection)
     lo, hi = diagram.domain.bounds
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
@@ -166,7 +167,9 @@ def plot_cut(
     ax.view_init(elev=20 if axis != 2 else -90, azim={0: 180, 1: -90, 2: -90}[axis], roll=0)
     ax.set_axis_off()
     if colorbar:
-        plt.colorbar(collection, ax=ax, shrink=0.6, label="G")
+        # A ScalarMappable: a 3D collection has no colours before it is projected.
+        mappable = plt.cm.ScalarMappable(cmap=CMAP, norm=norm)
+        plt.colorbar(mappable, ax=ax, shrink=0.6, label="G")
     ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}")
     return ax
 
