@@ -46,9 +46,10 @@ use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
 use lbfgs::{LineSearch, Memory};
 
-/// Energy tolerance of the line search relative to `|E|`: about 4500 ulps, above the
-/// round-off of a sum of exact cell energies (measured below 1e-14 relative), far below
-/// any decrease that L-BFGS makes before the gap reaches `√eps`.
+/// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the
+/// energy (translating the domain and 2,000 random sites changed `E` by at most 2.4e-14
+/// relative, star and bunny), far below any decrease that L-BFGS makes before the gap
+/// reaches `√eps`.
 pub const ENERGY_NOISE: f64 = 1e-12;
 
 /// Which iteration to run.
@@ -316,7 +317,8 @@ impl<const D: usize> Tracker<D> {
 /// A CVT from `sites`: Lloyd or L-BFGS until `‖g‖/‖X‖ < tol` (module docs) or `max_iter`.
 ///
 /// `observer` sees every record (the initial sites first) with the current sites, and stops
-/// the run by returning `ControlFlow::Break` (the binding checks for Ctrl-C there).
+/// the run by returning `ControlFlow::Break` (the binding does so on Ctrl-C, or when the
+/// Python callback asks).
 ///
 /// Errors: those of the first diagram (sites outside the domain, coinciding, non-finite).
 /// Later steps keep the sites inside the domain and distinct, so they do not fail.
