@@ -223,7 +223,8 @@ impl LineSearch {
     }
 
     /// A step `t > 0` satisfying the strong Wolfe conditions, or, with energies equal to
-    /// round-off, the approximate ones; `None` after `max_evaluations` trials without one.
+    /// round-off, the approximate ones. After `max_evaluations` trials without one, the
+    /// best trial that satisfied the decrease condition, and `None` if none did.
     ///
     /// `phi(t)` returns the state at `t` with `φ(t)` and `φ'(t)`, or `None` when `t` is
     /// infeasible; then every longer step is taken to be infeasible too.
@@ -280,7 +281,9 @@ impl LineSearch {
                 None => extrapolate(slope0, &lo),
             };
         }
-        Ok(None)
+        // Out of trials: the best step that lowered the energy, if any (its pair is kept
+        // only if it has positive curvature), rather than none.
+        Ok(lo.state)
     }
 }
 
@@ -377,8 +380,8 @@ mod tests {
 
     #[test]
     fn quadratic_is_solved_by_the_first_secant() {
-        // φ(t) = (t - 3)², φ'(0) = -6: t = 1 is too short and flat enough? |φ'(1)| = 4 > 5.4?
-        // No: 4 <= 0.9 * 6, so t = 1 is accepted; with c2 = 0.1 it must zoom to 3.
+        // φ(t) = (t - 3)², φ'(0) = -6. With c2 = 0.9, t = 1 would do (|φ'(1)| = 4 ≤ 5.4);
+        // with c2 = 0.1 the search must extrapolate past 3 and zoom back by the secant.
         let search = LineSearch {
             c2: 0.1,
             ..LineSearch::new(20)
@@ -424,6 +427,17 @@ mod tests {
         };
         let t = run(&search, 1.0 + 4.0 * scale, -4.0 * scale, &mut phi).unwrap();
         assert!((t - 2.0).abs() <= 0.1 * 2.0, "t = {t}");
+    }
+
+    #[test]
+    fn out_of_trials_the_best_decrease_is_kept() {
+        // φ(t) = 1 - t never flattens: trials 1, then 4 (extrapolated) and 16; the last is best.
+        let search = LineSearch::new(3);
+        let mut phi = |t: f64| Ok(Some((t, 1.0 - t, -1.0)));
+        assert_eq!(search.search(1.0, -1.0, &mut phi).unwrap(), Some(16.0));
+        // φ(t) = 1 + t from a wrong slope: nothing decreases, so no step at all.
+        let mut phi = |t: f64| Ok(Some((t, 1.0 + t, 1.0)));
+        assert_eq!(search.search(1.0, -1.0, &mut phi).unwrap(), None);
     }
 
     #[test]
