@@ -172,6 +172,7 @@ fn call<const D: usize>(
     info.set_item("mean_G", record.mean_g)?;
     info.set_item("grad_norm", record.grad_norm)?;
     info.set_item("gap", record.gap)?;
+    info.set_item("pinned", record.pinned)?;
     info.set_item("seconds", record.seconds)?;
     info.set_item("evaluations", record.evaluations)?;
     info.set_item("step", record.step.as_str())?;
@@ -190,6 +191,10 @@ fn outcome_dict<'py, const D: usize>(
     history.set_item("mean_G", column(|r| r.mean_g))?;
     history.set_item("grad_norm", column(|r| r.grad_norm))?;
     history.set_item("gap", column(|r| r.gap))?;
+    history.set_item(
+        "pinned",
+        PyArray1::from_iter(py, h.iter().map(|r| r.pinned as u64)),
+    )?;
     history.set_item("seconds", column(|r| r.seconds))?;
     history.set_item(
         "evaluations",

@@ -144,12 +144,15 @@ pub fn moved<const D: usize>(x: &[[f64; D]], t: f64, p: &[[f64; D]]) -> Vec<[f64
 
 /// One L-BFGS iteration from `point`: the direction, the line search, the memory update.
 ///
-/// `eval` computes the diagram of some sites, or `None` when they are infeasible (a site
-/// outside the domain). Returns `None` when the line search found no acceptable step.
+/// `hold` shortens the moves of sites that the full step would take out of the domain
+/// ([`super::lloyd::hold_inside`]); `eval` computes the diagram of some sites, or `None`
+/// when they are infeasible (a site outside the domain). Returns `None` when the line
+/// search found no acceptable step.
 pub fn step<const D: usize>(
     point: &Point<D>,
     memory: &mut Memory<D>,
     search: &LineSearch,
+    hold: &dyn Fn(&mut [[f64; D]]),
     eval: &mut dyn FnMut(Vec<[f64; D]>) -> Result<Option<Point<D>>, CoreError>,
 ) -> Result<Option<Point<D>>, CoreError> {
     // A cell of zero mass is reseeded before we get here; the floor only keeps H0 finite.
@@ -160,11 +163,14 @@ pub fn step<const D: usize>(
         .map(|m| 0.5 / m.mass.max(f64::MIN_POSITIVE))
         .collect();
     let mut direction = memory.direction(&point.gradient, &preconditioner);
+    hold(&mut direction);
     let mut slope = dot_rows(&point.gradient, &direction);
     if !is_descent(slope) {
-        // Not a descent direction (stale curvature): restart from H0 alone.
+        // Not a descent direction (stale curvature, or moves shortened at the boundary):
+        // restart from H0 alone, whose moves all go downhill site by site.
         memory.clear();
         direction = memory.direction(&point.gradient, &preconditioner);
+        hold(&mut direction);
         slope = dot_rows(&point.gradient, &direction);
         if !is_descent(slope) {
             return Ok(None);
