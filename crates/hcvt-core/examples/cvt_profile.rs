@@ -55,5 +55,13 @@ fn main() -> Result<(), hcvt_core::CoreError> {
         out.evaluations(),
         1e3 * seconds / out.evaluations() as f64
     );
+    let t = Instant::now();
+    for _ in 0..50 {
+        hcvt_core::optimise::evaluate::<2, PolygonCell>(&domain, out.sites.clone())?;
+    }
+    println!(
+        "one diagram alone: {:.3} ms",
+        1e3 * t.elapsed().as_secs_f64() / 50.0
+    );
     Ok(())
 }
