@@ -3,6 +3,11 @@ paper's stopping rule and mean G, non-convex domains, thread independence."""
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
+import time
+
 import numpy as np
 import pytest
 import shapely
@@ -172,6 +177,16 @@ def test_sites_stay_inside_a_non_convex_domain():
     assert np.all(res.diagram.volume > 0)
 
 
+def test_sites_pinned_at_a_notch_do_not_stall_the_run():
+    # A cell at a notch has its centroid outside; its site ends on the boundary.
+    domain = hcvt.load_domain(DATA / "2d" / "cgal_skeleton_sample_1.geojson")
+    res = hcvt.cvt(domain, random_inside(domain, 1000, seed=1), max_iter=2000)
+    assert res.converged, res.stop_reason
+    assert res.history["pinned"][-1] >= 1
+    winding, on_boundary = domain.winding_numbers(res.sites)
+    assert np.all((winding != 0) | on_boundary)
+
+
 def test_results_do_not_depend_on_the_thread_count():
     domain = shapes.star()
     sites = random_inside(domain, 400, seed=5)
@@ -203,6 +218,37 @@ def test_callback_sees_every_iterate_and_can_stop():
     assert res.iterations == 3 and len(seen) == 4
     assert seen[0]["step"] == "start" and seen[0]["sites"].shape == (50, 2)
     assert np.array_equal(seen[-1]["sites"], res.sites)
+
+
+def test_callback_may_call_back_into_hcvt():
+    domain = shapes.unit_square()
+    means = []
+
+    def callback(info):
+        means.append(hcvt.voronoi(domain, info["sites"]).mean_G)
+
+    res = hcvt.cvt(domain, random_inside(domain, 40, seed=1), max_iter=5, callback=callback)
+    assert len(means) == res.iterations + 1
+    assert np.allclose(means, res.history["mean_G"], rtol=1e-12)
+
+
+@pytest.mark.parametrize("threads", [None, 2])
+def test_ctrl_c_interrupts_a_long_run(threads):
+    domain = shapes.square()
+    sites = random_inside(domain, 2000, seed=0)
+    before = hcvt.get_num_threads()
+    timer = threading.Timer(0.2, lambda: os.kill(os.getpid(), signal.SIGINT))
+    try:
+        if threads is not None:
+            hcvt.set_num_threads(threads)  # the loop then runs on a pool worker
+        start = time.perf_counter()
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            hcvt.cvt(domain, sites, tol=0, max_iter=100_000)
+        assert time.perf_counter() - start < 2
+    finally:
+        timer.cancel()
+        hcvt.set_num_threads(before)
 
 
 def test_callback_errors_propagate():

@@ -9,6 +9,12 @@ normalised coordinates ``y = (x - o)/s`` with ``o`` the centre of the domain's b
 and ``s`` its longest side, so that the rule depends neither on the unit nor on where the
 domain sits: ``‖g‖/‖X‖ = ‖∇E(x)‖ / (s^d ‖x - o‖)``. The history also holds the scale-free
 gap ``max_i |x_i - c_i| / h`` with ``h = (V/n)^(1/d)``.
+
+Sites stay inside the domain: a step is shortened site by site until it ends inside. In a
+non-convex domain the centroid of a cell at a notch can lie outside; its site then ends
+pinned on the boundary, where its gradient cannot vanish. Such sites (centroid outside, and
+not even 2^-20 of the way towards it inside) are counted in ``history["pinned"]`` and left
+out of the stopping rule and the gap.
 """
 
 from __future__ import annotations
@@ -41,7 +47,9 @@ class CVTResult:
     history : dict of str to ndarray
         One entry per iterate, the initial sites first (length ``iterations + 1``):
         ``energy`` (L^(d+2)), ``mean_G``, ``grad_norm`` (``‖g‖/‖X‖``, normalised),
-        ``gap`` (``max |x_i - c_i| / h``), ``seconds`` (since the start),
+        ``gap`` (``max |x_i - c_i| / h``), ``pinned`` (sites held on the boundary with
+        their centroid outside, left out of ``grad_norm`` and ``gap``; module docs),
+        ``seconds`` (since the start),
         ``evaluations`` (diagrams so far), ``step`` (``"start"``, ``"lbfgs"``,
         ``"lloyd"`` -- also the fallback when a line search stalls in round-off --
         or ``"reseed"``).

@@ -1,15 +1,19 @@
 //! CVTs as numpy arrays: `cvt_2d` and `cvt_3d` run the whole iteration in the core with
-//! the GIL released, taking it back once per iteration only to check for Ctrl-C and to
-//! call the optional callback.
+//! the GIL released; the calling thread checks for Ctrl-C meanwhile, and the GIL is taken
+//! once per iteration only when there is a callback to call.
 
 use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::Mutex;
+use std::time::Duration;
 
 use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
 use hcvt_core::optimise::{cvt, Method, Outcome, Record, Settings};
 use numpy::{PyArray1, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -82,6 +86,14 @@ fn settings(method: &str, tol: f64, max_iter: usize, memory: usize) -> PyResult<
     })
 }
 
+/// How often the waiting thread checks for Ctrl-C while the core works.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
+
+/// Run the core's loop on a worker inside the configured thread pool while this (the
+/// calling, usually main) thread waits without the GIL and checks for signals every
+/// `SIGNAL_POLL`: CPython runs signal handlers only on the main thread, so a check made by
+/// a pool worker would never see Ctrl-C. A signal (or an error in the callback) stops the
+/// loop at the next iterate and is raised here.
 fn run<'py, const D: usize, C: ConvexCell<D>>(
     py: Python<'py>,
     boundary: &Boundary<D>,
@@ -92,43 +104,75 @@ fn run<'py, const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    // An error raised by the callback or by a signal handler, re-raised after the run.
-    let mut raised: Option<PyErr> = None;
-    let mut observer = |record: &Record, sites: &[[f64; D]]| -> ControlFlow<()> {
-        Python::attach(|py| match observe(py, record, sites, callback.as_ref()) {
-            Ok(false) => ControlFlow::Continue(()),
-            Ok(true) => ControlFlow::Break(()),
-            Err(err) => {
-                raised = Some(err);
-                ControlFlow::Break(())
-            }
-        })
+    let stop = AtomicBool::new(false);
+    let raised: Mutex<Option<PyErr>> = Mutex::new(None);
+    let raise = |err: PyErr| {
+        stop.store(true, Ordering::Relaxed);
+        if let Ok(mut slot) = raised.lock() {
+            slot.get_or_insert(err);
+        }
     };
-    let outcome = py
-        .detach(|| crate::threads::run(|| cvt::<D, C>(boundary, sites, settings, &mut observer)))
-        .map_err(to_py_err)?;
-    if let Some(err) = raised {
+    let mut observer = |record: &Record, sites: &[[f64; D]]| -> ControlFlow<()> {
+        if let Some(callback) = &callback {
+            match Python::attach(|py| call(py, callback, record, sites)) {
+                Ok(true) => return ControlFlow::Break(()),
+                Ok(false) => {}
+                Err(err) => raise(err),
+            }
+        }
+        if stop.load(Ordering::Relaxed) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    };
+    let outcome = py.detach(|| {
+        std::thread::scope(|scope| {
+            let (done, finished) = mpsc::channel();
+            let observer = &mut observer;
+            let worker = scope.spawn(move || {
+                let outcome =
+                    crate::threads::run(|| cvt::<D, C>(boundary, sites, settings, observer));
+                // The receiver lives until the worker is joined; a send cannot fail.
+                let _ = done.send(outcome);
+            });
+            let result = loop {
+                match finished.recv_timeout(SIGNAL_POLL) {
+                    Ok(outcome) => break Ok(outcome),
+                    Err(RecvTimeoutError::Timeout) => {
+                        if let Err(err) = Python::attach(|py| py.check_signals()) {
+                            raise(err);
+                        }
+                    }
+                    Err(RecvTimeoutError::Disconnected) => {
+                        break Err(PyRuntimeError::new_err("the CVT worker thread panicked"))
+                    }
+                }
+            };
+            // Joined by hand, a panic stays here instead of unwinding out of the scope.
+            let _ = worker.join();
+            result
+        })
+    })?;
+    if let Some(err) = raised.into_inner().ok().flatten() {
         return Err(err);
     }
-    outcome_dict(py, &outcome)
+    outcome_dict(py, &outcome.map_err(to_py_err)?)
 }
 
-/// Check for Ctrl-C, then call the callback; `true` asks to stop.
-fn observe<const D: usize>(
+/// Call the callback with a dict of the iterate; `true` (a true return value) asks to stop.
+fn call<const D: usize>(
     py: Python<'_>,
+    callback: &Py<PyAny>,
     record: &Record,
     sites: &[[f64; D]],
-    callback: Option<&Py<PyAny>>,
 ) -> PyResult<bool> {
-    py.check_signals()?;
-    let Some(callback) = callback else {
-        return Ok(false);
-    };
     let info = PyDict::new(py);
     info.set_item("energy", record.energy)?;
     info.set_item("mean_G", record.mean_g)?;
     info.set_item("grad_norm", record.grad_norm)?;
     info.set_item("gap", record.gap)?;
+    info.set_item("pinned", record.pinned)?;
     info.set_item("seconds", record.seconds)?;
     info.set_item("evaluations", record.evaluations)?;
     info.set_item("step", record.step.as_str())?;
@@ -147,6 +191,10 @@ fn outcome_dict<'py, const D: usize>(
     history.set_item("mean_G", column(|r| r.mean_g))?;
     history.set_item("grad_norm", column(|r| r.grad_norm))?;
     history.set_item("gap", column(|r| r.gap))?;
+    history.set_item(
+        "pinned",
+        PyArray1::from_iter(py, h.iter().map(|r| r.pinned as u64)),
+    )?;
     history.set_item("seconds", column(|r| r.seconds))?;
     history.set_item(
         "evaluations",

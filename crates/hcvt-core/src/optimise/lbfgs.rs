@@ -144,12 +144,15 @@ pub fn moved<const D: usize>(x: &[[f64; D]], t: f64, p: &[[f64; D]]) -> Vec<[f64
 
 /// One L-BFGS iteration from `point`: the direction, the line search, the memory update.
 ///
-/// `eval` computes the diagram of some sites, or `None` when they are infeasible (a site
-/// outside the domain). Returns `None` when the line search found no acceptable step.
+/// `hold` shortens the moves of sites that the full step would take out of the domain
+/// ([`super::lloyd::hold_inside`]); `eval` computes the diagram of some sites, or `None`
+/// when they are infeasible (a site outside the domain). Returns `None` when the line
+/// search found no acceptable step.
 pub fn step<const D: usize>(
     point: &Point<D>,
     memory: &mut Memory<D>,
     search: &LineSearch,
+    hold: &dyn Fn(&mut [[f64; D]]),
     eval: &mut dyn FnMut(Vec<[f64; D]>) -> Result<Option<Point<D>>, CoreError>,
 ) -> Result<Option<Point<D>>, CoreError> {
     // A cell of zero mass is reseeded before we get here; the floor only keeps H0 finite.
@@ -160,11 +163,14 @@ pub fn step<const D: usize>(
         .map(|m| 0.5 / m.mass.max(f64::MIN_POSITIVE))
         .collect();
     let mut direction = memory.direction(&point.gradient, &preconditioner);
+    hold(&mut direction);
     let mut slope = dot_rows(&point.gradient, &direction);
     if !is_descent(slope) {
-        // Not a descent direction (stale curvature): restart from H0 alone.
+        // Not a descent direction (stale curvature, or moves shortened at the boundary):
+        // restart from H0 alone, whose moves all go downhill site by site.
         memory.clear();
         direction = memory.direction(&point.gradient, &preconditioner);
+        hold(&mut direction);
         slope = dot_rows(&point.gradient, &direction);
         if !is_descent(slope) {
             return Ok(None);
@@ -223,7 +229,8 @@ impl LineSearch {
     }
 
     /// A step `t > 0` satisfying the strong Wolfe conditions, or, with energies equal to
-    /// round-off, the approximate ones; `None` after `max_evaluations` trials without one.
+    /// round-off, the approximate ones. After `max_evaluations` trials without one, the
+    /// best trial that satisfied the decrease condition, and `None` if none did.
     ///
     /// `phi(t)` returns the state at `t` with `φ(t)` and `φ'(t)`, or `None` when `t` is
     /// infeasible; then every longer step is taken to be infeasible too.
@@ -280,7 +287,9 @@ impl LineSearch {
                 None => extrapolate(slope0, &lo),
             };
         }
-        Ok(None)
+        // Out of trials: the best step that lowered the energy, if any (its pair is kept
+        // only if it has positive curvature), rather than none.
+        Ok(lo.state)
     }
 }
 
@@ -377,8 +386,8 @@ mod tests {
 
     #[test]
     fn quadratic_is_solved_by_the_first_secant() {
-        // φ(t) = (t - 3)², φ'(0) = -6: t = 1 is too short and flat enough? |φ'(1)| = 4 > 5.4?
-        // No: 4 <= 0.9 * 6, so t = 1 is accepted; with c2 = 0.1 it must zoom to 3.
+        // φ(t) = (t - 3)², φ'(0) = -6. With c2 = 0.9, t = 1 would do (|φ'(1)| = 4 ≤ 5.4);
+        // with c2 = 0.1 the search must extrapolate past 3 and zoom back by the secant.
         let search = LineSearch {
             c2: 0.1,
             ..LineSearch::new(20)
@@ -424,6 +433,17 @@ mod tests {
         };
         let t = run(&search, 1.0 + 4.0 * scale, -4.0 * scale, &mut phi).unwrap();
         assert!((t - 2.0).abs() <= 0.1 * 2.0, "t = {t}");
+    }
+
+    #[test]
+    fn out_of_trials_the_best_decrease_is_kept() {
+        // φ(t) = 1 - t never flattens: trials 1, then 4 (extrapolated) and 16; the last is best.
+        let search = LineSearch::new(3);
+        let mut phi = |t: f64| Ok(Some((t, 1.0 - t, -1.0)));
+        assert_eq!(search.search(1.0, -1.0, &mut phi).unwrap(), Some(16.0));
+        // φ(t) = 1 + t from a wrong slope: nothing decreases, so no step at all.
+        let mut phi = |t: f64| Ok(Some((t, 1.0 + t, 1.0)));
+        assert_eq!(search.search(1.0, -1.0, &mut phi).unwrap(), None);
     }
 
     #[test]

@@ -7,34 +7,82 @@ use crate::geometry::{add, scale, Euclid, Space};
 
 use super::Point;
 
-/// Halvings of a Lloyd move before a site whose centroid lies outside stays where it is.
+/// Halvings of a move that leaves the domain before the site stays where it is.
 const MAX_HALVINGS: usize = 30;
 
-/// Lloyd's update `x_i ← c_i`, except that a site whose centroid lies outside a non-convex
-/// domain moves by the largest of `1, 1/2, 1/4, …` of the way that ends inside (or not at
-/// all). Any move towards `c_i` lowers `∫_{Ω_i} |x − x_i|²` for the old cells, and the new
-/// cells lower it again, so the energy never increases. Empty cells keep their site.
+/// Lloyd's update `x_i ← c_i`, held inside the domain by [`hold_inside`]. Any move towards
+/// `c_i` lowers `∫_{Ω_i} |x − x_i|²` for the old cells, and the new cells lower it again, so
+/// the energy never increases. Empty cells keep their site.
 pub fn lloyd_sites<const D: usize>(boundary: &Boundary<D>, point: &Point<D>) -> Vec<[f64; D]>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    let mut moves: Vec<[f64; D]> = point
+        .diagram
+        .moments
+        .iter()
+        .map(|m| m.centroid().unwrap_or([0.0; D]))
+        .collect();
+    hold_inside(boundary, &point.sites, &mut moves);
     point
         .sites
-        .par_iter()
-        .zip(&point.diagram.moments)
-        .map(|(&site, m)| {
-            let Some(shift) = m.centroid() else {
-                return site;
-            };
-            let mut t = 1.0;
-            for _ in 0..MAX_HALVINGS {
-                let candidate = add(site, scale(shift, t));
-                if inside_or_on(boundary, &candidate) {
-                    return candidate;
-                }
-                t *= 0.5;
+        .iter()
+        .zip(&moves)
+        .map(|(&x, &m)| add(x, m))
+        .collect()
+}
+
+/// Shorten each site's move `x_i → x_i + d_i` to the largest of `d_i, d_i/2, d_i/4, …`
+/// that ends inside the domain (or on its boundary), or to nothing.
+///
+/// In a non-convex domain a centroid, or an L-BFGS step, can lie across a notch or a thin
+/// wall. Shortening only the moves that leave keeps one site from throttling the step of
+/// all the others (a line search would shorten them all alike).
+pub fn hold_inside<const D: usize>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    moves: &mut [[f64; D]],
+) where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    moves.par_iter_mut().zip(sites).for_each(|(m, &site)| {
+        let mut t = 1.0;
+        for _ in 0..MAX_HALVINGS {
+            if inside_or_on(boundary, &add(site, scale(*m, t))) {
+                *m = scale(*m, t);
+                return;
             }
-            site
+            t *= 0.5;
+        }
+        *m = [0.0; D];
+    });
+}
+
+/// Fraction of the way towards its centroid that a pinned site cannot move (2^-20).
+const PIN_FRACTION: f64 = 1.0 / 1_048_576.0;
+
+/// Sites pinned against the boundary: the centroid of the cell lies outside the domain and
+/// even `2^-20` of the way towards it leaves the domain.
+///
+/// Sites are kept inside, so at a CVT of a non-convex domain whose cell's centroid lies
+/// across a notch, a site sits on the boundary with a gradient that never vanishes; the
+/// stopping rule leaves such sites out. Only cells that touch the boundary can have their
+/// centroid outside (the others are convex and inside), so only they are tested.
+pub fn pinned_sites<const D: usize>(boundary: &Boundary<D>, point: &Point<D>) -> Vec<bool>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let diagram = &point.diagram;
+    (0..point.sites.len())
+        .into_par_iter()
+        .map(|i| {
+            let Some(shift) = diagram.moments[i].centroid() else {
+                return false;
+            };
+            let site = point.sites[i];
+            diagram.boundary_measure[i] > 0.0
+                && Euclid::winding_number(boundary, &add(site, shift)) == Some(0)
+                && !inside_or_on(boundary, &add(site, scale(shift, PIN_FRACTION)))
         })
         .collect()
 }

@@ -1,0 +1,67 @@
+//! Time CVTs of uniform random sites, for profiling the optimisation loop.
+//! `cargo run --release --example cvt_profile -- square 1000` (or `star 2000`).
+
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use hcvt_core::diagram::PolygonCell;
+use hcvt_core::domain::{Polygon, WindingNumber};
+use hcvt_core::geometry::Euclid;
+use hcvt_core::optimise::{cvt, Settings};
+
+fn main() -> Result<(), hcvt_core::CoreError> {
+    let mut args = std::env::args().skip(1);
+    let shape = args.next().unwrap_or_else(|| "square".into());
+    let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(1000);
+    let ring: Vec<[f64; 2]> = if shape == "star" {
+        // The paper's five-branch star (hcvt.shapes.star), area about 117.5.
+        let inner = 18f64.to_radians().sin() / 126f64.to_radians().sin();
+        (0..10)
+            .map(|k| {
+                let t = std::f64::consts::FRAC_PI_2 + k as f64 * std::f64::consts::PI / 5.0;
+                let r = 8.1 * if k % 2 == 0 { 1.0 } else { inner };
+                [r * t.cos(), r * t.sin()]
+            })
+            .collect()
+    } else {
+        vec![[0.0, 0.0], [20.0, 0.0], [20.0, 20.0], [0.0, 20.0]]
+    };
+    let m = ring.len() as u32;
+    let domain = Polygon::new(ring, (0..m).map(|k| [k, (k + 1) % m]).collect())?;
+    let mut state = 7u64;
+    let mut rand = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let b = domain.bounds();
+    let mut sites = Vec::with_capacity(n);
+    while sites.len() < n {
+        let p = [0, 1].map(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
+        if Euclid::winding_number(&domain, &p) == Some(1) {
+            sites.push(p);
+        }
+    }
+    let t = Instant::now();
+    let out = cvt::<2, PolygonCell>(&domain, sites, &Settings::default(), &mut |_, _| {
+        ControlFlow::Continue(())
+    })?;
+    let seconds = t.elapsed().as_secs_f64();
+    println!(
+        "{shape} n = {n}: {} in {} iterations, {} diagrams, {seconds:.3} s ({:.3} ms per diagram)",
+        out.stop_reason.as_str(),
+        out.iterations(),
+        out.evaluations(),
+        1e3 * seconds / out.evaluations() as f64
+    );
+    let t = Instant::now();
+    for _ in 0..50 {
+        hcvt_core::optimise::evaluate::<2, PolygonCell>(&domain, out.sites.clone())?;
+    }
+    println!(
+        "one diagram alone: {:.3} ms",
+        1e3 * t.elapsed().as_secs_f64() / 50.0
+    );
+    Ok(())
+}
