@@ -46,6 +46,7 @@ class Config:
     paper_g: float | None = None
     paper_energy: float | None = None
     paper_seconds: float | None = None
+    paper_n: int | None = None  # the paper's site count, when a quick run uses fewer
     keep_sites: bool = False
     keep_history: bool = False
     updates: int = 200  # Monte-Carlo only
@@ -71,9 +72,22 @@ def _comparison(
     rows: Iterable[tuple[str, str, str, int | None, float, float]],
     figures: tuple[str, ...] = (),
     title: str = "",
+    paper_n: int | None = None,
 ) -> Experiment:
     configs = tuple(
-        Config(name, label, shape, n, method, init, s, paper_g=g, paper_energy=e, keep_sites=True)
+        Config(
+            name,
+            label,
+            shape,
+            n,
+            method,
+            init,
+            s,
+            paper_g=g,
+            paper_energy=e,
+            keep_sites=True,
+            paper_n=paper_n or n,
+        )
         for label, method, init, s, g, e in rows
     )
     return Experiment(name, title, configs, figures)
@@ -125,6 +139,7 @@ def _experiments(quick: bool) -> dict[str, Experiment]:
         star_rows,
         figures=("cells", "histograms"),
         title=f"Star of area 117.5, n = {star_n} (paper Table 5, Figure 9: n = 10025)",
+        paper_n=10025,
     )
     ball = []
     for n, s, rows in (
@@ -333,8 +348,8 @@ def run_config(config: Config) -> Row:
         row["G"] = diagram.G
         row["levels_sites"] = levels_sites
     if history is not None:
-        row["history_energy"] = np.asarray(history.energy)
-        row["history_G"] = np.asarray(history.mean_G)
+        row["history_energy"] = np.asarray(history["energy"])
+        row["history_G"] = np.asarray(history["mean_G"])
     return row
 
 
@@ -413,6 +428,14 @@ def summarise(experiment: Experiment, rows: list[Row]) -> list[Summary]:
     return [s for s in by_label.values() if s.rows]
 
 
+def paper_energy_at(config: Config, dim: int) -> float | None:
+    """The paper's energy brought to our site count: E scales as n^(-2/d) at fixed volume."""
+    if config.paper_energy is None:
+        return None
+    paper_n = config.paper_n or config.n
+    return config.paper_energy * (paper_n / config.n) ** (2.0 / dim)
+
+
 def _ratio(ours: float, paper: float | None) -> str:
     return "" if paper is None else f"{ours / paper:.4f}"
 
@@ -443,12 +466,15 @@ def markdown_table(experiment: Experiment, summaries: list[Summary]) -> str:
         "paper energy | ratio | seconds |\n|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = []
+    dim = 3 if summaries and summaries[0].config.shape not in ("square", "star") else 2
     for s in summaries:
         g, e = s.median("mean_G"), s.median("energy")
         c = s.config
+        pe = paper_energy_at(c, dim)
+        paper_e = "" if pe is None else f"{pe:.6g}"
         lines.append(
             f"| {c.label} | {len(s.rows)} | {g:.5f} | {c.paper_g or ''} | {_ratio(g, c.paper_g)} "
-            f"| {e:.6g} | {c.paper_energy or ''} | {_ratio(e, c.paper_energy)} "
+            f"| {e:.6g} | {paper_e} | {_ratio(e, pe)} "
             f"| {s.median('seconds'):.2f} |"
         )
     return header + "\n".join(lines) + "\n"
@@ -533,7 +559,8 @@ def reproduce(
     report.write_text(
         f"# {experiment.title}\n\n"
         f"{'quick run (reduced sizes), ' if quick else ''}{len(rows)} runs in "
-        f"{time.perf_counter() - start:.0f} s on {os.cpu_count()} cores; medians over seeds.\n\n"
+        f"{time.perf_counter() - start:.0f} s on {os.cpu_count()} cores; medians over seeds. "
+        "Where our n differs from the paper's, its energy is scaled by (n_paper / n)^(2/d).\n\n"
         + markdown_table(experiment, summaries)
         + "".join(f"\n![{p.stem}]({p.name})\n" for p in figures)
     )
