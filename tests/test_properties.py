@@ -119,7 +119,7 @@ def _check_diagram(domain: hcvt.Domain, sites: np.ndarray, *, allow_outside: boo
     if allow_outside:
         # The cell of a site outside is cut in coordinates relative to that site, with an
         # error of about eps·R² at distance R: 9e-13 of the unit square's area at R = 100
-        # (sites farther than 64 box diagonals are refused with InvalidSitesError).
+        # (sites farther than 64 smallest box sides are refused with InvalidSitesError).
         far = float(np.max(np.abs(sites - np.clip(sites, lo, hi)))) if len(sites) else 0.0
         size = float(np.max(hi - lo))
         tol += 16 * np.finfo(float).eps * min(far, 1e100) ** 2 * size ** (domain.dim - 2)
@@ -331,7 +331,11 @@ def test_solids_with_random_and_degenerate_sites(name: str, data: st.DataObject)
 
 
 @given(
-    vertices=st.lists(st.tuples(*[st.integers(-1, 1).map(float)] * 3), min_size=0, max_size=6),
+    vertices=st.lists(
+        st.tuples(*[st.sampled_from([-1.0, 0.0, 1.0, 0.5, np.nan, np.inf, 1e300])] * 3),
+        min_size=0,
+        max_size=6,
+    ),
     faces=st.lists(st.tuples(*[st.integers(-1, 6)] * 3), min_size=0, max_size=8),
     repair=st.booleans(),
 )
@@ -351,3 +355,48 @@ def test_arbitrary_meshes_give_a_domain_or_an_invalid_domain_error(
     g = np.linspace(0.1, 0.9, 3)
     grid = lo + (hi - lo) * np.stack(np.meshgrid(g, g, g), axis=-1).reshape(-1, 3)
     _check_diagram(domain, grid, allow_outside=True)
+
+
+# ---------------------------------------------------------------------------- regressions
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+@pytest.mark.parametrize("repair", [False, True])
+@pytest.mark.parametrize("scale", [1e160, 1e300])
+def test_overflowing_coordinates_are_refused_by_name(scale: float, repair: bool) -> None:
+    with pytest.raises(hcvt.InvalidDomainError, match="not representable.*scale the polygon"):
+        hcvt.Domain.from_polygon([(0, 0), (scale, 0), (0, scale)], repair=repair)
+    with pytest.raises(hcvt.InvalidDomainError, match="not representable.*scale the mesh"):
+        hcvt.Domain.from_mesh(TETRA_V * scale, TETRA_F, repair=repair)
+
+
+def test_site_within_round_off_of_a_sphere_face_regression() -> None:
+    # A face centroid in floats lies 1e-17 off the face: the cell was -3.6 instead of 4.15.
+    domain = _solid("sphere")
+    site = domain.vertices[domain.faces[199]].mean(axis=0)
+    d = hcvt.voronoi(domain, site[None], allow_outside=True)
+    assert abs(d.volume[0] - domain.volume) <= 1e-12 * domain.volume
+
+
+def test_cell_touching_the_domain_at_a_point_is_empty_regression() -> None:
+    # Pieces cancelling to ±3.5e-18 gave G = NaN or 1e15 for a cell of no area.
+    outer = np.array([(0.0, 1.0), (1.0, 1.0), (3.0, -1.0)])
+    hole = np.array([[0.0, 0.0], [0.0, 1.0], [2.0, 1.0]]) / 4 + 0.25
+    domain = hcvt.Domain.from_polygon(outer, holes=[hole], repair=True)
+    lo, hi = domain.bounds
+    g = np.linspace(0, 1, 6)[1:-1]
+    grid = lo + (hi - lo) * np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    _check_diagram(domain, grid, allow_outside=True)
+
+
+def test_site_on_a_slope_one_edge_regression() -> None:
+    # The apex was nudged along the edge and stayed on it: the cell counted 0.24, not 0.12.
+    domain = hcvt.Domain.from_polygon([(0, -1), (1, 0), (-1, 1), (0, -2)])
+    sites = [[0.2, -1.4], [-0.2, -0.8], [0.2, -0.8], [0.6, -0.8], [0.2, -0.2]]
+    d = hcvt.voronoi(domain, sites, allow_outside=True)
+    assert d.volume[2] == pytest.approx(0.12, abs=1e-15)
+
+
+def test_site_far_outside_is_refused_regression() -> None:
+    # At 1e10 from the unit square the cell volume was 8193.
+    square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
+    with pytest.raises(hcvt.InvalidSitesError, match="site 0 .* too far"):
+        hcvt.voronoi(square, [[1e10, 0.5]], allow_outside=True)

@@ -173,9 +173,9 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
     allow_outside : bool, default False
         Accept sites outside the domain. The cell of such a site is the part of its Voronoi
         cell inside the domain: possibly empty (volume 0, centroid = site, G = NaN) and
-        not containing the site. Such a site must lie within 64 bounding-box diagonals of
-        the domain: farther, its cell cannot be cut accurately (the error grows as the
-        distance squared).
+        not containing the site. Such a site must lie within 64 times the smallest side of
+        the domain's bounding box: farther, its cell cannot be cut accurately (the error
+        grows as the distance squared).
 
     Returns
     -------

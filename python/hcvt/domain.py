@@ -331,8 +331,19 @@ def _parts(geometry: Polygon | MultiPolygon) -> list[Polygon]:
     return list(geometry.geoms) if isinstance(geometry, MultiPolygon) else [geometry]
 
 
+def _check_finite_area(geometry: Polygon | MultiPolygon) -> None:
+    """Raise InvalidDomainError when the area overflows (coordinates near 1e160 or more)."""
+    if not np.isfinite(geometry.area):
+        extent = float(np.max(np.abs(shapely.bounds(geometry))))
+        raise InvalidDomainError(
+            f"the polygon's area is not representable ({geometry.area}): coordinates up to "
+            f"{extent:.3g} overflow when multiplied; scale the polygon down"
+        )
+
+
 def _check_polygon(geometry: Polygon | MultiPolygon) -> None:
     """Raise InvalidDomainError unless the polygon has area and shapely calls it valid."""
+    _check_finite_area(geometry)
     # A flat outline is also "self-intersecting", but zero area says more.
     if not geometry.convex_hull.area > 0 or (geometry.is_valid and not geometry.area > 0):
         raise InvalidDomainError(f"the polygon has zero area ({geometry.area})")
@@ -446,6 +457,7 @@ def _repair_polygon(
     geometry: Polygon | MultiPolygon,
 ) -> tuple[Polygon | MultiPolygon, RepairReport]:
     """``shapely.make_valid``, keeping the polygonal parts, with a report of the changes."""
+    _check_finite_area(geometry)
     actions = []
     before = float(geometry.area)
     repeated = shapely.get_num_coordinates(geometry) - shapely.get_num_coordinates(

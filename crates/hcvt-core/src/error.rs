@@ -36,7 +36,8 @@ pub enum CoreError {
     /// coordinates relative to the site, would lose every digit (error ~ eps·(R/size)²).
     #[error(
         "site {index} at {point:?} lies {distance:e} outside the domain, more than \
-         {limit} times its size: too far for its cell to be cut accurately"
+         {limit} times the smallest side of its bounding box: too far for its cell to be \
+         cut accurately"
     )]
     SiteFarOutside {
         /// Row of the site.
@@ -45,7 +46,7 @@ pub enum CoreError {
         point: Vec<f64>,
         /// Distance from the domain's bounding box.
         distance: f64,
-        /// The limit, in bounding-box diagonals.
+        /// The limit, in units of the bounding box's smallest side.
         limit: f64,
     },
     /// The sites could not be indexed (more than `u32::MAX`, or too many coinciding).

@@ -317,3 +317,31 @@ fn site_far_outside_is_refused_regression() {
         d.moments[0]
     );
 }
+
+/// Found by tests/test_properties.py: a clip passing within round-off of a cell vertex
+/// left an edge of length 1e-17 whose normal pointed anywhere, and `excludes` trusted it:
+/// the hypotenuse of the triangle, with an end inside the cell, was skipped and the cell
+/// of the site (1.5, -1.55) counted 0 instead of 0.2278 (the second part of the domain
+/// widens the box, which puts that vertex there).
+#[test]
+fn degenerate_cell_edge_excludes_nothing_regression() {
+    let v = vec![
+        [1.0, -2.0],
+        [3.0, 0.0],
+        [1.0, 0.0],
+        [0.5, 0.0],
+        [0.75, 0.25],
+        [0.5, 0.25],
+    ];
+    let s = vec![[0, 1], [1, 2], [2, 0], [3, 4], [4, 5], [5, 3]];
+    let domain = Polygon::new(v, s).unwrap();
+    let sites = [[1.5, -1.55], [2.0, -1.55], [1.5, -1.1], [2.0, -1.1]];
+    let options = Options {
+        allow_outside: true,
+    };
+    let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
+    let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
+    assert!((v[0] - 0.2278125).abs() < 1e-14, "{v:?}");
+    let total: f64 = v.iter().sum();
+    assert!((total - domain.volume()).abs() < 1e-14, "{total}");
+}

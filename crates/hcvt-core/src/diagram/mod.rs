@@ -85,7 +85,7 @@ where
     }
     if options.allow_outside {
         let b = boundary.bounds();
-        let size = b.diagonal();
+        let size = (0..D).fold(f64::INFINITY, |m, k| m.min(b.hi[k] - b.lo[k]));
         for (index, s) in sites.iter().enumerate() {
             let distance = norm2::<D>(std::array::from_fn(|k| {
                 (b.lo[k] - s[k]).max(s[k] - b.hi[k]).max(0.0)
@@ -152,10 +152,12 @@ where
     Ok((diagram, cells))
 }
 
-/// How far outside the domain's box an allowed outside site may lie, in box diagonals.
-/// Its cell is cut in coordinates relative to the site, and the moments of pieces at
-/// distance `R` carry an error of about `eps·R²`: measured on the unit square, 7e-15 of
-/// the area at R = 10, 9e-13 at 100, 6e-11 at 1000, and garbage (volume 8193) at 1e10.
+/// How far outside the domain's box an allowed outside site may lie, in units of the
+/// box's smallest side. Its cell is cut in coordinates relative to the site, and the
+/// moments of pieces at distance `R` carry an error of about `eps·R²`: measured on the
+/// unit square, 7e-15 of the area at R = 10, 9e-13 at 100, 6e-11 at 1000, and garbage
+/// (volume 8193) at 1e10. The smallest side, not the diagonal: a needle 1 wide and 1.4e14
+/// long seen from 9e15 away lost its width to the rounding of the relative coordinates.
 pub const FAR_OUTSIDE: f64 = 64.0;
 
 /// Site indices sorted along a Z-order (Morton) curve over the sites' bounding box, ties
@@ -519,6 +521,9 @@ where
     })
 }
 
+/// Fractional part of the golden ratio: successive multiples spread evenly over [0, 1).
+const GOLDEN: f64 = 0.618_033_988_749_895;
+
 /// Least distance of the apex from the hyperplane of a boundary simplex near the cell,
 /// relative to the cell's radius.
 const APEX_CLEARANCE: f64 = 1e-9;
@@ -573,15 +578,24 @@ where
             }
             fallback = fallback.or(Some((candidate, w)));
         }
-        // Deterministic nudge towards each vertex in turn, a third of the way and less on
-        // later rounds: inside the convex cell, and not along one line (a nudge along a
-        // fixed direction stayed on the boundary segment that held the mean: a square
-        // cell of a site on a slope-1 edge counted twice its area).
-        let Some(&v) = vertices.get(step % vertices.len().max(1)) else {
+        // Deterministic nudge: a convex combination of the vertices with irregular positive
+        // weights (golden-ratio sequence), so strictly inside the cell and on no line
+        // through the mean. Nudges along fixed directions stayed on the boundary: a
+        // square cell of a site on a slope-1 edge counted twice its area, and the box
+        // cell of a pinched bow-tie had every vertex direction along an edge.
+        if vertices.is_empty() {
             break;
-        };
-        let t = 1.0 / (3.0 + (step / vertices.len()) as f64);
-        candidate = std::array::from_fn(|k| mean[k] + t * (v[k] - mean[k]));
+        }
+        let mut sum = [0.0; D];
+        let mut total = 0.0;
+        for (j, v) in vertices.iter().enumerate() {
+            let w = 0.25 + ((j as f64 + 1.0) * GOLDEN * (step as f64 + 1.0)).fract();
+            total += w;
+            for k in 0..D {
+                sum[k] += w * v[k];
+            }
+        }
+        candidate = sum.map(|x| x / total);
     }
     fallback.unwrap_or((mean, 0))
 }
