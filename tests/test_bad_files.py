@@ -8,6 +8,7 @@ changed, and the diagram's cells add up to the repaired domain's volume.
 from __future__ import annotations
 
 import importlib.util
+import json
 import math
 
 import numpy as np
@@ -43,6 +44,7 @@ needs_cvt = pytest.mark.skipif(
 )
 
 
+@needs_data
 def test_every_bad_file_has_an_expectation() -> None:
     assert sorted(EXPECTED) == FILES
 
@@ -94,9 +96,12 @@ def test_cli_run_prints_the_defect_in_one_line(name: str) -> None:
 @needs_cvt
 @pytest.mark.parametrize("name", FILES)
 def test_cli_run_with_repair(name: str, tmp_path) -> None:
+    # --method voronoi: repair, 100 random sites and their diagram (the CVT of the
+    # repaired Stanford bunny alone takes 20 s; the optimiser has its own tests).
     summary = tmp_path / "summary.json"
-    args = ["run", str(DATA / name), "-n", "100", "--repair", "--summary", str(summary)]
-    result = CliRunner().invoke(main, args)
+    args = ["run", str(DATA / name), "-n", "100", "--repair", "--method", "voronoi"]
+    result = CliRunner().invoke(main, [*args, "--summary", str(summary)])
     assert result.exit_code == 0, result.output
     assert EXPECTED[name][1] in result.output
     assert "n = 100" in result.output
+    assert json.loads(summary.read_text())["n"] == 100
