@@ -400,3 +400,26 @@ def test_site_far_outside_is_refused_regression() -> None:
     square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
     with pytest.raises(hcvt.InvalidSitesError, match="site 0 .* too far"):
         hcvt.voronoi(square, [[1e10, 0.5]], allow_outside=True)
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e6])
+def test_cells_of_1e_3_far_from_the_origin(offset: float) -> None:
+    # A 0.1 square at (1e6, 1e6) with a 100 x 100 lattice (cells of 1e-3) and 10k random
+    # sites. Σ volume = V holds to 1e-12 at 1e6 as at 0 (measured: 2.6e-15). Single cells
+    # are off by up to 1e-7 of h² at 1e6: the sites themselves are rounded there (ulp
+    # 1.2e-10, which moves a bisector by 6e-11 = 6e-8 h), not the clipping.
+    side, h = 0.1, 1e-3
+    domain = hcvt.Domain.from_polygon(
+        [(offset, offset), (offset + side, offset), (offset + side, offset + side),
+         (offset, offset + side)]
+    )  # fmt: skip
+    g = offset + (np.arange(100) + 0.5) * h
+    lattice = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    random = offset + np.random.default_rng(0).uniform(0, side, size=(10_000, 2))
+    for sites in (lattice, random):
+        d = hcvt.voronoi(domain, sites)
+        assert abs(math.fsum(d.volume) - domain.volume) <= 1e-12 * domain.volume
+    d = hcvt.voronoi(domain, lattice)
+    input_rounding = 4 * np.spacing(offset + side) / h if offset else 1e-13
+    assert np.max(np.abs(d.volume / h**2 - 1)) <= max(input_rounding, 1e-13)
+    assert np.max(np.abs(d.G - 1 / 12)) <= 1e-12
