@@ -22,13 +22,15 @@ INITS = ("random", "halton", "hammersley", "lattice")
 
 
 class _OneLineErrors(click.Group):
-    """Print library errors as one readable line and exit with status 2: no traceback."""
+    """Print library errors as a readable message and exit with status 2: no traceback."""
 
     def invoke(self, ctx: click.Context) -> Any:
         try:
             return super().invoke(ctx)
-        except (ValueError, FileNotFoundError, NotImplementedError, OSError) as err:
-            click.echo(f"hcvt: error: {err}", err=True)
+        except (ValueError, FileNotFoundError, NotImplementedError, OSError, ImportError) as err:
+            # The library speaks of its keyword argument; here the option does the same.
+            message = str(err).replace("repair=True", "--repair")
+            click.echo(f"hcvt: error: {message}", err=True)
             sys.exit(2)
 
 
@@ -83,6 +85,8 @@ def run(
     import hcvt
 
     domain = _load(input_, repair)
+    if domain.repair_report is not None:
+        click.echo(str(domain.repair_report))
     start = time.perf_counter()
     iterations: int | None = None
     if method == "hierarchical":

@@ -172,7 +172,9 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
     allow_outside : bool, default False
         Accept sites outside the domain. The cell of such a site is the part of its Voronoi
         cell inside the domain: possibly empty (volume 0, centroid = site, G = NaN) and
-        not containing the site.
+        not containing the site. Such a site must lie within 64 times the smallest side of
+        the domain's bounding box: farther, its cell cannot be cut accurately (the error
+        grows as the distance squared).
 
     Returns
     -------
@@ -185,8 +187,8 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
     ValueError
         Bad shape or dtype, or n = 0.
     InvalidSitesError
-        Non-finite coordinates, coinciding sites, a site outside the domain; the message
-        names the first offending row.
+        Non-finite coordinates, coinciding sites, a site outside the domain (or, with
+        ``allow_outside``, too far outside it); the message names the first offending row.
 
     Examples
     --------

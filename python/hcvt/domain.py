@@ -33,17 +33,20 @@ class RepairReport:
         One line per change, in the order applied.
     volume_before, volume_after : float
         Area (2D) or volume (3D) before and after, where defined (NaN otherwise).
+    notes : list of str
+        Degeneracies that are valid and kept as they are (a hole touching the outline at
+        one point pinches the domain there).
     """
 
     changed: bool
     actions: list[str] = field(default_factory=list)
     volume_before: float = float("nan")
     volume_after: float = float("nan")
+    notes: list[str] = field(default_factory=list)
 
     def __str__(self) -> str:
-        if not self.changed:
-            return "repair: nothing to change"
-        return "repair: " + "; ".join(self.actions)
+        text = "repair: " + ("; ".join(self.actions) if self.changed else "nothing to change")
+        return text + "".join(f"; note: {note}" for note in self.notes)
 
 
 class Domain:
@@ -328,27 +331,144 @@ def _parts(geometry: Polygon | MultiPolygon) -> list[Polygon]:
     return list(geometry.geoms) if isinstance(geometry, MultiPolygon) else [geometry]
 
 
+def _check_finite_area(geometry: Polygon | MultiPolygon) -> None:
+    """Raise InvalidDomainError when the area overflows (coordinates near 1e160 or more)."""
+    if not np.isfinite(geometry.area):
+        extent = float(np.max(np.abs(shapely.bounds(geometry))))
+        raise InvalidDomainError(
+            f"the polygon's area is not representable ({geometry.area}): coordinates up to "
+            f"{extent:.3g} overflow when multiplied; scale the polygon down"
+        )
+
+
 def _check_polygon(geometry: Polygon | MultiPolygon) -> None:
     """Raise InvalidDomainError unless the polygon has area and shapely calls it valid."""
+    _check_finite_area(geometry)
     # A flat outline is also "self-intersecting", but zero area says more.
     if not geometry.convex_hull.area > 0 or (geometry.is_valid and not geometry.area > 0):
         raise InvalidDomainError(f"the polygon has zero area ({geometry.area})")
     if not geometry.is_valid:
         reason = shapely.is_valid_reason(geometry)
         raise InvalidDomainError(
-            f"invalid polygon: {reason}; pass repair=True to fix it with shapely.make_valid"
+            f"invalid polygon: {describe_defect(geometry)} (shapely: {reason}); "
+            "pass repair=True to fix it with shapely.make_valid"
         )
+
+
+def _xy(point: Any) -> str:
+    x, y = np.asarray(point, dtype=float)[:2]
+    return f"({x:.17g}, {y:.17g})"
+
+
+def describe_defect(geometry: Polygon | MultiPolygon) -> str:
+    """What makes a polygon invalid, in words: which ring, what kind, where.
+
+    A ring that crosses itself, a ring that folds back on itself (a zero-width spike), a hole
+    that shares part of an edge with another ring or touches it at several points, a hole
+    outside its outline; shapely's reason when none of these is found.
+    """
+    try:
+        return _describe(geometry)
+    except (ValueError, IndexError, shapely.errors.ShapelyError):
+        # Degenerate coordinates (subnormals, 1e300) can defeat the geometry; the
+        # reason from shapely still names the defect.
+        return shapely.is_valid_reason(geometry)
+
+
+def _describe(geometry: Polygon | MultiPolygon) -> str:
+    parts = _parts(geometry)
+    for part_index, part in enumerate(parts):
+        prefix = f"part {part_index}: " if len(parts) > 1 else ""
+        rings = [("the outer ring", part.exterior)] + [
+            (f"hole {k}", r) for k, r in enumerate(part.interiors)
+        ]
+        for name, ring in rings:
+            found = _ring_self_contact(np.asarray(ring.coords)[:, :2])
+            if found:
+                return prefix + f"{name} {found}"
+        for a in range(len(rings)):
+            for b in range(a + 1, len(rings)):
+                found = _rings_contact(rings[a][1], rings[b][1])
+                if found:
+                    return prefix + f"{rings[b][0]} {found} {rings[a][0]}"
+        shell = Polygon(part.exterior)
+        for name, ring in rings[1:]:
+            if not shell.covers(Polygon(ring)):
+                return prefix + f"{name} lies partly outside the outer ring"
+    return shapely.is_valid_reason(geometry)
+
+
+def _ring_self_contact(coords: NDArray[np.float64]) -> str | None:
+    """How a closed ring (first point repeated last) meets itself, or None if simple."""
+    keep = np.ones(len(coords), dtype=bool)
+    keep[1:] = np.any(coords[1:] != coords[:-1], axis=1)  # zero-length edges are harmless
+    pts = coords[keep]
+    if len(pts) < 4 or shapely.LineString(pts).is_simple:
+        return None
+    segments = shapely.linestrings(np.stack([pts[:-1], pts[1:]], axis=1))
+    m = len(segments)
+    tree = shapely.STRtree(segments)
+    left, right = tree.query(segments, predicate="intersects")
+    crossing = None
+    for i, j in zip(left.tolist(), right.tolist(), strict=True):
+        if j <= i:
+            continue
+        meet = shapely.intersection(segments[i], segments[j])
+        adjacent = j == i + 1 or (i == 0 and j == m - 1)
+        # An overlap explains the point contacts around it (a spike's base): report it first.
+        if meet.length > 0:
+            a, b = _ends(meet)
+            if adjacent:
+                return f"folds back on itself between {_xy(a)} and {_xy(b)} (a zero-width spike)"
+            return f"overlaps itself between {_xy(a)} and {_xy(b)}"
+        if not adjacent and crossing is None and not meet.is_empty:
+            crossing = f"crosses itself at {_xy(meet.representative_point().coords[0])}"
+    return crossing or "is not simple"
+
+
+def _ends(lines: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """First and last point of the first line of positive length in ``lines``."""
+    for part in shapely.get_parts(lines):
+        if part.length > 0:
+            coords = np.asarray(part.coords)
+            return coords[0], coords[-1]
+    point = np.asarray(lines.representative_point().coords[0])
+    return point, point
+
+
+def _rings_contact(first: Any, second: Any) -> str | None:
+    """How two rings of one polygon meet (they may touch at one point only), or None."""
+    meet = shapely.intersection(shapely.LineString(first.coords), shapely.LineString(second.coords))
+    if meet.is_empty:
+        return None
+    if meet.length > 0:
+        a, b = _ends(shapely.line_merge(shapely.unary_union(shapely.get_parts(meet))))
+        return f"shares an edge from {_xy(a)} to {_xy(b)} with"
+    points = shapely.get_parts(meet)
+    if len(points) > 1:
+        where = ", ".join(_xy(p.coords[0]) for p in points[:3])
+        return f"touches at {len(points)} points ({where}), cutting the domain apart, with"
+    if shapely.crosses(shapely.LineString(first.coords), shapely.LineString(second.coords)):
+        return f"crosses at {_xy(points[0].coords[0])}"
+    return None
 
 
 def _repair_polygon(
     geometry: Polygon | MultiPolygon,
 ) -> tuple[Polygon | MultiPolygon, RepairReport]:
     """``shapely.make_valid``, keeping the polygonal parts, with a report of the changes."""
+    _check_finite_area(geometry)
     actions = []
     before = float(geometry.area)
+    repeated = shapely.get_num_coordinates(geometry) - shapely.get_num_coordinates(
+        shapely.remove_repeated_points(geometry)
+    )
+    if repeated:
+        actions.append(f"removed {repeated} repeated consecutive vertices (zero-length edges)")
     fixed = geometry
     if not geometry.is_valid:
-        actions.append(f"made valid ({shapely.is_valid_reason(geometry)})")
+        defect = describe_defect(geometry)
+        actions.append(f"made valid: {defect} ({shapely.is_valid_reason(geometry)})")
         # "structure": union of the outer rings minus the holes, collapsed parts dropped;
         # unlike "linework" it keeps a hole that touches the outline as a notch.
         fixed = shapely.make_valid(geometry, method="structure", keep_collapsed=False)
@@ -366,7 +486,29 @@ def _repair_polygon(
     after = float(result.area)
     if abs(after - before) > 1e-12 * max(abs(before), abs(after), 1e-300):
         actions.append(f"area {before:.6g} -> {after:.6g}")
-    return result, RepairReport(bool(actions), actions, before, after)
+    return result, RepairReport(bool(actions), actions, before, after, _pinches(result))
+
+
+def _pinches(geometry: Polygon | MultiPolygon) -> list[str]:
+    """Rings of a valid polygon that touch at a single point: the interior is pinched there."""
+    notes = []
+    for part in _parts(geometry):
+        rings = [("the outer ring", part.exterior)] + [
+            (f"hole {k}", r) for k, r in enumerate(part.interiors)
+        ]
+        lines = [shapely.LineString(r.coords) for _, r in rings]
+        tree = shapely.STRtree(lines)
+        left, right = tree.query(lines, predicate="intersects")
+        for a, b in zip(left.tolist(), right.tolist(), strict=True):
+            if b <= a:
+                continue
+            meet = shapely.intersection(lines[a], lines[b])
+            if isinstance(meet, shapely.Point):
+                notes.append(
+                    f"{rings[b][0]} touches {rings[a][0]} at {_xy(meet.coords[0])}: kept (valid), "
+                    "the domain is pinched there"
+                )
+    return notes
 
 
 def _normalise_polygon(geometry: Polygon | MultiPolygon) -> Polygon | MultiPolygon:

@@ -183,7 +183,12 @@ def find_defects(v: Vertices, f: Faces, *, allow_duplicates: bool = False) -> Me
                 f"{len(pinched)} non-manifold (pinched) vertices, first: vertex {int(pinched[0])}"
             )
         volume = signed_volume(v, f)
-        if volume == 0 or not np.isfinite(volume):
+        if not np.isfinite(volume):
+            d.add(
+                f"volume not representable ({volume}): coordinates up to "
+                f"{np.max(np.abs(v)):.3g} overflow when multiplied; scale the mesh down"
+            )
+        elif volume == 0:
             d.add(f"zero volume ({volume})")
         elif volume < 0:
             d.add(f"inward orientation: the signed volume is {volume:.6g} < 0")

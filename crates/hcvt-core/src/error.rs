@@ -32,6 +32,23 @@ pub enum CoreError {
         /// Its position.
         point: Vec<f64>,
     },
+    /// With outside sites allowed, a site lies so far from the domain that its cell, cut in
+    /// coordinates relative to the site, would lose every digit (error ~ eps·(R/size)²).
+    #[error(
+        "site {index} at {point:?} lies {distance:e} outside the domain, more than \
+         {limit} times the smallest side of its bounding box: too far for its cell to be \
+         cut accurately"
+    )]
+    SiteFarOutside {
+        /// Row of the site.
+        index: usize,
+        /// Its position.
+        point: Vec<f64>,
+        /// Distance from the domain's bounding box.
+        distance: f64,
+        /// The limit, in units of the bounding box's smallest side.
+        limit: f64,
+    },
     /// The sites could not be indexed (more than `u32::MAX`, or too many coinciding).
     #[error("cannot index the sites: {reason}")]
     SiteIndex {

@@ -14,6 +14,7 @@ pub fn to_py_err(err: CoreError) -> PyErr {
         | CoreError::NonFiniteSite { .. }
         | CoreError::DuplicateSites { .. }
         | CoreError::SiteOutsideDomain { .. }
+        | CoreError::SiteFarOutside { .. }
         | CoreError::SiteIndex { .. }
         | CoreError::ShapeMismatch { .. } => InvalidSitesError::new_err(message),
         CoreError::NonFiniteVertex { .. }

@@ -109,12 +109,17 @@ impl ConvexCell<2> for PolygonCell {
     /// Tested against the lines through consecutive vertices (counter-clockwise, so the
     /// outside of edge `a -> b` is on its right).
     fn excludes(&self, points: &[[f64; 2]]) -> bool {
+        // The edges' normals come from their vertices, and a clip that passes within
+        // round-off of a vertex leaves an edge of length 1e-17 whose normal points anywhere:
+        // it excluded a segment with an end inside the cell (a cell counted 0 instead of
+        // 0.09). Such edges say nothing and are skipped; excluding less is always safe.
+        let min_len2 = 1e-8 * self.max_dist2(); // edges shorter than 1e-4 of the radius
         let n = self.vertices.len();
         (0..n).any(|i| {
             let a = self.vertices[i];
             let b = self.vertices[if i + 1 == n { 0 } else { i + 1 }];
             let normal = [b[1] - a[1], a[0] - b[0]];
-            points.iter().all(|&p| dot(normal, sub(p, a)) > 0.0)
+            norm2(normal) > min_len2 && points.iter().all(|&p| dot(normal, sub(p, a)) > 0.0)
         })
     }
 
