@@ -75,3 +75,34 @@ def test_identical_bits_for_1_2_and_4_threads(name: str) -> None:
         assert _with_threads(2, domain, sites) == one
         assert _with_threads(4, domain, sites) == one
         assert _with_threads(4, domain, sites) == one  # and again: no scheduling effect
+
+
+def _in_threads(n: int, run):
+    before = hcvt.get_num_threads()
+    try:
+        hcvt.set_num_threads(n)
+        return run()
+    finally:
+        hcvt.set_num_threads(before)
+
+
+@pytest.mark.parametrize("shape", ["star", "ball"])
+def test_cvt_hierarchy_and_initialisations_do_not_depend_on_threads(shape):
+    from hcvt.shapes import builtin_domain
+
+    domain = builtin_domain(shape)
+    n = 600 if domain.dim == 2 else 200
+
+    def run() -> list[bytes]:
+        out = [
+            hcvt.initialise(domain, n, method=m, seed=5).tobytes()
+            for m in ("random", "halton", "hammersley", "lattice")
+        ]
+        start = hcvt.initialise(domain, n, method="random", seed=5)
+        out.append(hcvt.cvt(domain, start, method="lbfgs", max_iter=60).sites.tobytes())
+        out.append(hcvt.cvt(domain, start, method="lloyd", max_iter=30).sites.tobytes())
+        out.append(hcvt.hierarchical_cvt(domain, n, 2, seed=5, max_iter=60).sites.tobytes())
+        return out
+
+    one, two, four = (_in_threads(k, run) for k in (1, 2, 4))
+    assert one == two == four
