@@ -212,7 +212,7 @@ def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any,
     cols = min(3, len(labels))
     rows = -(-len(labels) // cols)
     projection = "3d" if kind == "cuts" else None
-    fig = plt.figure(figsize=(5 * cols, 5 * rows if kind != "histograms" else 3.5 * rows))
+    fig = plt.figure(figsize=(5 * cols, 5 * rows if kind != "histograms" else 4.2 * rows))
     for k, label in enumerate(labels):
         ax = fig.add_subplot(rows, cols, k + 1, projection=projection)
         run = runs[label]
@@ -230,6 +230,8 @@ def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any,
             colorbar=False,
             title=f"{label}\nmean G = {diagram.mean_G:.5f}",
         )
+    if kind == "histograms":
+        fig.tight_layout()  # two-line titles would overlap the x labels above them
     _shared_colorbar(fig, vmin, vmax, kind)
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
