@@ -194,9 +194,11 @@ const BOX_MARGIN: f64 = 1e-3;
 /// needs about twice that.
 const FIRST_K: [usize; 4] = [2, 4, 16, 64];
 
-/// Neighbour count after which a cell that has not reached its security radius is
-/// localised to the domain (see [`domain_radius2`]).
-const LOCALISE_K: usize = 64;
+/// Neighbour count, per dimension, after which a cell that has not reached its security
+/// radius is localised to the domain (see [`domain_radius2`]). 16 in 2D: a CVT of the star
+/// spends 23% less per diagram than with 64 (2.36 against 3.05 ms at 2,000 sites), the unit
+/// square the same; 3D cells need about 31 neighbours, so 64 there.
+const LOCALISE_K: [usize; 4] = [16, 16, 16, 64];
 
 /// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the
 /// site, exact wherever it meets the domain.
@@ -256,7 +258,7 @@ where
         if reached || neighbors.len() < k || k >= sites.len() {
             return Ok(cell);
         }
-        if k >= LOCALISE_K && !cell.is_empty() {
+        if k >= LOCALISE_K.get(D).copied().unwrap_or(64) && !cell.is_empty() {
             localise(boundary, &mut cell, site);
             validate_vertices(&mut cell, index, sites, i)?;
             return Ok(cell);
