@@ -9,22 +9,7 @@ use hcvt_core::geometry::Euclid;
 
 /// Axis-aligned box `[0, s]³` as 12 outward triangles.
 fn cube(s: f64) -> Solid {
-    let v: Vec<[f64; 3]> = (0..8)
-        .map(|i: u32| [0, 1, 2].map(|k| f64::from((i >> k) & 1) * s))
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let t = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    Solid::new(v, t).unwrap()
+    Solid::cuboid([0.0; 3], [s; 3]).unwrap()
 }
 
 fn diagram(solid: &Solid, sites: &[[f64; 3]]) -> Diagram<3> {

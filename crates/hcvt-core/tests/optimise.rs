@@ -32,22 +32,7 @@ fn l_shape() -> Polygon {
 
 /// The box `[lo, hi]` as 12 outward triangles.
 fn cuboid(lo: [f64; 3], hi: [f64; 3]) -> Solid {
-    let v: Vec<[f64; 3]> = (0..8u32)
-        .map(|i| [0, 1, 2].map(|k| if (i >> k) & 1 == 1 { hi[k] } else { lo[k] }))
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let t = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    Solid::new(v, t).unwrap()
+    Solid::cuboid(lo, hi).unwrap()
 }
 
 /// `n` deterministic pseudo-random sites strictly inside `boundary`, by rejection.

@@ -173,22 +173,7 @@ proptest! {
 
 /// Axis-aligned box `[0, s₀] x [0, s₁] x [0, s₂]` as 12 outward triangles.
 fn cuboid(s: [f64; 3]) -> Solid {
-    let v: Vec<[f64; 3]> = (0..8)
-        .map(|i: u32| [0, 1, 2].map(|k| f64::from((i >> k) & 1) * s[k]))
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let t = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    Solid::new(v, t).unwrap()
+    Solid::cuboid([0.0; 3], s).unwrap()
 }
 
 /// The icosphere of ../shared/data/3d/sphere.ply (ASCII PLY), or None without the data.

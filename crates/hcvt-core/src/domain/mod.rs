@@ -203,6 +203,26 @@ fn check_closed<const D: usize>(simplices: &[[u32; D]]) -> Result<(), CoreError>
 }
 
 impl Solid {
+    /// The axis-aligned box `[lo, hi]` as 12 outward triangles.
+    pub fn cuboid(lo: [f64; 3], hi: [f64; 3]) -> Result<Self, CoreError> {
+        let vertices: Vec<[f64; 3]> = (0..8u32)
+            .map(|i| [0, 1, 2].map(|k| if (i >> k) & 1 == 1 { hi[k] } else { lo[k] }))
+            .collect();
+        let quads = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let triangles = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        Self::new(vertices, triangles)
+    }
+
     /// Pairs `(s, t)`, `s < t`, of triangles sharing no vertex whose interiors cross: an
     /// edge of one passes strictly through the inside of the other (exact `orient3d`).
     /// Touching and coplanar contacts are not reported. At most `max` pairs, in index

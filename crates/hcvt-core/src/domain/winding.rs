@@ -355,25 +355,7 @@ mod tests_3d {
 
     /// Axis-aligned cube `[0, 2]³` as 12 outward triangles.
     pub(crate) fn cube() -> Solid {
-        let v: Vec<[f64; 3]> = (0..8)
-            .map(|i| {
-                let b = |k: usize| f64::from(((i >> k) & 1) as u8) * 2.0;
-                [b(0), b(1), b(2)]
-            })
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let t = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        Solid::new(v, t).unwrap()
+        Solid::cuboid([0.0; 3], [2.0; 3]).unwrap()
     }
 
     #[test]
