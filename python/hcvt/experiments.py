@@ -293,11 +293,20 @@ def load_shape(shape: str):
 
 
 def data_dir() -> Path:
-    """The shared data folder: ``$HCVT_DATA`` or ``../shared/data`` beside the repository."""
+    """The shared data folder: ``$HCVT_DATA``, else ``../shared/data`` beside the repository
+    (editable install) or beside the working directory."""
     env = os.environ.get("HCVT_DATA")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parents[3] / "shared" / "data"
+    candidates = [
+        Path(__file__).resolve().parents[3] / "shared" / "data",
+        Path.cwd().parent / "shared" / "data",
+        Path.cwd() / "shared" / "data",
+    ]
+    found = next((c for c in candidates if c.is_dir()), None)
+    if found is None:
+        raise FileNotFoundError("no ../shared/data for the meshes of Table 7; set HCVT_DATA")
+    return found
 
 
 def run_config(config: Config) -> Row:
