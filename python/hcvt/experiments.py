@@ -293,8 +293,10 @@ def load_shape(shape: str):
 
 
 def data_dir() -> Path:
-    """The shared data folder: ``$HCVT_DATA``, else ``../shared/data`` beside the repository
-    (editable install) or beside the working directory."""
+    """The shared data folder: ``$HCVT_DATA``, else ``../shared/data`` nearby.
+
+    Looked for beside the repository (editable install), then beside the working directory.
+    """
     env = os.environ.get("HCVT_DATA")
     if env:
         return Path(env)
