@@ -49,19 +49,6 @@ TABLE8: list[tuple[str, Callable[[], hcvt.Domain], int, float]] = [
 ]
 
 
-def random_sites(domain: hcvt.Domain, n: int, seed: int = 0) -> np.ndarray:
-    """``n`` uniform random sites strictly inside ``domain`` (rejection in the box)."""
-    rng = np.random.default_rng(seed)
-    lo, hi = domain.bounds
-    parts, count = [], 0
-    while count < n:
-        p = rng.uniform(lo, hi, size=(max(4 * n, 1000), domain.dim))
-        p = p[domain.contains(p)]
-        parts.append(p)
-        count += len(p)
-    return np.concatenate(parts)[:n]
-
-
 def median_run(run: Callable[[], hcvt.CVTResult], repeat: int) -> tuple[float, int, hcvt.CVTResult]:
     """Median wall time (seconds) of up to ``repeat`` runs, their number, the last result.
 
@@ -152,7 +139,7 @@ def main() -> None:
         if args.quick and n > 2_000:
             continue
         domain = make()
-        sites = random_sites(domain, n)
+        sites = hcvt.initialise(domain, n, method="random", seed=0)
         seconds, runs, res = median_run(lambda d=domain, s=sites: hcvt.cvt(d, s, tol=TOL), repeat)
         raw_seconds, raw_value, raw_diagrams = raw_rule(domain, sites)
         raw = (

@@ -18,10 +18,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import resource
-import statistics
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +27,7 @@ import shapely
 from scipy.spatial import Voronoi
 
 import hcvt
+from timing import median_seconds
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "2d"
 DOMAINS = {
@@ -54,15 +53,6 @@ def sample(domain: hcvt.Domain, n: int, seed: int = 0) -> np.ndarray:
         out.append(p)
         count += len(p)
     return np.concatenate(out)[:n]
-
-
-def median_seconds(fn, repeats: int, *args) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn(*args)
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def run_hcvt(domain, sites):

@@ -14,16 +14,14 @@ Peers that are not installed are reported as such; install with
 from __future__ import annotations
 
 import argparse
-import statistics
 import subprocess
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 import hcvt
+from timing import median_seconds
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
 
@@ -39,16 +37,6 @@ TABLE7 = [
     ("Dragon", "dragon.obj", 10_000, 21.26),
     ("Dragon", "dragon.obj", 100_000, 99.09),
 ]
-
-
-def median_seconds(run: Callable[[], object], repeat: int) -> float:
-    """Median wall time of ``repeat`` calls, seconds."""
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        run()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def interior_sites(domain: hcvt.Domain, n: int, seed: int = 0) -> np.ndarray:

@@ -22,13 +22,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import importlib
-import statistics
-import time
 from pathlib import Path
 
 import numpy as np
 
 import hcvt
+from timing import median_seconds
 
 init = importlib.import_module("hcvt.initialise")  # the module, not the function
 
@@ -39,15 +38,6 @@ DOMAINS = {
     "bunny (mesh)": DATA / "3d" / "bunny.off",
     "armadillo (mesh)": DATA / "3d" / "armadillo.obj",
 }
-
-
-def median_seconds(fn, repeats: int, *args) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn(*args)
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def naive_lattice(domain: hcvt.Domain, n: int, seed: int = 0) -> int:

@@ -1,11 +1,13 @@
 //! The 3D clipped diagram against closed forms (lattices in a cube) and against the
 //! domain's own integrals on the real meshes of `../shared/data/3d`.
 
+mod common;
+use common::interior_sites;
+
 use std::path::PathBuf;
 
 use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolyhedronCell};
-use hcvt_core::domain::{Solid, WindingNumber};
-use hcvt_core::geometry::Euclid;
+use hcvt_core::domain::Solid;
 
 /// Axis-aligned box `[0, s]³` as 12 outward triangles.
 fn cube(s: f64) -> Solid {
@@ -108,26 +110,6 @@ fn read_off(path: &PathBuf) -> Solid {
         })
         .collect();
     Solid::new(v, t).unwrap()
-}
-
-/// `n` deterministic pseudo-random sites inside `solid`, by rejection.
-fn interior_sites(solid: &Solid, n: usize, seed: u64) -> Vec<[f64; 3]> {
-    let mut state = seed;
-    let mut rand = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let b = solid.bounds();
-    let mut sites = Vec::with_capacity(n);
-    while sites.len() < n {
-        let p = [0, 1, 2].map(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
-        if Euclid::winding_number(solid, &p) == Some(1) {
-            sites.push(p);
-        }
-    }
-    sites
 }
 
 #[test]

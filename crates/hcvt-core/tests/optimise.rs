@@ -1,6 +1,9 @@
 //! CVT optimisation in the core: exact gradient, Lloyd's monotonicity, lattice fixed
 //! points, convergence in a non-convex polygon, reseeding of empty cells.
 
+mod common;
+use common::interior_sites;
+
 use std::ops::ControlFlow;
 
 use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, PolyhedronCell};
@@ -33,29 +36,6 @@ fn l_shape() -> Polygon {
 /// The box `[lo, hi]` as 12 outward triangles.
 fn cuboid(lo: [f64; 3], hi: [f64; 3]) -> Solid {
     Solid::cuboid(lo, hi).unwrap()
-}
-
-/// `n` deterministic pseudo-random sites strictly inside `boundary`, by rejection.
-fn interior_sites<const D: usize>(boundary: &Boundary<D>, n: usize, seed: u64) -> Vec<[f64; D]>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    let mut state = seed;
-    let mut rand = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let b = boundary.bounds();
-    let mut sites = Vec::with_capacity(n);
-    while sites.len() < n {
-        let p: [f64; D] = std::array::from_fn(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
-        if Euclid::winding_number(boundary, &p) == Some(1) {
-            sites.push(p);
-        }
-    }
-    sites
 }
 
 /// Cell centres of a `counts` grid over `[lo, hi]`.
