@@ -36,11 +36,13 @@ enum Kind<const D: usize> {
 /// Buffers of a [`NearSites`] stream, reused from cell to cell.
 #[derive(Debug, Default)]
 pub struct NearScratch {
-    /// Gathered sites as (squared distance bits, index): returned before `next`, sorted
-    /// from `next` to `sorted` (those within the covered distance), in no order after.
+    /// Gathered sites as (squared distance bits, index): returned before `next`; sorted
+    /// from `next` to `sorted`; within the covered distance, unsorted but none nearer than
+    /// the sorted ones, up to `covered`; farther after.
     gathered: Vec<(u64, u32)>,
     next: usize,
     sorted: usize,
+    covered: usize,
     /// kd-tree answers and the sites returned at the last distance.
     tree: Vec<(u32, f64)>,
     at_last: Vec<u32>,
@@ -68,6 +70,7 @@ impl<const D: usize> SiteIndex<D> {
         scratch.gathered.clear();
         scratch.next = 0;
         scratch.sorted = 0;
+        scratch.covered = 0;
         scratch.tree.clear();
         scratch.at_last.clear();
         let state = match &self.kind {
@@ -87,7 +90,7 @@ impl<const D: usize> SiteIndex<D> {
     }
 
     /// The nearest site of `p` as `(index, squared distance)`.
-    pub fn nearest_one(&self, p: [f64; D], scratch: &mut NearScratch) -> (u32, f64) {
+    pub fn nearest_one(&self, p: [f64; D]) -> (u32, f64) {
         match &self.kind {
             Kind::Tree(tree, _) => {
                 let r = tree
@@ -96,10 +99,7 @@ impl<const D: usize> SiteIndex<D> {
                     .execute();
                 (r.item, r.distance)
             }
-            Kind::Grid(_) => self
-                .near(p, scratch)
-                .next_within(f64::INFINITY)
-                .expect("a grid holds at least one site"),
+            Kind::Grid(grid) => grid.nearest_one(p),
         }
     }
 
@@ -325,17 +325,22 @@ impl<const D: usize> Grid<D> {
                 scratch.next += 1;
                 return Some((j, dist2));
             }
+            if scratch.sorted < scratch.covered {
+                let pending = &mut scratch.gathered[scratch.sorted..scratch.covered];
+                scratch.sorted += sort_nearest(pending);
+                continue;
+            }
             if rings.covered2 > limit2 || rings.covered2 == f64::INFINITY {
                 return None;
             }
             self.gather_ring(rings, p, &mut scratch.gathered, limit2);
-            scratch.sorted =
-                scratch.next + sort_covered(&mut scratch.gathered[scratch.next..], rings.covered2);
+            let pending = &mut scratch.gathered[scratch.covered..];
+            scratch.covered += move_covered(pending, rings.covered2);
         }
     }
 
-    /// Push the sites of the next ring of buckets (those at Chebyshev distance `ring` from
-    /// the centre bucket) within `limit2` of `p`, and raise the covered distance.
+    /// Push the sites of the next ring of buckets within `limit2` of `p`, and raise the
+    /// covered distance.
     fn gather_ring(
         &self,
         rings: &mut Rings<D>,
@@ -343,16 +348,43 @@ impl<const D: usize> Grid<D> {
         gathered: &mut Vec<(u64, u32)>,
         limit2: f64,
     ) {
-        let (c, r) = (rings.center, rings.ring);
+        self.for_each_in_ring(rings.center, rings.ring, |q, j| {
+            let dist2 = norm2(sub(q, p));
+            if dist2 <= limit2 {
+                gathered.push((dist2.to_bits(), j));
+            }
+        });
+        rings.ring += 1;
+        rings.covered2 = self.covered2(p, rings.center, rings.ring);
+    }
+
+    /// The nearest site of `p` as `(index, squared distance)`, the least index among equals:
+    /// rings until the covered distance passes the best, keeping only that.
+    fn nearest_one(&self, p: [f64; D]) -> (u32, f64) {
+        let mut rings = self.ring_start(p);
+        let mut best = (u32::MAX, f64::INFINITY);
+        while !(best.1 < rings.covered2 || rings.covered2 == f64::INFINITY) {
+            self.for_each_in_ring(rings.center, rings.ring, |q, j| {
+                let dist2 = norm2(sub(q, p));
+                if dist2 < best.1 || (dist2 == best.1 && j < best.0) {
+                    best = (j, dist2);
+                }
+            });
+            rings.ring += 1;
+            rings.covered2 = self.covered2(p, rings.center, rings.ring);
+        }
+        best
+    }
+
+    /// Call `f(site, index)` for the sites of the buckets at Chebyshev distance `r` from
+    /// bucket `c`.
+    fn for_each_in_ring(&self, c: [usize; D], r: usize, mut f: impl FnMut([f64; D], u32)) {
         // Buckets `from..=to` of a row along axis 0 (contiguous in `points`).
         let mut push_row = |row: [usize; D], from: usize, to: usize| {
             let base = self.linear(row) - row[0];
             let sites = self.starts[base + from] as usize..self.starts[base + to + 1] as usize;
             for &(q, j) in &self.points[sites] {
-                let dist2 = norm2(sub(q, p));
-                if dist2 <= limit2 {
-                    gathered.push((dist2.to_bits(), j));
-                }
+                f(q, j);
             }
         };
         // Rows along axis 0: a row on the ring's shell in some other axis is a full segment
@@ -380,8 +412,6 @@ impl<const D: usize> Grid<D> {
             row[k] += 1;
             row[1..k].copy_from_slice(&first[1..k]);
         }
-        rings.ring += 1;
-        rings.covered2 = self.covered2(p, c, rings.ring);
     }
 
     /// A lower bound on the squared distance from `p` (in bucket `c`) to the sites outside
@@ -410,9 +440,9 @@ impl<const D: usize> Grid<D> {
     }
 }
 
-/// Move the sites of `pending` within `covered2` to its front, sorted, and return their
-/// number. Only those can be returned before the next ring, and few of the rest ever are.
-fn sort_covered(pending: &mut [(u64, u32)], covered2: f64) -> usize {
+/// Move the sites of `pending` within `covered2` to its front and return their number:
+/// only those can be returned before the next ring.
+fn move_covered(pending: &mut [(u64, u32)], covered2: f64) -> usize {
     let mut front = 0;
     for k in 0..pending.len() {
         if f64::from_bits(pending[k].0) <= covered2 {
@@ -420,8 +450,22 @@ fn sort_covered(pending: &mut [(u64, u32)], covered2: f64) -> usize {
             front += 1;
         }
     }
-    pending[..front].sort_unstable();
     front
+}
+
+/// Sites sorted at a time: a cell near a non-convex boundary gathers a hundred sites within
+/// the covered distance and takes 16 before it is localised, so sorting them all cost more
+/// than selecting the nearest few.
+const SORT_CHUNK: usize = 8;
+
+/// Sort the nearest [`SORT_CHUNK`] of `pending` to its front and return how many.
+fn sort_nearest(pending: &mut [(u64, u32)]) -> usize {
+    if pending.len() > SORT_CHUNK {
+        pending.select_nth_unstable(SORT_CHUNK - 1);
+    }
+    let sorted = pending.len().min(SORT_CHUNK);
+    pending[..sorted].sort_unstable();
+    sorted
 }
 
 /// Buckets per axis for about `target` buckets of equal sides over `extent` (one along a
@@ -477,7 +521,9 @@ mod tests {
         let index = SiteIndex::new(sites).unwrap();
         assert!(matches!(index.kind, Kind::Grid(_)));
         for &p in queries {
-            assert_eq!(streamed(&index, p), brute_force(sites, p), "query {p:?}");
+            let expected = brute_force(sites, p);
+            assert_eq!(streamed(&index, p), expected, "query {p:?}");
+            assert_eq!(index.nearest_one(p), expected[0], "query {p:?}");
         }
     }
 
