@@ -348,13 +348,22 @@ impl<const D: usize> Grid<D> {
         gathered: &mut Vec<(u64, u32)>,
         limit2: f64,
     ) {
-        self.for_each_in_ring(rings.center, rings.ring, |q, j| {
+        self.next_ring(rings, p, |q, j| {
             let dist2 = norm2(sub(q, p));
             if dist2 <= limit2 {
                 gathered.push((dist2.to_bits(), j));
             }
         });
-        rings.ring += 1;
+    }
+
+    /// Call `f(site, index)` for the sites of the next ring and raise the covered distance.
+    /// The first call takes rings 0 and 1 together: ring 0 alone covers too little to
+    /// return anything but its own sites, and the 3^D block is fewer, longer rows.
+    fn next_ring(&self, rings: &mut Rings<D>, p: [f64; D], f: impl FnMut([f64; D], u32)) {
+        let whole = rings.ring == 0;
+        let r = rings.ring.max(1);
+        self.for_each_in_ring(rings.center, r, whole, f);
+        rings.ring = r + 1;
         rings.covered2 = self.covered2(p, rings.center, rings.ring);
     }
 
@@ -364,21 +373,25 @@ impl<const D: usize> Grid<D> {
         let mut rings = self.ring_start(p);
         let mut best = (u32::MAX, f64::INFINITY);
         while !(best.1 < rings.covered2 || rings.covered2 == f64::INFINITY) {
-            self.for_each_in_ring(rings.center, rings.ring, |q, j| {
+            self.next_ring(&mut rings, p, |q, j| {
                 let dist2 = norm2(sub(q, p));
                 if dist2 < best.1 || (dist2 == best.1 && j < best.0) {
                     best = (j, dist2);
                 }
             });
-            rings.ring += 1;
-            rings.covered2 = self.covered2(p, rings.center, rings.ring);
         }
         best
     }
 
     /// Call `f(site, index)` for the sites of the buckets at Chebyshev distance `r` from
-    /// bucket `c`.
-    fn for_each_in_ring(&self, c: [usize; D], r: usize, mut f: impl FnMut([f64; D], u32)) {
+    /// bucket `c`, or up to `r` if `whole`.
+    fn for_each_in_ring(
+        &self,
+        c: [usize; D],
+        r: usize,
+        whole: bool,
+        mut f: impl FnMut([f64; D], u32),
+    ) {
         // Buckets `from..=to` of a row along axis 0 (contiguous in `points`).
         let mut push_row = |row: [usize; D], from: usize, to: usize| {
             let base = self.linear(row) - row[0];
@@ -394,7 +407,7 @@ impl<const D: usize> Grid<D> {
         let first: [usize; D] = std::array::from_fn(|k| if k == 0 { c[0] } else { range(k).0 });
         let mut row = first;
         loop {
-            let on_shell = r == 0 || (1..D).any(|k| row[k].abs_diff(c[k]) == r);
+            let on_shell = whole || r == 0 || (1..D).any(|k| row[k].abs_diff(c[k]) == r);
             if on_shell {
                 push_row(row, from, to);
             } else {
