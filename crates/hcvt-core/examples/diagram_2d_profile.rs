@@ -37,9 +37,9 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     );
     let t = Instant::now();
     let index = SiteIndex::new(&sites)?;
-    println!("kd-tree build   {:.3} s", t.elapsed().as_secs_f64());
+    println!("index build     {:.3} s", t.elapsed().as_secs_f64());
     let t = Instant::now();
-    let k: usize = sites.par_iter().map(|s| index.nearest(s, 17).len()).sum();
+    let k: usize = sites.par_iter().map(|s| index.nearest(*s, 17).len()).sum();
     println!("kNN 17          {:.3} s ({k})", t.elapsed().as_secs_f64());
     for _ in 0..6 {
         let t = Instant::now();

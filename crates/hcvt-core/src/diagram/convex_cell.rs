@@ -21,6 +21,11 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// The box `b` (relative to the site); all its faces are [`Face::Box`].
     fn from_box(b: &Aabb<D>) -> Self;
 
+    /// Become [`ConvexCell::from_box`] of `b`, reusing this cell's buffers where it can.
+    fn reset_to_box(&mut self, b: &Aabb<D>) {
+        *self = Self::from_box(b);
+    }
+
     /// Keep the part in `h`, tagging the new face with `face`; `false` when `h` held the
     /// whole cell already and nothing changed.
     fn clip(&mut self, h: &HalfSpace<D>, face: Face) -> bool;

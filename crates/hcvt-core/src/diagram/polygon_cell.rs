@@ -5,13 +5,32 @@ use crate::geometry::{dot, norm2, sub, Aabb, HalfSpace};
 use crate::moments::{triangle_moments, Moments};
 
 /// Convex polygon, counter-clockwise; edge `i` runs from vertex `i` to vertex `i + 1`.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Default)]
 pub struct PolygonCell {
     vertices: Vec<[f64; 2]>,
     faces: Vec<Face>,
     // Buffers reused by `clip`, so that clipping allocates only while a cell grows.
     spare_vertices: Vec<[f64; 2]>,
     spare_faces: Vec<Face>,
+}
+
+/// Vertices a new cell has room for: a Voronoi cell has about 6, and allocations were a
+/// fifth of a 2D diagram's instructions while cells grew one vertex at a time.
+const CAPACITY: usize = 16;
+
+/// By hand: the derived `clone_from` would allocate anew, and the domain clipping clones
+/// the cell into one reused piece per boundary element.
+impl Clone for PolygonCell {
+    fn clone(&self) -> Self {
+        let mut c = Self::default();
+        c.clone_from(self);
+        c
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        self.vertices.clone_from(&source.vertices);
+        self.faces.clone_from(&source.faces);
+    }
 }
 
 impl PolygonCell {
@@ -35,13 +54,23 @@ fn crossing(a: [f64; 2], b: [f64; 2], da: f64, db: f64) -> [f64; 2] {
 
 impl ConvexCell<2> for PolygonCell {
     fn from_box(b: &Aabb<2>) -> Self {
+        let mut c = Self {
+            vertices: Vec::with_capacity(CAPACITY),
+            faces: Vec::with_capacity(CAPACITY),
+            spare_vertices: Vec::with_capacity(CAPACITY),
+            spare_faces: Vec::with_capacity(CAPACITY),
+        };
+        c.reset_to_box(b);
+        c
+    }
+
+    fn reset_to_box(&mut self, b: &Aabb<2>) {
         let (lo, hi) = (b.lo, b.hi);
-        Self {
-            vertices: vec![lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]],
-            faces: vec![Face::Box; 4],
-            spare_vertices: Vec::with_capacity(16),
-            spare_faces: Vec::with_capacity(16),
-        }
+        self.vertices.clear();
+        self.vertices
+            .extend([lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]]);
+        self.faces.clear();
+        self.faces.extend([Face::Box; 4]);
     }
 
     /// Sutherland–Hodgman against one half-plane. A vertex exactly on the line counts as
@@ -56,15 +85,17 @@ impl ConvexCell<2> for PolygonCell {
         let mut faces = std::mem::take(&mut self.spare_faces);
         vertices.clear();
         faces.clear();
+        // A convex polygon cut by a line gains at most one vertex.
+        vertices.reserve(n + 1);
+        faces.reserve(n + 1);
+        let next = self.vertices[1..].iter().chain(&self.vertices[..1]);
         let mut di = dist(self.vertices[0]);
-        for i in 0..n {
-            let j = if i + 1 == n { 0 } else { i + 1 };
-            let (vi, vj) = (self.vertices[i], self.vertices[j]);
+        for ((&vi, &fi), &vj) in self.vertices.iter().zip(&self.faces).zip(next) {
             let dj = dist(vj);
             let inside_i = di <= 0.0;
             if inside_i {
                 vertices.push(vi);
-                faces.push(self.faces[i]);
+                faces.push(fi);
             }
             if inside_i && dj > 0.0 {
                 // Leaving the half-plane: the next edge lies on the clipping line.
@@ -77,7 +108,7 @@ impl ConvexCell<2> for PolygonCell {
             } else if !inside_i && dj < 0.0 {
                 // Entering it: the edge continues the old one from the crossing point.
                 vertices.push(crossing(vi, vj, di, dj));
-                faces.push(self.faces[i]);
+                faces.push(fi);
             }
             di = dj;
         }
