@@ -429,6 +429,9 @@ where
     }
     let mut candidates = Vec::new();
     boundary_candidates(boundary, cell, site, &mut candidates);
+    if site_winding == Some(1) && boundary.is_convex() {
+        return clip_convex(boundary, cell, site, &candidates);
+    }
     let (apex, winding) = choose_apex(boundary, cell, site, site_winding, &candidates);
     // Σ |mass| of the signed terms: what their round-off scales with.
     let mut gross = 0.0;
@@ -494,6 +497,41 @@ where
     }
     CellOutput {
         moments: total,
+        boundary_measure: faces.boundary,
+        neighbors: faces.into_neighbors(),
+    }
+}
+
+/// [`clip_by_domain`] in a convex domain for a site strictly inside it: the cell clipped
+/// by the inner half-spaces of the boundary simplices whose boxes meet its box.
+///
+/// Exact: the domain `Ω` lies in every such half-space, so nothing of `C ∩ Ω` is cut. A
+/// point `x` of the clipped cell outside `Ω` would see the segment from the site `y`
+/// (strictly inside `Ω`, so strictly inside every simplex's hyperplane) leave `Ω` through
+/// some simplex `T` at a point `z` of `C` before `x`: `T` meets the cell's box, so it was
+/// clipped, and `x`, beyond `z` on a line from the inner side, is outside `T`'s half-space.
+/// One clip per simplex instead of a cone piece (a copy of the cell and `D + 1` clips).
+fn clip_convex<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+    candidates: &[u32],
+) -> CellOutput<D>
+where
+    Euclid: Space<D>,
+{
+    let mut clipped = cell.clone();
+    for &t in candidates {
+        let rel = boundary.simplex(t).map(|v| sub(v, site));
+        clipped.clip(
+            &HalfSpace::through(rel[0], Euclid::normal(&rel)),
+            Face::Boundary(t),
+        );
+    }
+    let mut faces = FaceSums::default();
+    let moments = clipped.moments_and_faces(|f, m| faces.add(f, m));
+    CellOutput {
+        moments,
         boundary_measure: faces.boundary,
         neighbors: faces.into_neighbors(),
     }

@@ -61,12 +61,18 @@ struct RimEdge {
 }
 
 impl Clone for PolyhedronCell {
+    /// With room to grow: a copy is made to be clipped further.
     fn clone(&self) -> Self {
+        fn roomy<T: Copy>(v: &[T]) -> Vec<T> {
+            let mut out = Vec::with_capacity(v.len() + CLONE_HEADROOM);
+            out.extend_from_slice(v);
+            out
+        }
         Self {
-            planes: self.planes.clone(),
-            triangles: self.triangles.clone(),
-            neighbors: self.neighbors.clone(),
-            vertices: self.vertices.clone(),
+            planes: roomy(&self.planes),
+            triangles: roomy(&self.triangles),
+            neighbors: roomy(&self.neighbors),
+            vertices: roomy(&self.vertices),
             max_dist2: self.max_dist2,
             scratch: Scratch::default(),
         }
@@ -82,11 +88,14 @@ impl Clone for PolyhedronCell {
     }
 }
 
+/// Spare capacity of a cloned cell's arrays, so that its first clips do not reallocate.
+const CLONE_HEADROOM: usize = 32;
+
 /// Scratch of [`PolyhedronCell::for_each_polygon`].
 #[derive(Default)]
 struct WalkBuffers {
-    walk: Vec<(u16, u16, u16, u32)>,
-    starts: Vec<u32>,
+    first: Vec<u32>,
+    ring: Vec<u32>,
     polygon: Vec<[f64; 3]>,
 }
 
@@ -112,13 +121,15 @@ impl PolyhedronCell {
         WALK_BUFFERS.with(|cell| {
             let mut fresh = WalkBuffers::default();
             let mut taken = cell.try_borrow_mut();
-            let buffers = match taken.as_deref_mut() {
+            let b = match taken.as_deref_mut() {
                 Ok(b) => b,
                 Err(_) => &mut fresh,
             };
-            self.face_walk(&mut buffers.walk, &mut buffers.starts);
-            self.walk_faces(&buffers.walk, &mut buffers.polygon, |plane, poly| {
-                f(self.planes[plane as usize].face, poly)
+            let polygon = &mut b.polygon;
+            self.walk_faces(&mut b.first, &mut b.ring, |plane, ring| {
+                polygon.clear();
+                polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
+                f(self.planes[plane as usize].face, polygon);
             });
         });
     }
@@ -126,88 +137,54 @@ impl PolyhedronCell {
     /// The closed, outward boundary triangulation of the cell: every face fanned from its
     /// first vertex, as indices into [`PolyhedronCell::vertices`], appended to `out`.
     pub fn boundary_triangles(&self, out: &mut Vec<[u32; 3]>) {
-        let (mut walk, mut starts) = (Vec::new(), Vec::new());
-        self.face_walk(&mut walk, &mut starts);
-        let mut start = 0;
-        let mut ring = Vec::new();
-        while start < walk.len() {
-            let end = start
-                + walk[start..]
-                    .iter()
-                    .take_while(|e| e.0 == walk[start].0)
-                    .count();
-            Self::walk_one_face(&walk[start..end], &mut ring);
-            for k in 1..ring.len().saturating_sub(1) {
+        let (mut first, mut ring) = (Vec::new(), Vec::new());
+        self.walk_faces(&mut first, &mut ring, |_, ring| {
+            for k in 1..ring.len() - 1 {
                 out.push([ring[0], ring[k], ring[k + 1]]);
             }
-            start = end;
-        }
+        });
     }
 
-    /// The triangles (vertex indices) around one face, in counter-clockwise order.
-    fn walk_one_face(face: &[(u16, u16, u16, u32)], ring: &mut Vec<u32>) {
-        ring.clear();
-        let mut at = 0;
-        for _ in 0..face.len() {
-            ring.push(face[at].3);
-            let next = face[at].2;
-            match face.iter().position(|e| e.1 == next) {
-                Some(k) if k != 0 => at = k,
-                _ => break,
-            }
-        }
-    }
-
-    /// Entries `(plane p, q, r, t)` for every triangle `t = (p, q, r)` rotated to start at
-    /// each of its planes, sorted by `p`: around face `p`, vertex `t` leads from the edge
-    /// with `q` to the edge with `r`.
-    fn face_walk(&self, walk: &mut Vec<(u16, u16, u16, u32)>, starts: &mut Vec<u32>) {
-        // Counting sort by plane; triangles are visited in order, so ties stay by triangle.
-        starts.clear();
-        starts.resize(self.planes.len() + 1, 0);
-        for tri in &self.triangles {
-            for &p in tri {
-                starts[p as usize + 1] += 1;
-            }
-        }
-        for p in 0..self.planes.len() {
-            starts[p + 1] += starts[p];
-        }
-        walk.clear();
-        walk.resize(3 * self.triangles.len(), (0, 0, 0, 0));
-        for (t, &[a, b, c]) in self.triangles.iter().enumerate() {
-            for entry in [(a, b, c), (b, c, a), (c, a, b)] {
-                let at = &mut starts[entry.0 as usize];
-                walk[*at as usize] = (entry.0, entry.1, entry.2, t as u32);
-                *at += 1;
-            }
-        }
-    }
-
-    /// Walk each face's vertices in order (counter-clockwise from outside) and hand them to
-    /// `f(plane, polygon)`. From vertex `(p, q, r)` the next vertex of face `p` is the one
-    /// with triangle `(p, r, s)`: the two share the edge between faces `p` and `r`.
+    /// Walk each face in plane order and hand `f(plane, ring)` its vertices (triangle
+    /// indices) counter-clockwise from outside, starting at the first triangle holding the
+    /// plane; faces with fewer than three vertices are skipped. From vertex `(p, q, r)` the
+    /// next vertex of face `p` is its neighbour across the edge `r -> p`, the triangle
+    /// `(p, r, s)`: the adjacency makes each step O(1), with no sorting or searching.
     fn walk_faces(
         &self,
-        walk: &[(u16, u16, u16, u32)],
-        polygon: &mut Vec<[f64; 3]>,
-        mut f: impl FnMut(u16, &[[f64; 3]]),
+        first: &mut Vec<u32>,
+        ring: &mut Vec<u32>,
+        mut f: impl FnMut(u16, &[u32]),
     ) {
-        let mut start = 0;
-        let mut ring = Vec::new();
-        while start < walk.len() {
-            let plane = walk[start].0;
-            let mut end = start;
-            while end < walk.len() && walk[end].0 == plane {
-                end += 1;
+        const NONE: u32 = u32::MAX;
+        first.clear();
+        first.resize(self.planes.len(), NONE);
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &p in tri {
+                if first[p as usize] == NONE {
+                    first[p as usize] = t as u32;
+                }
             }
-            Self::walk_one_face(&walk[start..end], &mut ring);
-            polygon.clear();
-            polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
-            if polygon.len() >= 3 {
-                f(plane, polygon);
+        }
+        for (p, &start) in first.iter().enumerate() {
+            if start == NONE {
+                continue;
             }
-            start = end;
+            ring.clear();
+            let mut at = start as usize;
+            // A consistent adjacency comes back to `start`; the bound only guards the loop.
+            for _ in 0..self.triangles.len() {
+                ring.push(at as u32);
+                let k = self.triangles[at].iter().position(|&x| x as usize == p);
+                let next = self.neighbors[at][(k.unwrap_or(0) + 2) % 3] as usize;
+                if next == start as usize || next >= self.triangles.len() {
+                    break;
+                }
+                at = next;
+            }
+            if ring.len() >= 3 {
+                f(p as u16, ring);
+            }
         }
     }
 
@@ -232,15 +209,25 @@ impl PolyhedronCell {
     /// `h`. Returns `false`, changing nothing, when the removed region is not a disk.
     fn try_clip(&mut self, h: &HalfSpace<3>, face: Face, tol: f64) -> Option<bool> {
         let dist = |v: &[f64; 3]| dot(h.normal, *v) - h.offset;
+        // Most clips of a Voronoi cell change nothing: decide that in one branch-free pass.
+        let farthest = self
+            .vertices
+            .iter()
+            .fold(f64::NEG_INFINITY, |m, v| m.max(dist(v)));
+        if farthest <= tol {
+            return Some(false);
+        }
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.outside.clear();
-        scratch
-            .outside
-            .extend(self.vertices.iter().map(|v| dist(v) > tol));
-        let removed = scratch.outside.iter().filter(|&&o| o).count();
-        let done = if removed == 0 {
-            Some(false)
-        } else if removed == self.triangles.len() {
+        scratch.free.clear();
+        for (t, v) in self.vertices.iter().enumerate() {
+            let out = dist(v) > tol;
+            scratch.outside.push(out);
+            if out {
+                scratch.free.push(t);
+            }
+        }
+        let done = if scratch.free.len() == self.triangles.len() {
             self.triangles.clear();
             self.neighbors.clear();
             self.vertices.clear();
@@ -259,17 +246,10 @@ impl PolyhedronCell {
         done
     }
 
-    /// The rim of the removed region (directed edges of removed triangles whose
-    /// neighbour across is kept, each with the new vertex on it), and the removed slots.
+    /// The rim of the removed region `scratch.free` (directed edges of removed triangles
+    /// whose neighbour across is kept, each with the new vertex on it).
     fn find_rim(&self, scratch: &mut Scratch, dist: &impl Fn(&[f64; 3]) -> f64) {
         scratch.rim.clear();
-        scratch.free.clear();
-        for t in 0..self.triangles.len() {
-            if !scratch.outside[t] {
-                continue;
-            }
-            scratch.free.push(t);
-        }
         for &t in &scratch.free {
             let tri = self.triangles[t];
             for k in 0..3 {
