@@ -520,13 +520,20 @@ fn clip_convex<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D>,
 {
+    // Nearest planes first: they cut away most of what lies outside, and the later clips
+    // then have fewer vertices to remove.
+    let mut planes: Vec<(f64, u32, HalfSpace<D>)> = candidates
+        .iter()
+        .map(|&t| {
+            let rel = boundary.simplex(t).map(|v| sub(v, site));
+            let h = HalfSpace::through(rel[0], Euclid::normal(&rel));
+            (h.offset / norm2(h.normal).sqrt(), t, h)
+        })
+        .collect();
+    planes.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     let mut clipped = cell.clone();
-    for &t in candidates {
-        let rel = boundary.simplex(t).map(|v| sub(v, site));
-        clipped.clip(
-            &HalfSpace::through(rel[0], Euclid::normal(&rel)),
-            Face::Boundary(t),
-        );
+    for (_, t, h) in planes {
+        clipped.clip(&h, Face::Boundary(t));
     }
     let mut faces = FaceSums::default();
     let moments = clipped.moments_and_faces(|f, m| faces.add(f, m));

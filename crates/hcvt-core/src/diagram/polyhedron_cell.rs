@@ -9,7 +9,7 @@
 
 use super::convex_cell::{ConvexCell, Face};
 use crate::geometry::{add, dot, norm2, scale, sub, Aabb, HalfSpace};
-use crate::moments::{tetra_moments, Moments};
+use crate::moments::Moments;
 
 /// A plane of the cell, `normal · x <= offset`, and what made it. Vertices are computed
 /// once, when their triangle is made, never from the planes.
@@ -34,18 +34,47 @@ pub struct PolyhedronCell {
     /// Largest `|v|²` over the vertices, kept up to date by every change: the driver asks
     /// for it after each clip, and most clips change nothing.
     max_dist2: f64,
-    scratch: Scratch,
 }
 
-/// Buffers reused across clips, so a cell allocates only while it grows.
-#[derive(Debug, Default)]
+/// Buffers of a clip that changes the cell, one set per thread: cells are made and cloned
+/// by the thousand, and buffers of their own would grow anew in each.
+#[derive(Debug)]
 struct Scratch {
-    /// Per triangle: its vertex lies beyond the clipping plane.
-    outside: Vec<bool>,
+    /// Per triangle: the signed distance of its vertex beyond the clipping plane.
+    dist: Vec<f64>,
+    /// How far beyond the plane a vertex must lie to be removed.
+    tol: f64,
     /// Boundary edges of the removed region.
     rim: Vec<RimEdge>,
+    /// The rim in cycle order.
+    cycle: Vec<RimEdge>,
+    /// Per plane: the rim edge starting at it, or `NO_EDGE`; all `NO_EDGE` between clips.
+    rim_from: Vec<u32>,
     /// Slots of the removed triangles, refilled by the new ones.
     free: Vec<usize>,
+    /// Largest `|v|²` over the kept vertices.
+    kept_dist2: f64,
+}
+
+/// No rim edge starts at this plane.
+const NO_EDGE: u32 = u32::MAX;
+
+impl Scratch {
+    const fn new() -> Self {
+        Self {
+            dist: Vec::new(),
+            tol: 0.0,
+            rim: Vec::new(),
+            cycle: Vec::new(),
+            rim_from: Vec::new(),
+            free: Vec::new(),
+            kept_dist2: 0.0,
+        }
+    }
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new(Scratch::new()) };
 }
 
 /// A directed edge `a -> b` (two planes) of a removed triangle whose neighbour across is
@@ -74,7 +103,6 @@ impl Clone for PolyhedronCell {
             neighbors: roomy(&self.neighbors),
             vertices: roomy(&self.vertices),
             max_dist2: self.max_dist2,
-            scratch: Scratch::default(),
         }
     }
 
@@ -91,12 +119,11 @@ impl Clone for PolyhedronCell {
 /// Spare capacity of a cloned cell's arrays, so that its first clips do not reallocate.
 const CLONE_HEADROOM: usize = 32;
 
-/// Scratch of [`PolyhedronCell::for_each_polygon`].
+/// Scratch of [`PolyhedronCell::for_each_ring`].
 #[derive(Default)]
 struct WalkBuffers {
     first: Vec<u32>,
     ring: Vec<u32>,
-    polygon: Vec<[f64; 3]>,
 }
 
 thread_local! {
@@ -116,8 +143,17 @@ impl PolyhedronCell {
     /// counter-clockwise seen from outside, relative to the site. Vertices where more than
     /// three planes meet appear once per triangle, so a polygon may repeat a point.
     pub fn for_each_polygon(&self, mut f: impl FnMut(Face, &[[f64; 3]])) {
-        // Per-thread buffers: a cell is walked once per boundary piece. A nested walk (from
-        // inside `f`) finds them taken and uses fresh ones.
+        let mut polygon = Vec::new();
+        self.for_each_ring(|face, ring| {
+            polygon.clear();
+            polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
+            f(face, &polygon);
+        });
+    }
+
+    /// [`PolyhedronCell::walk_faces`] with per-thread buffers: every cell of every diagram
+    /// is walked. A nested walk (from inside `f`) finds them taken and uses fresh ones.
+    fn for_each_ring(&self, mut f: impl FnMut(Face, &[u32])) {
         WALK_BUFFERS.with(|cell| {
             let mut fresh = WalkBuffers::default();
             let mut taken = cell.try_borrow_mut();
@@ -125,13 +161,39 @@ impl PolyhedronCell {
                 Ok(b) => b,
                 Err(_) => &mut fresh,
             };
-            let polygon = &mut b.polygon;
             self.walk_faces(&mut b.first, &mut b.ring, |plane, ring| {
-                polygon.clear();
-                polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
-                f(self.planes[plane as usize].face, polygon);
+                f(self.planes[plane as usize].face, ring);
             });
         });
+    }
+
+    /// Moments of the cone from the site over the face with vertices `ring`, fanned from
+    /// its first vertex `v_0`, and the face's area.
+    ///
+    /// Each fan triangle `(v_0, a, b)` needs one cross product `c = (a - v_0) × (b - v_0)`:
+    /// `c / 2` is its vector area and `v_0 · c = det[v_0 a b]` six times its cone's volume.
+    /// With `s = v_0 + a + b` the cone's second moment is `mass (|s|² + |v_0|² + |a|² +
+    /// |b|²) / 20`, the sum of the six products `u · w` of `tetra_moments` rewritten.
+    fn fan(&self, ring: &[u32]) -> (Moments<3>, f64) {
+        let v = |k: usize| self.vertices[ring[k] as usize];
+        let v0 = v(0);
+        let n0 = norm2(v0);
+        let (mut a, mut na) = (v(1), norm2(v(1)));
+        let mut m = Moments::zero();
+        let mut area = [0.0; 3];
+        for k in 2..ring.len() {
+            let b = v(k);
+            let nb = norm2(b);
+            let c = cross(sub(a, v0), sub(b, v0));
+            area = add(area, c);
+            let mass = dot(v0, c) / 6.0;
+            let s = add(add(v0, a), b);
+            m.mass += mass;
+            m.first = add(m.first, scale(s, mass / 4.0));
+            m.second += mass * (norm2(s) + n0 + na + nb) / 20.0;
+            (a, na) = (b, nb);
+        }
+        (m, 0.5 * norm2(area).sqrt())
     }
 
     /// The closed, outward boundary triangulation of the cell: every face fanned from its
@@ -217,44 +279,58 @@ impl PolyhedronCell {
         if farthest <= tol {
             return Some(false);
         }
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.outside.clear();
+        SCRATCH.with(|cell| match cell.try_borrow_mut() {
+            Ok(mut scratch) => self.cut(h, face, tol, &mut scratch),
+            Err(_) => self.cut(h, face, tol, &mut Scratch::new()),
+        })
+    }
+
+    /// The part of [`PolyhedronCell::try_clip`] that changes the cell.
+    fn cut(
+        &mut self,
+        h: &HalfSpace<3>,
+        face: Face,
+        tol: f64,
+        scratch: &mut Scratch,
+    ) -> Option<bool> {
+        scratch.dist.clear();
         scratch.free.clear();
+        scratch.tol = tol;
+        scratch.kept_dist2 = 0.0;
         for (t, v) in self.vertices.iter().enumerate() {
-            let out = dist(v) > tol;
-            scratch.outside.push(out);
-            if out {
+            let d = dot(h.normal, *v) - h.offset;
+            scratch.dist.push(d);
+            if d > tol {
                 scratch.free.push(t);
+            } else {
+                scratch.kept_dist2 = scratch.kept_dist2.max(norm2(*v));
             }
         }
-        let done = if scratch.free.len() == self.triangles.len() {
+        if scratch.free.len() == self.triangles.len() {
             self.triangles.clear();
             self.neighbors.clear();
             self.vertices.clear();
             self.max_dist2 = 0.0;
-            Some(true)
-        } else {
-            self.find_rim(&mut scratch, &dist);
-            // The removed region of a convex cell is a disk: its rim is one simple cycle.
-            let ok = order_cycle(&mut scratch.rim);
-            if ok {
-                self.replace_by_rim(&scratch, h, face);
-            }
-            ok.then_some(true)
-        };
-        self.scratch = scratch;
-        done
+            return Some(true);
+        }
+        self.find_rim(scratch);
+        // The removed region of a convex cell is a disk: its rim is one simple cycle.
+        if !order_cycle(scratch, self.planes.len()) {
+            return None;
+        }
+        self.replace_by_rim(scratch, h, face);
+        Some(true)
     }
 
     /// The rim of the removed region `scratch.free` (directed edges of removed triangles
     /// whose neighbour across is kept, each with the new vertex on it).
-    fn find_rim(&self, scratch: &mut Scratch, dist: &impl Fn(&[f64; 3]) -> f64) {
+    fn find_rim(&self, scratch: &mut Scratch) {
         scratch.rim.clear();
         for &t in &scratch.free {
             let tri = self.triangles[t];
             for k in 0..3 {
                 let s = self.neighbors[t][k] as usize;
-                if s >= self.triangles.len() || scratch.outside[s] {
+                if s >= self.triangles.len() || scratch.dist[s] > scratch.tol {
                     continue;
                 }
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
@@ -262,10 +338,11 @@ impl PolyhedronCell {
                     .find(|&j| self.neighbors[s][j] as usize == t)
                     .unwrap_or(0) as u8;
                 let (v_in, v_out) = (self.vertices[s], self.vertices[t]);
+                let (d_in, d_out) = (scratch.dist[s].min(0.0), scratch.dist[t]);
                 scratch.rim.push(RimEdge {
                     a,
                     b,
-                    vertex: Self::crossing(v_in, v_out, dist(&v_in).min(0.0), dist(&v_out)),
+                    vertex: Self::crossing(v_in, v_out, d_in, d_out),
                     kept: s as u32,
                     kept_edge,
                 });
@@ -284,11 +361,11 @@ impl PolyhedronCell {
         });
         // The rim is a cycle in order (`order_cycle`): new triangle k meets triangle k + 1
         // across its edge `b -> p` and triangle k - 1 across `p -> a`.
-        let n = scratch.rim.len();
+        let n = scratch.cycle.len();
         let first_new = self.triangles.len();
         let free = &scratch.free;
         let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len());
-        for (k, e) in scratch.rim.iter().enumerate() {
+        for (k, e) in scratch.cycle.iter().enumerate() {
             let tri = [e.a, e.b, p];
             let here = slot(k) as u32;
             let next = slot((k + 1) % n) as u32;
@@ -325,7 +402,8 @@ impl PolyhedronCell {
                 }
             }
         }
-        self.max_dist2 = self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
+        self.max_dist2 =
+            (scratch.cycle.iter()).fold(scratch.kept_dist2, |m, e| m.max(norm2(e.vertex)));
     }
 }
 
@@ -367,7 +445,6 @@ impl ConvexCell<3> for PolyhedronCell {
             neighbors: Vec::with_capacity(64),
             vertices,
             max_dist2,
-            scratch: Scratch::default(),
         };
         for t in 0..cell.triangles.len() {
             let tri = cell.triangles[t];
@@ -434,64 +511,60 @@ impl ConvexCell<3> for PolyhedronCell {
 
     /// Fan every face from its first vertex and cone the fan to the site.
     fn moments(&self) -> Moments<3> {
-        let mut m = Moments::zero();
-        self.for_each_polygon(|_, poly| m.add_scaled(&fan_moments(poly), 1.0));
-        m
+        self.moments_and_faces(|_, _| {})
     }
 
     fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
-        self.for_each_polygon(|face, poly| f(face, polygon_area(poly)));
+        self.for_each_ring(|face, ring| f(face, self.fan(ring).1));
     }
 
     fn moments_and_faces(&self, mut f: impl FnMut(Face, f64)) -> Moments<3> {
         let mut m = Moments::zero();
-        self.for_each_polygon(|face, poly| {
-            f(face, polygon_area(poly));
-            m.add_scaled(&fan_moments(poly), 1.0);
+        self.for_each_ring(|face, ring| {
+            let (cone, area) = self.fan(ring);
+            f(face, area);
+            m.add_scaled(&cone, 1.0);
         });
         m
     }
 }
 
-/// Put the rim edges `a -> b` in cycle order, each starting where the previous ends;
-/// `false` unless they form one simple cycle through every edge (each plane starting one
-/// edge at most).
-fn order_cycle(rim: &mut [RimEdge]) -> bool {
-    if rim.is_empty() {
-        return false;
+/// Put the rim edges `a -> b` in cycle order into `scratch.cycle`, from the first one
+/// found, each starting where the previous ends; `false` unless they form one simple
+/// cycle through every edge (each plane starting one edge at most). Linear: the edge
+/// starting at each plane is looked up in `scratch.rim_from`, which it leaves cleared.
+fn order_cycle(scratch: &mut Scratch, planes: usize) -> bool {
+    let Scratch {
+        rim,
+        cycle,
+        rim_from,
+        ..
+    } = scratch;
+    cycle.clear();
+    if rim_from.len() < planes {
+        rim_from.resize(planes, NO_EDGE);
     }
-    let first = rim[0].a;
-    for k in 1..rim.len() {
-        let at = rim[k - 1].b;
-        if at == first {
-            return false; // closed before every edge was visited
+    let mut simple = !rim.is_empty();
+    for (i, e) in rim.iter().enumerate() {
+        let from = &mut rim_from[e.a as usize];
+        simple &= *from == NO_EDGE;
+        *from = i as u32;
+    }
+    let mut at = 0;
+    while simple {
+        cycle.push(rim[at]);
+        let next = rim_from[rim[at].b as usize];
+        if next == NO_EDGE || cycle.len() > rim.len() {
+            simple = false;
+        } else if next == 0 {
+            break;
         }
-        let mut starts = (k..rim.len()).filter(|&j| rim[j].a == at);
-        match (starts.next(), starts.next()) {
-            (Some(j), None) => rim.swap(k, j),
-            _ => return false,
-        }
+        at = next as usize;
     }
-    rim[rim.len() - 1].b == first && rim.iter().filter(|e| e.a == first).count() == 1
-}
-
-/// Moments about the origin of the cone from the origin over a face polygon, fanned from
-/// its first vertex.
-fn fan_moments(poly: &[[f64; 3]]) -> Moments<3> {
-    let mut m = Moments::zero();
-    for k in 1..poly.len().saturating_sub(1) {
-        m.add_scaled(&tetra_moments(poly[0], poly[k], poly[k + 1]), 1.0);
+    for e in rim.iter() {
+        rim_from[e.a as usize] = NO_EDGE;
     }
-    m
-}
-
-/// Area of a planar polygon in space, `|Σ (v_k - v_0) × (v_{k+1} - v_0)| / 2`.
-pub fn polygon_area(poly: &[[f64; 3]]) -> f64 {
-    let mut s = [0.0; 3];
-    for k in 1..poly.len().saturating_sub(1) {
-        s = add(s, cross(sub(poly[k], poly[0]), sub(poly[k + 1], poly[0])));
-    }
-    0.5 * norm2(s).sqrt()
+    simple && cycle.len() == rim.len()
 }
 
 #[inline]
@@ -506,6 +579,15 @@ fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Area of a planar polygon in space, `|Σ (v_k - v_0) × (v_{k+1} - v_0)| / 2`.
+    fn polygon_area(poly: &[[f64; 3]]) -> f64 {
+        let mut s = [0.0; 3];
+        for k in 1..poly.len().saturating_sub(1) {
+            s = add(s, cross(sub(poly[k], poly[0]), sub(poly[k + 1], poly[0])));
+        }
+        0.5 * norm2(s).sqrt()
+    }
 
     fn cube(lo: f64, hi: f64) -> PolyhedronCell {
         PolyhedronCell::from_box(&Aabb {
