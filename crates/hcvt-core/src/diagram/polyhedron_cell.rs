@@ -259,23 +259,20 @@ impl PolyhedronCell {
         add(inside, scale(sub(outside, inside), t))
     }
 
-    /// Index of the triangle holding the directed edge `a -> b`.
-    #[inline]
-    fn triangle_with_edge(&self, a: u16, b: u16) -> Option<usize> {
-        self.triangles
-            .iter()
-            .position(|&[x, y, z]| (x == a && y == b) || (y == a && z == b) || (z == a && x == b))
-    }
-
     /// One attempt of [`ConvexCell::clip`]: remove the vertices farther than `tol` beyond
     /// `h`. Returns `false`, changing nothing, when the removed region is not a disk.
     fn try_clip(&mut self, h: &HalfSpace<3>, face: Face, tol: f64) -> Option<bool> {
         let dist = |v: &[f64; 3]| dot(h.normal, *v) - h.offset;
-        // Most clips of a Voronoi cell change nothing: decide that in one branch-free pass.
-        let farthest = self
-            .vertices
-            .iter()
-            .fold(f64::NEG_INFINITY, |m, v| m.max(dist(v)));
+        // Most clips of a Voronoi cell change nothing: decide that in one branch-free pass
+        // (a plain comparison, cheaper than `f64::max`; a NaN distance removes nothing).
+        let farthest = self.vertices.iter().fold(f64::NEG_INFINITY, |m, v| {
+            let d = dist(v);
+            if d > m {
+                d
+            } else {
+                m
+            }
+        });
         if farthest <= tol {
             return Some(false);
         }
@@ -438,24 +435,25 @@ impl ConvexCell<3> for PolyhedronCell {
                 if bit(2) == 1 { b.hi[2] } else { b.lo[2] },
             ]);
         }
+        // Edge k of corner c runs along the axis of neither of its planes, that of the
+        // third plane `tri[k + 2]`: its other end is the corner across that axis.
+        let mut neighbors = Vec::with_capacity(64);
+        neighbors.extend(
+            triangles
+                .iter()
+                .enumerate()
+                .map(|(c, tri): (usize, &[u16; 3])| {
+                    std::array::from_fn(|k| (c ^ (1 << (tri[(k + 2) % 3] / 2))) as u32)
+                }),
+        );
         let max_dist2 = vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
-        let mut cell = Self {
+        Self {
             planes,
             triangles,
-            neighbors: Vec::with_capacity(64),
+            neighbors,
             vertices,
             max_dist2,
-        };
-        for t in 0..cell.triangles.len() {
-            let tri = cell.triangles[t];
-            let across = |k: usize| {
-                cell.triangle_with_edge(tri[(k + 1) % 3], tri[k])
-                    .map_or(u32::MAX, |s| s as u32)
-            };
-            let row = [across(0), across(1), across(2)];
-            cell.neighbors.push(row);
         }
-        cell
     }
 
     /// Remove the vertices strictly beyond `h`; a vertex exactly on it stays, so a plane
@@ -587,6 +585,13 @@ mod tests {
             s = add(s, cross(sub(poly[k], poly[0]), sub(poly[k + 1], poly[0])));
         }
         0.5 * norm2(s).sqrt()
+    }
+
+    /// Index of the triangle holding the directed edge `a -> b`.
+    fn triangle_with_edge(c: &PolyhedronCell, a: u16, b: u16) -> Option<usize> {
+        c.triangles
+            .iter()
+            .position(|&[x, y, z]| (x == a && y == b) || (y == a && z == b) || (z == a && x == b))
     }
 
     fn cube(lo: f64, hi: f64) -> PolyhedronCell {
@@ -753,7 +758,11 @@ mod tests {
             for k in 0..3 {
                 let s = c.neighbors[t][k] as usize;
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                assert_eq!(c.triangle_with_edge(b, a), Some(s), "triangle {t} edge {k}");
+                assert_eq!(
+                    triangle_with_edge(c, b, a),
+                    Some(s),
+                    "triangle {t} edge {k}"
+                );
                 assert!(c.neighbors[s].contains(&(t as u32)));
             }
         }
@@ -770,6 +779,7 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
+        assert_adjacency_consistent(&cube(-1.0, 1.0));
         for _ in 0..50 {
             let mut c = cube(-1.0, 1.0);
             let mut planes = Vec::new();
