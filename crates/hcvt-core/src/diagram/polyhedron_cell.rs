@@ -361,12 +361,11 @@ impl PolyhedronCell {
         let n = scratch.cycle.len();
         let first_new = self.triangles.len();
         let free = &scratch.free;
-        let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len());
+        let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len()) as u32;
+        let (mut prev, mut here) = (slot(n - 1), slot(0));
         for (k, e) in scratch.cycle.iter().enumerate() {
             let tri = [e.a, e.b, p];
-            let here = slot(k) as u32;
-            let next = slot((k + 1) % n) as u32;
-            let prev = slot((k + n - 1) % n) as u32;
+            let next = if k + 1 < n { slot(k + 1) } else { slot(0) };
             let row = [e.kept, next, prev];
             if let Some(&at) = scratch.free.get(k) {
                 self.triangles[at] = tri;
@@ -378,6 +377,7 @@ impl PolyhedronCell {
                 self.vertices.push(e.vertex);
             }
             self.neighbors[e.kept as usize][e.kept_edge as usize] = here;
+            (prev, here) = (here, next);
         }
         // Descending order keeps the remaining indices valid under swap_remove; the
         // triangle moved into a freed slot tells its neighbours where it went.
