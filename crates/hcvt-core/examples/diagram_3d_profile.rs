@@ -31,8 +31,11 @@ fn read_rows<T: std::str::FromStr, const N: usize>(path: &str) -> Vec<[T; N]> {
 
 fn main() -> Result<(), hcvt_core::CoreError> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let mesh = args.first().map_or("/tmp/s3d/ball", String::as_str);
-    let sites_path = args.get(1).map_or("/tmp/s3d/rand1000.txt", String::as_str);
+    let [mesh, sites_path] = [0, 1].map(|k| {
+        args.get(k)
+            .map(String::as_str)
+            .expect("usage: diagram_3d_profile MESH SITES [diagrams] [cvt]")
+    });
     let repeat: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(20);
     let run_cvt = args.get(3).is_some_and(|a| a == "cvt");
     let vertices: Vec<[f64; 3]> = read_rows(&format!("{mesh}_v.txt"));
