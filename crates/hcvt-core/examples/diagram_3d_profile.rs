@@ -1,34 +1,69 @@
-//! Time 3D diagrams of uniform random sites in the unit cube, to check that the nearest-site
-//! index serves 3D as well as 2D.
-//! `cargo run --release --example diagram_3d_profile -- 20000`
+//! Time 3D clipped diagrams and CVTs, for profiling the cell clipping.
+//!
+//! `cargo run --release --example diagram_3d_profile -- MESH SITES [diagrams] [cvt]`:
+//! `MESH` names two whitespace-separated text files, `MESH_v.txt` (one vertex `x y z` a
+//! line) and `MESH_f.txt` (one triangle `a b c` a line), e.g. written from Python with
+//! `numpy.savetxt` of `hcvt.load_domain(path).vertices` and `.faces`; `SITES` is a text
+//! file of sites, one `x y z` a line. Times `diagrams` diagrams (default 20) and, with
+//! `cvt`, an L-BFGS CVT from those sites.
 
+use std::ops::ControlFlow;
 use std::time::Instant;
 
-use hcvt_core::diagram::{clipped_diagram, Options, PolyhedronCell};
+use hcvt_core::diagram::PolyhedronCell;
 use hcvt_core::domain::Solid;
+use hcvt_core::optimise::{cvt, evaluate, Settings};
+
+/// Rows of whitespace-separated numbers.
+fn read_rows<T: std::str::FromStr, const N: usize>(path: &str) -> Vec<[T; N]> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    text.lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let mut it = l.split_whitespace().map(|x| {
+                x.parse::<T>()
+                    .unwrap_or_else(|_| panic!("{path}: bad number {x}"))
+            });
+            std::array::from_fn(|_| it.next().expect("short row"))
+        })
+        .collect()
+}
 
 fn main() -> Result<(), hcvt_core::CoreError> {
-    let n: usize = std::env::args()
-        .nth(1)
-        .and_then(|a| a.parse().ok())
-        .unwrap_or(20_000);
-    let cube = Solid::cuboid([0.0; 3], [1.0; 3])?;
-    let mut state = 7u64;
-    let mut rand = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let sites: Vec<[f64; 3]> = (0..n).map(|_| [rand(), rand(), rand()]).collect();
-    for _ in 0..5 {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [mesh, sites_path] = [0, 1].map(|k| {
+        args.get(k)
+            .map(String::as_str)
+            .expect("usage: diagram_3d_profile MESH SITES [diagrams] [cvt]")
+    });
+    let repeat: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(20);
+    let run_cvt = args.get(3).is_some_and(|a| a == "cvt");
+    let vertices: Vec<[f64; 3]> = read_rows(&format!("{mesh}_v.txt"));
+    let faces: Vec<[u32; 3]> = read_rows(&format!("{mesh}_f.txt"));
+    let domain = Solid::new(vertices, faces)?;
+    let sites: Vec<[f64; 3]> = read_rows(sites_path);
+    let n = sites.len();
+    let t = Instant::now();
+    let mut energy = 0.0;
+    for _ in 0..repeat {
+        energy = evaluate::<3, PolyhedronCell>(&domain, sites.clone())?.energy;
+    }
+    println!(
+        "{n} sites: {:.3} ms per diagram, energy {energy:.17e}",
+        1e3 * t.elapsed().as_secs_f64() / repeat.max(1) as f64
+    );
+    if run_cvt {
         let t = Instant::now();
-        let (d, _) =
-            clipped_diagram::<3, PolyhedronCell>(&cube, &sites, Options::default(), false)?;
+        let out = cvt::<3, PolyhedronCell>(&domain, sites, &Settings::default(), &mut |_, _| {
+            ControlFlow::Continue(())
+        })?;
+        let seconds = t.elapsed().as_secs_f64();
         println!(
-            "full diagram    {:.3} s (volume {})",
-            t.elapsed().as_secs_f64(),
-            d.volumes().iter().sum::<f64>()
+            "CVT: {} in {} iterations, {} diagrams, {seconds:.3} s ({:.3} ms per diagram)",
+            out.stop_reason.as_str(),
+            out.iterations(),
+            out.evaluations(),
+            1e3 * seconds / out.evaluations() as f64
         );
     }
     Ok(())

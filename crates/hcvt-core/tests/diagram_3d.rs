@@ -147,3 +147,93 @@ fn sums_over_cells_match_the_mesh_integrals() {
         }
     }
 }
+
+/// The octahedron with half-axes 1.3, 0.7 and 1.1: convex, with no two faces coplanar and
+/// no face along an axis.
+fn octahedron() -> Solid {
+    let axes = [1.3, 0.7, 1.1];
+    let mut vertices = Vec::new();
+    for (k, &a) in axes.iter().enumerate() {
+        for sign in [1.0, -1.0] {
+            vertices.push(std::array::from_fn(|j| if j == k { sign * a } else { 0.0 }));
+        }
+    }
+    // Vertex 2k is +axis k, 2k + 1 is -axis k; the face of signs (sx, sy, sz) is
+    // counter-clockwise from outside in the order x, y, z when the signs multiply to +1.
+    let faces = (0..8u32)
+        .map(|s| {
+            let (x, y, z) = (s & 1, 2 + ((s >> 1) & 1), 4 + ((s >> 2) & 1));
+            if s.count_ones() % 2 == 0 {
+                [x, y, z]
+            } else {
+                [x, z, y]
+            }
+        })
+        .collect();
+    Solid::new(vertices, faces).unwrap()
+}
+
+/// The same boundary with one unused vertex far outside: no longer found convex, so its
+/// diagrams go through the signed cones.
+fn with_stray_vertex(solid: &Solid) -> Solid {
+    let mut vertices = solid.vertices().to_vec();
+    vertices.push([100.0; 3]);
+    Solid::new(vertices, solid.simplices().to_vec()).unwrap()
+}
+
+#[test]
+fn convex_domains_clip_by_their_planes_as_the_cones_do() {
+    for solid in [cube(1.0), octahedron()] {
+        let cones = with_stray_vertex(&solid);
+        assert!(solid.is_convex() && !cones.is_convex());
+        let n = 300;
+        let sites = interior_sites(&solid, n, 3);
+        let (planes, cones) = (diagram(&solid, &sites), diagram(&cones, &sites));
+        let v = solid.volume() / n as f64;
+        let h = v.cbrt();
+        for (i, (a, b)) in planes.moments.iter().zip(&cones.moments).enumerate() {
+            assert!((a.mass - b.mass).abs() < 1e-12 * v, "cell {i}: {a:?} {b:?}");
+            assert!((a.second - b.second).abs() < 1e-12 * v * h * h, "cell {i}");
+            for k in 0..3 {
+                assert!((a.first[k] - b.first[k]).abs() < 1e-12 * v * h, "cell {i}");
+            }
+            let db = planes.boundary_measure[i] - cones.boundary_measure[i];
+            assert!(db.abs() < 1e-12 * h * h, "cell {i}: boundary {db:e}");
+            // Faces of more than round-off, with their measures.
+            let faces = |d: &Diagram<3>| -> Vec<(u32, f64)> {
+                (d.neighbor_offsets[i]..d.neighbor_offsets[i + 1])
+                    .map(|k| (d.neighbor_sites[k], d.neighbor_measures[k]))
+                    .filter(|&(_, m)| m > 1e-9 * h * h)
+                    .collect()
+            };
+            let (fa, fb) = (faces(&planes), faces(&cones));
+            assert_eq!(fa.len(), fb.len(), "cell {i}");
+            for ((ja, ma), (jb, mb)) in fa.into_iter().zip(fb) {
+                assert!(ja == jb && (ma - mb).abs() < 1e-12 * h * h, "cell {i}");
+            }
+        }
+    }
+}
+
+#[test]
+fn doubly_covered_and_dented_solids_are_not_convex() {
+    // The cube's boundary twice: winding number 2 inside.
+    let solid = cube(1.0);
+    let twice = [solid.simplices(), solid.simplices()].concat();
+    assert!(!Solid::new(solid.vertices().to_vec(), twice)
+        .unwrap()
+        .is_convex());
+    // The cube with its top face (z = 1, vertices 4..8) pushed in to a point below it.
+    let mut vertices = solid.vertices().to_vec();
+    vertices.push([0.5, 0.5, 0.8]);
+    let mut faces: Vec<[u32; 3]> = solid
+        .simplices()
+        .iter()
+        .copied()
+        .filter(|t| !t.iter().all(|&v| v >= 4))
+        .collect();
+    faces.extend([[4, 5, 8], [5, 7, 8], [7, 6, 8], [6, 4, 8]]);
+    let dented = Solid::new(vertices, faces).unwrap();
+    assert!((dented.volume() - (1.0 - 0.2 / 3.0)).abs() < 1e-15);
+    assert!(!dented.is_convex());
+}

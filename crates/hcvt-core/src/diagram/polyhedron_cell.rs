@@ -9,7 +9,7 @@
 
 use super::convex_cell::{ConvexCell, Face};
 use crate::geometry::{add, dot, norm2, scale, sub, Aabb, HalfSpace};
-use crate::moments::{tetra_moments, Moments};
+use crate::moments::Moments;
 
 /// A plane of the cell, `normal · x <= offset`, and what made it. Vertices are computed
 /// once, when their triangle is made, never from the planes.
@@ -34,18 +34,47 @@ pub struct PolyhedronCell {
     /// Largest `|v|²` over the vertices, kept up to date by every change: the driver asks
     /// for it after each clip, and most clips change nothing.
     max_dist2: f64,
-    scratch: Scratch,
 }
 
-/// Buffers reused across clips, so a cell allocates only while it grows.
-#[derive(Debug, Default)]
+/// Buffers of a clip that changes the cell, one set per thread: cells are made and cloned
+/// by the thousand, and buffers of their own would grow anew in each.
+#[derive(Debug)]
 struct Scratch {
-    /// Per triangle: its vertex lies beyond the clipping plane.
-    outside: Vec<bool>,
+    /// Per triangle: the signed distance of its vertex beyond the clipping plane.
+    dist: Vec<f64>,
+    /// How far beyond the plane a vertex must lie to be removed.
+    tol: f64,
     /// Boundary edges of the removed region.
     rim: Vec<RimEdge>,
+    /// The rim in cycle order.
+    cycle: Vec<RimEdge>,
+    /// Per plane: the rim edge starting at it, or `NO_EDGE`; all `NO_EDGE` between clips.
+    rim_from: Vec<u32>,
     /// Slots of the removed triangles, refilled by the new ones.
     free: Vec<usize>,
+    /// Largest `|v|²` over the kept vertices.
+    kept_dist2: f64,
+}
+
+/// No rim edge starts at this plane.
+const NO_EDGE: u32 = u32::MAX;
+
+impl Scratch {
+    const fn new() -> Self {
+        Self {
+            dist: Vec::new(),
+            tol: 0.0,
+            rim: Vec::new(),
+            cycle: Vec::new(),
+            rim_from: Vec::new(),
+            free: Vec::new(),
+            kept_dist2: 0.0,
+        }
+    }
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new(Scratch::new()) };
 }
 
 /// A directed edge `a -> b` (two planes) of a removed triangle whose neighbour across is
@@ -61,14 +90,19 @@ struct RimEdge {
 }
 
 impl Clone for PolyhedronCell {
+    /// With room to grow: a copy is made to be clipped further.
     fn clone(&self) -> Self {
+        fn roomy<T: Copy>(v: &[T]) -> Vec<T> {
+            let mut out = Vec::with_capacity(v.len() + CLONE_HEADROOM);
+            out.extend_from_slice(v);
+            out
+        }
         Self {
-            planes: self.planes.clone(),
-            triangles: self.triangles.clone(),
-            neighbors: self.neighbors.clone(),
-            vertices: self.vertices.clone(),
+            planes: roomy(&self.planes),
+            triangles: roomy(&self.triangles),
+            neighbors: roomy(&self.neighbors),
+            vertices: roomy(&self.vertices),
             max_dist2: self.max_dist2,
-            scratch: Scratch::default(),
         }
     }
 
@@ -82,12 +116,14 @@ impl Clone for PolyhedronCell {
     }
 }
 
-/// Scratch of [`PolyhedronCell::for_each_polygon`].
+/// Spare capacity of a cloned cell's arrays, so that its first clips do not reallocate.
+const CLONE_HEADROOM: usize = 32;
+
+/// Scratch of [`PolyhedronCell::for_each_ring`].
 #[derive(Default)]
 struct WalkBuffers {
-    walk: Vec<(u16, u16, u16, u32)>,
-    starts: Vec<u32>,
-    polygon: Vec<[f64; 3]>,
+    first: Vec<u32>,
+    ring: Vec<u32>,
 }
 
 thread_local! {
@@ -107,107 +143,110 @@ impl PolyhedronCell {
     /// counter-clockwise seen from outside, relative to the site. Vertices where more than
     /// three planes meet appear once per triangle, so a polygon may repeat a point.
     pub fn for_each_polygon(&self, mut f: impl FnMut(Face, &[[f64; 3]])) {
-        // Per-thread buffers: a cell is walked once per boundary piece. A nested walk (from
-        // inside `f`) finds them taken and uses fresh ones.
+        let mut polygon = Vec::new();
+        self.for_each_ring(|face, ring| {
+            polygon.clear();
+            polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
+            f(face, &polygon);
+        });
+    }
+
+    /// [`PolyhedronCell::walk_faces`] with per-thread buffers: every cell of every diagram
+    /// is walked. A nested walk (from inside `f`) finds them taken and uses fresh ones.
+    fn for_each_ring(&self, mut f: impl FnMut(Face, &[u32])) {
         WALK_BUFFERS.with(|cell| {
             let mut fresh = WalkBuffers::default();
             let mut taken = cell.try_borrow_mut();
-            let buffers = match taken.as_deref_mut() {
+            let b = match taken.as_deref_mut() {
                 Ok(b) => b,
                 Err(_) => &mut fresh,
             };
-            self.face_walk(&mut buffers.walk, &mut buffers.starts);
-            self.walk_faces(&buffers.walk, &mut buffers.polygon, |plane, poly| {
-                f(self.planes[plane as usize].face, poly)
+            self.walk_faces(&mut b.first, &mut b.ring, |plane, ring| {
+                f(self.planes[plane as usize].face, ring);
             });
         });
+    }
+
+    /// Moments of the cone from the site over the face with vertices `ring`, fanned from
+    /// its first vertex `v_0`, and the face's area.
+    ///
+    /// Each fan triangle `(v_0, a, b)` needs one cross product `c = (a - v_0) × (b - v_0)`:
+    /// `c / 2` is its vector area and `v_0 · c = det[v_0 a b]` six times its cone's volume.
+    /// With `s = v_0 + a + b` the cone's second moment is `mass (|s|² + |v_0|² + |a|² +
+    /// |b|²) / 20`, the sum of the six products `u · w` of `tetra_moments` rewritten.
+    fn fan(&self, ring: &[u32]) -> (Moments<3>, f64) {
+        let v = |k: usize| self.vertices[ring[k] as usize];
+        let v0 = v(0);
+        let n0 = norm2(v0);
+        let (mut a, mut na) = (v(1), norm2(v(1)));
+        let mut m = Moments::zero();
+        let mut area = [0.0; 3];
+        for k in 2..ring.len() {
+            let b = v(k);
+            let nb = norm2(b);
+            let c = cross(sub(a, v0), sub(b, v0));
+            area = add(area, c);
+            let mass = dot(v0, c) / 6.0;
+            let s = add(add(v0, a), b);
+            m.mass += mass;
+            m.first = add(m.first, scale(s, mass / 4.0));
+            m.second += mass * (norm2(s) + n0 + na + nb) / 20.0;
+            (a, na) = (b, nb);
+        }
+        (m, 0.5 * norm2(area).sqrt())
     }
 
     /// The closed, outward boundary triangulation of the cell: every face fanned from its
     /// first vertex, as indices into [`PolyhedronCell::vertices`], appended to `out`.
     pub fn boundary_triangles(&self, out: &mut Vec<[u32; 3]>) {
-        let (mut walk, mut starts) = (Vec::new(), Vec::new());
-        self.face_walk(&mut walk, &mut starts);
-        let mut start = 0;
-        let mut ring = Vec::new();
-        while start < walk.len() {
-            let end = start
-                + walk[start..]
-                    .iter()
-                    .take_while(|e| e.0 == walk[start].0)
-                    .count();
-            Self::walk_one_face(&walk[start..end], &mut ring);
-            for k in 1..ring.len().saturating_sub(1) {
+        let (mut first, mut ring) = (Vec::new(), Vec::new());
+        self.walk_faces(&mut first, &mut ring, |_, ring| {
+            for k in 1..ring.len() - 1 {
                 out.push([ring[0], ring[k], ring[k + 1]]);
             }
-            start = end;
-        }
+        });
     }
 
-    /// The triangles (vertex indices) around one face, in counter-clockwise order.
-    fn walk_one_face(face: &[(u16, u16, u16, u32)], ring: &mut Vec<u32>) {
-        ring.clear();
-        let mut at = 0;
-        for _ in 0..face.len() {
-            ring.push(face[at].3);
-            let next = face[at].2;
-            match face.iter().position(|e| e.1 == next) {
-                Some(k) if k != 0 => at = k,
-                _ => break,
-            }
-        }
-    }
-
-    /// Entries `(plane p, q, r, t)` for every triangle `t = (p, q, r)` rotated to start at
-    /// each of its planes, sorted by `p`: around face `p`, vertex `t` leads from the edge
-    /// with `q` to the edge with `r`.
-    fn face_walk(&self, walk: &mut Vec<(u16, u16, u16, u32)>, starts: &mut Vec<u32>) {
-        // Counting sort by plane; triangles are visited in order, so ties stay by triangle.
-        starts.clear();
-        starts.resize(self.planes.len() + 1, 0);
-        for tri in &self.triangles {
-            for &p in tri {
-                starts[p as usize + 1] += 1;
-            }
-        }
-        for p in 0..self.planes.len() {
-            starts[p + 1] += starts[p];
-        }
-        walk.clear();
-        walk.resize(3 * self.triangles.len(), (0, 0, 0, 0));
-        for (t, &[a, b, c]) in self.triangles.iter().enumerate() {
-            for entry in [(a, b, c), (b, c, a), (c, a, b)] {
-                let at = &mut starts[entry.0 as usize];
-                walk[*at as usize] = (entry.0, entry.1, entry.2, t as u32);
-                *at += 1;
-            }
-        }
-    }
-
-    /// Walk each face's vertices in order (counter-clockwise from outside) and hand them to
-    /// `f(plane, polygon)`. From vertex `(p, q, r)` the next vertex of face `p` is the one
-    /// with triangle `(p, r, s)`: the two share the edge between faces `p` and `r`.
+    /// Walk each face in plane order and hand `f(plane, ring)` its vertices (triangle
+    /// indices) counter-clockwise from outside, starting at the first triangle holding the
+    /// plane; faces with fewer than three vertices are skipped. From vertex `(p, q, r)` the
+    /// next vertex of face `p` is its neighbour across the edge `r -> p`, the triangle
+    /// `(p, r, s)`: the adjacency makes each step O(1), with no sorting or searching.
     fn walk_faces(
         &self,
-        walk: &[(u16, u16, u16, u32)],
-        polygon: &mut Vec<[f64; 3]>,
-        mut f: impl FnMut(u16, &[[f64; 3]]),
+        first: &mut Vec<u32>,
+        ring: &mut Vec<u32>,
+        mut f: impl FnMut(u16, &[u32]),
     ) {
-        let mut start = 0;
-        let mut ring = Vec::new();
-        while start < walk.len() {
-            let plane = walk[start].0;
-            let mut end = start;
-            while end < walk.len() && walk[end].0 == plane {
-                end += 1;
+        const NONE: u32 = u32::MAX;
+        first.clear();
+        first.resize(self.planes.len(), NONE);
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &p in tri {
+                if first[p as usize] == NONE {
+                    first[p as usize] = t as u32;
+                }
             }
-            Self::walk_one_face(&walk[start..end], &mut ring);
-            polygon.clear();
-            polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
-            if polygon.len() >= 3 {
-                f(plane, polygon);
+        }
+        for (p, &start) in first.iter().enumerate() {
+            if start == NONE {
+                continue;
             }
-            start = end;
+            ring.clear();
+            let mut at = start as usize;
+            // A consistent adjacency comes back to `start`; the bound only guards the loop.
+            for _ in 0..self.triangles.len() {
+                ring.push(at as u32);
+                let k = self.triangles[at].iter().position(|&x| x as usize == p);
+                let next = self.neighbors[at][(k.unwrap_or(0) + 2) % 3] as usize;
+                if next == start as usize || next >= self.triangles.len() {
+                    break;
+                }
+                at = next;
+            }
+            if ring.len() >= 3 {
+                f(p as u16, ring);
+            }
         }
     }
 
@@ -220,61 +259,75 @@ impl PolyhedronCell {
         add(inside, scale(sub(outside, inside), t))
     }
 
-    /// Index of the triangle holding the directed edge `a -> b`.
-    #[inline]
-    fn triangle_with_edge(&self, a: u16, b: u16) -> Option<usize> {
-        self.triangles
-            .iter()
-            .position(|&[x, y, z]| (x == a && y == b) || (y == a && z == b) || (z == a && x == b))
-    }
-
     /// One attempt of [`ConvexCell::clip`]: remove the vertices farther than `tol` beyond
     /// `h`. Returns `false`, changing nothing, when the removed region is not a disk.
     fn try_clip(&mut self, h: &HalfSpace<3>, face: Face, tol: f64) -> Option<bool> {
         let dist = |v: &[f64; 3]| dot(h.normal, *v) - h.offset;
-        let mut scratch = std::mem::take(&mut self.scratch);
-        scratch.outside.clear();
-        scratch
-            .outside
-            .extend(self.vertices.iter().map(|v| dist(v) > tol));
-        let removed = scratch.outside.iter().filter(|&&o| o).count();
-        let done = if removed == 0 {
-            Some(false)
-        } else if removed == self.triangles.len() {
+        // Most clips of a Voronoi cell change nothing: decide that in one branch-free pass
+        // (a plain comparison, cheaper than `f64::max`; a NaN distance removes nothing).
+        let farthest = self.vertices.iter().fold(f64::NEG_INFINITY, |m, v| {
+            let d = dist(v);
+            if d > m {
+                d
+            } else {
+                m
+            }
+        });
+        if farthest <= tol {
+            return Some(false);
+        }
+        SCRATCH.with(|cell| match cell.try_borrow_mut() {
+            Ok(mut scratch) => self.cut(h, face, tol, &mut scratch),
+            Err(_) => self.cut(h, face, tol, &mut Scratch::new()),
+        })
+    }
+
+    /// The part of [`PolyhedronCell::try_clip`] that changes the cell.
+    fn cut(
+        &mut self,
+        h: &HalfSpace<3>,
+        face: Face,
+        tol: f64,
+        scratch: &mut Scratch,
+    ) -> Option<bool> {
+        scratch.dist.clear();
+        scratch.free.clear();
+        scratch.tol = tol;
+        scratch.kept_dist2 = 0.0;
+        for (t, v) in self.vertices.iter().enumerate() {
+            let d = dot(h.normal, *v) - h.offset;
+            scratch.dist.push(d);
+            if d > tol {
+                scratch.free.push(t);
+            } else {
+                scratch.kept_dist2 = scratch.kept_dist2.max(norm2(*v));
+            }
+        }
+        if scratch.free.len() == self.triangles.len() {
             self.triangles.clear();
             self.neighbors.clear();
             self.vertices.clear();
             self.max_dist2 = 0.0;
-            Some(true)
-        } else {
-            self.find_rim(&mut scratch, &dist);
-            // The removed region of a convex cell is a disk: its rim is one simple cycle.
-            let ok = order_cycle(&mut scratch.rim);
-            if ok {
-                self.replace_by_rim(&scratch, h, face);
-            }
-            ok.then_some(true)
-        };
-        self.scratch = scratch;
-        done
+            return Some(true);
+        }
+        self.find_rim(scratch);
+        // The removed region of a convex cell is a disk: its rim is one simple cycle.
+        if !order_cycle(scratch, self.planes.len()) {
+            return None;
+        }
+        self.replace_by_rim(scratch, h, face);
+        Some(true)
     }
 
-    /// The rim of the removed region (directed edges of removed triangles whose
-    /// neighbour across is kept, each with the new vertex on it), and the removed slots.
-    fn find_rim(&self, scratch: &mut Scratch, dist: &impl Fn(&[f64; 3]) -> f64) {
+    /// The rim of the removed region `scratch.free` (directed edges of removed triangles
+    /// whose neighbour across is kept, each with the new vertex on it).
+    fn find_rim(&self, scratch: &mut Scratch) {
         scratch.rim.clear();
-        scratch.free.clear();
-        for t in 0..self.triangles.len() {
-            if !scratch.outside[t] {
-                continue;
-            }
-            scratch.free.push(t);
-        }
         for &t in &scratch.free {
             let tri = self.triangles[t];
             for k in 0..3 {
                 let s = self.neighbors[t][k] as usize;
-                if s >= self.triangles.len() || scratch.outside[s] {
+                if s >= self.triangles.len() || scratch.dist[s] > scratch.tol {
                     continue;
                 }
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
@@ -282,10 +335,11 @@ impl PolyhedronCell {
                     .find(|&j| self.neighbors[s][j] as usize == t)
                     .unwrap_or(0) as u8;
                 let (v_in, v_out) = (self.vertices[s], self.vertices[t]);
+                let (d_in, d_out) = (scratch.dist[s].min(0.0), scratch.dist[t]);
                 scratch.rim.push(RimEdge {
                     a,
                     b,
-                    vertex: Self::crossing(v_in, v_out, dist(&v_in).min(0.0), dist(&v_out)),
+                    vertex: Self::crossing(v_in, v_out, d_in, d_out),
                     kept: s as u32,
                     kept_edge,
                 });
@@ -304,15 +358,14 @@ impl PolyhedronCell {
         });
         // The rim is a cycle in order (`order_cycle`): new triangle k meets triangle k + 1
         // across its edge `b -> p` and triangle k - 1 across `p -> a`.
-        let n = scratch.rim.len();
+        let n = scratch.cycle.len();
         let first_new = self.triangles.len();
         let free = &scratch.free;
-        let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len());
-        for (k, e) in scratch.rim.iter().enumerate() {
+        let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len()) as u32;
+        let (mut prev, mut here) = (slot(n - 1), slot(0));
+        for (k, e) in scratch.cycle.iter().enumerate() {
             let tri = [e.a, e.b, p];
-            let here = slot(k) as u32;
-            let next = slot((k + 1) % n) as u32;
-            let prev = slot((k + n - 1) % n) as u32;
+            let next = if k + 1 < n { slot(k + 1) } else { slot(0) };
             let row = [e.kept, next, prev];
             if let Some(&at) = scratch.free.get(k) {
                 self.triangles[at] = tri;
@@ -324,6 +377,7 @@ impl PolyhedronCell {
                 self.vertices.push(e.vertex);
             }
             self.neighbors[e.kept as usize][e.kept_edge as usize] = here;
+            (prev, here) = (here, next);
         }
         // Descending order keeps the remaining indices valid under swap_remove; the
         // triangle moved into a freed slot tells its neighbours where it went.
@@ -345,7 +399,8 @@ impl PolyhedronCell {
                 }
             }
         }
-        self.max_dist2 = self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
+        self.max_dist2 =
+            (scratch.cycle.iter()).fold(scratch.kept_dist2, |m, e| m.max(norm2(e.vertex)));
     }
 }
 
@@ -380,25 +435,25 @@ impl ConvexCell<3> for PolyhedronCell {
                 if bit(2) == 1 { b.hi[2] } else { b.lo[2] },
             ]);
         }
+        // Edge k of corner c runs along the axis of neither of its planes, that of the
+        // third plane `tri[k + 2]`: its other end is the corner across that axis.
+        let mut neighbors = Vec::with_capacity(64);
+        neighbors.extend(
+            triangles
+                .iter()
+                .enumerate()
+                .map(|(c, tri): (usize, &[u16; 3])| {
+                    std::array::from_fn(|k| (c ^ (1 << (tri[(k + 2) % 3] / 2))) as u32)
+                }),
+        );
         let max_dist2 = vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
-        let mut cell = Self {
+        Self {
             planes,
             triangles,
-            neighbors: Vec::with_capacity(64),
+            neighbors,
             vertices,
             max_dist2,
-            scratch: Scratch::default(),
-        };
-        for t in 0..cell.triangles.len() {
-            let tri = cell.triangles[t];
-            let across = |k: usize| {
-                cell.triangle_with_edge(tri[(k + 1) % 3], tri[k])
-                    .map_or(u32::MAX, |s| s as u32)
-            };
-            let row = [across(0), across(1), across(2)];
-            cell.neighbors.push(row);
         }
-        cell
     }
 
     /// Remove the vertices strictly beyond `h`; a vertex exactly on it stays, so a plane
@@ -454,64 +509,60 @@ impl ConvexCell<3> for PolyhedronCell {
 
     /// Fan every face from its first vertex and cone the fan to the site.
     fn moments(&self) -> Moments<3> {
-        let mut m = Moments::zero();
-        self.for_each_polygon(|_, poly| m.add_scaled(&fan_moments(poly), 1.0));
-        m
+        self.moments_and_faces(|_, _| {})
     }
 
     fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
-        self.for_each_polygon(|face, poly| f(face, polygon_area(poly)));
+        self.for_each_ring(|face, ring| f(face, self.fan(ring).1));
     }
 
     fn moments_and_faces(&self, mut f: impl FnMut(Face, f64)) -> Moments<3> {
         let mut m = Moments::zero();
-        self.for_each_polygon(|face, poly| {
-            f(face, polygon_area(poly));
-            m.add_scaled(&fan_moments(poly), 1.0);
+        self.for_each_ring(|face, ring| {
+            let (cone, area) = self.fan(ring);
+            f(face, area);
+            m.add_scaled(&cone, 1.0);
         });
         m
     }
 }
 
-/// Put the rim edges `a -> b` in cycle order, each starting where the previous ends;
-/// `false` unless they form one simple cycle through every edge (each plane starting one
-/// edge at most).
-fn order_cycle(rim: &mut [RimEdge]) -> bool {
-    if rim.is_empty() {
-        return false;
+/// Put the rim edges `a -> b` in cycle order into `scratch.cycle`, from the first one
+/// found, each starting where the previous ends; `false` unless they form one simple
+/// cycle through every edge (each plane starting one edge at most). Linear: the edge
+/// starting at each plane is looked up in `scratch.rim_from`, which it leaves cleared.
+fn order_cycle(scratch: &mut Scratch, planes: usize) -> bool {
+    let Scratch {
+        rim,
+        cycle,
+        rim_from,
+        ..
+    } = scratch;
+    cycle.clear();
+    if rim_from.len() < planes {
+        rim_from.resize(planes, NO_EDGE);
     }
-    let first = rim[0].a;
-    for k in 1..rim.len() {
-        let at = rim[k - 1].b;
-        if at == first {
-            return false; // closed before every edge was visited
+    let mut simple = !rim.is_empty();
+    for (i, e) in rim.iter().enumerate() {
+        let from = &mut rim_from[e.a as usize];
+        simple &= *from == NO_EDGE;
+        *from = i as u32;
+    }
+    let mut at = 0;
+    while simple {
+        cycle.push(rim[at]);
+        let next = rim_from[rim[at].b as usize];
+        if next == NO_EDGE || cycle.len() > rim.len() {
+            simple = false;
+        } else if next == 0 {
+            break;
         }
-        let mut starts = (k..rim.len()).filter(|&j| rim[j].a == at);
-        match (starts.next(), starts.next()) {
-            (Some(j), None) => rim.swap(k, j),
-            _ => return false,
-        }
+        at = next as usize;
     }
-    rim[rim.len() - 1].b == first && rim.iter().filter(|e| e.a == first).count() == 1
-}
-
-/// Moments about the origin of the cone from the origin over a face polygon, fanned from
-/// its first vertex.
-fn fan_moments(poly: &[[f64; 3]]) -> Moments<3> {
-    let mut m = Moments::zero();
-    for k in 1..poly.len().saturating_sub(1) {
-        m.add_scaled(&tetra_moments(poly[0], poly[k], poly[k + 1]), 1.0);
+    for e in rim.iter() {
+        rim_from[e.a as usize] = NO_EDGE;
     }
-    m
-}
-
-/// Area of a planar polygon in space, `|Σ (v_k - v_0) × (v_{k+1} - v_0)| / 2`.
-pub fn polygon_area(poly: &[[f64; 3]]) -> f64 {
-    let mut s = [0.0; 3];
-    for k in 1..poly.len().saturating_sub(1) {
-        s = add(s, cross(sub(poly[k], poly[0]), sub(poly[k + 1], poly[0])));
-    }
-    0.5 * norm2(s).sqrt()
+    simple && cycle.len() == rim.len()
 }
 
 #[inline]
@@ -526,6 +577,22 @@ fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Area of a planar polygon in space, `|Σ (v_k - v_0) × (v_{k+1} - v_0)| / 2`.
+    fn polygon_area(poly: &[[f64; 3]]) -> f64 {
+        let mut s = [0.0; 3];
+        for k in 1..poly.len().saturating_sub(1) {
+            s = add(s, cross(sub(poly[k], poly[0]), sub(poly[k + 1], poly[0])));
+        }
+        0.5 * norm2(s).sqrt()
+    }
+
+    /// Index of the triangle holding the directed edge `a -> b`.
+    fn triangle_with_edge(c: &PolyhedronCell, a: u16, b: u16) -> Option<usize> {
+        c.triangles
+            .iter()
+            .position(|&[x, y, z]| (x == a && y == b) || (y == a && z == b) || (z == a && x == b))
+    }
 
     fn cube(lo: f64, hi: f64) -> PolyhedronCell {
         PolyhedronCell::from_box(&Aabb {
@@ -691,7 +758,11 @@ mod tests {
             for k in 0..3 {
                 let s = c.neighbors[t][k] as usize;
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                assert_eq!(c.triangle_with_edge(b, a), Some(s), "triangle {t} edge {k}");
+                assert_eq!(
+                    triangle_with_edge(c, b, a),
+                    Some(s),
+                    "triangle {t} edge {k}"
+                );
                 assert!(c.neighbors[s].contains(&(t as u32)));
             }
         }
@@ -708,6 +779,7 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
+        assert_adjacency_consistent(&cube(-1.0, 1.0));
         for _ in 0..50 {
             let mut c = cube(-1.0, 1.0);
             let mut planes = Vec::new();

@@ -11,7 +11,7 @@ mod winding;
 use std::collections::HashMap;
 
 use crate::error::CoreError;
-use crate::geometry::{Aabb, Euclid, Space};
+use crate::geometry::{dot, sub, Aabb, Euclid, Space};
 use crate::moments::Moments;
 pub use bvh::Bvh;
 pub use winding::{generalized_winding_number, WindingNumber};
@@ -26,6 +26,8 @@ pub struct Boundary<const D: usize> {
     /// Per BVH node, the far-field summary of its simplices for the generalised winding
     /// number, built on first use.
     dipoles: std::sync::OnceLock<Vec<winding::Dipole<D>>>,
+    /// Whether the domain is convex (see [`Boundary::is_convex`]), decided on first use.
+    convex: std::sync::OnceLock<bool>,
 }
 
 /// A polygonal domain: segments `[a, b]` with the interior on their left.
@@ -73,6 +75,7 @@ where
             bvh,
             moments: Moments::zero(),
             dipoles: std::sync::OnceLock::new(),
+            convex: std::sync::OnceLock::new(),
         };
         boundary.moments = boundary.integrate_from(boundary.bvh.bounds().center());
         let moments = boundary.moments;
@@ -151,6 +154,65 @@ where
             total.add_scaled(&Euclid::cone_moments(&p), 1.0);
         }
         total
+    }
+}
+
+/// Most (simplex, vertex) side tests [`Boundary::is_convex`] spends before it answers
+/// `false`: the test is quadratic, and only a fast path depends on it.
+const CONVEXITY_BUDGET: usize = 1 << 24;
+
+impl<const D: usize> Boundary<D>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    /// The domain is a convex polytope bounded once by its simplices: the winding number
+    /// is 1 inside it, 0 outside, and it is the intersection of the inner half-spaces of
+    /// its simplices. Decided exactly on first use, and `false` for boundaries too large to
+    /// check within [`CONVEXITY_BUDGET`].
+    ///
+    /// Exact conditions: a point `c` (the vertex mean) with winding number 1 lies strictly
+    /// inside every simplex's hyperplane (so no simplex is degenerate), and no vertex lies
+    /// strictly outside one. Then every simplex lies on the boundary of the hull `K` of the
+    /// vertices with its normal pointing out of `K`, so the boundary is `m` times that of
+    /// `K`; `m` is the winding number at `c`, inside `K`.
+    pub fn is_convex(&self) -> bool {
+        *self.convex.get_or_init(|| self.check_convex())
+    }
+
+    fn check_convex(&self) -> bool {
+        if self.simplices.len().saturating_mul(self.vertices.len()) > CONVEXITY_BUDGET {
+            return false;
+        }
+        let n = self.vertices.len().max(1) as f64;
+        let c = self
+            .vertices
+            .iter()
+            .fold([0.0; D], |s, v| std::array::from_fn(|k| s[k] + v[k] / n));
+        if Euclid::winding_number(self, &c) != Some(1) {
+            return false;
+        }
+        (0..self.simplices.len() as u32).all(|t| {
+            let p = self.simplex(t);
+            let inside = inside_or_on(&p);
+            Euclid::side(&p, &c) < 0.0 && self.vertices.iter().all(inside)
+        })
+    }
+}
+
+/// Whether a point is not strictly outside the oriented hyperplane through `p`: a float
+/// test when it is clearly inside, the exact [`Space::side`] otherwise.
+fn inside_or_on<const D: usize>(p: &[[f64; D]; D]) -> impl Fn(&[f64; D]) -> bool + '_
+where
+    Euclid: Space<D>,
+{
+    let n = Euclid::normal(p);
+    let l1 = |v: [f64; D]| v.iter().map(|x| x.abs()).sum::<f64>();
+    // The normal's error is a few ulps of the product of the edges' lengths, and the dot
+    // product's a few more of that times |q - p_0|: 1e-10 of them is far beyond.
+    let scale = 1e-10 * p[1..].iter().map(|&v| l1(sub(v, p[0]))).product::<f64>();
+    move |q| {
+        let d = sub(*q, p[0]);
+        dot(n, d) < -scale * l1(d) || Euclid::side(p, q) <= 0.0
     }
 }
 
