@@ -45,8 +45,9 @@ pub fn voronoi_2d<'py>(
 }
 
 /// Clipped diagram of `sites` (n, 3) in the solid `domain`: a dict of arrays, row i =
-/// site i (see `hcvt.voronoi`). With `keep_cells`, also each site's unclipped convex cell
-/// as a closed outward triangle mesh: `cell_vertex_offsets` (n+1,), `cell_vertices` (m, 3)
+/// site i (see `hcvt.voronoi`). With `keep_cells`, also each site's convex cell from the
+/// core (the Voronoi cell in the domain's box, already cut to the domain for most boundary
+/// cells of a convex domain, see `clipped_diagram`) as a closed outward triangle mesh: `cell_vertex_offsets` (n+1,), `cell_vertices` (m, 3)
 /// absolute, `cell_face_offsets` (n+1,), `cell_faces` (f, 3) indices local to the cell.
 #[pyfunction]
 #[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false))]

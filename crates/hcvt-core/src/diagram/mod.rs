@@ -3,7 +3,8 @@
 //! Per site, independently and in parallel:
 //! 1. the convex Voronoi cell: the domain's bounding box clipped by the bisectors of the
 //!    nearest sites in order of distance, until the next site is farther than twice the
-//!    cell's radius (security radius);
+//!    cell's radius (security radius); in a convex domain a cell still open after a few
+//!    neighbours is cut by the boundary planes near it, and is then finished in step 1;
 //! 2. its intersection with the domain, integrated exactly through the identity
 //!    `1_Ω(x) = w(q) + Σ_T σ_T 1_K(q,T)(x)` for every `x` in the cell, where `q` is a point
 //!    of the cell (the site when possible), `K(q, T)` the part of the cone from `q`
@@ -60,7 +61,10 @@ struct CellOutput<const D: usize> {
 }
 
 /// The clipped Voronoi diagram of `sites` in `boundary`, and, if `keep_cells`, each site's
-/// unclipped convex cell (relative to its site) for pictures and export.
+/// convex cell from [`voronoi_cell`] (relative to its site) for pictures and export: the
+/// Voronoi cell in the domain's box, cut to a box around the domain's part for some cells
+/// of sites near the boundary, and in a convex domain already cut to the domain for
+/// cells that needed more than `PRECLIP_K` neighbours (most cells at its boundary).
 ///
 /// Errors name the first offending site in index order: non-finite coordinates, a site
 /// outside the domain (unless allowed), two coinciding sites.
@@ -115,12 +119,19 @@ where
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
     let order = morton_order(sites);
+    let convex = boundary.is_convex();
     let visited: Vec<CellResult<D, C>> = order
         .par_iter()
         .map_init(CellScratch::default, |scratch, &i| {
             let i = i as usize;
-            let cell = voronoi_cell::<D, C>(boundary, &index, sites, i, scratch)?;
-            let out = clip_by_domain(boundary, cell, sites[i], windings[i]);
+            let convex_inside = convex && windings[i] == Some(1);
+            let (cell, inside) =
+                voronoi_cell::<D, C>(boundary, &index, sites, i, convex_inside, scratch)?;
+            let out = if inside {
+                measure(cell)
+            } else {
+                clip_by_domain(boundary, cell, sites[i], windings[i])
+            };
             Ok((out, keep_cells.then(|| cell.clone())))
         })
         .collect();
@@ -197,21 +208,35 @@ const BOX_MARGIN: f64 = 1e-3;
 /// diagram than 16; 3D cells need about 31 neighbours, so 64 there.
 const LOCALISE_K: [usize; 4] = [16, 16, 16, 64];
 
+/// Neighbour count, per dimension, after which the cell of a site inside a convex domain
+/// that has not reached its security radius is cut by the domain's boundary planes near it
+/// ([`cut_by_boundary`]). A cell at the boundary otherwise reaches out to the corners of
+/// the starting box and never meets its security radius: in a ball of 5,000 sites it
+/// streamed 64 neighbours, then [`localise`] and [`validate_vertices`].
+const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
+
 /// The convex Voronoi cell of site `i` inside the domain's bounding box, relative to the
-/// site, exact wherever it meets the domain.
+/// site, exact wherever it meets the domain, and whether it already lies in the domain.
 ///
 /// A site near the boundary of a non-convex domain has a Voronoi cell reaching far into
 /// the empty part of the bounding box, and the security radius would pull in most sites.
 /// Only the cell's part inside the domain matters, so once `LOCALISE_K` neighbours did not
 /// suffice the cell is cut to a box that holds that part ([`localise`]) and finished by
 /// checking its vertices' nearest sites ([`validate_vertices`]).
+///
+/// With `convex_inside` (the domain is convex and the site strictly inside it), a cell
+/// still open after `PRECLIP_K` neighbours is instead cut by the nearby boundary planes:
+/// it then lies in the domain, its radius shrinks to the domain's scale there, and the
+/// security radius stays valid (a site beyond twice the radius of any region holding the
+/// cell cannot cut it). The cell returned is then the clipped cell itself, `true`.
 pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
     i: usize,
+    convex_inside: bool,
     scratch: &'a mut CellScratch<C>,
-) -> Result<&'a C, CoreError>
+) -> Result<(&'a C, bool), CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
@@ -226,6 +251,12 @@ where
     cell.reset_to_box(&start);
     let mut radius2 = cell.max_dist2();
     let localise_after = LOCALISE_K.get(D).copied().unwrap_or(64);
+    let preclip_after = if convex_inside {
+        PRECLIP_K.get(D).copied().unwrap_or(usize::MAX)
+    } else {
+        usize::MAX
+    };
+    let mut inside = false;
     let mut near = index.near(site, &mut scratch.near);
     let mut clipped = 0; // sites taken from the stream, the site itself included
     while let Some((j, _)) = near.next_within(4.0 * radius2) {
@@ -236,13 +267,18 @@ where
             }
         }
         clipped += 1;
-        if clipped == localise_after && clipped < sites.len() && !cell.is_empty() {
+        if clipped == preclip_after && clipped < sites.len() {
+            cut_by_boundary(boundary, cell, site, &mut scratch.candidates);
+            radius2 = cell.max_dist2();
+            inside = true;
+        }
+        if clipped == localise_after && clipped < sites.len() && !inside && !cell.is_empty() {
             localise(boundary, cell, site);
             validate_vertices(cell, index, sites, i)?;
-            return Ok(cell);
+            return Ok((cell, false));
         }
     }
-    Ok(cell)
+    Ok((cell, inside))
 }
 
 /// Buffers of [`voronoi_cell`], reused from cell to cell so that the common cell allocates
@@ -251,6 +287,7 @@ where
 pub struct CellScratch<C> {
     near: NearScratch,
     cell: Option<C>,
+    candidates: Vec<u32>,
 }
 
 impl<C> Default for CellScratch<C> {
@@ -258,6 +295,7 @@ impl<C> Default for CellScratch<C> {
         Self {
             near: NearScratch::default(),
             cell: None,
+            candidates: Vec::new(),
         }
     }
 }
@@ -515,8 +553,49 @@ fn clip_convex<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D>,
 {
-    // Nearest planes first: they cut away most of what lies outside, and the later clips
-    // then have fewer vertices to remove.
+    if candidates.is_empty() {
+        return measure(cell); // an interior cell: nothing to cut, and no copy to make
+    }
+    let mut clipped = cell.clone();
+    clip_by_planes(boundary, &mut clipped, site, candidates);
+    measure(&clipped)
+}
+
+/// [`clip_convex`]'s cut inside [`voronoi_cell`]: `cell` (relative to `site`, strictly
+/// inside the convex domain) clipped by the inner half-spaces of the boundary simplices
+/// whose boxes meet its box.
+///
+/// The cell then lies in the domain, and stays there as later bisectors cut it: any
+/// simplex meeting a later cell's box met this larger box, so its half-space was clipped
+/// by or already held the cell, [`clip_convex`]'s proof applies to every later cell, and
+/// its own cuts would change nothing: the cell is measured as it is.
+fn cut_by_boundary<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &mut C,
+    site: [f64; D],
+    candidates: &mut Vec<u32>,
+) where
+    Euclid: Space<D>,
+{
+    candidates.clear();
+    boundary_candidates(boundary, cell, site, candidates);
+    clip_by_planes(boundary, cell, site, candidates);
+}
+
+/// Clip `cell` (relative to `site`, strictly inside the convex domain) by the inner
+/// half-spaces of the simplices `candidates`, tagged `Face::Boundary`.
+///
+/// Nearest planes first: they cut away most of what lies outside, and the later clips
+/// then have fewer vertices to remove. A plane farther from the site than the cell's
+/// farthest vertex cannot cut it, and neither can any later one: stop there.
+fn clip_by_planes<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &mut C,
+    site: [f64; D],
+    candidates: &[u32],
+) where
+    Euclid: Space<D>,
+{
     let mut planes: Vec<(f64, u32, HalfSpace<D>)> = candidates
         .iter()
         .map(|&t| {
@@ -526,17 +605,18 @@ where
         })
         .collect();
     planes.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    let mut faces = FaceSums::default();
-    let moments = if planes.is_empty() {
-        // An interior cell: nothing to cut, and no copy to make.
-        cell.moments_and_faces(|f, m| faces.add(f, m))
-    } else {
-        let mut clipped = cell.clone();
-        for (_, t, h) in planes {
-            clipped.clip(&h, Face::Boundary(t));
+    for (distance, t, h) in planes {
+        if distance * distance > cell.max_dist2() {
+            break;
         }
-        clipped.moments_and_faces(|f, m| faces.add(f, m))
-    };
+        cell.clip(&h, Face::Boundary(t));
+    }
+}
+
+/// The moments and face measures of a cell that lies in the domain.
+fn measure<const D: usize, C: ConvexCell<D>>(cell: &C) -> CellOutput<D> {
+    let mut faces = FaceSums::default();
+    let moments = cell.moments_and_faces(|f, m| faces.add(f, m));
     CellOutput {
         moments,
         boundary_measure: faces.boundary,
@@ -740,5 +820,120 @@ impl<const D: usize> Diagram<D> {
     /// Energy gradient `∂E/∂x_i = 2 m_i (x_i - c_i) = -2 ∫(x - x_i)` (DESIGN §4), `L^(d+1)`.
     pub fn gradient(&self) -> Vec<[f64; D]> {
         self.moments.iter().map(|m| scale(m.first, -2.0)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::Solid;
+
+    /// An octahedron with half-axes 1.3, 0.7 and 1.1 (faces counter-clockwise from outside).
+    fn octahedron() -> Solid {
+        let axes = [1.3, 0.7, 1.1];
+        let vertices = (0..6)
+            .map(|v| {
+                std::array::from_fn(|k| {
+                    if k == v / 2 {
+                        axes[k] * (1 - 2 * (v % 2) as i32) as f64
+                    } else {
+                        0.0
+                    }
+                })
+            })
+            .collect();
+        let faces = (0..8u32)
+            .map(|s| {
+                let (x, y, z) = (s & 1, 2 + ((s >> 1) & 1), 4 + ((s >> 2) & 1));
+                if s.count_ones() % 2 == 0 {
+                    [x, y, z]
+                } else {
+                    [x, z, y]
+                }
+            })
+            .collect();
+        Solid::new(vertices, faces).unwrap()
+    }
+
+    /// `n` pseudo-random sites strictly inside `solid` (a 64-bit LCG, by rejection).
+    fn interior_sites(solid: &Solid, n: usize) -> Vec<[f64; 3]> {
+        let mut state = 7u64;
+        let mut rand = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let b = solid.bounds();
+        let mut sites = Vec::with_capacity(n);
+        while sites.len() < n {
+            let p = std::array::from_fn(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
+            if Euclid::winding_number(solid, &p) == Some(1) {
+                sites.push(p);
+            }
+        }
+        sites
+    }
+
+    /// Cutting boundary cells by the domain's planes inside `voronoi_cell` gives the cells
+    /// that `clip_convex` gives after it, to round-off, faces and their tags included.
+    #[test]
+    fn early_boundary_cut_matches_the_late_one() {
+        let cuboid = Solid::cuboid([0.0; 3], [1.0, 0.6, 0.8]).unwrap();
+        for solid in [cuboid, octahedron()] {
+            assert!(solid.is_convex());
+            let sites = interior_sites(&solid, 400);
+            let index = SiteIndex::new(&sites).unwrap();
+            let (mut late, mut early) = (CellScratch::default(), CellScratch::default());
+            let h = (solid.volume() / sites.len() as f64).cbrt();
+            let mut cut_early = 0;
+            for (i, &site) in sites.iter().enumerate() {
+                let (cell, inside) =
+                    voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, false, &mut late)
+                        .unwrap();
+                assert!(!inside);
+                let a = clip_by_domain(&solid, cell, site, Some(1));
+                let (cell, inside) =
+                    voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, true, &mut early)
+                        .unwrap();
+                let b = if inside {
+                    measure(cell)
+                } else {
+                    clip_by_domain(&solid, cell, site, Some(1))
+                };
+                cut_early += inside as usize;
+                let (ma, mb) = (&a.moments, &b.moments);
+                assert!((ma.mass - mb.mass).abs() <= 1e-12 * ma.mass, "cell {i}");
+                assert!(
+                    (ma.second - mb.second).abs() <= 1e-12 * ma.second,
+                    "cell {i}"
+                );
+                for k in 0..3 {
+                    assert!(
+                        (ma.first[k] - mb.first[k]).abs() <= 1e-12 * ma.mass * h,
+                        "cell {i}"
+                    );
+                }
+                let db = a.boundary_measure - b.boundary_measure;
+                assert!(db.abs() <= 1e-12 * h * h, "cell {i}: boundary {db:e}");
+                // Faces of more than round-off, with their measures.
+                let faces = |o: &CellOutput<3>| -> Vec<(u32, f64)> {
+                    o.neighbors
+                        .iter()
+                        .copied()
+                        .filter(|&(_, m)| m > 1e-12 * h * h)
+                        .collect()
+                };
+                let (fa, fb) = (faces(&a), faces(&b));
+                assert_eq!(fa.len(), fb.len(), "cell {i}");
+                for ((ja, ma), (jb, mb)) in fa.into_iter().zip(fb) {
+                    assert!(ja == jb && (ma - mb).abs() <= 1e-12 * h * h, "cell {i}");
+                }
+            }
+            assert!(
+                cut_early > 0 && cut_early < sites.len(),
+                "{cut_early} cells cut early"
+            );
+        }
     }
 }
