@@ -238,6 +238,9 @@ def test_ctrl_c_interrupts_a_long_run(threads):
     sites = random_inside(domain, 2000, seed=0)
     before = hcvt.get_num_threads()
     timer = threading.Timer(0.2, lambda: os.kill(os.getpid(), signal.SIGINT))
+    # Ctrl-C raises KeyboardInterrupt only under Python's default handler, whatever an
+    # earlier test (a dask cluster, a CLI run) may have installed.
+    handler = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         if threads is not None:
             hcvt.set_num_threads(threads)  # the loop then runs on a pool worker
@@ -248,6 +251,7 @@ def test_ctrl_c_interrupts_a_long_run(threads):
         assert time.perf_counter() - start < 2
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, handler)
         hcvt.set_num_threads(before)
 
 
