@@ -151,26 +151,7 @@ fn sums_over_cells_match_the_mesh_integrals() {
 /// The octahedron with half-axes 1.3, 0.7 and 1.1: convex, with no two faces coplanar and
 /// no face along an axis.
 fn octahedron() -> Solid {
-    let axes = [1.3, 0.7, 1.1];
-    let mut vertices = Vec::new();
-    for (k, &a) in axes.iter().enumerate() {
-        for sign in [1.0, -1.0] {
-            vertices.push(std::array::from_fn(|j| if j == k { sign * a } else { 0.0 }));
-        }
-    }
-    // Vertex 2k is +axis k, 2k + 1 is -axis k; the face of signs (sx, sy, sz) is
-    // counter-clockwise from outside in the order x, y, z when the signs multiply to +1.
-    let faces = (0..8u32)
-        .map(|s| {
-            let (x, y, z) = (s & 1, 2 + ((s >> 1) & 1), 4 + ((s >> 2) & 1));
-            if s.count_ones() % 2 == 0 {
-                [x, y, z]
-            } else {
-                [x, z, y]
-            }
-        })
-        .collect();
-    Solid::new(vertices, faces).unwrap()
+    Solid::octahedron([1.3, 0.7, 1.1]).unwrap()
 }
 
 /// The same boundary with one unused vertex far outside: no longer found convex, so its

@@ -828,33 +828,6 @@ mod tests {
     use super::*;
     use crate::domain::Solid;
 
-    /// An octahedron with half-axes 1.3, 0.7 and 1.1 (faces counter-clockwise from outside).
-    fn octahedron() -> Solid {
-        let axes = [1.3, 0.7, 1.1];
-        let vertices = (0..6)
-            .map(|v| {
-                std::array::from_fn(|k| {
-                    if k == v / 2 {
-                        axes[k] * (1 - 2 * (v % 2) as i32) as f64
-                    } else {
-                        0.0
-                    }
-                })
-            })
-            .collect();
-        let faces = (0..8u32)
-            .map(|s| {
-                let (x, y, z) = (s & 1, 2 + ((s >> 1) & 1), 4 + ((s >> 2) & 1));
-                if s.count_ones() % 2 == 0 {
-                    [x, y, z]
-                } else {
-                    [x, z, y]
-                }
-            })
-            .collect();
-        Solid::new(vertices, faces).unwrap()
-    }
-
     /// `n` pseudo-random sites strictly inside `solid` (a 64-bit LCG, by rejection).
     fn interior_sites(solid: &Solid, n: usize) -> Vec<[f64; 3]> {
         let mut state = 7u64;
@@ -880,7 +853,7 @@ mod tests {
     #[test]
     fn early_boundary_cut_matches_the_late_one() {
         let cuboid = Solid::cuboid([0.0; 3], [1.0, 0.6, 0.8]).unwrap();
-        for solid in [cuboid, octahedron()] {
+        for solid in [cuboid, Solid::octahedron([1.3, 0.7, 1.1]).unwrap()] {
             assert!(solid.is_convex());
             let sites = interior_sites(&solid, 400);
             let index = SiteIndex::new(&sites).unwrap();

@@ -285,6 +285,35 @@ impl Solid {
         Self::new(vertices, triangles)
     }
 
+    /// The octahedron with vertices `±half_axes[k]` on axis `k`, as 8 outward triangles.
+    pub fn octahedron(half_axes: [f64; 3]) -> Result<Self, CoreError> {
+        // Vertex 2k is +axis k, 2k + 1 is -axis k; the face of signs (sx, sy, sz) is
+        // counter-clockwise from outside in the order x, y, z when the signs multiply to +1.
+        let vertices = (0..6)
+            .map(|v: usize| {
+                std::array::from_fn(|k| {
+                    let sign = if v % 2 == 0 { 1.0 } else { -1.0 };
+                    if k == v / 2 {
+                        sign * half_axes[k]
+                    } else {
+                        0.0
+                    }
+                })
+            })
+            .collect();
+        let faces = (0..8u32)
+            .map(|s| {
+                let (x, y, z) = (s & 1, 2 + ((s >> 1) & 1), 4 + ((s >> 2) & 1));
+                if s.count_ones() % 2 == 0 {
+                    [x, y, z]
+                } else {
+                    [x, z, y]
+                }
+            })
+            .collect();
+        Self::new(vertices, faces)
+    }
+
     /// Pairs `(s, t)`, `s < t`, of triangles sharing no vertex whose interiors cross: an
     /// edge of one passes strictly through the inside of the other (exact `orient3d`).
     /// Touching and coplanar contacts are not reported. At most `max` pairs, in index
