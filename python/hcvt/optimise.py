@@ -31,7 +31,7 @@ from hcvt import _core
 from hcvt.diagram import Diagram, as_sites
 from hcvt.domain import Domain
 
-METHODS = ("lbfgs", "lloyd")
+METHODS = ("lbfgs", "lloyd", "newton")
 
 
 @dataclass

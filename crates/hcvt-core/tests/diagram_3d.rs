@@ -2,7 +2,7 @@
 //! domain's own integrals on the real meshes of `../shared/data/3d`.
 
 mod common;
-use common::interior_sites;
+use common::{dented_cube, interior_sites};
 
 use std::path::PathBuf;
 
@@ -204,17 +204,7 @@ fn doubly_covered_and_dented_solids_are_not_convex() {
     assert!(!Solid::new(solid.vertices().to_vec(), twice)
         .unwrap()
         .is_convex());
-    // The cube with its top face (z = 1, vertices 4..8) pushed in to a point below it.
-    let mut vertices = solid.vertices().to_vec();
-    vertices.push([0.5, 0.5, 0.8]);
-    let mut faces: Vec<[u32; 3]> = solid
-        .simplices()
-        .iter()
-        .copied()
-        .filter(|t| !t.iter().all(|&v| v >= 4))
-        .collect();
-    faces.extend([[4, 5, 8], [5, 7, 8], [7, 6, 8], [6, 4, 8]]);
-    let dented = Solid::new(vertices, faces).unwrap();
+    let dented = dented_cube();
     assert!((dented.volume() - (1.0 - 0.2 / 3.0)).abs() < 1e-15);
     assert!(!dented.is_convex());
 }

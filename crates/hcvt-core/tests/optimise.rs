@@ -2,7 +2,7 @@
 //! points, convergence in a non-convex polygon, reseeding of empty cells.
 
 mod common;
-use common::interior_sites;
+use common::{dented_cube, interior_sites};
 
 use std::ops::ControlFlow;
 
@@ -10,7 +10,9 @@ use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Boundary, Polygon, Solid, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
 use hcvt_core::optimise::lloyd::reseed_empty;
-use hcvt_core::optimise::{cvt, evaluate, Method, Point, Settings, Step, StopReason};
+use hcvt_core::optimise::{
+    cvt, evaluate, evaluate_with, Method, Point, Settings, Step, StopReason,
+};
 
 /// Closed rings as one polygon: outer rings counter-clockwise, holes clockwise.
 fn polygon(rings: &[&[[f64; 2]]]) -> Polygon {
@@ -88,6 +90,58 @@ fn gradient_matches_central_differences() {
     let cube = cuboid([0.0, -1.0, 0.5], [2.0, 1.0, 1.5]);
     let err = gradient_error::<3, PolyhedronCell>(&cube, interior_sites(&cube, 40, 2));
     assert!(err < 1e-6, "3D: relative error {err:e}");
+}
+
+/// Relative error of central differences of the gradient along a random direction
+/// against the exact Hessian product.
+fn hessian_error<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+) -> f64
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
+    let with_hessian = Options {
+        hessian: true,
+        ..Options::default()
+    };
+    let point = evaluate_with::<D, C>(boundary, sites.clone(), with_hessian).unwrap();
+    // A direction from the sites' own digits: deterministic, in every coordinate.
+    let v: Vec<[f64; D]> = sites
+        .iter()
+        .map(|s| s.map(|x| ((x * 1e4).sin() * 1e-6 * h)))
+        .collect();
+    let gradient_at = |t: f64| {
+        let moved: Vec<[f64; D]> = sites
+            .iter()
+            .zip(&v)
+            .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
+            .collect();
+        evaluate::<D, C>(boundary, moved).unwrap().gradient
+    };
+    let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
+    let exact = point.diagram.hessian_product(&v).unwrap();
+    let (mut err2, mut norm2) = (0.0, 0.0);
+    for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
+        for k in 0..D {
+            err2 += ((p[k] - m[k]) / 2.0 - e[k]).powi(2);
+            norm2 += e[k].powi(2);
+        }
+    }
+    (err2 / norm2).sqrt()
+}
+
+#[test]
+fn hessian_matches_central_differences_of_the_gradient() {
+    let l = l_shape();
+    let err = hessian_error::<2, PolygonCell>(&l, interior_sites(&l, 60, 1));
+    assert!(err < 1e-6, "2D: relative error {err:e}");
+    let dented = dented_cube();
+    let err = hessian_error::<3, PolyhedronCell>(&dented, interior_sites(&dented, 60, 2));
+    assert!(err < 1e-6, "3D: relative error {err:e}");
+    let without = evaluate::<2, PolygonCell>(&l, interior_sites(&l, 10, 1)).unwrap();
+    assert!(without.diagram.hessian_product(&[[0.0; 2]; 10]).is_none());
 }
 
 fn settings(method: Method, tol: f64, max_iter: usize) -> Settings {
@@ -206,6 +260,7 @@ fn empty_cells_are_reseeded_deterministically_inside() {
     sites[7] = [3.5, 3.5]; // outside the L, in its missing corner: an empty cell
     let options = Options {
         allow_outside: true,
+        ..Options::default()
     };
     let (diagram, _) = clipped_diagram::<2, PolygonCell>(&l, &sites, options, false).unwrap();
     assert_eq!(diagram.moments[7].mass, 0.0);

@@ -115,7 +115,7 @@ proptest! {
             sites.push(sites[0]);
         }
         let measure = b.diagonal().powi(2);
-        let options = Options { allow_outside: true };
+        let options = Options { allow_outside: true, ..Options::default() };
         let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
         if duplicate {
             let is_duplicate_error = matches!(result, Err(CoreError::DuplicateSites { .. }));
@@ -136,7 +136,7 @@ proptest! {
         if let Ok(domain) = ring(vertices) {
             let b = domain.bounds();
             let measure = (b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]);
-            let options = Options { allow_outside: true };
+            let options = Options { allow_outside: true, ..Options::default() };
             let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
             // Self-intersecting rings are the front end's to refuse: only no panic here.
             let _ = (result, measure);
@@ -165,7 +165,7 @@ proptest! {
         if outside {
             sites.push([2.5, 0.5, 0.5]);
         }
-        let options = Options { allow_outside: true };
+        let options = Options { allow_outside: true, ..Options::default() };
         let result = clipped_diagram::<3, PolyhedronCell>(&solid, &sites, options, false);
         check(result.map(|r| r.0), 2.0, 6.0f64.powf(1.5))?;
     }

@@ -66,9 +66,10 @@ fn settings(method: &str, tol: f64, max_iter: usize, memory: usize) -> PyResult<
     let method = match method {
         "lbfgs" => Method::Lbfgs,
         "lloyd" => Method::Lloyd,
+        "newton" => Method::Newton,
         other => {
             return Err(PyValueError::new_err(format!(
-                "method must be 'lbfgs' or 'lloyd', got {other:?}"
+                "method must be 'lbfgs', 'lloyd' or 'newton', got {other:?}"
             )))
         }
     };

@@ -1,7 +1,7 @@
 //! What a convex Voronoi cell must offer the dimension-generic clipping (DESIGN §3).
 
 use crate::geometry::{Aabb, HalfSpace};
-use crate::moments::Moments;
+use crate::moments::{FaceMoments, Moments};
 
 /// What made a face of a convex cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -62,4 +62,8 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
         self.for_each_face(f);
         self.moments()
     }
+
+    /// Call `f(face, moments)` for every face, with the face's moments about the site: the
+    /// integrals behind the Hessian ([`crate::optimise::newton`]).
+    fn for_each_face_moments(&self, f: impl FnMut(Face, FaceMoments<D>));
 }

@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{dot, norm2, scale, sub, Aabb, Euclid, HalfSpace, Space};
-use crate::moments::Moments;
+use crate::moments::{FaceMoments, Moments};
 pub use convex_cell::{ConvexCell, Face};
 pub use knn::{NearScratch, NearSites, SiteIndex};
 pub use polygon_cell::PolygonCell;
@@ -33,6 +33,8 @@ pub struct Options {
     /// Accept sites outside the domain. The cell of such a site is the part of its Voronoi
     /// cell that lies inside the domain: possibly empty, and not containing its site.
     pub allow_outside: bool,
+    /// Also compute the Hessian of the CVT energy ([`Hessian`]).
+    pub hessian: bool,
 }
 
 /// The clipped diagram: row `i` of every array is site `i`.
@@ -48,6 +50,24 @@ pub struct Diagram<const D: usize> {
     pub neighbor_sites: Vec<u32>,
     /// Measure of each shared face inside the domain (length in 2D, area in 3D).
     pub neighbor_measures: Vec<f64>,
+    /// The Hessian of the energy, when [`Options::hessian`] asked for it.
+    pub hessian: Option<Hessian<D>>,
+}
+
+/// The Hessian of the CVT energy `E(X) = Σ_i ∫_{Ω_i} |x − x_i|²`, exact, in `D × D` blocks.
+///
+/// With `F_ij` the face shared by cells `i` and `j` inside the domain, `d_ij = |x_j − x_i|`
+/// and `y = x − x_i` (Liu et al. 2009, §3; the domain boundary does not move, so only the
+/// faces between cells contribute):
+/// `H_ij = (2/d_ij) ∫_{F_ij} (x − x_i)(x − x_j)ᵀ` and
+/// `H_ii = 2 m_i I − Σ_j (2/d_ij) ∫_{F_ij} (x − x_i)(x − x_i)ᵀ`.
+/// Row `i` is computed by cell `i` alone, so `H_ij` and `H_jiᵀ` agree to round-off.
+#[derive(Debug, Clone, Default)]
+pub struct Hessian<const D: usize> {
+    /// `H_ii`, `L^d`.
+    pub diagonal: Vec<[[f64; D]; D]>,
+    /// `H_ij` for each entry of [`Diagram::neighbor_sites`], `L^d`.
+    pub off_diagonal: Vec<[[f64; D]; D]>,
 }
 
 /// A cell's outcome: its results and, when kept, its convex cell.
@@ -58,6 +78,50 @@ struct CellOutput<const D: usize> {
     moments: Moments<D>,
     boundary_measure: f64,
     neighbors: Vec<(u32, f64)>,
+    /// With the Hessian: the moments of each face in `neighbors`, about the site.
+    face_moments: Vec<FaceMoments<D>>,
+}
+
+impl<const D: usize> CellOutput<D> {
+    fn empty() -> Self {
+        Self {
+            moments: Moments::zero(),
+            boundary_measure: 0.0,
+            neighbors: Vec::new(),
+            face_moments: Vec::new(),
+        }
+    }
+
+    fn new(moments: Moments<D>, faces: FaceSums<D>) -> Self {
+        let boundary_measure = faces.boundary;
+        let (neighbors, face_moments) = faces.into_neighbors();
+        Self {
+            moments,
+            boundary_measure,
+            neighbors,
+            face_moments,
+        }
+    }
+
+    /// Row `i` of the [`Hessian`]: `H_ii` and `H_ij` for each neighbour.
+    fn hessian_row(&self, sites: &[[f64; D]], i: usize) -> ([[f64; D]; D], Vec<[[f64; D]; D]>) {
+        let mut diagonal: [[f64; D]; D] = std::array::from_fn(|r| {
+            std::array::from_fn(|c| if r == c { 2.0 * self.moments.mass } else { 0.0 })
+        });
+        let mut off = Vec::with_capacity(self.neighbors.len());
+        for (&(j, _), f) in self.neighbors.iter().zip(&self.face_moments) {
+            let q = sub(sites[j as usize], sites[i]);
+            let w = 2.0 / norm2(q).sqrt();
+            // ∫ y (y − q)ᵀ = S2 − S1 qᵀ, y = x − x_i.
+            off.push(std::array::from_fn(|r| {
+                std::array::from_fn(|c| w * (f.second[r][c] - f.first[r] * q[c]))
+            }));
+            for (row, s2) in diagonal.iter_mut().zip(&f.second) {
+                *row = sub(*row, scale(*s2, w));
+            }
+        }
+        (diagonal, off)
+    }
 }
 
 /// The clipped Voronoi diagram of `sites` in `boundary`, and, if `keep_cells`, each site's
@@ -127,10 +191,11 @@ where
             let convex_inside = convex && windings[i] == Some(1);
             let (cell, inside) =
                 voronoi_cell::<D, C>(boundary, &index, sites, i, convex_inside, scratch)?;
+            let hessian = options.hessian;
             let out = if inside {
-                measure(cell)
+                measure(cell, hessian)
             } else {
-                clip_by_domain(boundary, cell, sites[i], windings[i])
+                clip_by_domain(boundary, cell, sites[i], windings[i], hessian)
             };
             Ok((out, keep_cells.then(|| cell.clone())))
         })
@@ -146,9 +211,15 @@ where
         ..Diagram::default()
     };
     let mut cells = Vec::new();
+    let mut hessian = options.hessian.then(Hessian::default);
     diagram.neighbor_offsets.push(0);
-    for result in results.into_iter().flatten() {
+    for (i, result) in results.into_iter().flatten().enumerate() {
         let (out, cell) = result?;
+        if let Some(h) = hessian.as_mut() {
+            let (diagonal, off) = out.hessian_row(sites, i);
+            h.diagonal.push(diagonal);
+            h.off_diagonal.extend(off);
+        }
         diagram.moments.push(out.moments);
         diagram.boundary_measure.push(out.boundary_measure);
         for (j, measure) in out.neighbors {
@@ -158,6 +229,7 @@ where
         diagram.neighbor_offsets.push(diagram.neighbor_sites.len());
         cells.extend(cell);
     }
+    diagram.hessian = hessian;
     Ok((diagram, cells))
 }
 
@@ -447,29 +519,26 @@ fn clip_by_domain<const D: usize, C: ConvexCell<D>>(
     cell: &C,
     site: [f64; D],
     site_winding: Option<i32>,
+    hessian: bool,
 ) -> CellOutput<D>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    let mut faces = FaceSums::default();
+    let mut faces = FaceSums::new(hessian);
     let mut total = Moments::zero();
     if cell.is_empty() {
-        return CellOutput {
-            moments: total,
-            boundary_measure: 0.0,
-            neighbors: Vec::new(),
-        };
+        return CellOutput::empty();
     }
     let mut candidates = Vec::new();
     boundary_candidates(boundary, cell, site, &mut candidates);
     if site_winding == Some(1) && boundary.is_convex() {
-        return clip_convex(boundary, cell, site, &candidates);
+        return clip_convex(boundary, cell, site, &candidates, hessian);
     }
     let (apex, winding) = choose_apex(boundary, cell, site, site_winding, &candidates);
     // Σ |mass| of the signed terms: what their round-off scales with.
     let mut gross = 0.0;
     if winding != 0 {
-        let m = cell.moments_and_faces(|f, m| faces.add(f, winding as f64 * m));
+        let m = faces.integrate(cell, winding as f64);
         total.add_scaled(&m, winding as f64);
         gross += (winding as f64 * m.mass).abs();
     }
@@ -511,7 +580,7 @@ where
         if piece.is_empty() {
             continue;
         }
-        let m = piece.moments_and_faces(|f, m| faces.add(f, sigma * m));
+        let m = faces.integrate(&piece, sigma);
         total.add_scaled(&m, sigma);
         gross += m.mass.abs();
     }
@@ -522,17 +591,9 @@ where
     let extent = cell.bounds();
     let box_measure: f64 = (0..D).map(|k| extent.hi[k] - extent.lo[k]).product();
     if total.mass.abs() <= EMPTY_REL * gross.max(box_measure) {
-        return CellOutput {
-            moments: Moments::zero(),
-            boundary_measure: 0.0,
-            neighbors: Vec::new(),
-        };
+        return CellOutput::empty();
     }
-    CellOutput {
-        moments: total,
-        boundary_measure: faces.boundary,
-        neighbors: faces.into_neighbors(),
-    }
+    CellOutput::new(total, faces)
 }
 
 /// [`clip_by_domain`] in a convex domain for a site strictly inside it: the cell clipped
@@ -549,16 +610,17 @@ fn clip_convex<const D: usize, C: ConvexCell<D>>(
     cell: &C,
     site: [f64; D],
     candidates: &[u32],
+    hessian: bool,
 ) -> CellOutput<D>
 where
     Euclid: Space<D>,
 {
     if candidates.is_empty() {
-        return measure(cell); // an interior cell: nothing to cut, and no copy to make
+        return measure(cell, hessian); // an interior cell: nothing to cut, and no copy to make
     }
     let mut clipped = cell.clone();
     clip_by_planes(boundary, &mut clipped, site, candidates);
-    measure(&clipped)
+    measure(&clipped, hessian)
 }
 
 /// [`clip_convex`]'s cut inside [`voronoi_cell`]: `cell` (relative to `site`, strictly
@@ -613,15 +675,12 @@ fn clip_by_planes<const D: usize, C: ConvexCell<D>>(
     }
 }
 
-/// The moments and face measures of a cell that lies in the domain.
-fn measure<const D: usize, C: ConvexCell<D>>(cell: &C) -> CellOutput<D> {
-    let mut faces = FaceSums::default();
-    let moments = cell.moments_and_faces(|f, m| faces.add(f, m));
-    CellOutput {
-        moments,
-        boundary_measure: faces.boundary,
-        neighbors: faces.into_neighbors(),
-    }
+/// The moments and face measures (and, for the Hessian, face moments) of a cell that lies
+/// in the domain.
+fn measure<const D: usize, C: ConvexCell<D>>(cell: &C, hessian: bool) -> CellOutput<D> {
+    let mut faces = FaceSums::new(hessian);
+    let moments = faces.integrate(cell, 1.0);
+    CellOutput::new(moments, faces)
 }
 
 /// The `D` side half-spaces of the cone from `apex` through the simplex `rel` (both
@@ -726,45 +785,94 @@ where
 }
 
 #[inline]
+fn mat_vec<const D: usize>(m: &[[f64; D]; D], v: [f64; D]) -> [f64; D] {
+    m.map(|row| dot(row, v))
+}
+
+#[inline]
 fn add_point<const D: usize>(a: [f64; D], b: [f64; D]) -> [f64; D] {
     std::array::from_fn(|k| a[k] + b[k])
 }
 
-/// Signed face measures of a cell, summed over its pieces.
-struct FaceSums {
+/// Signed face measures of a cell, summed over its pieces, and for the Hessian the face
+/// moments too.
+struct FaceSums<const D: usize> {
     neighbors: Vec<(u32, f64)>,
+    /// Parallel to `neighbors` when the Hessian is asked for, else empty.
+    face_moments: Vec<FaceMoments<D>>,
+    hessian: bool,
     boundary: f64,
 }
 
 /// Room for the neighbours of a typical cell (about 6 in 2D, 15.5 in 3D) in one allocation.
 const NEIGHBOR_CAPACITY: usize = 24;
 
-impl Default for FaceSums {
-    fn default() -> Self {
+impl<const D: usize> FaceSums<D> {
+    fn new(hessian: bool) -> Self {
         Self {
             neighbors: Vec::with_capacity(NEIGHBOR_CAPACITY),
+            face_moments: Vec::with_capacity(if hessian { NEIGHBOR_CAPACITY } else { 0 }),
+            hessian,
             boundary: 0.0,
         }
     }
-}
 
-impl FaceSums {
-    fn add(&mut self, face: Face, measure: f64) {
-        match face {
-            Face::Neighbor(j) => match self.neighbors.iter_mut().find(|(k, _)| *k == j) {
-                Some((_, m)) => *m += measure,
-                None => self.neighbors.push((j, measure)),
-            },
-            // Each piece's face on T is T ∩ C itself, whatever the piece's sign.
-            Face::Boundary(_) => self.boundary += measure.abs(),
-            Face::Box | Face::Cone => {}
+    /// Add the faces of `piece` with `sign`, and return its moments (not signed).
+    fn integrate<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) -> Moments<D> {
+        if self.hessian {
+            piece.for_each_face_moments(|f, m| self.add_moments(f, sign, &m));
+            piece.moments()
+        } else {
+            piece.moments_and_faces(|f, m| {
+                self.add(f, sign * m);
+            })
         }
     }
 
-    fn into_neighbors(mut self) -> Vec<(u32, f64)> {
-        self.neighbors.retain(|&(_, m)| m > 0.0);
-        self.neighbors.sort_unstable_by_key(|&(j, _)| j);
-        self.neighbors
+    /// Add a face's measure; the index of its neighbour's entry, if it has one.
+    fn add(&mut self, face: Face, measure: f64) -> Option<usize> {
+        match face {
+            Face::Neighbor(j) => Some(match self.neighbors.iter().position(|(k, _)| *k == j) {
+                Some(at) => {
+                    self.neighbors[at].1 += measure;
+                    at
+                }
+                None => {
+                    self.neighbors.push((j, measure));
+                    self.neighbors.len() - 1
+                }
+            }),
+            // Each piece's face on T is T ∩ C itself, whatever the piece's sign.
+            Face::Boundary(_) => {
+                self.boundary += measure.abs();
+                None
+            }
+            Face::Box | Face::Cone => None,
+        }
+    }
+
+    fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>) {
+        if let Some(at) = self.add(face, sign * m.measure) {
+            if at == self.face_moments.len() {
+                self.face_moments.push(FaceMoments::zero());
+            }
+            self.face_moments[at].add_scaled(m, sign);
+        }
+    }
+
+    /// The faces of positive measure sorted by neighbour, with their moments if kept.
+    fn into_neighbors(self) -> (Vec<(u32, f64)>, Vec<FaceMoments<D>>) {
+        let mut order: Vec<usize> = (0..self.neighbors.len())
+            .filter(|&k| self.neighbors[k].1 > 0.0)
+            .collect();
+        order.sort_unstable_by_key(|&k| self.neighbors[k].0);
+        let neighbors = order.iter().map(|&k| self.neighbors[k]).collect();
+        let moments = if self.hessian {
+            order.iter().map(|&k| self.face_moments[k]).collect()
+        } else {
+            Vec::new()
+        };
+        (neighbors, moments)
     }
 }
 
@@ -821,6 +929,22 @@ impl<const D: usize> Diagram<D> {
     pub fn gradient(&self) -> Vec<[f64; D]> {
         self.moments.iter().map(|m| scale(m.first, -2.0)).collect()
     }
+
+    /// The product `H v` of the energy's [`Hessian`] with `v` (one row per site), `None`
+    /// unless the diagram was computed with [`Options::hessian`]. Rows in parallel, each
+    /// summed in neighbour order: the result does not depend on the thread count.
+    pub fn hessian_product(&self, v: &[[f64; D]]) -> Option<Vec<[f64; D]>> {
+        let h = self.hessian.as_ref()?;
+        let row = |i: usize| -> [f64; D] {
+            let mut out = mat_vec(&h.diagonal[i], v[i]);
+            for e in self.neighbor_offsets[i]..self.neighbor_offsets[i + 1] {
+                let j = self.neighbor_sites[e] as usize;
+                out = add_point(out, mat_vec(&h.off_diagonal[e], v[j]));
+            }
+            out
+        };
+        Some((0..self.len()).into_par_iter().map(row).collect())
+    }
 }
 
 #[cfg(test)]
@@ -865,14 +989,14 @@ mod tests {
                     voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, false, &mut late)
                         .unwrap();
                 assert!(!inside);
-                let a = clip_by_domain(&solid, cell, site, Some(1));
+                let a = clip_by_domain(&solid, cell, site, Some(1), false);
                 let (cell, inside) =
                     voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, true, &mut early)
                         .unwrap();
                 let b = if inside {
-                    measure(cell)
+                    measure(cell, false)
                 } else {
-                    clip_by_domain(&solid, cell, site, Some(1))
+                    clip_by_domain(&solid, cell, site, Some(1), false)
                 };
                 cut_early += inside as usize;
                 let (ma, mb) = (&a.moments, &b.moments);

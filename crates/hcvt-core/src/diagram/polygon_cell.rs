@@ -2,7 +2,7 @@
 
 use super::convex_cell::{ConvexCell, Face};
 use crate::geometry::{dot, norm2, sub, Aabb, HalfSpace};
-use crate::moments::{triangle_moments, Moments};
+use crate::moments::{triangle_moments, FaceMoments, Moments};
 
 /// Convex polygon, counter-clockwise; edge `i` runs from vertex `i` to vertex `i + 1`.
 #[derive(Debug, Default)]
@@ -180,6 +180,18 @@ impl ConvexCell<2> for PolygonCell {
             f(
                 self.faces[i],
                 norm2(sub(self.vertices[j], self.vertices[i])).sqrt(),
+            );
+        }
+    }
+
+    fn for_each_face_moments(&self, mut f: impl FnMut(Face, FaceMoments<2>)) {
+        let n = self.vertices.len();
+        for i in 0..n {
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            let (a, b) = (self.vertices[i], self.vertices[j]);
+            f(
+                self.faces[i],
+                FaceMoments::simplex(&[a, b], norm2(sub(b, a)).sqrt()),
             );
         }
     }

@@ -9,7 +9,7 @@
 
 use super::convex_cell::{ConvexCell, Face};
 use crate::geometry::{add, dot, norm2, scale, sub, Aabb, HalfSpace};
-use crate::moments::Moments;
+use crate::moments::{FaceMoments, Moments};
 
 /// A plane of the cell, `normal · x <= offset`, and what made it. Vertices are computed
 /// once, when their triangle is made, never from the planes.
@@ -514,6 +514,22 @@ impl ConvexCell<3> for PolyhedronCell {
 
     fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
         self.for_each_ring(|face, ring| f(face, self.fan(ring).1));
+    }
+
+    fn for_each_face_moments(&self, mut f: impl FnMut(Face, FaceMoments<3>)) {
+        self.for_each_ring(|face, ring| {
+            let v0 = self.vertices[ring[0] as usize];
+            let mut sum = FaceMoments::zero();
+            for pair in ring[1..].windows(2) {
+                let (a, b) = (
+                    self.vertices[pair[0] as usize],
+                    self.vertices[pair[1] as usize],
+                );
+                let area = 0.5 * norm2(cross(sub(a, v0), sub(b, v0))).sqrt();
+                sum.add_scaled(&FaceMoments::simplex(&[v0, a, b], area), 1.0);
+            }
+            f(face, sum);
+        });
     }
 
     fn moments_and_faces(&self, mut f: impl FnMut(Face, f64)) -> Moments<3> {

@@ -142,6 +142,18 @@ pub fn moved<const D: usize>(x: &[[f64; D]], t: f64, p: &[[f64; D]]) -> Vec<[f64
     out
 }
 
+/// The preconditioner `1/(2 m_i)` of site `i`: the inverse of the energy's Hessian without
+/// its neighbour terms. A cell of zero mass is reseeded before we get here; the floor only
+/// keeps it finite.
+pub fn mass_preconditioner<const D: usize>(point: &Point<D>) -> Vec<f64> {
+    point
+        .diagram
+        .moments
+        .iter()
+        .map(|m| 0.5 / m.mass.max(f64::MIN_POSITIVE))
+        .collect()
+}
+
 /// One L-BFGS iteration from `point`: the direction, the line search, the memory update.
 ///
 /// `hold` shortens the moves of sites that the full step would take out of the domain
@@ -153,36 +165,19 @@ pub fn step<const D: usize>(
     memory: &mut Memory<D>,
     search: &LineSearch,
     hold: &dyn Fn(&mut [[f64; D]]),
-    eval: &mut dyn FnMut(Vec<[f64; D]>) -> Result<Option<Point<D>>, CoreError>,
+    eval: &mut Evaluator<'_, D>,
 ) -> Result<Option<Point<D>>, CoreError> {
-    // A cell of zero mass is reseeded before we get here; the floor only keeps H0 finite.
-    let preconditioner: Vec<f64> = point
-        .diagram
-        .moments
-        .iter()
-        .map(|m| 0.5 / m.mass.max(f64::MIN_POSITIVE))
-        .collect();
+    let preconditioner = mass_preconditioner(point);
     let mut direction = memory.direction(&point.gradient, &preconditioner);
     hold(&mut direction);
-    let mut slope = dot_rows(&point.gradient, &direction);
-    if !is_descent(slope) {
+    if !is_descent(dot_rows(&point.gradient, &direction)) {
         // Not a descent direction (stale curvature, or moves shortened at the boundary):
         // restart from H0 alone, whose moves all go downhill site by site.
         memory.clear();
         direction = memory.direction(&point.gradient, &preconditioner);
         hold(&mut direction);
-        slope = dot_rows(&point.gradient, &direction);
-        if !is_descent(slope) {
-            return Ok(None);
-        }
     }
-    let mut phi = |t: f64| -> Result<Option<(Point<D>, f64, f64)>, CoreError> {
-        Ok(eval(moved(&point.sites, t, &direction))?.map(|p| {
-            let (e, d) = (p.energy, dot_rows(&p.gradient, &direction));
-            (p, e, d)
-        }))
-    };
-    let Some(next) = search.search(point.energy, slope, &mut phi)? else {
+    let Some(next) = search_along(point, &direction, search, eval)? else {
         return Ok(None);
     };
     let s: Vec<[f64; D]> = next
@@ -199,6 +194,31 @@ pub fn step<const D: usize>(
         .collect();
     memory.push(s, y);
     Ok(Some(next))
+}
+
+/// Computes the diagram of some sites, or `None` when they are infeasible.
+pub type Evaluator<'a, const D: usize> =
+    dyn FnMut(Vec<[f64; D]>) -> Result<Option<Point<D>>, CoreError> + 'a;
+
+/// The line search along `direction` from `point`, starting at the step length 1: the
+/// accepted point, or `None` when `direction` does not descend or no step was found.
+pub fn search_along<const D: usize>(
+    point: &Point<D>,
+    direction: &[[f64; D]],
+    search: &LineSearch,
+    eval: &mut Evaluator<'_, D>,
+) -> Result<Option<Point<D>>, CoreError> {
+    let slope = dot_rows(&point.gradient, direction);
+    if !is_descent(slope) {
+        return Ok(None);
+    }
+    let mut phi = |t: f64| -> Result<Option<(Point<D>, f64, f64)>, CoreError> {
+        Ok(eval(moved(&point.sites, t, direction))?.map(|p| {
+            let (e, d) = (p.energy, dot_rows(&p.gradient, direction));
+            (p, e, d)
+        }))
+    };
+    search.search(point.energy, slope, &mut phi)
 }
 
 /// Parameters of the strong-Wolfe line search on `φ(t) = E(x + t p)`.

@@ -40,6 +40,7 @@
 
 pub mod lbfgs;
 pub mod lloyd;
+pub mod newton;
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -63,6 +64,8 @@ pub enum Method {
     Lbfgs,
     /// Lloyd's fixed-point iteration `x_i ← c_i`: one diagram per iteration.
     Lloyd,
+    /// Newton–CG with the exact Hessian and the same line search ([`newton`]).
+    Newton,
 }
 
 /// Parameters of [`cvt`].
@@ -123,17 +126,20 @@ pub enum Step {
     Lbfgs,
     /// A Lloyd step (the method, or the fallback of a failed line search).
     Lloyd,
+    /// A Newton–CG step with its line search.
+    Newton,
     /// Sites of empty cells were moved ([`lloyd::reseed_empty`]).
     Reseed,
 }
 
 impl Step {
-    /// `"start"`, `"lbfgs"`, `"lloyd"` or `"reseed"`.
+    /// `"start"`, `"lbfgs"`, `"lloyd"`, `"newton"` or `"reseed"`.
     pub fn as_str(self) -> &'static str {
         match self {
             Self::Start => "start",
             Self::Lbfgs => "lbfgs",
             Self::Lloyd => "lloyd",
+            Self::Newton => "newton",
             Self::Reseed => "reseed",
         }
     }
@@ -209,7 +215,19 @@ pub fn evaluate<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    let (diagram, _) = clipped_diagram::<D, C>(boundary, &sites, Options::default(), false)?;
+    evaluate_with::<D, C>(boundary, sites, Options::default())
+}
+
+/// [`evaluate`] with diagram `options` (the Hessian, for Newton).
+pub fn evaluate_with<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+    options: Options,
+) -> Result<Point<D>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let (diagram, _) = clipped_diagram::<D, C>(boundary, &sites, options, false)?;
     Ok(Point {
         energy: diagram.energy(),
         gradient: diagram.gradient(),
@@ -298,6 +316,8 @@ struct Tracker<const D: usize> {
     scale: Scale<D>,
     start: Instant,
     evaluations: usize,
+    /// Diagram options: the Hessian for Newton.
+    options: Options,
     history: Vec<Record>,
 }
 
@@ -311,7 +331,7 @@ impl<const D: usize> Tracker<D> {
         Euclid: Space<D> + WindingNumber<D>,
     {
         self.evaluations += 1;
-        evaluate::<D, C>(boundary, sites)
+        evaluate_with::<D, C>(boundary, sites, self.options)
     }
 
     fn record(&mut self, boundary: &Boundary<D>, point: &Point<D>, step: Step) -> Record
@@ -355,6 +375,10 @@ where
         scale: Scale::new(boundary, sites.len()),
         start: Instant::now(),
         evaluations: 0,
+        options: Options {
+            hessian: settings.method == Method::Newton,
+            ..Options::default()
+        },
         history: Vec::new(),
     };
     let mut point = tracker.evaluate::<C>(boundary, sites)?;
@@ -381,6 +405,7 @@ where
                 boundary,
                 &point,
                 settings.method,
+                record.grad_norm,
                 &mut memory,
                 &search,
                 &mut tracker,
@@ -403,6 +428,7 @@ fn iterate<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     point: &Point<D>,
     method: Method,
+    forcing: f64,
     memory: &mut Memory<D>,
     search: &LineSearch,
     tracker: &mut Tracker<D>,
@@ -410,15 +436,26 @@ fn iterate<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    if method == Method::Lbfgs {
+    if method != Method::Lloyd {
         let mut eval = |sites: Vec<[f64; D]>| match tracker.evaluate::<C>(boundary, sites) {
             Ok(p) => Ok(Some(p)),
             Err(CoreError::SiteOutsideDomain { .. } | CoreError::DuplicateSites { .. }) => Ok(None),
             Err(e) => Err(e),
         };
         let hold = |moves: &mut [[f64; D]]| lloyd::hold_inside(boundary, &point.sites, moves);
-        if let Some(next) = lbfgs::step(point, memory, search, &hold, &mut eval)? {
-            return Ok((next, Step::Lbfgs));
+        let next = if method == Method::Newton {
+            let forcing = forcing.min(0.5).sqrt().min(0.5);
+            let (mut direction, products) = newton::direction(point, forcing);
+            if std::env::var("HCVT_DEBUG").is_ok() {
+                eprintln!("forcing {forcing:.2e} products {products}");
+            }
+            hold(&mut direction);
+            lbfgs::search_along(point, &direction, search, &mut eval)?.map(|p| (p, Step::Newton))
+        } else {
+            lbfgs::step(point, memory, search, &hold, &mut eval)?.map(|p| (p, Step::Lbfgs))
+        };
+        if let Some(next) = next {
+            return Ok(next);
         }
         memory.clear();
     }
