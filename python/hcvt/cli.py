@@ -17,7 +17,7 @@ from typing import Any
 import click
 import numpy as np
 
-METHODS = ("hierarchical", "lbfgs", "lloyd", "monte-carlo", "voronoi")
+METHODS = ("hierarchical", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
 INITS = ("random", "halton", "hammersley", "lattice")
 
 

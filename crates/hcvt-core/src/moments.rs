@@ -306,10 +306,10 @@ mod tests {
                 }
             }
         }
-        for r in 0..3 {
-            for s in 0..3 {
-                assert!((second[r][s] - exact.second[r][s]).abs() < 1e-4, "{r}{s}");
-                assert_eq!(exact.second[r][s], exact.second[s][r]);
+        for (r, (row, exact_row)) in second.iter().zip(&exact.second).enumerate() {
+            for (s, (value, expected)) in row.iter().zip(exact_row).enumerate() {
+                assert!((value - expected).abs() < 1e-4, "{r}{s}");
+                assert_eq!(*expected, exact.second[s][r]);
             }
         }
     }

@@ -110,7 +110,7 @@ where
     // A direction from the sites' own digits: deterministic, in every coordinate.
     let v: Vec<[f64; D]> = sites
         .iter()
-        .map(|s| s.map(|x| ((x * 1e4).sin() * 1e-6 * h)))
+        .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
         .collect();
     let gradient_at = |t: f64| {
         let moved: Vec<[f64; D]> = sites
@@ -190,7 +190,7 @@ fn lattices_are_fixed_points() {
     let squares = grid([6, 4], [-1., 2.], [5., 6.]);
     let cube = cuboid([0.5, -1.0, 2.0], [2.5, 1.0, 3.5]);
     let cubes = grid([4, 4, 3], [0.5, -1.0, 2.0], [2.5, 1.0, 3.5]);
-    for method in [Method::Lbfgs, Method::Lloyd] {
+    for method in [Method::Lbfgs, Method::Lloyd, Method::Newton] {
         // tol = 0: every iteration runs, on gradients that are round-off.
         let s = settings(method, 0.0, 4);
         let out = run::<2, PolygonCell>(&rectangle, squares.clone(), &s);
@@ -281,4 +281,44 @@ fn empty_cells_are_reseeded_deterministically_inside() {
     assert!((0..20).filter(|&i| i != 7).all(|i| reseeded[i] == sites[i]));
     let out = run::<2, PolygonCell>(&l, reseeded, &settings(Method::Lbfgs, 1e-8, 500));
     assert_eq!(out.stop_reason, StopReason::Converged);
+}
+
+/// Newton from `sites` reaches the rule with fewer diagrams than L-BFGS, its sites stay
+/// in the domain and its energy never rises beyond round-off.
+fn newton_beats_lbfgs<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+) where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let newton = run::<D, C>(
+        boundary,
+        sites.clone(),
+        &settings(Method::Newton, 1e-10, 2000),
+    );
+    let lbfgs = run::<D, C>(boundary, sites, &settings(Method::Lbfgs, 1e-10, 2000));
+    assert_eq!(newton.stop_reason, StopReason::Converged, "{D}D");
+    assert!(newton.history.last().unwrap().gap < 1e-3, "{D}D");
+    assert!(
+        newton.evaluations() < lbfgs.evaluations(),
+        "{D}D: Newton {} diagrams, L-BFGS {}",
+        newton.evaluations(),
+        lbfgs.evaluations()
+    );
+    assert!(newton.history[1..].iter().all(|r| r.step == Step::Newton));
+    assert!(newton
+        .sites
+        .iter()
+        .all(|p| Euclid::winding_number(boundary, p) != Some(0)));
+    for pair in newton.history.windows(2) {
+        assert!(pair[1].energy <= pair[0].energy * (1.0 + 1e-12), "{D}D");
+    }
+}
+
+#[test]
+fn newton_converges_in_non_convex_domains_with_fewer_diagrams_than_lbfgs() {
+    let l = l_shape();
+    newton_beats_lbfgs::<2, PolygonCell>(&l, interior_sites(&l, 150, 4));
+    let dented = dented_cube();
+    newton_beats_lbfgs::<3, PolyhedronCell>(&dented, interior_sites(&dented, 150, 4));
 }

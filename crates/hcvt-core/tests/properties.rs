@@ -211,6 +211,7 @@ fn site_within_round_off_of_a_face_regression() {
     };
     let options = Options {
         allow_outside: true,
+        ..Options::default()
     };
     for t in [0u32, 1, 199, 500, 1000] {
         let tri = solid.simplex(t);
@@ -244,6 +245,7 @@ fn cell_touching_the_domain_at_a_point_is_empty_regression() {
     }
     let options = Options {
         allow_outside: true,
+        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     for (i, m) in d.moments.iter().enumerate() {
@@ -273,6 +275,7 @@ fn apex_nudged_along_the_boundary_regression() {
     ];
     let options = Options {
         allow_outside: true,
+        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
@@ -288,6 +291,7 @@ fn site_far_outside_is_refused_regression() {
     let domain = ring(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]).unwrap();
     let options = Options {
         allow_outside: true,
+        ..Options::default()
     };
     let far = clipped_diagram::<2, PolygonCell>(&domain, &[[1e10, 0.5]], options, false);
     assert!(matches!(
@@ -323,6 +327,7 @@ fn degenerate_cell_edge_excludes_nothing_regression() {
     let sites = [[1.5, -1.55], [2.0, -1.55], [1.5, -1.1], [2.0, -1.1]];
     let options = Options {
         allow_outside: true,
+        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();

@@ -22,7 +22,10 @@ pub fn voronoi_2d<'py>(
     keep_cells: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 2>(&sites, "sites")?;
-    let options = Options { allow_outside, ..Options::default() };
+    let options = Options {
+        allow_outside,
+        ..Options::default()
+    };
     let (diagram, cells) = py
         .detach(|| {
             crate::threads::run(|| {
@@ -59,7 +62,10 @@ pub fn voronoi_3d<'py>(
     keep_cells: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 3>(&sites, "sites")?;
-    let options = Options { allow_outside, ..Options::default() };
+    let options = Options {
+        allow_outside,
+        ..Options::default()
+    };
     let (diagram, cells) = py
         .detach(|| {
             crate::threads::run(|| {

@@ -127,7 +127,7 @@ fn is_descent(slope: f64) -> bool {
 pub type LineFunction<'a, T> = dyn FnMut(f64) -> Result<Option<(T, f64, f64)>, CoreError> + 'a;
 
 /// `a += t · b`, row by row.
-fn axpy<const D: usize>(a: &mut [[f64; D]], t: f64, b: &[[f64; D]]) {
+pub fn axpy<const D: usize>(a: &mut [[f64; D]], t: f64, b: &[[f64; D]]) {
     for (x, y) in a.iter_mut().zip(b) {
         for k in 0..D {
             x[k] += t * y[k];

@@ -50,6 +50,7 @@ use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
 use lbfgs::{LineSearch, Memory};
+use newton::TrustRegion;
 
 /// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the
 /// energy (translating the domain and 2,000 random sites changed `E` by at most 2.4e-14
@@ -382,8 +383,12 @@ where
         history: Vec::new(),
     };
     let mut point = tracker.evaluate::<C>(boundary, sites)?;
-    let mut memory = Memory::new(settings.memory);
-    let search = LineSearch::new(settings.max_line_evaluations);
+    let mut solver = Solver {
+        method: settings.method,
+        memory: Memory::new(settings.memory),
+        region: TrustRegion::default(),
+        search: LineSearch::new(settings.max_line_evaluations),
+    };
     let mut record = tracker.record(boundary, &point, Step::Start);
     let stop = loop {
         if observer(&record, &point.sites).is_break() {
@@ -398,16 +403,14 @@ where
         let h = tracker.scale.h;
         let (next, step) = match lloyd::reseed_empty(boundary, &point, h) {
             Some(sites) => {
-                memory.clear();
+                solver.memory.clear();
                 (tracker.evaluate::<C>(boundary, sites)?, Step::Reseed)
             }
             None => iterate::<D, C>(
                 boundary,
                 &point,
-                settings.method,
+                &mut solver,
                 record.grad_norm,
-                &mut memory,
-                &search,
                 &mut tracker,
             )?,
         };
@@ -422,42 +425,55 @@ where
     })
 }
 
-/// One iteration of `method` from `point`: an L-BFGS step, or a Lloyd step when that is
-/// the method or when the line search found no step (module docs, "Round-off").
+/// The method and what it keeps from step to step.
+struct Solver<const D: usize> {
+    method: Method,
+    memory: Memory<D>,
+    region: TrustRegion,
+    search: LineSearch,
+}
+
+/// One iteration of the solver's method from `point`: an L-BFGS or Newton step, or a Lloyd
+/// step when that is the method or when no step was found (module docs, "Round-off").
+/// `grad_norm` is the stopping rule's value at `point`.
 fn iterate<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     point: &Point<D>,
-    method: Method,
-    forcing: f64,
-    memory: &mut Memory<D>,
-    search: &LineSearch,
+    solver: &mut Solver<D>,
+    grad_norm: f64,
     tracker: &mut Tracker<D>,
 ) -> Result<(Point<D>, Step), CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    if method != Method::Lloyd {
+    if solver.method != Method::Lloyd {
         let mut eval = |sites: Vec<[f64; D]>| match tracker.evaluate::<C>(boundary, sites) {
             Ok(p) => Ok(Some(p)),
             Err(CoreError::SiteOutsideDomain { .. } | CoreError::DuplicateSites { .. }) => Ok(None),
             Err(e) => Err(e),
         };
         let hold = |moves: &mut [[f64; D]]| lloyd::hold_inside(boundary, &point.sites, moves);
-        let next = if method == Method::Newton {
-            let forcing = forcing.min(0.5).sqrt().min(0.5);
-            let (mut direction, products) = newton::direction(point, forcing);
-            if std::env::var("HCVT_DEBUG").is_ok() {
-                eprintln!("forcing {forcing:.2e} products {products}");
-            }
-            hold(&mut direction);
-            lbfgs::search_along(point, &direction, search, &mut eval)?.map(|p| (p, Step::Newton))
+        let next = if solver.method == Method::Newton {
+            let forcing = grad_norm.sqrt().min(0.5);
+            let trials = solver.search.max_evaluations;
+            let (next, _products) = newton::step(
+                point,
+                &mut solver.region,
+                forcing,
+                trials,
+                ENERGY_NOISE,
+                &hold,
+                &mut eval,
+            )?;
+            next.map(|p| (p, Step::Newton))
         } else {
-            lbfgs::step(point, memory, search, &hold, &mut eval)?.map(|p| (p, Step::Lbfgs))
+            lbfgs::step(point, &mut solver.memory, &solver.search, &hold, &mut eval)?
+                .map(|p| (p, Step::Lbfgs))
         };
         if let Some(next) = next {
             return Ok(next);
         }
-        memory.clear();
+        solver.memory.clear();
     }
     let sites = lloyd::lloyd_sites(boundary, point);
     Ok((tracker.evaluate::<C>(boundary, sites)?, Step::Lloyd))
