@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -319,6 +320,7 @@ def hierarchical_cvt(
     tol: float = 1e-10,
     max_iter: int = 10_000,
     edges: str = "restricted",
+    method: str = "lbfgs",
     callback: Any = None,
 ) -> HierarchicalResult:
     """Regular CVT of exactly ``n`` sites by the hierarchical method of the paper (§4).
@@ -338,9 +340,11 @@ def hierarchical_cvt(
     tol : float
         The paper's stopping rule ``‖g‖/‖X‖ < tol`` at every level.
     max_iter : int
-        L-BFGS iterations per level at most.
+        Iterations per level at most.
     edges : {"restricted", "delaunay"}
         Which Delaunay edges are subdivided (see :func:`subdivide`).
+    method : {"lbfgs", "newton", "lloyd"}
+        The optimiser of every level (:func:`hcvt.cvt`); the paper's is L-BFGS.
     callback : callable, optional
         Called with each finished :class:`Level`.
 
@@ -364,7 +368,8 @@ def hierarchical_cvt(
 
     start = time.perf_counter()
     sites = initialise(domain, plan.k0, method=init, seed=seed)
-    level = _optimise_level(cvt, domain, sites, len(sites), 0, tol, max_iter, start)
+    optimise = partial(cvt, method=method, tol=tol, max_iter=max_iter)
+    level = _optimise_level(optimise, domain, sites, len(sites), 0, start)
     result.levels.append(level)
     if callback is not None:
         callback(level)
@@ -377,7 +382,7 @@ def hierarchical_cvt(
             midpoints = trim(previous.diagram, midpoints, pairs, k - target)
         sites = np.vstack([previous.sites, midpoints])
         sites = top_up(domain, sites, target, rng)
-        level = _optimise_level(cvt, domain, sites, k, target - k, tol, max_iter, start)
+        level = _optimise_level(optimise, domain, sites, k, target - k, start)
         result.levels.append(level)
         if callback is not None:
             callback(level)
@@ -385,16 +390,14 @@ def hierarchical_cvt(
 
 
 def _optimise_level(
-    cvt: Any,
+    optimise: Any,
     domain: Domain,
     sites: NDArray[np.float64],
     subdivided: int,
     added: int,
-    tol: float,
-    max_iter: int,
     start: float,
 ) -> Level:
-    res = cvt(domain, sites, method="lbfgs", tol=tol, max_iter=max_iter)
+    res = optimise(domain, sites)
     return Level(
         sites=res.sites,
         diagram=res.diagram,

@@ -1,5 +1,6 @@
 //! Time CVTs of uniform random sites, for profiling the optimisation loop.
-//! `cargo run --release --example cvt_profile -- square 1000` (or `star 2000`).
+//! `cargo run --release --example cvt_profile -- square 1000 [lbfgs|newton|lloyd]` (or
+//! `star 2000`).
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -7,12 +8,21 @@ use std::time::Instant;
 use hcvt_core::diagram::PolygonCell;
 use hcvt_core::domain::{Polygon, WindingNumber};
 use hcvt_core::geometry::Euclid;
-use hcvt_core::optimise::{cvt, Settings};
+use hcvt_core::optimise::{cvt, Method, Settings};
 
 fn main() -> Result<(), hcvt_core::CoreError> {
     let mut args = std::env::args().skip(1);
     let shape = args.next().unwrap_or_else(|| "square".into());
     let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(1000);
+    let method = match args.next().as_deref() {
+        Some("newton") => Method::Newton,
+        Some("lloyd") => Method::Lloyd,
+        _ => Method::Lbfgs,
+    };
+    let settings = Settings {
+        method,
+        ..Settings::default()
+    };
     let ring: Vec<[f64; 2]> = if shape == "star" {
         // The paper's five-branch star (hcvt.shapes.star), area about 117.5.
         let inner = 18f64.to_radians().sin() / 126f64.to_radians().sin();
@@ -44,7 +54,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
         }
     }
     let t = Instant::now();
-    let out = cvt::<2, PolygonCell>(&domain, sites, &Settings::default(), &mut |_, _| {
+    let out = cvt::<2, PolygonCell>(&domain, sites, &settings, &mut |_, _| {
         ControlFlow::Continue(())
     })?;
     let seconds = t.elapsed().as_secs_f64();

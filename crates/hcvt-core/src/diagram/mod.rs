@@ -78,8 +78,9 @@ struct CellOutput<const D: usize> {
     moments: Moments<D>,
     boundary_measure: f64,
     neighbors: Vec<(u32, f64)>,
-    /// With the Hessian: the moments of each face in `neighbors`, about the site.
-    face_moments: Vec<FaceMoments<D>>,
+    /// With the Hessian: `H_ii`, and `H_ij` for each face in `neighbors`.
+    hessian_diagonal: [[f64; D]; D],
+    hessian_blocks: Vec<[[f64; D]; D]>,
 }
 
 impl<const D: usize> CellOutput<D> {
@@ -88,40 +89,37 @@ impl<const D: usize> CellOutput<D> {
             moments: Moments::zero(),
             boundary_measure: 0.0,
             neighbors: Vec::new(),
-            face_moments: Vec::new(),
+            hessian_diagonal: [[0.0; D]; D],
+            hessian_blocks: Vec::new(),
         }
     }
 
-    fn new(moments: Moments<D>, faces: FaceSums<D>) -> Self {
+    fn new(moments: Moments<D>, faces: FaceSums<'_, D>) -> Self {
+        // H_ii = 2 m_i I − Σ_j (2/d_ij) ∫_{F_ij} y yᵀ.
+        let hessian_diagonal = std::array::from_fn(|r| {
+            std::array::from_fn(|c| {
+                let mass = if r == c { 2.0 * moments.mass } else { 0.0 };
+                mass - faces.face_second[r][c]
+            })
+        });
         let boundary_measure = faces.boundary;
-        let (neighbors, face_moments) = faces.into_neighbors();
+        let (neighbors, hessian_blocks) = faces.into_neighbors();
         Self {
             moments,
             boundary_measure,
             neighbors,
-            face_moments,
+            hessian_diagonal,
+            hessian_blocks,
         }
     }
+}
 
-    /// Row `i` of the [`Hessian`]: `H_ii` and `H_ij` for each neighbour.
-    fn hessian_row(&self, sites: &[[f64; D]], i: usize) -> ([[f64; D]; D], Vec<[[f64; D]; D]>) {
-        let mut diagonal: [[f64; D]; D] = std::array::from_fn(|r| {
-            std::array::from_fn(|c| if r == c { 2.0 * self.moments.mass } else { 0.0 })
-        });
-        let mut off = Vec::with_capacity(self.neighbors.len());
-        for (&(j, _), f) in self.neighbors.iter().zip(&self.face_moments) {
-            let q = sub(sites[j as usize], sites[i]);
-            let w = 2.0 / norm2(q).sqrt();
-            // ∫ y (y − q)ᵀ = S2 − S1 qᵀ, y = x − x_i.
-            off.push(std::array::from_fn(|r| {
-                std::array::from_fn(|c| w * (f.second[r][c] - f.first[r] * q[c]))
-            }));
-            for (row, s2) in diagonal.iter_mut().zip(&f.second) {
-                *row = sub(*row, scale(*s2, w));
-            }
-        }
-        (diagonal, off)
-    }
+/// What a cell's row of the [`Hessian`] needs besides its faces: every site, and which one
+/// is the cell's.
+#[derive(Debug, Clone, Copy)]
+struct HessianRow<'a, const D: usize> {
+    sites: &'a [[f64; D]],
+    site: usize,
 }
 
 /// The clipped Voronoi diagram of `sites` in `boundary`, and, if `keep_cells`, each site's
@@ -191,7 +189,7 @@ where
             let convex_inside = convex && windings[i] == Some(1);
             let (cell, inside) =
                 voronoi_cell::<D, C>(boundary, &index, sites, i, convex_inside, scratch)?;
-            let hessian = options.hessian;
+            let hessian = options.hessian.then_some(HessianRow { sites, site: i });
             let out = if inside {
                 measure(cell, hessian)
             } else {
@@ -213,12 +211,11 @@ where
     let mut cells = Vec::new();
     let mut hessian = options.hessian.then(Hessian::default);
     diagram.neighbor_offsets.push(0);
-    for (i, result) in results.into_iter().flatten().enumerate() {
+    for result in results.into_iter().flatten() {
         let (out, cell) = result?;
         if let Some(h) = hessian.as_mut() {
-            let (diagonal, off) = out.hessian_row(sites, i);
-            h.diagonal.push(diagonal);
-            h.off_diagonal.extend(off);
+            h.diagonal.push(out.hessian_diagonal);
+            h.off_diagonal.extend(out.hessian_blocks);
         }
         diagram.moments.push(out.moments);
         diagram.boundary_measure.push(out.boundary_measure);
@@ -519,7 +516,7 @@ fn clip_by_domain<const D: usize, C: ConvexCell<D>>(
     cell: &C,
     site: [f64; D],
     site_winding: Option<i32>,
-    hessian: bool,
+    hessian: Option<HessianRow<'_, D>>,
 ) -> CellOutput<D>
 where
     Euclid: Space<D> + WindingNumber<D>,
@@ -610,7 +607,7 @@ fn clip_convex<const D: usize, C: ConvexCell<D>>(
     cell: &C,
     site: [f64; D],
     candidates: &[u32],
-    hessian: bool,
+    hessian: Option<HessianRow<'_, D>>,
 ) -> CellOutput<D>
 where
     Euclid: Space<D>,
@@ -677,7 +674,10 @@ fn clip_by_planes<const D: usize, C: ConvexCell<D>>(
 
 /// The moments and face measures (and, for the Hessian, face moments) of a cell that lies
 /// in the domain.
-fn measure<const D: usize, C: ConvexCell<D>>(cell: &C, hessian: bool) -> CellOutput<D> {
+fn measure<const D: usize, C: ConvexCell<D>>(
+    cell: &C,
+    hessian: Option<HessianRow<'_, D>>,
+) -> CellOutput<D> {
     let mut faces = FaceSums::new(hessian);
     let moments = faces.integrate(cell, 1.0);
     CellOutput::new(moments, faces)
@@ -794,24 +794,28 @@ fn add_point<const D: usize>(a: [f64; D], b: [f64; D]) -> [f64; D] {
     std::array::from_fn(|k| a[k] + b[k])
 }
 
-/// Signed face measures of a cell, summed over its pieces, and for the Hessian the face
-/// moments too.
-struct FaceSums<const D: usize> {
+/// Signed face measures of a cell, summed over its pieces, and for the Hessian the
+/// integrals over its faces.
+struct FaceSums<'a, const D: usize> {
     neighbors: Vec<(u32, f64)>,
-    /// Parallel to `neighbors` when the Hessian is asked for, else empty.
-    face_moments: Vec<FaceMoments<D>>,
-    hessian: bool,
+    /// With the Hessian: `H_ij = (2/d_ij) ∫_{F_ij} y (y − q_ij)ᵀ` (`y = x − x_i`,
+    /// `q_ij = x_j − x_i`) for each entry of `neighbors`; else empty.
+    blocks: Vec<[[f64; D]; D]>,
+    /// With the Hessian: `Σ_j (2/d_ij) ∫_{F_ij} y yᵀ`.
+    face_second: [[f64; D]; D],
+    hessian: Option<HessianRow<'a, D>>,
     boundary: f64,
 }
 
 /// Room for the neighbours of a typical cell (about 6 in 2D, 15.5 in 3D) in one allocation.
 const NEIGHBOR_CAPACITY: usize = 24;
 
-impl<const D: usize> FaceSums<D> {
-    fn new(hessian: bool) -> Self {
+impl<'a, const D: usize> FaceSums<'a, D> {
+    fn new(hessian: Option<HessianRow<'a, D>>) -> Self {
         Self {
             neighbors: Vec::with_capacity(NEIGHBOR_CAPACITY),
-            face_moments: Vec::with_capacity(if hessian { NEIGHBOR_CAPACITY } else { 0 }),
+            blocks: Vec::with_capacity(if hessian.is_some() { NEIGHBOR_CAPACITY } else { 0 }),
+            face_second: [[0.0; D]; D],
             hessian,
             boundary: 0.0,
         }
@@ -819,7 +823,7 @@ impl<const D: usize> FaceSums<D> {
 
     /// Add the faces of `piece` with `sign`, and return its moments (not signed).
     fn integrate<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) -> Moments<D> {
-        if self.hessian {
+        if self.hessian.is_some() {
             piece.for_each_face_moments(|f, m| self.add_moments(f, sign, &m));
             piece.moments()
         } else {
@@ -851,28 +855,54 @@ impl<const D: usize> FaceSums<D> {
         }
     }
 
+    /// Add a face with its moments `m` about the site, and its terms of the Hessian.
     fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>) {
-        if let Some(at) = self.add(face, sign * m.measure) {
-            if at == self.face_moments.len() {
-                self.face_moments.push(FaceMoments::zero());
+        let (Some(at), Some(row)) = (self.add(face, sign * m.measure), self.hessian) else {
+            return;
+        };
+        let j = self.neighbors[at].0 as usize;
+        let q = sub(row.sites[j], row.sites[row.site]);
+        let w = sign * 2.0 / norm2(q).sqrt();
+        if at == self.blocks.len() {
+            self.blocks.push([[0.0; D]; D]);
+        }
+        let block = &mut self.blocks[at];
+        for r in 0..D {
+            for c in 0..D {
+                block[r][c] += w * (m.second[r][c] - m.first[r] * q[c]);
+                self.face_second[r][c] += w * m.second[r][c];
             }
-            self.face_moments[at].add_scaled(m, sign);
         }
     }
 
-    /// The faces of positive measure sorted by neighbour, with their moments if kept.
-    fn into_neighbors(self) -> (Vec<(u32, f64)>, Vec<FaceMoments<D>>) {
-        let mut order: Vec<usize> = (0..self.neighbors.len())
-            .filter(|&k| self.neighbors[k].1 > 0.0)
-            .collect();
-        order.sort_unstable_by_key(|&k| self.neighbors[k].0);
-        let neighbors = order.iter().map(|&k| self.neighbors[k]).collect();
-        let moments = if self.hessian {
-            order.iter().map(|&k| self.face_moments[k]).collect()
-        } else {
-            Vec::new()
-        };
-        (neighbors, moments)
+    /// The faces of positive measure sorted by neighbour, with their Hessian blocks if
+    /// kept: filtered and sorted in place, both lists together.
+    fn into_neighbors(mut self) -> (Vec<(u32, f64)>, Vec<[[f64; D]; D]>) {
+        let paired = !self.blocks.is_empty();
+        let mut kept = 0;
+        for k in 0..self.neighbors.len() {
+            if self.neighbors[k].1 > 0.0 {
+                self.neighbors.swap(kept, k);
+                if paired {
+                    self.blocks.swap(kept, k);
+                }
+                kept += 1;
+            }
+        }
+        self.neighbors.truncate(kept);
+        self.blocks.truncate(kept);
+        // Insertion sort by neighbour: a dozen entries or so.
+        for k in 1..kept {
+            let mut at = k;
+            while at > 0 && self.neighbors[at - 1].0 > self.neighbors[at].0 {
+                self.neighbors.swap(at - 1, at);
+                if paired {
+                    self.blocks.swap(at - 1, at);
+                }
+                at -= 1;
+            }
+        }
+        (self.neighbors, self.blocks)
     }
 }
 
@@ -989,14 +1019,14 @@ mod tests {
                     voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, false, &mut late)
                         .unwrap();
                 assert!(!inside);
-                let a = clip_by_domain(&solid, cell, site, Some(1), false);
+                let a = clip_by_domain(&solid, cell, site, Some(1), None);
                 let (cell, inside) =
                     voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, true, &mut early)
                         .unwrap();
                 let b = if inside {
-                    measure(cell, false)
+                    measure(cell, None)
                 } else {
-                    clip_by_domain(&solid, cell, site, Some(1), false)
+                    clip_by_domain(&solid, cell, site, Some(1), None)
                 };
                 cut_early += inside as usize;
                 let (ma, mb) = (&a.moments, &b.moments);
