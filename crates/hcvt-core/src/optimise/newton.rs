@@ -94,24 +94,12 @@ pub fn step<const D: usize>(
             actual >= ACCEPT * model.decrease
         };
         let ratio = actual / model.decrease;
-        if std::env::var("HCVT_DEBUG").is_ok() {
-            eprintln!(
-                "radius {radius:.3e} len {length:.3e} edge {} products {} ratio {ratio:.3} pred {:.3e}",
-                model.at_edge, model.products, model.decrease
-            );
-        }
-        let knob = |name: &str, default: f64| {
-            std::env::var(name)
-                .ok()
-                .and_then(|v| v.parse().ok())
-                .unwrap_or(default)
-        };
-        if !accepted {
-            radius = knob("TR_REJECT", 0.25) * length;
-        } else if ratio < knob("TR_LOW", 0.25) {
-            radius = knob("TR_SHRINK", 0.25) * length;
-        } else if ratio > knob("TR_HIGH", 0.75) && model.at_edge {
-            radius *= knob("TR_GROW", 2.0);
+        // Nocedal and Wright's Algorithm 4.1. Gentler factors (shrink to 1/2, grow by 3)
+        // cost 10-45% more diagrams on 10,000 sites in the star.
+        if !accepted || ratio < 0.25 {
+            radius = 0.25 * length;
+        } else if ratio > 0.75 && model.at_edge {
+            radius *= 2.0;
         }
         if accepted {
             region.radius = Some(radius);
@@ -184,9 +172,6 @@ fn steihaug<const D: usize>(
         let inside =
             curvature > 0.0 && zz + 2.0 * alpha * zd + alpha * alpha * dd < radius * radius;
         if !inside {
-            if std::env::var("HCVT_DEBUG").is_ok() {
-                eprintln!("  cg stop: curvature {}", curvature > 0.0);
-            }
             // To the edge along d: the positive root of ‖z + τ d‖_M = radius.
             let tau = (-zd + (zd * zd + dd * (radius * radius - zz)).max(0.0).sqrt()) / dd;
             decrease -= tau * dot_rows(&d, &r) + 0.5 * tau * tau * curvature;
