@@ -9,6 +9,7 @@
 //! |-----------|-----------------------------------------------------------------------|
 //! | [`lbfgs`] | L-BFGS direction (memory 7, preconditioned by `1/(2 m_i)`) and its strong-Wolfe line search |
 //! | [`lloyd`] | Lloyd's `x_i ← c_i`, held inside the domain; reseeding of empty cells |
+//! | [`newton`] | Newton with the exact Hessian: truncated CG in a trust region (often 2–5× fewer diagrams) |
 //!
 //! **Stopping rule.** The paper stops at `‖g‖/‖X‖ < 1e-10` (§5.4, after Quinn et al.
 //! 2012). In raw coordinates that ratio grows as `L^d` with the domain's size and changes
