@@ -66,4 +66,10 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// Call `f(face, moments)` for every face, with the face's moments about the site: the
     /// integrals behind the Hessian ([`crate::optimise::newton`]).
     fn for_each_face_moments(&self, f: impl FnMut(Face, FaceMoments<D>));
+
+    /// [`ConvexCell::for_each_face_moments`] and [`ConvexCell::moments`] together.
+    fn moments_and_face_moments(&self, f: impl FnMut(Face, FaceMoments<D>)) -> Moments<D> {
+        self.for_each_face_moments(f);
+        self.moments()
+    }
 }

@@ -814,7 +814,11 @@ impl<'a, const D: usize> FaceSums<'a, D> {
     fn new(hessian: Option<HessianRow<'a, D>>) -> Self {
         Self {
             neighbors: Vec::with_capacity(NEIGHBOR_CAPACITY),
-            blocks: Vec::with_capacity(if hessian.is_some() { NEIGHBOR_CAPACITY } else { 0 }),
+            blocks: Vec::with_capacity(if hessian.is_some() {
+                NEIGHBOR_CAPACITY
+            } else {
+                0
+            }),
             face_second: [[0.0; D]; D],
             hessian,
             boundary: 0.0,
@@ -824,8 +828,7 @@ impl<'a, const D: usize> FaceSums<'a, D> {
     /// Add the faces of `piece` with `sign`, and return its moments (not signed).
     fn integrate<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) -> Moments<D> {
         if self.hessian.is_some() {
-            piece.for_each_face_moments(|f, m| self.add_moments(f, sign, &m));
-            piece.moments()
+            piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m))
         } else {
             piece.moments_and_faces(|f, m| {
                 self.add(f, sign * m);

@@ -184,7 +184,12 @@ impl ConvexCell<2> for PolygonCell {
         }
     }
 
-    fn for_each_face_moments(&self, mut f: impl FnMut(Face, FaceMoments<2>)) {
+    fn for_each_face_moments(&self, f: impl FnMut(Face, FaceMoments<2>)) {
+        let _ = self.moments_and_face_moments(f);
+    }
+
+    fn moments_and_face_moments(&self, mut f: impl FnMut(Face, FaceMoments<2>)) -> Moments<2> {
+        let mut m = Moments::zero();
         let n = self.vertices.len();
         for i in 0..n {
             let j = if i + 1 == n { 0 } else { i + 1 };
@@ -193,7 +198,9 @@ impl ConvexCell<2> for PolygonCell {
                 self.faces[i],
                 FaceMoments::simplex(&[a, b], norm2(sub(b, a)).sqrt()),
             );
+            m.add_scaled(&triangle_moments(a, b), 1.0);
         }
+        m
     }
 }
 

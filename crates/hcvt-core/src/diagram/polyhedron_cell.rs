@@ -196,6 +196,20 @@ impl PolyhedronCell {
         (m, 0.5 * norm2(area).sqrt())
     }
 
+    /// [`PolyhedronCell::fan`]'s cone moments with the face's own moments about the site
+    /// (for the Hessian), summed over the same fan triangles.
+    fn fan_moments(&self, ring: &[u32]) -> (Moments<3>, FaceMoments<3>) {
+        let v = |k: usize| self.vertices[ring[k] as usize];
+        let v0 = v(0);
+        let mut face = FaceMoments::zero();
+        for k in 2..ring.len() {
+            let (a, b) = (v(k - 1), v(k));
+            let area = 0.5 * norm2(cross(sub(a, v0), sub(b, v0))).sqrt();
+            face.add_scaled(&FaceMoments::simplex(&[v0, a, b], area), 1.0);
+        }
+        (self.fan(ring).0, face)
+    }
+
     /// The closed, outward boundary triangulation of the cell: every face fanned from its
     /// first vertex, as indices into [`PolyhedronCell::vertices`], appended to `out`.
     pub fn boundary_triangles(&self, out: &mut Vec<[u32; 3]>) {
@@ -516,20 +530,18 @@ impl ConvexCell<3> for PolyhedronCell {
         self.for_each_ring(|face, ring| f(face, self.fan(ring).1));
     }
 
-    fn for_each_face_moments(&self, mut f: impl FnMut(Face, FaceMoments<3>)) {
+    fn for_each_face_moments(&self, f: impl FnMut(Face, FaceMoments<3>)) {
+        let _ = self.moments_and_face_moments(f);
+    }
+
+    fn moments_and_face_moments(&self, mut f: impl FnMut(Face, FaceMoments<3>)) -> Moments<3> {
+        let mut m = Moments::zero();
         self.for_each_ring(|face, ring| {
-            let v0 = self.vertices[ring[0] as usize];
-            let mut sum = FaceMoments::zero();
-            for pair in ring[1..].windows(2) {
-                let (a, b) = (
-                    self.vertices[pair[0] as usize],
-                    self.vertices[pair[1] as usize],
-                );
-                let area = 0.5 * norm2(cross(sub(a, v0), sub(b, v0))).sqrt();
-                sum.add_scaled(&FaceMoments::simplex(&[v0, a, b], area), 1.0);
-            }
-            f(face, sum);
+            let (cone, moments) = self.fan_moments(ring);
+            f(face, moments);
+            m.add_scaled(&cone, 1.0);
         });
+        m
     }
 
     fn moments_and_faces(&self, mut f: impl FnMut(Face, f64)) -> Moments<3> {
