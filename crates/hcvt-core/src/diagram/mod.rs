@@ -65,10 +65,13 @@ pub struct Diagram<const D: usize> {
 #[derive(Debug, Clone, Default)]
 pub struct Hessian<const D: usize> {
     /// `H_ii`, `L^d`.
-    pub diagonal: Vec<[[f64; D]; D]>,
+    pub diagonal: Vec<Block<D>>,
     /// `H_ij` for each entry of [`Diagram::neighbor_sites`], `L^d`.
-    pub off_diagonal: Vec<[[f64; D]; D]>,
+    pub off_diagonal: Vec<Block<D>>,
 }
+
+/// A `D × D` block of the [`Hessian`], row-major.
+pub type Block<const D: usize> = [[f64; D]; D];
 
 /// A cell's outcome: its results and, when kept, its convex cell.
 type CellResult<const D: usize, C> = Result<(CellOutput<D>, Option<C>), CoreError>;
@@ -79,8 +82,8 @@ struct CellOutput<const D: usize> {
     boundary_measure: f64,
     neighbors: Vec<(u32, f64)>,
     /// With the Hessian: `H_ii`, and `H_ij` for each face in `neighbors`.
-    hessian_diagonal: [[f64; D]; D],
-    hessian_blocks: Vec<[[f64; D]; D]>,
+    hessian_diagonal: Block<D>,
+    hessian_blocks: Vec<Block<D>>,
 }
 
 impl<const D: usize> CellOutput<D> {
@@ -800,9 +803,9 @@ struct FaceSums<'a, const D: usize> {
     neighbors: Vec<(u32, f64)>,
     /// With the Hessian: `H_ij = (2/d_ij) ∫_{F_ij} y (y − q_ij)ᵀ` (`y = x − x_i`,
     /// `q_ij = x_j − x_i`) for each entry of `neighbors`; else empty.
-    blocks: Vec<[[f64; D]; D]>,
+    blocks: Vec<Block<D>>,
     /// With the Hessian: `Σ_j (2/d_ij) ∫_{F_ij} y yᵀ`.
-    face_second: [[f64; D]; D],
+    face_second: Block<D>,
     hessian: Option<HessianRow<'a, D>>,
     boundary: f64,
 }
@@ -869,18 +872,19 @@ impl<'a, const D: usize> FaceSums<'a, D> {
         if at == self.blocks.len() {
             self.blocks.push([[0.0; D]; D]);
         }
-        let block = &mut self.blocks[at];
-        for r in 0..D {
-            for c in 0..D {
-                block[r][c] += w * (m.second[r][c] - m.first[r] * q[c]);
-                self.face_second[r][c] += w * m.second[r][c];
+        let rows = self.blocks[at].iter_mut().zip(self.face_second.iter_mut());
+        for ((block_row, face_row), (s2_row, &s1)) in rows.zip(m.second.iter().zip(&m.first)) {
+            let entries = block_row.iter_mut().zip(face_row.iter_mut());
+            for ((b, f), (&s2, &qc)) in entries.zip(s2_row.iter().zip(&q)) {
+                *b += w * (s2 - s1 * qc);
+                *f += w * s2;
             }
         }
     }
 
     /// The faces of positive measure sorted by neighbour, with their Hessian blocks if
     /// kept: filtered and sorted in place, both lists together.
-    fn into_neighbors(mut self) -> (Vec<(u32, f64)>, Vec<[[f64; D]; D]>) {
+    fn into_neighbors(mut self) -> (Vec<(u32, f64)>, Vec<Block<D>>) {
         let paired = !self.blocks.is_empty();
         let mut kept = 0;
         for k in 0..self.neighbors.len() {
