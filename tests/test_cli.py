@@ -19,7 +19,8 @@ def invoke(*args: str):
     return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
 
 
-def test_run_writes_sites_cells_summary_and_picture(tmp_path):
+@pytest.mark.parametrize("method", ["lbfgs", "newton"])
+def test_run_writes_sites_cells_summary_and_picture(method, tmp_path):
     out, cells, summary, png = (
         tmp_path / "s.npy",
         tmp_path / "c.geojson",
@@ -27,7 +28,7 @@ def test_run_writes_sites_cells_summary_and_picture(tmp_path):
         tmp_path / "p.png",
     )
     result = invoke(
-        "run", "star", "-n", 300, "--method", "lbfgs", "--out", out, "--cells", cells,
+        "run", "star", "-n", 300, "--method", method, "--out", out, "--cells", cells,
         "--summary", summary, "--plot", png,
     )  # fmt: skip
     assert result.exit_code == 0, result.output

@@ -1,7 +1,7 @@
 """The ``hcvt`` command line: CVTs of built-in shapes, polygons and meshes.
 
 hcvt run star -n 2000 --plot star.png
-hcvt run polygon.geojson -n 10000 --method lbfgs --init halton --out sites.npy
+hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
 hcvt show result.json --plot cells.png
 hcvt reproduce table4 --runs 10 --out results
 """
