@@ -1,18 +1,19 @@
 //! Time 3D clipped diagrams and CVTs, for profiling the cell clipping.
 //!
-//! `cargo run --release --example diagram_3d_profile -- MESH SITES [diagrams] [cvt]`:
+//! `cargo run --release --example diagram_3d_profile -- MESH SITES [diagrams] [MODE]`:
 //! `MESH` names two whitespace-separated text files, `MESH_v.txt` (one vertex `x y z` a
 //! line) and `MESH_f.txt` (one triangle `a b c` a line), e.g. written from Python with
 //! `numpy.savetxt` of `hcvt.load_domain(path).vertices` and `.faces`; `SITES` is a text
-//! file of sites, one `x y z` a line. Times `diagrams` diagrams (default 20) and, with
-//! `cvt`, an L-BFGS CVT from those sites.
+//! file of sites, one `x y z` a line. Times `diagrams` diagrams (default 20); `MODE` is
+//! `hessian` (the diagrams carry the Hessian), `cvt` (then an L-BFGS CVT from those sites)
+//! or `newton` (a Newton CVT).
 
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use hcvt_core::diagram::PolyhedronCell;
+use hcvt_core::diagram::{Options, PolyhedronCell};
 use hcvt_core::domain::Solid;
-use hcvt_core::optimise::{cvt, evaluate, Settings};
+use hcvt_core::optimise::{cvt, evaluate_with, Method, Settings};
 
 /// Rows of whitespace-separated numbers.
 fn read_rows<T: std::str::FromStr, const N: usize>(path: &str) -> Vec<[T; N]> {
@@ -34,10 +35,14 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let [mesh, sites_path] = [0, 1].map(|k| {
         args.get(k)
             .map(String::as_str)
-            .expect("usage: diagram_3d_profile MESH SITES [diagrams] [cvt]")
+            .expect("usage: diagram_3d_profile MESH SITES [diagrams] [hessian|cvt|newton]")
     });
     let repeat: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(20);
-    let run_cvt = args.get(3).is_some_and(|a| a == "cvt");
+    let mode = args.get(3).map_or("", String::as_str);
+    let options = Options {
+        hessian: mode == "hessian",
+        ..Options::default()
+    };
     let vertices: Vec<[f64; 3]> = read_rows(&format!("{mesh}_v.txt"));
     let faces: Vec<[u32; 3]> = read_rows(&format!("{mesh}_f.txt"));
     let domain = Solid::new(vertices, faces)?;
@@ -46,15 +51,23 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let t = Instant::now();
     let mut energy = 0.0;
     for _ in 0..repeat {
-        energy = evaluate::<3, PolyhedronCell>(&domain, sites.clone())?.energy;
+        energy = evaluate_with::<3, PolyhedronCell>(&domain, sites.clone(), options)?.energy;
     }
     println!(
         "{n} sites: {:.3} ms per diagram, energy {energy:.17e}",
         1e3 * t.elapsed().as_secs_f64() / repeat.max(1) as f64
     );
-    if run_cvt {
+    if mode == "cvt" || mode == "newton" {
+        let settings = Settings {
+            method: if mode == "newton" {
+                Method::Newton
+            } else {
+                Method::Lbfgs
+            },
+            ..Settings::default()
+        };
         let t = Instant::now();
-        let out = cvt::<3, PolyhedronCell>(&domain, sites, &Settings::default(), &mut |_, _| {
+        let out = cvt::<3, PolyhedronCell>(&domain, sites, &settings, &mut |_, _| {
             ControlFlow::Continue(())
         })?;
         let seconds = t.elapsed().as_secs_f64();
