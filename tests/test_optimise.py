@@ -188,10 +188,11 @@ def test_sites_stay_inside_a_non_convex_domain():
     assert np.all(res.diagram.volume > 0)
 
 
-def test_sites_pinned_at_a_notch_do_not_stall_the_run():
+@pytest.mark.parametrize("method", ["lbfgs", "newton"])
+def test_sites_pinned_at_a_notch_do_not_stall_the_run(method):
     # A cell at a notch has its centroid outside; its site ends on the boundary.
     domain = hcvt.load_domain(DATA / "2d" / "cgal_skeleton_sample_1.geojson")
-    res = hcvt.cvt(domain, random_inside(domain, 1000, seed=1), max_iter=2000)
+    res = hcvt.cvt(domain, random_inside(domain, 1000, seed=1), method, max_iter=2000)
     assert res.converged, res.stop_reason
     assert res.history["pinned"][-1] >= 1
     winding, on_boundary = domain.winding_numbers(res.sites)

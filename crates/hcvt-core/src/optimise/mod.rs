@@ -457,8 +457,10 @@ where
         let next = if solver.method == Method::Newton {
             let forcing = grad_norm.sqrt().min(0.5);
             let trials = solver.search.max_evaluations;
+            let frozen = lloyd::pinned_sites(boundary, point);
             let (next, _products) = newton::step(
                 point,
+                &frozen,
                 &mut solver.region,
                 forcing,
                 trials,
