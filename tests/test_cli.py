@@ -52,10 +52,16 @@ def test_show_redraws_a_saved_result(tmp_path):
     assert png.stat().st_size > 10_000
 
 
-def test_run_hierarchical_on_a_mesh_writes_vtu(tmp_path):
-    vtu, png = tmp_path / "c.vtu", tmp_path / "cut.png"
-    result = invoke("run", "ball", "-n", 150, "--cells", vtu, "--plot", png)
+@pytest.mark.parametrize("optimiser", ["lbfgs", "newton"])
+def test_run_hierarchical_on_a_mesh_writes_vtu(optimiser, tmp_path):
+    vtu, png, summary = tmp_path / "c.vtu", tmp_path / "cut.png", tmp_path / "s.json"
+    result = invoke(
+        "run", "ball", "-n", 150, "--optimiser", optimiser, "--cells", vtu, "--plot", png,
+        "--summary", summary,
+    )  # fmt: skip
     assert result.exit_code == 0, result.output
+    info = json.loads(summary.read_text())
+    assert info["optimiser"] == optimiser and 0.080 < info["mean_G"] < 0.083  # 150 cells
     assert b'NumberOfCells="150"' in vtu.read_bytes()[:2000]
     assert png.stat().st_size > 10_000
 

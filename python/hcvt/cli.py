@@ -18,6 +18,7 @@ import click
 import numpy as np
 
 METHODS = ("hierarchical", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
+OPTIMISERS = ("lbfgs", "newton", "lloyd")
 INITS = ("random", "halton", "hammersley", "lattice")
 
 
@@ -58,6 +59,13 @@ def _load(input_: str, repair: bool):
 @click.option("--method", type=click.Choice(METHODS), default="hierarchical", show_default=True)
 @click.option("--init", type=click.Choice(INITS), default="random", show_default=True)
 @click.option("--subdivisions", type=int, default=None, help="Hierarchy levels s.")
+@click.option(
+    "--optimiser",
+    type=click.Choice(OPTIMISERS),
+    default="lbfgs",
+    show_default=True,
+    help="Optimiser of every hierarchy level (newton: often 2-4x faster).",
+)
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--tol", type=float, default=1e-10, show_default=True, help="‖g‖/‖X‖ stop.")
 @click.option("--max-iter", type=int, default=10_000, show_default=True)
@@ -72,6 +80,7 @@ def run(
     method: str,
     init: str,
     subdivisions: int | None,
+    optimiser: str,
     seed: int,
     tol: float,
     max_iter: int,
@@ -91,7 +100,14 @@ def run(
     iterations: int | None = None
     if method == "hierarchical":
         result = hcvt.hierarchical_cvt(
-            domain, n, subdivisions, init=init, seed=seed, tol=tol, max_iter=max_iter
+            domain,
+            n,
+            subdivisions,
+            init=init,
+            seed=seed,
+            tol=tol,
+            max_iter=max_iter,
+            method=optimiser,
         )
         sites, diagram = result.sites, result.diagram
         iterations = sum(level.iterations for level in result.levels)
@@ -111,6 +127,7 @@ def run(
     info = {
         "input": input_,
         "method": method,
+        "optimiser": optimiser if method == "hierarchical" else None,
         "init": init,
         "n": int(diagram.n),
         "mean_G": diagram.mean_G,
