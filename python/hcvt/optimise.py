@@ -14,7 +14,7 @@ Sites stay inside the domain: a step is shortened site by site until it ends ins
 non-convex domain the centroid of a cell at a notch can lie outside; its site then ends
 pinned on the boundary, where its gradient cannot vanish. Such sites (centroid outside, and
 not even 2^-20 of the way towards it inside) are counted in ``history["pinned"]`` and left
-out of the stopping rule and the gap.
+out of the stopping rule and the gap; Newton's steps leave them where they are.
 """
 
 from __future__ import annotations
