@@ -23,6 +23,7 @@
 //! [`super`], "Round-off").
 
 use crate::error::CoreError;
+use crate::geometry::norm2;
 
 use super::lbfgs::{axpy, dot_rows, mass_preconditioner, moved, Evaluator};
 use super::Point;
@@ -74,7 +75,7 @@ pub fn step<const D: usize>(
             *w = 0.0;
         }
     }
-    let g_norm2 = weighted_norm2(&point.gradient, &precondition, 1.0);
+    let g_norm2 = gradient_norm2(&point.gradient, &precondition);
     let mut radius = region.radius.unwrap_or_else(|| g_norm2.sqrt());
     let mut products = 0;
     for _ in 0..max_trials {
@@ -91,7 +92,7 @@ pub fn step<const D: usize>(
             model.decrease =
                 -(dot_rows(&point.gradient, &model.moves) + 0.5 * dot_rows(&model.moves, &hp));
         }
-        let length = weighted_norm2(&model.moves, &precondition, -1.0).sqrt();
+        let length = step_norm2(&model.moves, &precondition).sqrt();
         let trial = eval(moved(&point.sites, 1.0, &model.moves))?;
         let Some(trial) = trial else {
             radius = 0.25 * length;
@@ -101,7 +102,7 @@ pub fn step<const D: usize>(
         let accepted = if model.decrease <= noise * point.energy.abs() {
             // Round-off: no energy rise beyond it, and a smaller gradient.
             actual >= -noise * point.energy.abs()
-                && weighted_norm2(&trial.gradient, &precondition, 1.0) < g_norm2
+                && gradient_norm2(&trial.gradient, &precondition) < g_norm2
         } else {
             actual >= ACCEPT * model.decrease
         };
@@ -122,20 +123,18 @@ pub fn step<const D: usize>(
     Ok((None, products))
 }
 
-/// `Σ_i w_i^s |v_i|²` over the sites of positive weight: with `w = 1/(2 m)`, `s = 1` the
-/// dual norm of a gradient, `s = −1` the region's norm of a step.
-fn weighted_norm2<const D: usize>(v: &[[f64; D]], w: &[f64], s: f64) -> f64 {
-    v.iter()
+/// `Σ_i w_i |g_i|²` with `w = 1/(2 m)`: the squared dual norm of a gradient.
+fn gradient_norm2<const D: usize>(g: &[[f64; D]], w: &[f64]) -> f64 {
+    g.iter().zip(w).map(|(x, &w)| w * norm2(*x)).sum()
+}
+
+/// `Σ_i |p_i|² / w_i` over the sites of positive weight: the squared region norm of a step
+/// (frozen sites, of weight 0, do not move).
+fn step_norm2<const D: usize>(p: &[[f64; D]], w: &[f64]) -> f64 {
+    p.iter()
         .zip(w)
         .filter(|(_, &w)| w > 0.0)
-        .map(|(x, &w)| {
-            let x2: f64 = x.iter().map(|c| c * c).sum();
-            if s > 0.0 {
-                w * x2
-            } else {
-                x2 / w
-            }
-        })
+        .map(|(x, &w)| norm2(*x) / w)
         .sum()
 }
 
