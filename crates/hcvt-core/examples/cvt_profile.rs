@@ -6,9 +6,9 @@ use std::ops::ControlFlow;
 use std::time::Instant;
 
 use hcvt_core::diagram::PolygonCell;
-use hcvt_core::domain::{Polygon, WindingNumber};
-use hcvt_core::geometry::Euclid;
+use hcvt_core::domain::Polygon;
 use hcvt_core::optimise::{cvt, Method, Settings};
+use hcvt_core::sample::interior_sites;
 
 fn main() -> Result<(), hcvt_core::CoreError> {
     let mut args = std::env::args().skip(1);
@@ -38,21 +38,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     };
     let m = ring.len() as u32;
     let domain = Polygon::new(ring, (0..m).map(|k| [k, (k + 1) % m]).collect())?;
-    let mut state = 7u64;
-    let mut rand = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let b = domain.bounds();
-    let mut sites = Vec::with_capacity(n);
-    while sites.len() < n {
-        let p = [0, 1].map(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
-        if Euclid::winding_number(&domain, &p) == Some(1) {
-            sites.push(p);
-        }
-    }
+    let sites = interior_sites(&domain, n, 7);
     let t = Instant::now();
     let out = cvt::<2, PolygonCell>(&domain, sites, &settings, &mut |_, _| {
         ControlFlow::Continue(())

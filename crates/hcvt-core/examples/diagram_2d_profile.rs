@@ -6,6 +6,7 @@ use std::time::Instant;
 use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, SiteIndex};
 use hcvt_core::domain::{Polygon, WindingNumber};
 use hcvt_core::geometry::Euclid;
+use hcvt_core::sample::Lcg;
 use rayon::prelude::*;
 
 fn main() -> Result<(), hcvt_core::CoreError> {
@@ -17,14 +18,8 @@ fn main() -> Result<(), hcvt_core::CoreError> {
         vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
         vec![[0, 1], [1, 2], [2, 3], [3, 0]],
     )?;
-    let mut state = 7u64;
-    let mut rand = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let sites: Vec<[f64; 2]> = (0..n).map(|_| [rand(), rand()]).collect();
+    let mut rng = Lcg::new(7);
+    let sites: Vec<[f64; 2]> = (0..n).map(|_| [rng.unit(), rng.unit()]).collect();
     let t = Instant::now();
     let w: Vec<_> = sites
         .par_iter()

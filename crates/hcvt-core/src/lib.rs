@@ -8,7 +8,8 @@
 //! | [`moments`] | closed-form mass, first and second moments of simplices; `G`          |
 //! | [`domain`]  | the oriented boundary of a 2D polygon or 3D solid, its BVH and winding number |
 //! | [`diagram`] | convex Voronoi cells by kNN + half-space clipping, clipped exactly by the domain |
-//! | [`optimise`]| CVT energy and gradient from the diagram; Lloyd and L-BFGS to the stopping rule |
+//! | [`optimise`]| CVT energy, gradient and Hessian from the diagram; Lloyd, L-BFGS and Newton to the stopping rule |
+//! | [`sample`]  | deterministic pseudo-random points for tests and examples               |
 //!
 //! Units: every length is in the unit of the input coordinates (`L`); volumes are `L^d`,
 //! first moments `L^(d+1)`, second moments `L^(d+2)`.
@@ -23,5 +24,6 @@ pub mod error;
 pub mod geometry;
 pub mod moments;
 pub mod optimise;
+pub mod sample;
 
 pub use error::CoreError;

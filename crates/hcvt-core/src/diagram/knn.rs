@@ -504,16 +504,9 @@ mod tests {
     use super::*;
 
     fn random_points<const D: usize>(n: usize, seed: u64) -> Vec<[f64; D]> {
-        let mut state = seed;
+        let mut rng = crate::sample::Lcg::new(seed);
         (0..n)
-            .map(|_| {
-                std::array::from_fn(|_| {
-                    state = state
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    (state >> 11) as f64 / (1u64 << 53) as f64
-                })
-            })
+            .map(|_| std::array::from_fn(|_| rng.unit()))
             .collect()
     }
 

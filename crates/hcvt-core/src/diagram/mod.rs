@@ -1001,26 +1001,7 @@ impl<const D: usize> Diagram<D> {
 mod tests {
     use super::*;
     use crate::domain::Solid;
-
-    /// `n` pseudo-random sites strictly inside `solid` (a 64-bit LCG, by rejection).
-    fn interior_sites(solid: &Solid, n: usize) -> Vec<[f64; 3]> {
-        let mut state = 7u64;
-        let mut rand = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let b = solid.bounds();
-        let mut sites = Vec::with_capacity(n);
-        while sites.len() < n {
-            let p = std::array::from_fn(|k| b.lo[k] + rand() * (b.hi[k] - b.lo[k]));
-            if Euclid::winding_number(solid, &p) == Some(1) {
-                sites.push(p);
-            }
-        }
-        sites
-    }
+    use crate::sample::interior_sites;
 
     /// Cutting boundary cells by the domain's planes inside `voronoi_cell` gives the cells
     /// that `clip_convex` gives after it, to round-off, faces and their tags included.
@@ -1029,7 +1010,7 @@ mod tests {
         let cuboid = Solid::cuboid([0.0; 3], [1.0, 0.6, 0.8]).unwrap();
         for solid in [cuboid, Solid::octahedron([1.3, 0.7, 1.1]).unwrap()] {
             assert!(solid.is_convex());
-            let sites = interior_sites(&solid, 400);
+            let sites = interior_sites(&solid, 400, 7);
             let index = SiteIndex::new(&sites).unwrap();
             let (mut late, mut early) = (CellScratch::default(), CellScratch::default());
             let h = (solid.volume() / sites.len() as f64).cbrt();

@@ -800,13 +800,8 @@ mod tests {
     /// check, the divergence theorem over the faces (`V = Σ_f offset_f · area_f / (3 |n_f|)`).
     #[test]
     fn random_clips_satisfy_the_divergence_theorem() {
-        let mut state = 99u64;
-        let mut rand = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut rng = crate::sample::Lcg::new(99);
+        let mut rand = || rng.unit() - 0.5;
         assert_adjacency_consistent(&cube(-1.0, 1.0));
         for _ in 0..50 {
             let mut c = cube(-1.0, 1.0);

@@ -176,13 +176,8 @@ mod tests {
 
     #[test]
     fn query_matches_brute_force() {
-        let mut state = 12345u64;
-        let mut rand = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::sample::Lcg::new(12345);
+        let mut rand = || rng.unit();
         let boxes: Vec<Aabb<2>> = (0..500)
             .map(|_| {
                 let (x, y) = (rand(), rand());
