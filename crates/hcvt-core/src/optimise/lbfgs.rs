@@ -202,7 +202,7 @@ pub type Evaluator<'a, const D: usize> =
 
 /// The line search along `direction` from `point`, starting at the step length 1: the
 /// accepted point, or `None` when `direction` does not descend or no step was found.
-pub fn search_along<const D: usize>(
+fn search_along<const D: usize>(
     point: &Point<D>,
     direction: &[[f64; D]],
     search: &LineSearch,

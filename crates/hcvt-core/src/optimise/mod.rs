@@ -66,7 +66,7 @@ pub enum Method {
     Lbfgs,
     /// Lloyd's fixed-point iteration `x_i ← c_i`: one diagram per iteration.
     Lloyd,
-    /// Newton–CG with the exact Hessian and the same line search ([`newton`]).
+    /// Newton with the exact Hessian, truncated CG in a trust region ([`newton`]).
     Newton,
 }
 
@@ -128,7 +128,7 @@ pub enum Step {
     Lbfgs,
     /// A Lloyd step (the method, or the fallback of a failed line search).
     Lloyd,
-    /// A Newton–CG step with its line search.
+    /// A Newton step, accepted by its trust region.
     Newton,
     /// Sites of empty cells were moved ([`lloyd::reseed_empty`]).
     Reseed,
@@ -458,7 +458,7 @@ where
             let forcing = grad_norm.sqrt().min(0.5);
             let trials = solver.search.max_evaluations;
             let frozen = lloyd::pinned_sites(boundary, point);
-            let (next, _products) = newton::step(
+            let next = newton::step(
                 point,
                 &frozen,
                 &mut solver.region,

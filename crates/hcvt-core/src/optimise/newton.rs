@@ -41,16 +41,15 @@ pub struct TrustRegion {
 }
 
 /// A step of the quadratic model: the moves, the model's decrease, whether it reached
-/// the region's edge, and the Hessian products it took.
+/// the region's edge.
 struct ModelStep<const D: usize> {
     moves: Vec<[f64; D]>,
     decrease: f64,
     at_edge: bool,
-    products: usize,
 }
 
 /// One Newton step from `point` (whose diagram carries the Hessian) in `region`: the next
-/// point and the Hessian products taken, or `None` if `max_trials` diagrams found no
+/// point, or `None` if `max_trials` diagrams found no
 /// acceptable step. Sites marked `frozen` do not move: those pinned against the boundary
 /// ([`super::lloyd::pinned_sites`]), whose gradient cannot vanish and would otherwise
 /// spend the region on moves out of the domain (on 1,000 sites of a polygon with notches
@@ -67,7 +66,7 @@ pub fn step<const D: usize>(
     noise: f64,
     hold: &dyn Fn(&mut [[f64; D]]),
     eval: &mut Evaluator<'_, D>,
-) -> Result<(Option<Point<D>>, usize), CoreError> {
+) -> Result<Option<Point<D>>, CoreError> {
     // A zero weight keeps a site out of the CG iteration: its moves stay zero.
     let mut precondition = mass_preconditioner(point);
     for (w, &f) in precondition.iter_mut().zip(frozen) {
@@ -77,10 +76,8 @@ pub fn step<const D: usize>(
     }
     let g_norm2 = gradient_norm2(&point.gradient, &precondition);
     let mut radius = region.radius.unwrap_or_else(|| g_norm2.sqrt());
-    let mut products = 0;
     for _ in 0..max_trials {
         let mut model = steihaug(point, &precondition, radius, forcing);
-        products += model.products;
         let before = model.moves.clone();
         hold(&mut model.moves);
         if model.moves != before {
@@ -88,7 +85,6 @@ pub fn step<const D: usize>(
             let Some(hp) = point.diagram.hessian_product(&model.moves) else {
                 break;
             };
-            products += 1;
             model.decrease =
                 -(dot_rows(&point.gradient, &model.moves) + 0.5 * dot_rows(&model.moves, &hp));
         }
@@ -116,11 +112,11 @@ pub fn step<const D: usize>(
         }
         if accepted {
             region.radius = Some(radius);
-            return Ok((Some(trial), products));
+            return Ok(Some(trial));
         }
     }
     region.radius = None;
-    Ok((None, products))
+    Ok(None)
 }
 
 /// `Σ_i w_i |g_i|²` with `w = 1/(2 m)`: the squared dual norm of a gradient.
@@ -172,10 +168,9 @@ fn steihaug<const D: usize>(
             moves: z,
             decrease,
             at_edge: false,
-            products: 0,
         };
     }
-    for products in 1..=MAX_CG_ITERATIONS {
+    for iteration in 1..=MAX_CG_ITERATIONS {
         let Some(hd) = point.diagram.hessian_product(&d) else {
             break;
         };
@@ -193,7 +188,6 @@ fn steihaug<const D: usize>(
                 moves: z,
                 decrease,
                 at_edge: true,
-                products,
             };
         }
         axpy(&mut z, alpha, &d);
@@ -201,12 +195,11 @@ fn steihaug<const D: usize>(
         decrease += 0.5 * alpha * ry;
         y = apply_p(&r);
         let ry_next = dot_rows(&r, &y);
-        if ry_next <= stop || products == MAX_CG_ITERATIONS {
+        if ry_next <= stop || iteration == MAX_CG_ITERATIONS {
             return ModelStep {
                 moves: z,
                 decrease,
                 at_edge: false,
-                products,
             };
         }
         let beta = ry_next / ry;
@@ -219,6 +212,5 @@ fn steihaug<const D: usize>(
         moves: z,
         decrease,
         at_edge: false,
-        products: 0,
     }
 }
