@@ -1,13 +1,14 @@
 //! Time CVTs of uniform random sites, for profiling the optimisation loop.
-//! `cargo run --release --example cvt_profile -- square 1000 [lbfgs|newton|lloyd]` (or
-//! `star 2000`).
+//! `cargo run --release --example cvt_profile -- square 1000 [lbfgs|newton|lloyd] [seed]
+//! [repeats]` (or `star 2000`): the run, then `repeats` (default 50, 0 to skip) diagrams of
+//! the final sites alone, with the Hessian for Newton.
 
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use hcvt_core::diagram::PolygonCell;
+use hcvt_core::diagram::{Options, PolygonCell};
 use hcvt_core::domain::Polygon;
-use hcvt_core::optimise::{cvt, Method, Settings};
+use hcvt_core::optimise::{cvt, evaluate_with, Method, Settings};
 use hcvt_core::sample::interior_sites;
 
 fn main() -> Result<(), hcvt_core::CoreError> {
@@ -19,6 +20,8 @@ fn main() -> Result<(), hcvt_core::CoreError> {
         Some("lloyd") => Method::Lloyd,
         _ => Method::Lbfgs,
     };
+    let seed: u64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(7);
+    let repeats: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(50);
     let settings = Settings {
         method,
         ..Settings::default()
@@ -38,7 +41,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     };
     let m = ring.len() as u32;
     let domain = Polygon::new(ring, (0..m).map(|k| [k, (k + 1) % m]).collect())?;
-    let sites = interior_sites(&domain, n, 7);
+    let sites = interior_sites(&domain, n, seed);
     let t = Instant::now();
     let out = cvt::<2, PolygonCell>(&domain, sites, &settings, &mut |_, _| {
         ControlFlow::Continue(())
@@ -51,13 +54,20 @@ fn main() -> Result<(), hcvt_core::CoreError> {
         out.evaluations(),
         1e3 * seconds / out.evaluations() as f64
     );
+    if repeats == 0 {
+        return Ok(());
+    }
+    let options = Options {
+        hessian: method == Method::Newton,
+        ..Options::default()
+    };
     let t = Instant::now();
-    for _ in 0..50 {
-        hcvt_core::optimise::evaluate::<2, PolygonCell>(&domain, out.sites.clone())?;
+    for _ in 0..repeats {
+        evaluate_with::<2, PolygonCell>(&domain, out.sites.clone(), options)?;
     }
     println!(
         "one diagram alone: {:.3} ms",
-        1e3 * t.elapsed().as_secs_f64() / 50.0
+        1e3 * t.elapsed().as_secs_f64() / repeats as f64
     );
     Ok(())
 }
