@@ -73,46 +73,78 @@ pub struct Hessian<const D: usize> {
 /// A `D × D` block of the [`Hessian`], row-major.
 pub type Block<const D: usize> = [[f64; D]; D];
 
-/// A cell's outcome: its results and, when kept, its convex cell.
-type CellResult<const D: usize, C> = Result<(CellOutput<D>, Option<C>), CoreError>;
-
-/// One cell's results before they are packed into a [`Diagram`].
-struct CellOutput<const D: usize> {
-    moments: Moments<D>,
-    boundary_measure: f64,
+/// Cells visited one after the other, measured into flat arrays in visiting order: one
+/// allocation per array and batch instead of several per cell.
+struct Batch<const D: usize, C> {
+    sites: Vec<u32>,
+    moments: Vec<Moments<D>>,
+    boundary_measure: Vec<f64>,
+    /// Faces of each cell, its entries of `neighbors` (and of `blocks`) in turn.
+    face_counts: Vec<u32>,
     neighbors: Vec<(u32, f64)>,
-    /// With the Hessian: `H_ii`, and `H_ij` for each face in `neighbors`.
-    hessian_diagonal: Block<D>,
-    hessian_blocks: Vec<Block<D>>,
+    /// With the Hessian: `H_ii` per cell, `H_ij` per entry of `neighbors`.
+    diagonal: Vec<Block<D>>,
+    blocks: Vec<Block<D>>,
+    /// Each cell's convex cell, when kept.
+    cells: Vec<C>,
+    /// The error of the batch's first offending site in index order.
+    error: Option<(usize, CoreError)>,
 }
 
-impl<const D: usize> CellOutput<D> {
-    fn empty() -> Self {
+/// Cells per [`Batch`]: enough to make its allocations rare, few enough to balance the
+/// threads.
+const BATCH: usize = 256;
+
+impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
+    fn new(cells: usize, hessian: bool) -> Self {
+        let faces = if hessian { 8 * cells } else { 0 };
         Self {
-            moments: Moments::zero(),
-            boundary_measure: 0.0,
-            neighbors: Vec::new(),
-            hessian_diagonal: [[0.0; D]; D],
-            hessian_blocks: Vec::new(),
+            sites: Vec::with_capacity(cells),
+            moments: Vec::with_capacity(cells),
+            boundary_measure: Vec::with_capacity(cells),
+            face_counts: Vec::with_capacity(cells),
+            neighbors: Vec::with_capacity(8 * cells),
+            diagonal: Vec::with_capacity(if hessian { cells } else { 0 }),
+            blocks: Vec::with_capacity(faces),
+            cells: Vec::new(),
+            error: None,
         }
     }
 
-    fn new(moments: Moments<D>, faces: FaceSums<'_, D>) -> Self {
-        // H_ii = 2 m_i I − Σ_j (2/d_ij) ∫_{F_ij} y yᵀ.
-        let hessian_diagonal = std::array::from_fn(|r| {
-            std::array::from_fn(|c| {
-                let mass = if r == c { 2.0 * moments.mass } else { 0.0 };
-                mass - faces.face_second[r][c]
-            })
-        });
-        let boundary_measure = faces.boundary;
-        let (neighbors, hessian_blocks) = faces.into_neighbors();
+    /// Append site `i`'s cell: its `moments` and the faces measured into `faces`.
+    fn push(&mut self, i: usize, moments: Moments<D>, faces: &mut FaceSums<D>, hessian: bool) {
+        faces.sort_neighbors();
+        self.sites.push(i as u32);
+        self.moments.push(moments);
+        self.boundary_measure.push(faces.boundary);
+        self.face_counts.push(faces.neighbors.len() as u32);
+        self.neighbors.extend_from_slice(&faces.neighbors);
+        if hessian {
+            self.diagonal.push(faces.hessian_diagonal(moments.mass));
+            self.blocks.extend_from_slice(&faces.blocks);
+        }
+    }
+
+    fn fail(&mut self, i: usize, error: CoreError) {
+        if self.error.as_ref().is_none_or(|(first, _)| i < *first) {
+            self.error = Some((i, error));
+        }
+    }
+}
+
+/// Buffers of [`clip_by_domain`], reused from cell to cell.
+struct MeasureScratch<const D: usize, C> {
+    faces: FaceSums<D>,
+    piece: Option<C>,
+    candidates: Vec<u32>,
+}
+
+impl<const D: usize, C> Default for MeasureScratch<D, C> {
+    fn default() -> Self {
         Self {
-            moments,
-            boundary_measure,
-            neighbors,
-            hessian_diagonal,
-            hessian_blocks,
+            faces: FaceSums::default(),
+            piece: None,
+            candidates: Vec::new(),
         }
     }
 }
@@ -185,65 +217,115 @@ where
     // and boundary elements in cache. Results go back to index order afterwards.
     let order = morton_order(sites);
     let convex = boundary.is_convex();
-    let visited: Vec<CellResult<D, C>> = order
-        .par_iter()
-        .map_init(CellScratch::default, |scratch, &i| {
-            let i = i as usize;
-            let convex_inside = convex && windings[i] == Some(1);
-            let (cell, inside) =
-                voronoi_cell::<D, C>(boundary, &index, sites, i, convex_inside, scratch)?;
-            let hessian = options.hessian.then_some(HessianRow { sites, site: i });
-            let out = if inside {
-                measure(cell, hessian)
-            } else {
-                clip_by_domain(boundary, cell, sites[i], windings[i], hessian)
-            };
-            Ok((out, keep_cells.then(|| cell.clone())))
-        })
+    let batches: Vec<Batch<D, C>> = order
+        .par_chunks(BATCH)
+        .map_init(
+            || (CellScratch::default(), MeasureScratch::default()),
+            |(scratch, measuring), chunk| {
+                let mut batch = Batch::new(chunk.len(), options.hessian);
+                for &i in chunk {
+                    let i = i as usize;
+                    let convex_inside = convex && windings[i] == Some(1);
+                    let (cell, inside) = match voronoi_cell::<D, C>(
+                        boundary,
+                        &index,
+                        sites,
+                        i,
+                        convex_inside,
+                        scratch,
+                    ) {
+                        Ok(found) => found,
+                        Err(e) => {
+                            batch.fail(i, e);
+                            continue;
+                        }
+                    };
+                    let hessian = options.hessian.then_some(HessianRow { sites, site: i });
+                    let moments = if inside {
+                        measure(cell, hessian, &mut measuring.faces)
+                    } else {
+                        clip_by_domain(boundary, cell, sites[i], windings[i], hessian, measuring)
+                    };
+                    batch.push(i, moments, &mut measuring.faces, options.hessian);
+                    if keep_cells {
+                        batch.cells.push(cell.clone());
+                    }
+                }
+                batch
+            },
+        )
         .collect();
-    let mut results: Vec<Option<CellResult<D, C>>> = (0..sites.len()).map(|_| None).collect();
-    for (&i, result) in order.iter().zip(visited) {
-        results[i as usize] = Some(result);
-    }
-    // Sized once: growing the face arrays by doubling copied them over and over (4% of a
-    // Newton run's cycles went to realloc's copies).
-    let faces: usize = results
+    let first_error = batches
         .iter()
-        .flatten()
-        .filter_map(|r| r.as_ref().ok())
-        .map(|(out, _)| out.neighbors.len())
-        .sum();
+        .filter_map(|b| b.error.as_ref().map(|(i, _)| *i))
+        .min();
+    if let Some(first) = first_error {
+        let mut batches = batches;
+        let batch = batches
+            .iter_mut()
+            .find(|b| b.error.as_ref().is_some_and(|(i, _)| *i == first))
+            .expect("the batch of the first error");
+        return Err(batch.error.take().expect("its error").1);
+    }
+    Ok(assemble(sites.len(), batches, options.hessian, keep_cells))
+}
+
+/// The diagram in index order from the batches (visiting order), and the kept cells.
+fn assemble<const D: usize, C: ConvexCell<D>>(
+    n: usize,
+    batches: Vec<Batch<D, C>>,
+    hessian: bool,
+    keep_cells: bool,
+) -> (Diagram<D>, Vec<C>) {
     let mut diagram = Diagram {
-        moments: Vec::with_capacity(sites.len()),
-        boundary_measure: Vec::with_capacity(sites.len()),
-        neighbor_offsets: Vec::with_capacity(sites.len() + 1),
-        neighbor_sites: Vec::with_capacity(faces),
-        neighbor_measures: Vec::with_capacity(faces),
+        moments: vec![Moments::zero(); n],
+        boundary_measure: vec![0.0; n],
+        neighbor_offsets: vec![0; n + 1],
         ..Diagram::default()
     };
-    let mut cells = Vec::new();
-    let mut hessian = options.hessian.then(|| Hessian {
-        diagonal: Vec::with_capacity(sites.len()),
-        off_diagonal: Vec::with_capacity(faces),
-    });
-    diagram.neighbor_offsets.push(0);
-    for result in results.into_iter().flatten() {
-        let (out, cell) = result?;
-        if let Some(h) = hessian.as_mut() {
-            h.diagonal.push(out.hessian_diagonal);
-            h.off_diagonal.extend(out.hessian_blocks);
+    for b in &batches {
+        for (&i, &count) in b.sites.iter().zip(&b.face_counts) {
+            diagram.neighbor_offsets[i as usize + 1] = count as usize;
         }
-        diagram.moments.push(out.moments);
-        diagram.boundary_measure.push(out.boundary_measure);
-        for (j, measure) in out.neighbors {
-            diagram.neighbor_sites.push(j);
-            diagram.neighbor_measures.push(measure);
-        }
-        diagram.neighbor_offsets.push(diagram.neighbor_sites.len());
-        cells.extend(cell);
     }
-    diagram.hessian = hessian;
-    Ok((diagram, cells))
+    for i in 0..n {
+        diagram.neighbor_offsets[i + 1] += diagram.neighbor_offsets[i];
+    }
+    let faces = diagram.neighbor_offsets[n];
+    diagram.neighbor_sites = vec![0; faces];
+    diagram.neighbor_measures = vec![0.0; faces];
+    let mut h = hessian.then(|| Hessian {
+        diagonal: vec![[[0.0; D]; D]; n],
+        off_diagonal: vec![[[0.0; D]; D]; faces],
+    });
+    let mut cells: Vec<Option<C>> = Vec::new();
+    if keep_cells {
+        cells.resize_with(n, || None);
+    }
+    for b in batches {
+        let mut at = 0;
+        for (k, &i) in b.sites.iter().enumerate() {
+            let i = i as usize;
+            diagram.moments[i] = b.moments[k];
+            diagram.boundary_measure[i] = b.boundary_measure[k];
+            let from = diagram.neighbor_offsets[i];
+            let count = b.face_counts[k] as usize;
+            for (e, &(j, measure)) in b.neighbors[at..at + count].iter().enumerate() {
+                diagram.neighbor_sites[from + e] = j;
+                diagram.neighbor_measures[from + e] = measure;
+            }
+            if let Some(h) = h.as_mut() {
+                h.diagonal[i] = b.diagonal[k];
+                h.off_diagonal[from..from + count].copy_from_slice(&b.blocks[at..at + count]);
+            }
+            at += count;
+        }
+        for (&i, cell) in b.sites.iter().zip(b.cells) {
+            cells[i as usize] = Some(cell);
+        }
+    }
+    diagram.hessian = h;
+    (diagram, cells.into_iter().flatten().collect())
 }
 
 /// How far outside the domain's box an allowed outside site may lie, in units of the
@@ -526,38 +608,46 @@ fn boundary_candidates<const D: usize, C: ConvexCell<D>>(
 /// its bounding box) is empty.
 const EMPTY_REL: f64 = 16.0 * f64::EPSILON;
 
-/// Integrate `cell` (relative to `site`) restricted to the domain, through signed cones.
+/// Integrate `cell` (relative to `site`) restricted to the domain, through signed cones:
+/// its moments (zero for an empty cell), its faces measured into `scratch.faces`.
 fn clip_by_domain<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     cell: &C,
     site: [f64; D],
     site_winding: Option<i32>,
     hessian: Option<HessianRow<'_, D>>,
-) -> CellOutput<D>
+    scratch: &mut MeasureScratch<D, C>,
+) -> Moments<D>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    let mut faces = FaceSums::new(hessian);
-    let mut total = Moments::zero();
+    let MeasureScratch {
+        faces,
+        piece,
+        candidates,
+    } = scratch;
+    faces.clear();
     if cell.is_empty() {
-        return CellOutput::empty();
+        return Moments::zero();
     }
-    let mut candidates = Vec::new();
-    boundary_candidates(boundary, cell, site, &mut candidates);
-    if site_winding == Some(1) && boundary.is_convex() {
-        return clip_convex(boundary, cell, site, &candidates, hessian);
+    candidates.clear();
+    boundary_candidates(boundary, cell, site, candidates);
+    if site_winding == Some(1) && (candidates.is_empty() || boundary.is_convex()) {
+        // Strictly inside, and no boundary near (or a convex one): no cones to cut.
+        return clip_convex(boundary, cell, site, candidates, hessian, faces, piece);
     }
-    let (apex, winding) = choose_apex(boundary, cell, site, site_winding, &candidates);
+    let (apex, winding) = choose_apex(boundary, cell, site, site_winding, candidates);
     // Σ |mass| of the signed terms: what their round-off scales with.
     let mut gross = 0.0;
+    let mut total = Moments::zero();
     if winding != 0 {
-        let m = faces.integrate(cell, winding as f64);
+        let m = faces.integrate(cell, winding as f64, hessian);
         total.add_scaled(&m, winding as f64);
         gross += (winding as f64 * m.mass).abs();
     }
     let apex_abs = add_point(apex, site);
-    let mut piece = cell.clone(); // reused: clone_from keeps its buffers
-    for t in candidates {
+    let piece = piece.get_or_insert_with(|| cell.clone()); // clone_from keeps its buffers
+    for &t in candidates.iter() {
         let simplex = boundary.simplex(t);
         let side = Euclid::side(&simplex, &apex_abs);
         if side == 0.0 {
@@ -593,7 +683,7 @@ where
         if piece.is_empty() {
             continue;
         }
-        let m = faces.integrate(&piece, sigma);
+        let m = faces.integrate(piece, sigma, hessian);
         total.add_scaled(&m, sigma);
         gross += m.mass.abs();
     }
@@ -604,13 +694,16 @@ where
     let extent = cell.bounds();
     let box_measure: f64 = (0..D).map(|k| extent.hi[k] - extent.lo[k]).product();
     if total.mass.abs() <= EMPTY_REL * gross.max(box_measure) {
-        return CellOutput::empty();
+        faces.clear();
+        return Moments::zero();
     }
-    CellOutput::new(total, faces)
+    total
 }
 
-/// [`clip_by_domain`] in a convex domain for a site strictly inside it: the cell clipped
-/// by the inner half-spaces of the boundary simplices whose boxes meet its box.
+/// [`clip_by_domain`] for a site strictly inside the domain when the domain is convex or
+/// no boundary simplex's box meets the cell's box: the cell clipped by the inner
+/// half-spaces of those simplices (`candidates`), measured into `faces`. `piece` holds
+/// the clipped copy.
 ///
 /// Exact: the domain `Ω` lies in every such half-space, so nothing of `C ∩ Ω` is cut. A
 /// point `x` of the clipped cell outside `Ω` would see the segment from the site `y`
@@ -618,22 +711,26 @@ where
 /// some simplex `T` at a point `z` of `C` before `x`: `T` meets the cell's box, so it was
 /// clipped, and `x`, beyond `z` on a line from the inner side, is outside `T`'s half-space.
 /// One clip per simplex instead of a cone piece (a copy of the cell and `D + 1` clips).
+/// With no candidates the argument needs no convexity: the cell lies in `Ω`.
 fn clip_convex<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     cell: &C,
     site: [f64; D],
     candidates: &[u32],
     hessian: Option<HessianRow<'_, D>>,
-) -> CellOutput<D>
+    faces: &mut FaceSums<D>,
+    piece: &mut Option<C>,
+) -> Moments<D>
 where
     Euclid: Space<D>,
 {
     if candidates.is_empty() {
-        return measure(cell, hessian); // an interior cell: nothing to cut, and no copy to make
+        return measure(cell, hessian, faces); // an interior cell: nothing to cut, and no copy to make
     }
-    let mut clipped = cell.clone();
-    clip_by_planes(boundary, &mut clipped, site, candidates);
-    measure(&clipped, hessian)
+    let clipped = piece.get_or_insert_with(|| cell.clone());
+    clipped.clone_from(cell);
+    clip_by_planes(boundary, clipped, site, candidates);
+    measure(clipped, hessian, faces)
 }
 
 /// [`clip_convex`]'s cut inside [`voronoi_cell`]: `cell` (relative to `site`, strictly
@@ -688,15 +785,15 @@ fn clip_by_planes<const D: usize, C: ConvexCell<D>>(
     }
 }
 
-/// The moments and face measures (and, for the Hessian, face moments) of a cell that lies
-/// in the domain.
+/// The moments of a cell that lies in the domain, its face measures (and, for the
+/// Hessian, face moments) into `faces`.
 fn measure<const D: usize, C: ConvexCell<D>>(
     cell: &C,
     hessian: Option<HessianRow<'_, D>>,
-) -> CellOutput<D> {
-    let mut faces = FaceSums::new(hessian);
-    let moments = faces.integrate(cell, 1.0);
-    CellOutput::new(moments, faces)
+    faces: &mut FaceSums<D>,
+) -> Moments<D> {
+    faces.clear();
+    faces.integrate(cell, 1.0, hessian)
 }
 
 /// The `D` side half-spaces of the cone from `apex` through the simplex `rel` (both
@@ -811,44 +908,51 @@ fn add_point<const D: usize>(a: [f64; D], b: [f64; D]) -> [f64; D] {
 }
 
 /// Signed face measures of a cell, summed over its pieces, and for the Hessian the
-/// integrals over its faces.
-struct FaceSums<'a, const D: usize> {
+/// integrals over its faces; buffers reused from cell to cell.
+#[derive(Debug)]
+struct FaceSums<const D: usize> {
     neighbors: Vec<(u32, f64)>,
     /// With the Hessian: `H_ij = (2/d_ij) ∫_{F_ij} y (y − q_ij)ᵀ` (`y = x − x_i`,
     /// `q_ij = x_j − x_i`) for each entry of `neighbors`; else empty.
     blocks: Vec<Block<D>>,
     /// With the Hessian: `Σ_j (2/d_ij) ∫_{F_ij} y yᵀ`.
     face_second: Block<D>,
-    hessian: Option<HessianRow<'a, D>>,
     boundary: f64,
 }
 
-/// Room for the neighbours of a typical cell (about 6 in 2D, 15.5 in 3D) in one allocation.
-const NEIGHBOR_CAPACITY: usize = 24;
-
-impl<'a, const D: usize> FaceSums<'a, D> {
-    fn new(hessian: Option<HessianRow<'a, D>>) -> Self {
+impl<const D: usize> Default for FaceSums<D> {
+    fn default() -> Self {
         Self {
-            neighbors: Vec::with_capacity(NEIGHBOR_CAPACITY),
-            blocks: Vec::with_capacity(if hessian.is_some() {
-                NEIGHBOR_CAPACITY
-            } else {
-                0
-            }),
+            neighbors: Vec::new(),
+            blocks: Vec::new(),
             face_second: [[0.0; D]; D],
-            hessian,
             boundary: 0.0,
         }
     }
+}
 
-    /// Add the faces of `piece` with `sign`, and return its moments (not signed).
-    fn integrate<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) -> Moments<D> {
-        if self.hessian.is_some() {
-            piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m))
-        } else {
-            piece.moments_and_faces(|f, m| {
+impl<const D: usize> FaceSums<D> {
+    /// Forget the last cell.
+    fn clear(&mut self) {
+        self.neighbors.clear();
+        self.blocks.clear();
+        self.face_second = [[0.0; D]; D];
+        self.boundary = 0.0;
+    }
+
+    /// Add the faces of `piece` with `sign` (and their Hessian terms, for a `hessian`
+    /// row), and return its moments (not signed).
+    fn integrate<C: ConvexCell<D>>(
+        &mut self,
+        piece: &C,
+        sign: f64,
+        hessian: Option<HessianRow<'_, D>>,
+    ) -> Moments<D> {
+        match hessian {
+            Some(row) => piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m, row)),
+            None => piece.moments_and_faces(|f, m| {
                 self.add(f, sign * m);
-            })
+            }),
         }
     }
 
@@ -874,9 +978,10 @@ impl<'a, const D: usize> FaceSums<'a, D> {
         }
     }
 
-    /// Add a face with its moments `m` about the site, and its terms of the Hessian.
-    fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>) {
-        let (Some(at), Some(row)) = (self.add(face, sign * m.measure), self.hessian) else {
+    /// Add a face with its moments `m` about the site, and its terms of row `row` of the
+    /// Hessian.
+    fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>, row: HessianRow<'_, D>) {
+        let Some(at) = self.add(face, sign * m.measure) else {
             return;
         };
         let j = self.neighbors[at].0 as usize;
@@ -895,9 +1000,19 @@ impl<'a, const D: usize> FaceSums<'a, D> {
         }
     }
 
-    /// The faces of positive measure sorted by neighbour, with their Hessian blocks if
-    /// kept: filtered and sorted in place, both lists together.
-    fn into_neighbors(mut self) -> (Vec<(u32, f64)>, Vec<Block<D>>) {
+    /// `H_ii = 2 m_i I − Σ_j (2/d_ij) ∫_{F_ij} y yᵀ` for a cell of measure `mass`.
+    fn hessian_diagonal(&self, mass: f64) -> Block<D> {
+        std::array::from_fn(|r| {
+            std::array::from_fn(|c| {
+                let diagonal = if r == c { 2.0 * mass } else { 0.0 };
+                diagonal - self.face_second[r][c]
+            })
+        })
+    }
+
+    /// Keep the faces of positive measure, sorted by neighbour, with their Hessian blocks
+    /// if kept: both lists together, in place.
+    fn sort_neighbors(&mut self) {
         let paired = !self.blocks.is_empty();
         let mut kept = 0;
         for k in 0..self.neighbors.len() {
@@ -922,7 +1037,6 @@ impl<'a, const D: usize> FaceSums<'a, D> {
                 at -= 1;
             }
         }
-        (self.neighbors, self.blocks)
     }
 }
 
@@ -1013,6 +1127,7 @@ mod tests {
             let sites = interior_sites(&solid, 400, 7);
             let index = SiteIndex::new(&sites).unwrap();
             let (mut late, mut early) = (CellScratch::default(), CellScratch::default());
+            let (mut a, mut b) = (MeasureScratch::default(), MeasureScratch::default());
             let h = (solid.volume() / sites.len() as f64).cbrt();
             let mut cut_early = 0;
             for (i, &site) in sites.iter().enumerate() {
@@ -1020,17 +1135,16 @@ mod tests {
                     voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, false, &mut late)
                         .unwrap();
                 assert!(!inside);
-                let a = clip_by_domain(&solid, cell, site, Some(1), None);
+                let ma = clip_by_domain(&solid, cell, site, Some(1), None, &mut a);
                 let (cell, inside) =
                     voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, true, &mut early)
                         .unwrap();
-                let b = if inside {
-                    measure(cell, None)
+                let mb = if inside {
+                    measure(cell, None, &mut b.faces)
                 } else {
-                    clip_by_domain(&solid, cell, site, Some(1), None)
+                    clip_by_domain(&solid, cell, site, Some(1), None, &mut b)
                 };
                 cut_early += inside as usize;
-                let (ma, mb) = (&a.moments, &b.moments);
                 assert!((ma.mass - mb.mass).abs() <= 1e-12 * ma.mass, "cell {i}");
                 assert!(
                     (ma.second - mb.second).abs() <= 1e-12 * ma.second,
@@ -1042,17 +1156,19 @@ mod tests {
                         "cell {i}"
                     );
                 }
-                let db = a.boundary_measure - b.boundary_measure;
+                let db = a.faces.boundary - b.faces.boundary;
                 assert!(db.abs() <= 1e-12 * h * h, "cell {i}: boundary {db:e}");
                 // Faces of more than round-off, with their measures.
-                let faces = |o: &CellOutput<3>| -> Vec<(u32, f64)> {
-                    o.neighbors
+                let faces = |o: &mut MeasureScratch<3, PolyhedronCell>| -> Vec<(u32, f64)> {
+                    o.faces.sort_neighbors();
+                    o.faces
+                        .neighbors
                         .iter()
                         .copied()
                         .filter(|&(_, m)| m > 1e-12 * h * h)
                         .collect()
                 };
-                let (fa, fb) = (faces(&a), faces(&b));
+                let (fa, fb) = (faces(&mut a), faces(&mut b));
                 assert_eq!(fa.len(), fb.len(), "cell {i}");
                 for ((ja, ma), (jb, mb)) in fa.into_iter().zip(fb) {
                     assert!(ja == jb && (ma - mb).abs() <= 1e-12 * h * h, "cell {i}");
