@@ -43,8 +43,15 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let domain = Polygon::new(ring, (0..m).map(|k| [k, (k + 1) % m]).collect())?;
     let sites = interior_sites(&domain, n, seed);
     let t = Instant::now();
-    let out = cvt::<2, PolygonCell>(&domain, sites, &settings, &mut |_, _| {
-        ControlFlow::Continue(())
+    // On a worker thread, as the Python binding runs it: parallel steps are then forks,
+    // not hand-offs from outside the pool.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .build()
+        .expect("a thread pool");
+    let out = pool.install(|| {
+        cvt::<2, PolygonCell>(&domain, sites, &settings, &mut |_, _| {
+            ControlFlow::Continue(())
+        })
     })?;
     let seconds = t.elapsed().as_secs_f64();
     println!(

@@ -194,83 +194,79 @@ fn step_norm2<const D: usize>(p: &[[f64; D]], w: &[f64]) -> f64 {
         .sum()
 }
 
-/// Steihaug's truncated, preconditioned CG on `min g·p + ½ pᵀHp` over `‖p‖_M ≤ radius`.
+/// Steihaug's truncated, preconditioned CG on `min g·p + ½ pᵀHp` over `‖p‖_M ≤ radius`
+/// (`M` the inverse of the diagonal `precondition`; a zero entry keeps a site still).
+///
+/// The region norms `‖z‖²_M`, `⟨z, d⟩_M` and `‖d‖²_M` follow from the CG scalars (Conn,
+/// Gould and Toint, *Trust-Region Methods*, §7.5.1) instead of three more passes over
+/// the sites, and each iteration makes two passes besides the Hessian product.
 fn steihaug<const D: usize>(
     point: &Point<D>,
     precondition: &[f64],
     radius: f64,
     forcing: f64,
 ) -> ModelStep<D> {
-    let apply_p = |r: &[[f64; D]]| -> Vec<[f64; D]> {
-        r.iter()
-            .zip(precondition)
-            .map(|(v, &w)| v.map(|x| w * x))
-            .collect()
-    };
-    let m_dot = |a: &[[f64; D]], b: &[[f64; D]]| -> f64 {
-        a.iter()
-            .zip(b)
-            .zip(precondition)
-            .filter(|(_, &w)| w > 0.0)
-            .map(|((x, y), &w)| (0..D).map(|k| x[k] * y[k]).sum::<f64>() / w)
-            .sum()
-    };
     let g = &point.gradient;
-    let mut z = vec![[0.0; D]; g.len()];
+    let n = g.len();
+    let mut z = vec![[0.0; D]; n];
     let mut r = g.clone();
-    let mut y = apply_p(&r);
-    let mut d: Vec<[f64; D]> = y.iter().map(|v| v.map(|x| -x)).collect();
-    let mut ry = dot_rows(&r, &y);
+    let mut d: Vec<[f64; D]> = r
+        .iter()
+        .zip(precondition)
+        .map(|(v, &w)| v.map(|x| -w * x))
+        .collect();
+    let mut hd = vec![[0.0; D]; n];
+    let mut ry = -dot_rows(&r, &d);
     let stop = forcing * forcing * ry;
     let mut decrease = 0.0;
+    let (mut zz, mut zd, mut dd) = (0.0, 0.0, ry);
+    let step = |z, decrease, at_edge| ModelStep {
+        moves: z,
+        decrease,
+        at_edge,
+    };
     if ry.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return ModelStep {
-            moves: z,
-            decrease,
-            at_edge: false,
-        };
+        return step(z, decrease, false);
     }
     for iteration in 1..=MAX_CG_ITERATIONS {
-        let Some(hd) = point.diagram.hessian_product(&d) else {
+        if !point.diagram.hessian_product_into(&d, &mut hd) {
             break;
-        };
+        }
         let curvature = dot_rows(&d, &hd);
         let alpha = ry / curvature;
-        let (zz, zd, dd) = (m_dot(&z, &z), m_dot(&z, &d), m_dot(&d, &d));
         let inside =
             curvature > 0.0 && zz + 2.0 * alpha * zd + alpha * alpha * dd < radius * radius;
         if !inside {
-            // To the edge along d: the positive root of ‖z + τ d‖_M = radius.
+            // To the edge along d: the positive root of ‖z + τ d‖_M = radius. With r the
+            // residual g + Hz, d·r = −ry.
             let tau = (-zd + (zd * zd + dd * (radius * radius - zz)).max(0.0).sqrt()) / dd;
-            decrease -= tau * dot_rows(&d, &r) + 0.5 * tau * tau * curvature;
+            decrease += tau * ry - 0.5 * tau * tau * curvature;
             axpy(&mut z, tau, &d);
-            return ModelStep {
-                moves: z,
-                decrease,
-                at_edge: true,
-            };
+            return step(z, decrease, true);
         }
-        axpy(&mut z, alpha, &d);
-        axpy(&mut r, alpha, &hd);
+        // z += α d, r += α Hd, and the next preconditioned residual's r·Pr, in one pass.
+        let mut ry_next = 0.0;
+        for i in 0..n {
+            for k in 0..D {
+                z[i][k] += alpha * d[i][k];
+                r[i][k] += alpha * hd[i][k];
+                ry_next += precondition[i] * r[i][k] * r[i][k];
+            }
+        }
         decrease += 0.5 * alpha * ry;
-        y = apply_p(&r);
-        let ry_next = dot_rows(&r, &y);
+        zz += alpha * (2.0 * zd + alpha * dd);
         if ry_next <= stop || iteration == MAX_CG_ITERATIONS {
-            return ModelStep {
-                moves: z,
-                decrease,
-                at_edge: false,
-            };
+            return step(z, decrease, false);
         }
         let beta = ry_next / ry;
-        for (di, yi) in d.iter_mut().zip(&y) {
-            *di = std::array::from_fn(|k| beta * di[k] - yi[k]);
+        for i in 0..n {
+            for k in 0..D {
+                d[i][k] = beta * d[i][k] - precondition[i] * r[i][k];
+            }
         }
+        zd = beta * (zd + alpha * dd);
+        dd = ry_next + beta * beta * dd;
         ry = ry_next;
     }
-    ModelStep {
-        moves: z,
-        decrease,
-        at_edge: false,
-    }
+    step(z, decrease, false)
 }
