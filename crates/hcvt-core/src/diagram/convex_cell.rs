@@ -47,6 +47,21 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// outside, so their convex hull misses the cell.
     fn excludes(&self, points: &[[f64; D]]) -> bool;
 
+    /// An upper bound on `|x|²` over the points `x` of the simplex (relative to the site)
+    /// inside the cell, `None` when the simplex misses the cell. This default bounds by
+    /// the simplex's farthest vertex.
+    fn farthest_on(&self, simplex: &[[f64; D]; D]) -> Option<f64> {
+        if self.excludes(simplex) {
+            return None;
+        }
+        Some(
+            simplex
+                .iter()
+                .map(|&v| crate::geometry::norm2(v))
+                .fold(0.0, f64::max),
+        )
+    }
+
     /// Mean of the vertices: a point strictly inside a non-empty cell.
     fn vertex_mean(&self) -> [f64; D];
 

@@ -243,7 +243,15 @@ impl<const D: usize> Grid<D> {
         if !extent.iter().all(|e| e.is_finite()) {
             return None;
         }
-        let cells = cells_for(extent, n.div_ceil(SITES_PER_BUCKET));
+        let mut cells = cells_for(extent, n.div_ceil(SITES_PER_BUCKET));
+        // Sites filling a fraction of their box (a star, a ball) would crowd the buckets
+        // they occupy: aim at SITES_PER_BUCKET in the occupied buckets instead.
+        let occupied = occupied_buckets(sites, bounds.lo, extent, cells);
+        let count = cells.iter().product::<usize>();
+        if occupied > 0 && 4 * occupied < 3 * count {
+            let target = n.div_ceil(SITES_PER_BUCKET) * count / occupied;
+            cells = cells_for(extent, target.min(MAX_BUCKETS_PER_SITE * n));
+        }
         let side: [f64; D] = std::array::from_fn(|k| extent[k] / cells[k] as f64);
         let inverse = side.map(|s| if s > 0.0 { 1.0 / s } else { 0.0 });
         let count = cells.iter().product::<usize>();
@@ -481,6 +489,31 @@ fn sort_nearest(pending: &mut [(u64, u32)]) -> usize {
     sorted
 }
 
+/// At most this many buckets per site, however little of their box the sites fill.
+const MAX_BUCKETS_PER_SITE: usize = 4;
+
+/// Buckets that hold a site when the box `lo + [0, extent]` is cut into `cells`.
+fn occupied_buckets<const D: usize>(
+    sites: &[[f64; D]],
+    lo: [f64; D],
+    extent: [f64; D],
+    cells: [usize; D],
+) -> usize {
+    let mut seen = vec![false; cells.iter().product::<usize>()];
+    for s in sites {
+        let b = (0..D).rev().fold(0, |b, k| {
+            let x = if extent[k] > 0.0 {
+                ((s[k] - lo[k]) / extent[k] * cells[k] as f64) as usize
+            } else {
+                0
+            };
+            b * cells[k] + x.min(cells[k] - 1)
+        });
+        seen[b] = true;
+    }
+    seen.iter().filter(|&&s| s).count()
+}
+
 /// Buckets per axis for about `target` buckets of equal sides over `extent` (one along a
 /// flat axis); each axis at most `target`.
 fn cells_for<const D: usize>(extent: [f64; D], target: usize) -> [usize; D] {
@@ -542,6 +575,28 @@ mod tests {
         assert_streams_in_order(&sites, &queries);
         let sites3 = random_points::<3>(400, 3);
         assert_streams_in_order(&sites3, &[sites3[0], [2.0, -1.0, 0.5], [0.5; 3]]);
+    }
+
+    #[test]
+    fn sites_filling_part_of_their_box_get_finer_buckets_and_stream_in_order() {
+        // Sites in the lower-left triangle of the unit square (and one corner site that
+        // spans the box): half of the coarse buckets would be empty.
+        let mut sites: Vec<[f64; 2]> = random_points::<2>(2000, 9)
+            .into_iter()
+            .filter(|p| p[0] + p[1] < 0.8)
+            .collect();
+        sites.push([1.0, 1.0]);
+        let index = SiteIndex::new(&sites).unwrap();
+        let Kind::Grid(grid) = &index.kind else {
+            panic!("a grid")
+        };
+        let buckets: usize = grid.cells.iter().product();
+        assert!(
+            buckets > sites.len(),
+            "{buckets} buckets for {} sites",
+            sites.len()
+        );
+        assert_streams_in_order(&sites, &[sites[0], sites[100], [0.9, 0.9], [0.1, 0.7]]);
     }
 
     #[test]

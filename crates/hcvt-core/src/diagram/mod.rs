@@ -566,8 +566,8 @@ where
     boundary_candidates(boundary, cell, site, &mut candidates);
     for t in candidates {
         let rel = boundary.simplex(t).map(|v| sub(v, site));
-        if !cell.excludes(&rel) {
-            r2 = rel.iter().map(|&v| norm2(v)).fold(r2, f64::max);
+        if let Some(d2) = cell.farthest_on(&rel) {
+            r2 = r2.max(d2);
         }
     }
     // Only vertices beyond the simplices' bound can raise it: test them farthest first

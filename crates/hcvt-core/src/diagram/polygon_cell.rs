@@ -154,6 +154,45 @@ impl ConvexCell<2> for PolygonCell {
         })
     }
 
+    /// The segment clipped to the cell by each edge's half-plane (Cyrus and Beck), widened
+    /// by a margin of `1e-9` of the cell's radius against round-off: the farther end of
+    /// what is left. A boundary segment several spacings long that merely grazes a cell
+    /// near the boundary then bounds the cell's part in the domain by about the cell's
+    /// size, not by the segment's far end.
+    fn farthest_on(&self, simplex: &[[f64; 2]; 2]) -> Option<f64> {
+        let [a, b] = *simplex;
+        let ab = sub(b, a);
+        let margin = 1e-9 * self.max_dist2().sqrt();
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        let n = self.vertices.len();
+        for i in 0..n {
+            let v = self.vertices[i];
+            let w = self.vertices[if i + 1 == n { 0 } else { i + 1 }];
+            // Outward normal of a counter-clockwise edge; inside is n·(x − v) ≤ 0.
+            let normal = [w[1] - v[1], v[0] - w[0]];
+            let length = norm2(normal).sqrt();
+            if length == 0.0 {
+                continue;
+            }
+            let start = dot(normal, sub(a, v)) - margin * length;
+            let rate = dot(normal, ab);
+            if rate == 0.0 {
+                if start > 0.0 {
+                    return None;
+                }
+            } else if rate > 0.0 {
+                hi = hi.min(-start / rate);
+            } else {
+                lo = lo.max(-start / rate);
+            }
+            if lo > hi {
+                return None;
+            }
+        }
+        let at = |t: f64| norm2([a[0] + t * ab[0], a[1] + t * ab[1]]);
+        Some(at(lo).max(at(hi)) * (1.0 + 1e-9) + margin * margin)
+    }
+
     fn vertex_mean(&self) -> [f64; 2] {
         let n = self.vertices.len().max(1) as f64;
         let s = self
@@ -207,6 +246,54 @@ impl ConvexCell<2> for PolygonCell {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn farthest_on_bounds_the_part_of_a_segment_inside_the_cell() {
+        let mut cell = PolygonCell::from_box(&Aabb {
+            lo: [-1.0, -1.0],
+            hi: [1.0, 1.0],
+        });
+        cell.clip(
+            &HalfSpace {
+                normal: [1.0, 1.0],
+                offset: 1.0,
+            },
+            Face::Neighbor(3),
+        );
+        let inside = |p: [f64; 2]| p[0].abs() <= 1.0 && p[1].abs() <= 1.0 && p[0] + p[1] <= 1.0;
+        let segments = [
+            [[-5.0, 0.5], [5.0, 0.5]],   // crosses: inside from x = -1 to 0.5
+            [[-5.0, -0.9], [0.0, -0.9]], // ends inside
+            [[2.0, 2.0], [5.0, 0.0]],    // misses
+            [[0.0, 0.0], [0.2, 0.1]],    // inside
+        ];
+        for seg in segments {
+            // The farthest of many points of the segment inside the cell.
+            let sampled = (0..=10_000)
+                .map(|k| {
+                    let t = k as f64 / 10_000.0;
+                    let p = [
+                        seg[0][0] + t * (seg[1][0] - seg[0][0]),
+                        seg[0][1] + t * (seg[1][1] - seg[0][1]),
+                    ];
+                    inside(p).then(|| norm2(p))
+                })
+                .fold(None, |m: Option<f64>, d| match (m, d) {
+                    (Some(a), Some(b)) => Some(a.max(b)),
+                    (a, b) => a.or(b),
+                });
+            match (cell.farthest_on(&seg), sampled) {
+                (None, None) => {}
+                (Some(bound), Some(d2)) => {
+                    assert!(
+                        bound >= d2 && bound <= d2 + 1e-3,
+                        "{seg:?}: {bound} vs {d2}"
+                    )
+                }
+                (bound, d2) => panic!("{seg:?}: {bound:?} vs {d2:?}"),
+            }
+        }
+    }
 
     #[test]
     fn clipping_a_square_by_a_diagonal_keeps_a_triangle() {
