@@ -7,6 +7,7 @@
 
 pub mod bvh;
 mod winding;
+pub mod winding_grid;
 
 use std::collections::HashMap;
 
@@ -28,6 +29,10 @@ pub struct Boundary<const D: usize> {
     dipoles: std::sync::OnceLock<Vec<winding::Dipole<D>>>,
     /// Whether the domain is convex (see [`Boundary::is_convex`]), decided on first use.
     convex: std::sync::OnceLock<bool>,
+    /// Winding numbers of the buckets of a grid that the boundary misses, built on first use.
+    winding_grid: std::sync::OnceLock<winding_grid::WindingGrid<D>>,
+    /// Winding numbers asked for before the grid was built.
+    winding_queries: std::sync::Arc<std::sync::atomic::AtomicUsize>,
 }
 
 /// A polygonal domain: segments `[a, b]` with the interior on their left.
@@ -76,6 +81,8 @@ where
             moments: Moments::zero(),
             dipoles: std::sync::OnceLock::new(),
             convex: std::sync::OnceLock::new(),
+            winding_grid: std::sync::OnceLock::new(),
+            winding_queries: Default::default(),
         };
         boundary.moments = boundary.integrate_from(boundary.bvh.bounds().center());
         let moments = boundary.moments;
@@ -165,6 +172,23 @@ impl<const D: usize> Boundary<D>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    /// The grid of known winding numbers ([`winding_grid`]), built once enough winding
+    /// numbers were asked for to pay for it (a small diagram or a single query casts rays).
+    pub fn winding_grid(&self) -> Option<&winding_grid::WindingGrid<D>> {
+        if let Some(grid) = self.winding_grid.get() {
+            return Some(grid);
+        }
+        let asked = self
+            .winding_queries
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        if asked < winding_grid::WindingGrid::<D>::worth_after(self) {
+            return None;
+        }
+        Some(self.winding_grid.get_or_init(|| {
+            winding_grid::WindingGrid::new(self, |p| Euclid::ray_winding_number(self, p))
+        }))
+    }
+
     /// The domain is a convex polytope bounded once by its simplices: the winding number
     /// is 1 inside it, 0 outside, and it is the intersection of the inner half-spaces of
     /// its simplices. Decided exactly on first use, and `false` for boundaries too large to

@@ -4,17 +4,30 @@ use super::Boundary;
 use crate::geometry::{add, dot, norm2, scale, sub, Aabb, Euclid};
 
 /// Winding number of a point with respect to a closed oriented boundary.
-pub trait WindingNumber<const D: usize> {
+pub trait WindingNumber<const D: usize>: crate::geometry::Space<D> {
     /// The winding number of `p` (1 inside a valid domain, 0 outside), or `None` when `p`
-    /// lies exactly on the boundary, decided with exact predicates.
-    fn winding_number(boundary: &Boundary<D>, p: &[f64; D]) -> Option<i32>;
+    /// lies exactly on the boundary: looked up in the boundary's
+    /// [`WindingGrid`](super::winding_grid::WindingGrid) when it has one and knows, else
+    /// [`WindingNumber::ray_winding_number`]. The same answer either way.
+    fn winding_number(boundary: &Boundary<D>, p: &[f64; D]) -> Option<i32>
+    where
+        Euclid: WindingNumber<D>,
+    {
+        match boundary.winding_grid().and_then(|grid| grid.lookup(p)) {
+            Some(w) => Some(w),
+            None => Euclid::ray_winding_number(boundary, p),
+        }
+    }
+
+    /// The winding number of `p` by a ray cast, decided with exact predicates.
+    fn ray_winding_number(boundary: &Boundary<D>, p: &[f64; D]) -> Option<i32>;
 }
 
 impl WindingNumber<2> for Euclid {
     /// Crossings of the ray from `p` towards `+x` (Sunday's rule: upward crossings with `p`
     /// on the left count +1, downward with `p` on the right −1), the candidate segments
     /// from the BVH, every side test exact (`orient2d`).
-    fn winding_number(boundary: &Boundary<2>, p: &[f64; 2]) -> Option<i32> {
+    fn ray_winding_number(boundary: &Boundary<2>, p: &[f64; 2]) -> Option<i32> {
         let bounds = boundary.bounds();
         let ray = Aabb {
             lo: *p,
@@ -90,7 +103,7 @@ impl WindingNumber<3> for Euclid {
     /// boundary triangles (candidates from the BVH), every test an exact `orient3d`. When
     /// the segment passes through an edge or a vertex the next direction of a fixed list is
     /// taken, so the answer is deterministic. `None` exactly when `p` lies on a triangle.
-    fn winding_number(boundary: &Boundary<3>, p: &[f64; 3]) -> Option<i32> {
+    fn ray_winding_number(boundary: &Boundary<3>, p: &[f64; 3]) -> Option<i32> {
         let bounds = boundary.bounds();
         let reach = 2.0 * (bounds.diagonal() + norm2(sub(*p, bounds.center())).sqrt()) + 1.0;
         let mut candidates = Vec::new();
