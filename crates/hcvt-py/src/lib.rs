@@ -10,6 +10,14 @@ mod threads;
 
 use pyo3::prelude::*;
 
+/// The core's allocations (a CVT makes and drops arrays of megabytes every diagram) go to
+/// mimalloc, which keeps freed memory for reuse. glibc's malloc returns it to the system
+/// when the process sets a low trim threshold, as dask.distributed's workers do
+/// (`MALLOC_TRIM_THRESHOLD_=65536`): every diagram then page-faulted its arrays in anew,
+/// and a Newton CVT of 5,000 sites in the square took 0.80 s instead of 0.51 s.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::PolygonDomain>()?;

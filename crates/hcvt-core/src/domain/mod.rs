@@ -31,7 +31,8 @@ pub struct Boundary<const D: usize> {
     convex: std::sync::OnceLock<bool>,
     /// Winding numbers of the buckets of a grid that the boundary misses, built on first use.
     winding_grid: std::sync::OnceLock<winding_grid::WindingGrid<D>>,
-    /// Winding numbers asked for before the grid was built.
+    /// Winding numbers asked for before the grid was built (shared by clones, which ask
+    /// about the same domain).
     winding_queries: std::sync::Arc<std::sync::atomic::AtomicUsize>,
 }
 
