@@ -36,6 +36,24 @@ pub fn norm2<const D: usize>(a: [f64; D]) -> f64 {
     dot(a, a)
 }
 
+/// Cells per axis of a grid of about `target` cells with equal sides over a box of
+/// `extent` (one cell along a flat axis); each axis at most `target`.
+pub fn grid_cells<const D: usize>(extent: [f64; D], target: usize) -> [usize; D] {
+    let spread: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
+    if spread.is_empty() {
+        return [1; D];
+    }
+    let volume: f64 = spread.iter().product();
+    let side = (volume / target as f64).powf(1.0 / spread.len() as f64);
+    extent.map(|e| {
+        if e > 0.0 && side > 0.0 {
+            ((e / side).ceil() as usize).clamp(1, target)
+        } else {
+            1
+        }
+    })
+}
+
 /// Axis-aligned box `[lo, hi]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb<const D: usize> {

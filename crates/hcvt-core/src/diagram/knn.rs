@@ -12,7 +12,7 @@ use std::num::NonZeroUsize;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use crate::error::CoreError;
-use crate::geometry::{norm2, sub, Aabb};
+use crate::geometry::{grid_cells, norm2, sub, Aabb};
 
 /// Sites per bucket the grid aims at. A cell's neighbours then mostly lie in the 3^D
 /// buckets around its site; 1 and 3 cost 6% and 4% more instructions than 2 for a CVT of
@@ -243,14 +243,14 @@ impl<const D: usize> Grid<D> {
         if !extent.iter().all(|e| e.is_finite()) {
             return None;
         }
-        let mut cells = cells_for(extent, n.div_ceil(SITES_PER_BUCKET));
+        let mut cells = grid_cells(extent, n.div_ceil(SITES_PER_BUCKET));
         // Sites filling a fraction of their box (a star, a ball) would crowd the buckets
         // they occupy: aim at SITES_PER_BUCKET in the occupied buckets instead.
         let occupied = occupied_buckets(sites, bounds.lo, extent, cells);
         let count = cells.iter().product::<usize>();
         if occupied > 0 && 4 * occupied < 3 * count {
             let target = n.div_ceil(SITES_PER_BUCKET) * count / occupied;
-            cells = cells_for(extent, target.min(MAX_BUCKETS_PER_SITE * n));
+            cells = grid_cells(extent, target.min(MAX_BUCKETS_PER_SITE * n));
         }
         let side: [f64; D] = std::array::from_fn(|k| extent[k] / cells[k] as f64);
         let inverse = side.map(|s| if s > 0.0 { 1.0 / s } else { 0.0 });
@@ -512,24 +512,6 @@ fn occupied_buckets<const D: usize>(
         seen[b] = true;
     }
     seen.iter().filter(|&&s| s).count()
-}
-
-/// Buckets per axis for about `target` buckets of equal sides over `extent` (one along a
-/// flat axis); each axis at most `target`.
-fn cells_for<const D: usize>(extent: [f64; D], target: usize) -> [usize; D] {
-    let spread: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
-    if spread.is_empty() {
-        return [1; D];
-    }
-    let volume: f64 = spread.iter().product();
-    let side = (volume / target as f64).powf(1.0 / spread.len() as f64);
-    extent.map(|e| {
-        if e > 0.0 && side > 0.0 {
-            ((e / side).ceil() as usize).clamp(1, target)
-        } else {
-            1
-        }
-    })
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@
 //! never labelled; a bucket only near it may be left unlabelled, which costs a ray cast.
 
 use super::Boundary;
-use crate::geometry::{dot, sub, Euclid, Space};
+use crate::geometry::{dot, grid_cells, sub, Euclid, Space};
 
 /// Label of a bucket that the boundary touches (or whose winding number does not fit).
 const TOUCHED: i8 = i8::MIN;
@@ -58,7 +58,7 @@ where
     pub fn new(boundary: &Boundary<D>, ray: impl Fn(&[f64; D]) -> Option<i32>) -> Self {
         let bounds = boundary.bounds();
         let extent = sub(bounds.hi, bounds.lo);
-        let cells = cells_for(extent, Self::buckets(boundary));
+        let cells = grid_cells(extent, Self::buckets(boundary));
         let side: [f64; D] = std::array::from_fn(|k| extent[k] / cells[k] as f64);
         let mut grid = Self {
             lo: bounds.lo,
@@ -227,24 +227,6 @@ where
         }
     }
     true
-}
-
-/// Buckets per axis for about `target` buckets of equal sides over `extent` (one along a
-/// flat axis).
-fn cells_for<const D: usize>(extent: [f64; D], target: usize) -> [usize; D] {
-    let spread: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
-    if spread.is_empty() {
-        return [1; D];
-    }
-    let volume: f64 = spread.iter().product();
-    let side = (volume / target as f64).powf(1.0 / spread.len() as f64);
-    extent.map(|e| {
-        if e > 0.0 && side > 0.0 {
-            ((e / side).ceil() as usize).clamp(1, target)
-        } else {
-            1
-        }
-    })
 }
 
 #[cfg(test)]
