@@ -1133,8 +1133,30 @@ const PRODUCT_ROWS: usize = 1024;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::domain::Solid;
+    use crate::domain::{Polygon, Solid};
     use crate::sample::interior_sites;
+
+    /// Over several batches, the error names the first offending site in index order,
+    /// whichever batch met it first.
+    #[test]
+    fn the_first_duplicate_in_index_order_is_reported() {
+        let square = Polygon::new(
+            vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            vec![[0, 1], [1, 2], [2, 3], [3, 0]],
+        )
+        .unwrap();
+        let mut sites = interior_sites(&square, 3 * BATCH, 5);
+        sites[2 * BATCH + 1] = sites[2 * BATCH];
+        sites[BATCH + 7] = sites[10];
+        let error = clipped_diagram::<2, PolygonCell>(&square, &sites, Options::default(), false)
+            .unwrap_err();
+        match error {
+            CoreError::DuplicateSites { first, second, .. } => {
+                assert_eq!((first, second), (10, BATCH + 7))
+            }
+            other => panic!("{other:?}"),
+        }
+    }
 
     /// Cutting boundary cells by the domain's planes inside `voronoi_cell` gives the cells
     /// that `clip_convex` gives after it, to round-off, faces and their tags included.

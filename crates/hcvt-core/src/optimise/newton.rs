@@ -270,3 +270,36 @@ fn steihaug<const D: usize>(
     }
     step(z, decrease, false)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagram::Diagram;
+
+    fn point(gradient: Vec<[f64; 2]>) -> Point<2> {
+        Point {
+            sites: vec![[0.0; 2]; gradient.len()],
+            diagram: Diagram::default(),
+            energy: 0.0,
+            gradient,
+        }
+    }
+
+    #[test]
+    fn stiffness_grows_where_the_model_failed_and_relaxes_where_it_held() {
+        let g = vec![[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 0.5]];
+        let hs = [[1.0, 0.0], [1.0, 0.0], [1.0, 0.0], [1.0, 0.0]];
+        // New gradients: the model's g + Hs exactly; missing it by 3|Hs|; by 0.4|Hs| (in
+        // between); by 0.1|Hs|.
+        let misses = [0.0, 3.0, 0.4, 0.1];
+        let trial: Vec<[f64; 2]> = g
+            .iter()
+            .zip(misses)
+            .map(|(g, m)| [g[0] + 1.0 + m, g[1]])
+            .collect();
+        let mut stiffness = vec![4.0, 4.0, 4.0, 1.0];
+        adapt_stiffness(&mut stiffness, &point(g), &point(trial), &hs);
+        // The floor (0.3 of the RMS |Hs|, here 0.3) widens |Hs| = 1 to 1.3.
+        assert_eq!(stiffness, vec![2.0, 16.0, 4.0, 1.0]);
+    }
+}
