@@ -73,8 +73,11 @@ where
     }
 
     /// The winding number of `p` when the grid knows it: outside the box (0), or in a
-    /// bucket that the boundary does not touch.
+    /// bucket that the boundary does not touch. Not for a non-finite `p` (left to the ray).
     pub fn lookup(&self, p: &[f64; D]) -> Option<i32> {
+        if !p.iter().all(|x| x.is_finite()) {
+            return None;
+        }
         if (0..D).any(|k| p[k] < self.lo[k] || p[k] > self.hi[k]) {
             return Some(0);
         }
@@ -253,6 +256,9 @@ mod tests {
                 answered += 1;
             }
         }
+        let mut nan = b.lo;
+        nan[0] = f64::NAN;
+        assert_eq!(grid.lookup(&nan), None);
         assert!(
             answered > samples * 3 / 4,
             "{answered} of {samples} answered"
