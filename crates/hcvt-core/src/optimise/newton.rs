@@ -15,10 +15,10 @@
 //! region follows negative curvature to its edge and rejects a step with one diagram.
 //!
 //! The region is a ball in the norm `‖p‖_M = √(Σ 2 m_i |p_i|²)` of the preconditioner,
-//! first as large as the Lloyd step, each site's term scaled by its stiffness (below). CG stops inside it at relative residual
-//! `η = min(1/2, √(‖g‖/‖X‖))` (the forcing sequence of Nocedal and Wright, made
-//! scale-free with the stopping rule's value). Trials that put a site outside the domain
-//! are rejected like steps that raise the energy. Near the minimum, where energy
+//! each site's term scaled by its stiffness (below), first as large as the Lloyd step. CG
+//! stops inside it at relative residual `η = min(1/2, √(‖g‖/‖X‖))` (the forcing sequence
+//! of Nocedal and Wright, made scale-free with the stopping rule's value). Trials that put
+//! a site outside the domain are rejected like steps that raise the energy. Near the minimum, where energy
 //! differences are round-off, a step is judged by the gradient instead (module docs of
 //! [`super`], "Round-off").
 //!
@@ -144,14 +144,16 @@ pub fn step<const D: usize>(
 }
 
 /// Site `i`'s model failed when its gradient after the step is farther than this from the
-/// model's `g_i + (Hs)_i`, relative to the model's change `|(Hs)_i|` (plus a floor of
-/// [`STIFFNESS_FLOOR`] times the RMS change, so that sites the step barely touched are
-/// not judged on round-off); it held when nearer than [`MODEL_HELD`].
+/// model's `g_i + (Hs)_i`, relative to the model's change `|(Hs)_i|` plus a floor.
 const MODEL_FAILED: f64 = 0.5;
+/// Site `i`'s model held when its gradient after the step is nearer than this (same units).
 const MODEL_HELD: f64 = 0.25;
+/// The floor, a fraction of the RMS of `|(Hs)_i|`: sites the step barely touched are not
+/// judged on round-off.
 const STIFFNESS_FLOOR: f64 = 0.3;
-/// How a failed site's stiffness grows, and how a held one's relaxes back towards 1.
+/// How a failed site's stiffness grows.
 const STIFFEN: f64 = 4.0;
+/// How a held site's stiffness relaxes back towards 1.
 const RELAX: f64 = 0.5;
 /// Bound on the stiffness: a site never gets stuck for good.
 const MAX_STIFFNESS: f64 = 1e8;
