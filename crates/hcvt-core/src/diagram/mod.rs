@@ -725,7 +725,8 @@ where
     Euclid: Space<D>,
 {
     if candidates.is_empty() {
-        return measure(cell, hessian, faces); // an interior cell: nothing to cut, and no copy to make
+        // An interior cell: nothing to cut, and no copy to make.
+        return measure(cell, hessian, faces);
     }
     let clipped = piece.get_or_insert_with(|| cell.clone());
     clipped.clone_from(cell);

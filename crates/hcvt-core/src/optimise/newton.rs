@@ -18,9 +18,9 @@
 //! each site's term scaled by its stiffness (below), first as large as the Lloyd step. CG
 //! stops inside it at relative residual `η = min(1/2, √(‖g‖/‖X‖))` (the forcing sequence
 //! of Nocedal and Wright, made scale-free with the stopping rule's value). Trials that put
-//! a site outside the domain are rejected like steps that raise the energy. Near the minimum, where energy
-//! differences are round-off, a step is judged by the gradient instead (module docs of
-//! [`super`], "Round-off").
+//! a site outside the domain are rejected like steps that raise the energy. Near the
+//! minimum, where energy differences are round-off, a step is judged by the gradient
+//! instead (module docs of [`super`], "Round-off").
 //!
 //! **Stiffness.** Late in a run the gradient sits on a few sites (on 10,000 random sites in
 //! the star, 1% of the sites carry half of `‖g‖²` from the 20th step on) where cells
