@@ -36,22 +36,86 @@ pub fn norm2<const D: usize>(a: [f64; D]) -> f64 {
     dot(a, a)
 }
 
-/// Cells per axis of a grid of about `target` cells with equal sides over a box of
-/// `extent` (one cell along a flat axis); each axis at most `target`.
-pub fn grid_cells<const D: usize>(extent: [f64; D], target: usize) -> [usize; D] {
-    let spread: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
-    if spread.is_empty() {
-        return [1; D];
-    }
-    let volume: f64 = spread.iter().product();
-    let side = (volume / target as f64).powf(1.0 / spread.len() as f64);
-    extent.map(|e| {
-        if e > 0.0 && side > 0.0 {
-            ((e / side).ceil() as usize).clamp(1, target)
-        } else {
-            1
+/// A box cut into equal cells, indexed with axis 0 varying fastest: the buckets of the
+/// nearest-site grid and of the winding-number grid.
+#[derive(Debug, Clone)]
+pub struct Lattice<const D: usize> {
+    /// Lower corner of the box.
+    pub lo: [f64; D],
+    /// Cell side along each axis.
+    pub side: [f64; D],
+    /// Cells along each axis.
+    pub cells: [usize; D],
+    inverse: [f64; D],
+}
+
+impl<const D: usize> Lattice<D> {
+    /// About `target` cells with equal sides over the box at `lo` of size `extent` (one
+    /// cell along a flat axis; each axis at most `target` cells).
+    pub fn new(lo: [f64; D], extent: [f64; D], target: usize) -> Self {
+        let spread: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
+        let volume: f64 = spread.iter().product();
+        let wanted = (volume / target.max(1) as f64).powf(1.0 / spread.len().max(1) as f64);
+        let cells = extent.map(|e| {
+            if e > 0.0 && wanted > 0.0 {
+                ((e / wanted).ceil() as usize).clamp(1, target.max(1))
+            } else {
+                1
+            }
+        });
+        let side: [f64; D] = std::array::from_fn(|k| extent[k] / cells[k] as f64);
+        Self {
+            lo,
+            side,
+            cells,
+            inverse: side.map(|s| if s > 0.0 { 1.0 / s } else { 0.0 }),
         }
-    })
+    }
+
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        self.cells.iter().product()
+    }
+
+    /// No cells (never: a lattice has at least one).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Coordinates of the cell holding `p`, clamped to the lattice.
+    pub fn coordinates(&self, p: &[f64; D]) -> [usize; D] {
+        std::array::from_fn(|k| {
+            let x = ((p[k] - self.lo[k]) * self.inverse[k]).floor();
+            if x > 0.0 {
+                (x as usize).min(self.cells[k] - 1)
+            } else {
+                0
+            }
+        })
+    }
+
+    /// Linear index of the cell at coordinates `c`.
+    pub fn index(&self, c: [usize; D]) -> usize {
+        (0..D).rev().fold(0, |b, k| b * self.cells[k] + c[k])
+    }
+
+    /// Coordinates of the cell of linear index `b`.
+    pub fn coordinates_of(&self, mut b: usize) -> [usize; D] {
+        std::array::from_fn(|k| {
+            let c = b % self.cells[k];
+            b /= self.cells[k];
+            c
+        })
+    }
+
+    /// The cell at coordinates `c` as a box.
+    pub fn cell_box(&self, c: [usize; D]) -> Aabb<D> {
+        let lo: [f64; D] = std::array::from_fn(|k| self.lo[k] + c[k] as f64 * self.side[k]);
+        Aabb {
+            lo,
+            hi: std::array::from_fn(|k| lo[k] + self.side[k]),
+        }
+    }
 }
 
 /// Axis-aligned box `[lo, hi]`.

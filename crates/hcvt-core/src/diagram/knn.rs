@@ -12,7 +12,7 @@ use std::num::NonZeroUsize;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use crate::error::CoreError;
-use crate::geometry::{grid_cells, norm2, sub, Aabb};
+use crate::geometry::{norm2, sub, Aabb, Lattice};
 
 /// Sites per bucket the grid aims at. A cell's neighbours then mostly lie in the 3^D
 /// buckets around its site; 1 and 3 cost 6% and 4% more instructions than 2 for a CVT of
@@ -208,13 +208,9 @@ fn tree_next<const D: usize>(
 const FIRST_K: [usize; 4] = [2, 4, 16, 64];
 
 /// Buckets of sites over the sites' bounding box, in compressed rows: bucket `b` holds
-/// `points[starts[b]..starts[b + 1]]`, axis 0 varying fastest.
+/// `points[starts[b]..starts[b + 1]]`.
 struct Grid<const D: usize> {
-    lo: [f64; D],
-    /// Bucket side along each axis, and its inverse.
-    side: [f64; D],
-    inverse: [f64; D],
-    cells: [usize; D],
+    buckets: Lattice<D>,
     starts: Vec<u32>,
     /// Sites in bucket order (by index within a bucket), with their indices.
     points: Vec<([f64; D], u32)>,
@@ -243,26 +239,21 @@ impl<const D: usize> Grid<D> {
         if !extent.iter().all(|e| e.is_finite()) {
             return None;
         }
-        let mut cells = grid_cells(extent, n.div_ceil(SITES_PER_BUCKET));
+        let mut buckets = Lattice::new(bounds.lo, extent, n.div_ceil(SITES_PER_BUCKET));
         // Sites filling a fraction of their box (a star, a ball) would crowd the buckets
         // they occupy: aim at SITES_PER_BUCKET in the occupied buckets instead.
-        let occupied = occupied_buckets(sites, bounds.lo, extent, cells);
-        let count = cells.iter().product::<usize>();
-        if occupied > 0 && 4 * occupied < 3 * count {
-            let target = n.div_ceil(SITES_PER_BUCKET) * count / occupied;
-            cells = grid_cells(extent, target.min(MAX_BUCKETS_PER_SITE * n));
+        let occupied = occupied_buckets(sites, &buckets);
+        if occupied > 0 && 4 * occupied < 3 * buckets.len() {
+            let target = n.div_ceil(SITES_PER_BUCKET) * buckets.len() / occupied;
+            buckets = Lattice::new(bounds.lo, extent, target.min(MAX_BUCKETS_PER_SITE * n));
         }
-        let side: [f64; D] = std::array::from_fn(|k| extent[k] / cells[k] as f64);
-        let inverse = side.map(|s| if s > 0.0 { 1.0 / s } else { 0.0 });
-        let count = cells.iter().product::<usize>();
+        let count = buckets.len();
+        let largest_side = buckets.side.iter().fold(0.0, |m: f64, &s| m.max(s));
         let mut grid = Self {
-            lo: bounds.lo,
-            side,
-            inverse,
-            cells,
+            buckets,
             starts: vec![0; count + 1],
             points: Vec::new(),
-            slack: 1e-9 * side.iter().fold(0.0, |m: f64, &s| m.max(s))
+            slack: 1e-9 * largest_side
                 + 16.0
                     * f64::EPSILON
                     * (norm2(bounds.lo).max(norm2(bounds.hi)).sqrt() + norm2(extent).sqrt()),
@@ -287,29 +278,13 @@ impl<const D: usize> Grid<D> {
         Some(grid)
     }
 
-    /// Bucket coordinates of `p`, clamped to the grid.
-    fn coordinates(&self, p: &[f64; D]) -> [usize; D] {
-        std::array::from_fn(|k| {
-            let x = ((p[k] - self.lo[k]) * self.inverse[k]).floor();
-            if x > 0.0 {
-                (x as usize).min(self.cells[k] - 1)
-            } else {
-                0
-            }
-        })
-    }
-
     fn bucket(&self, p: &[f64; D]) -> usize {
-        self.linear(self.coordinates(p))
-    }
-
-    fn linear(&self, c: [usize; D]) -> usize {
-        (0..D).rev().fold(0, |b, k| b * self.cells[k] + c[k])
+        self.buckets.index(self.buckets.coordinates(p))
     }
 
     fn ring_start(&self, p: [f64; D]) -> Rings<D> {
         Rings {
-            center: self.coordinates(&p),
+            center: self.buckets.coordinates(&p),
             ring: 0,
             covered2: f64::NEG_INFINITY,
         }
@@ -402,7 +377,7 @@ impl<const D: usize> Grid<D> {
     ) {
         // Buckets `from..=to` of a row along axis 0 (contiguous in `points`).
         let mut push_row = |row: [usize; D], from: usize, to: usize| {
-            let base = self.linear(row) - row[0];
+            let base = self.buckets.index(row) - row[0];
             let sites = self.starts[base + from] as usize..self.starts[base + to + 1] as usize;
             for &(q, j) in &self.points[sites] {
                 f(q, j);
@@ -410,7 +385,12 @@ impl<const D: usize> Grid<D> {
         };
         // Rows along axis 0: a row on the ring's shell in some other axis is a full segment
         // of the ring; an inner row only meets the shell at its two ends.
-        let range = |k: usize| (c[k].saturating_sub(r), (c[k] + r).min(self.cells[k] - 1));
+        let range = |k: usize| {
+            (
+                c[k].saturating_sub(r),
+                (c[k] + r).min(self.buckets.cells[k] - 1),
+            )
+        };
         let (from, to) = range(0);
         let first: [usize; D] = std::array::from_fn(|k| if k == 0 { c[0] } else { range(k).0 });
         let mut row = first;
@@ -422,7 +402,7 @@ impl<const D: usize> Grid<D> {
                 if c[0] >= r {
                     push_row(row, c[0] - r, c[0] - r);
                 }
-                if c[0] + r < self.cells[0] {
+                if c[0] + r < self.buckets.cells[0] {
                     push_row(row, c[0] + r, c[0] + r);
                 }
             }
@@ -442,11 +422,11 @@ impl<const D: usize> Grid<D> {
         let mut nearest = f64::INFINITY;
         for k in 0..D {
             if c[k] + 1 > ring {
-                let face = self.lo[k] + (c[k] + 1 - ring) as f64 * self.side[k];
+                let face = self.buckets.lo[k] + (c[k] + 1 - ring) as f64 * self.buckets.side[k];
                 nearest = nearest.min(p[k] - face);
             }
-            if c[k] + ring < self.cells[k] {
-                let face = self.lo[k] + (c[k] + ring) as f64 * self.side[k];
+            if c[k] + ring < self.buckets.cells[k] {
+                let face = self.buckets.lo[k] + (c[k] + ring) as f64 * self.buckets.side[k];
                 nearest = nearest.min(face - p[k]);
             }
         }
@@ -492,24 +472,11 @@ fn sort_nearest(pending: &mut [(u64, u32)]) -> usize {
 /// At most this many buckets per site, however little of their box the sites fill.
 const MAX_BUCKETS_PER_SITE: usize = 4;
 
-/// Buckets that hold a site when the box `lo + [0, extent]` is cut into `cells`.
-fn occupied_buckets<const D: usize>(
-    sites: &[[f64; D]],
-    lo: [f64; D],
-    extent: [f64; D],
-    cells: [usize; D],
-) -> usize {
-    let mut seen = vec![false; cells.iter().product::<usize>()];
+/// Buckets of `lattice` that hold a site.
+fn occupied_buckets<const D: usize>(sites: &[[f64; D]], lattice: &Lattice<D>) -> usize {
+    let mut seen = vec![false; lattice.len()];
     for s in sites {
-        let b = (0..D).rev().fold(0, |b, k| {
-            let x = if extent[k] > 0.0 {
-                ((s[k] - lo[k]) / extent[k] * cells[k] as f64) as usize
-            } else {
-                0
-            };
-            b * cells[k] + x.min(cells[k] - 1)
-        });
-        seen[b] = true;
+        seen[lattice.index(lattice.coordinates(s))] = true;
     }
     seen.iter().filter(|&&s| s).count()
 }
@@ -572,7 +539,7 @@ mod tests {
         let Kind::Grid(grid) = &index.kind else {
             panic!("a grid")
         };
-        let buckets: usize = grid.cells.iter().product();
+        let buckets = grid.buckets.len();
         assert!(
             buckets > sites.len(),
             "{buckets} buckets for {} sites",

@@ -14,7 +14,7 @@
 //! never labelled; a bucket only near it may be left unlabelled, which costs a ray cast.
 
 use super::Boundary;
-use crate::geometry::{dot, grid_cells, sub, Euclid, Space};
+use crate::geometry::{dot, sub, Euclid, Lattice, Space};
 
 /// Label of a bucket that the boundary touches (or whose winding number does not fit).
 const TOUCHED: i8 = i8::MIN;
@@ -24,14 +24,12 @@ const MIN_BUCKETS: [usize; 4] = [1, 1 << 10, 1 << 16, 1 << 18];
 const MAX_BUCKETS: usize = 1 << 22;
 const BUCKETS_PER_SIMPLEX: usize = 64;
 
-/// The grid: buckets over the domain's bounding box, axis 0 varying fastest.
+/// The grid: buckets over the domain's bounding box.
 #[derive(Debug, Clone)]
 pub struct WindingGrid<const D: usize> {
-    lo: [f64; D],
+    buckets: Lattice<D>,
+    /// Upper corner of the box.
     hi: [f64; D],
-    /// Buckets per unit length along each axis.
-    inverse: [f64; D],
-    cells: [usize; D],
     /// Winding number of each untouched bucket, [`TOUCHED`] for the others.
     labels: Vec<i8>,
 }
@@ -58,17 +56,14 @@ where
     pub fn new(boundary: &Boundary<D>, ray: impl Fn(&[f64; D]) -> Option<i32>) -> Self {
         let bounds = boundary.bounds();
         let extent = sub(bounds.hi, bounds.lo);
-        let cells = grid_cells(extent, Self::buckets(boundary));
-        let side: [f64; D] = std::array::from_fn(|k| extent[k] / cells[k] as f64);
+        let buckets = Lattice::new(bounds.lo, extent, Self::buckets(boundary));
         let mut grid = Self {
-            lo: bounds.lo,
+            labels: vec![0; buckets.len()],
+            buckets,
             hi: bounds.hi,
-            inverse: std::array::from_fn(|k| if side[k] > 0.0 { 1.0 / side[k] } else { 0.0 }),
-            cells,
-            labels: vec![0; cells.iter().product()],
         };
-        grid.mark_touched(boundary, side);
-        grid.label_untouched(side, ray);
+        grid.mark_touched(boundary);
+        grid.label_untouched(ray);
         grid
     }
 
@@ -78,55 +73,33 @@ where
         if !p.iter().all(|x| x.is_finite()) {
             return None;
         }
-        if (0..D).any(|k| p[k] < self.lo[k] || p[k] > self.hi[k]) {
+        if (0..D).any(|k| p[k] < self.buckets.lo[k] || p[k] > self.hi[k]) {
             return Some(0);
         }
-        let cell = std::array::from_fn(|k| self.coordinate(p[k], k));
-        let label = self.labels[self.linear(cell)];
+        let label = self.labels[self.buckets.index(self.buckets.coordinates(p))];
         (label != TOUCHED).then_some(label as i32)
     }
 
-    fn coordinate(&self, x: f64, k: usize) -> usize {
-        let c = ((x - self.lo[k]) * self.inverse[k]).floor();
-        if c > 0.0 {
-            (c as usize).min(self.cells[k] - 1)
-        } else {
-            0
-        }
-    }
-
-    fn linear(&self, c: [usize; D]) -> usize {
-        (0..D).rev().fold(0, |b, k| b * self.cells[k] + c[k])
-    }
-
-    fn bucket_box(&self, c: [usize; D], side: [f64; D]) -> ([f64; D], [f64; D]) {
-        let lo: [f64; D] = std::array::from_fn(|k| self.lo[k] + c[k] as f64 * side[k]);
-        (lo, std::array::from_fn(|k| lo[k] + side[k]))
-    }
-
     /// Mark every bucket that some simplex may touch.
-    fn mark_touched(&mut self, boundary: &Boundary<D>, side: [f64; D]) {
+    fn mark_touched(&mut self, boundary: &Boundary<D>) {
         // Far above the round-off of the projections below, far below a bucket.
-        let scale = (0..D).fold(0.0f64, |m, k| m.max(self.lo[k].abs()).max(self.hi[k].abs()));
-        let margin: [f64; D] = std::array::from_fn(|k| 1e-6 * side[k] + 1e-12 * scale);
+        let lattice = &self.buckets;
+        let scale = (0..D).fold(0.0f64, |m, k| {
+            m.max(lattice.lo[k].abs()).max(self.hi[k].abs())
+        });
+        let margin: [f64; D] = std::array::from_fn(|k| 1e-6 * lattice.side[k] + 1e-12 * scale);
         for t in 0..boundary.simplices().len() as u32 {
             let simplex = boundary.simplex(t);
-            let from: [usize; D] = std::array::from_fn(|k| {
-                let lo = simplex.iter().fold(f64::INFINITY, |m, v| m.min(v[k]));
-                self.coordinate(lo - margin[k], k)
-            });
-            let to: [usize; D] = std::array::from_fn(|k| {
-                let hi = simplex.iter().fold(f64::NEG_INFINITY, |m, v| m.max(v[k]));
-                self.coordinate(hi + margin[k], k)
-            });
+            let reach = crate::geometry::Aabb::of_points(simplex.iter());
+            let from = lattice.coordinates(&std::array::from_fn(|k| reach.lo[k] - margin[k]));
+            let to = lattice.coordinates(&std::array::from_fn(|k| reach.hi[k] + margin[k]));
             let mut c = from;
             loop {
-                let (lo, hi) = self.bucket_box(c, side);
-                let lo = std::array::from_fn(|k| lo[k] - margin[k]);
-                let hi = std::array::from_fn(|k| hi[k] + margin[k]);
+                let cell = lattice.cell_box(c);
+                let lo = std::array::from_fn(|k| cell.lo[k] - margin[k]);
+                let hi = std::array::from_fn(|k| cell.hi[k] + margin[k]);
                 if touches(&simplex, lo, hi) {
-                    let at = self.linear(c);
-                    self.labels[at] = TOUCHED;
+                    self.labels[lattice.index(c)] = TOUCHED;
                 }
                 // Next bucket of the block: odometer over the axes.
                 let Some(k) = (0..D).find(|&k| c[k] < to[k]) else {
@@ -140,16 +113,17 @@ where
 
     /// Give each connected set of untouched buckets the winding number of its first
     /// bucket's centre.
-    fn label_untouched(&mut self, side: [f64; D], ray: impl Fn(&[f64; D]) -> Option<i32>) {
+    fn label_untouched(&mut self, ray: impl Fn(&[f64; D]) -> Option<i32>) {
         let mut done = vec![false; self.labels.len()];
         let mut stack = Vec::new();
         for start in 0..self.labels.len() {
             if done[start] || self.labels[start] == TOUCHED {
                 continue;
             }
-            let c = self.unlinear(start);
-            let (lo, hi) = self.bucket_box(c, side);
-            let centre = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+            let centre = self
+                .buckets
+                .cell_box(self.buckets.coordinates_of(start))
+                .center();
             let label = match ray(&centre) {
                 Some(w) if (i8::MIN as i32) < w && w <= i8::MAX as i32 => w as i8,
                 _ => TOUCHED, // on the boundary after all: leave the set to the rays
@@ -158,16 +132,16 @@ where
             stack.push(start);
             while let Some(b) = stack.pop() {
                 self.labels[b] = label;
-                let c = self.unlinear(b);
+                let c = self.buckets.coordinates_of(b);
                 for k in 0..D {
                     for step in [-1i64, 1] {
                         let x = c[k] as i64 + step;
-                        if x < 0 || x >= self.cells[k] as i64 {
+                        if x < 0 || x >= self.buckets.cells[k] as i64 {
                             continue;
                         }
                         let mut n = c;
                         n[k] = x as usize;
-                        let at = self.linear(n);
+                        let at = self.buckets.index(n);
                         if !done[at] && self.labels[at] != TOUCHED {
                             done[at] = true;
                             stack.push(at);
@@ -176,14 +150,6 @@ where
                 }
             }
         }
-    }
-
-    fn unlinear(&self, mut b: usize) -> [usize; D] {
-        std::array::from_fn(|k| {
-            let c = b % self.cells[k];
-            b /= self.cells[k];
-            c
-        })
     }
 }
 
