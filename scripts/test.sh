@@ -13,3 +13,7 @@ echo "== cargo test"; cargo test --workspace --release
 echo "== ruff";     python -m ruff check python tests benchmarks
 python -m ruff format --check python tests benchmarks
 echo "== pytest";   python -m pytest python tests
+# A miscompilation seen once with one codegen unit (crates/hcvt-core/src/moments.rs,
+# FaceMoments::simplex): the Hessian's finite-difference test, built that way too.
+echo "== cargo test, one codegen unit"
+CARGO_PROFILE_RELEASE_CODEGEN_UNITS=1 cargo test --release -p hcvt-core --test optimise

@@ -177,7 +177,13 @@ impl<const D: usize> FaceMoments<D> {
     /// assert_eq!(m.first, [2.0, 0.0]);
     /// assert!((m.second[0][0] - 8.0 / 3.0).abs() < 1e-15);
     /// ```
-    #[inline]
+    // Not inlined: inlined into `PolygonCell::moments_and_face_moments`, rustc 1.95 built
+    // with one codegen unit got the cross term `∫ y_0 y_1` wrong (as if the two vertices
+    // had swapped their y: the diagonal terms and the first moment stayed right), and the
+    // Hessian missed its finite differences by 57% (`cargo test --release --test optimise`
+    // with CARGO_PROFILE_RELEASE_CODEGEN_UNITS=1; the debug build and 4 or 16 units were
+    // right). scripts/test.sh runs that check.
+    #[inline(never)]
     pub fn simplex(vertices: &[[f64; D]; D], measure: f64) -> Self {
         let s = vertices.iter().fold([0.0; D], |acc, &v| add(acc, v));
         let d = D as f64;
