@@ -322,3 +322,67 @@ fn newton_converges_in_non_convex_domains_with_fewer_diagrams_than_lbfgs() {
     let dented = dented_cube();
     newton_beats_lbfgs::<3, PolyhedronCell>(&dented, interior_sites(&dented, 150, 4));
 }
+
+/// The run holds the sites along a Morton curve; the caller sees its own order: the
+/// observer's first sites are the input, the outcome's diagram is the diagram of the
+/// outcome's sites (same neighbours, moments to round-off, Hessian rows for Newton), and
+/// an error names the first offending site in the caller's order.
+#[test]
+fn the_caller_sees_its_own_order() {
+    let l = l_shape();
+    let sites = interior_sites(&l, 200, 9);
+    for method in [Method::Lbfgs, Method::Newton] {
+        let mut first: Option<Vec<[f64; 2]>> = None;
+        let out = cvt::<2, PolygonCell>(
+            &l,
+            sites.clone(),
+            &settings(method, 1e-6, 50),
+            &mut |_, s| {
+                first.get_or_insert_with(|| s.to_vec());
+                ControlFlow::Continue(())
+            },
+        )
+        .unwrap();
+        assert_eq!(first.as_deref(), Some(&sites[..]));
+        let options = Options {
+            hessian: method == Method::Newton,
+            ..Options::default()
+        };
+        let fresh = evaluate_with::<2, PolygonCell>(&l, out.sites.clone(), options).unwrap();
+        let (a, b) = (&out.diagram, &fresh.diagram);
+        assert_eq!(a.neighbor_offsets, b.neighbor_offsets);
+        assert_eq!(a.neighbor_sites, b.neighbor_sites);
+        for (ma, mb) in a.moments.iter().zip(&b.moments) {
+            assert!((ma.mass - mb.mass).abs() <= 1e-12 * mb.mass);
+            assert!((ma.second - mb.second).abs() <= 1e-12 * mb.second);
+        }
+        if method == Method::Newton {
+            let v: Vec<[f64; 2]> = out.sites.iter().map(|s| [s[1].sin(), s[0].cos()]).collect();
+            let (ha, hb) = (
+                a.hessian_product(&v).unwrap(),
+                b.hessian_product(&v).unwrap(),
+            );
+            let scale = hb
+                .iter()
+                .map(|r| r[0].abs() + r[1].abs())
+                .fold(0.0, f64::max);
+            for (ra, rb) in ha.iter().zip(&hb) {
+                assert!((ra[0] - rb[0]).abs() + (ra[1] - rb[1]).abs() <= 1e-12 * scale);
+            }
+        }
+    }
+    let mut bad = sites.clone();
+    bad[150] = [3.0, 3.0]; // outside the L
+    bad[7] = [3.5, 3.5];
+    let err = cvt::<2, PolygonCell>(&l, bad, &settings(Method::Lbfgs, 1e-6, 5), &mut |_, _| {
+        ControlFlow::Continue(())
+    })
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            hcvt_core::CoreError::SiteOutsideDomain { index: 7, .. }
+        ),
+        "{err:?}"
+    );
+}

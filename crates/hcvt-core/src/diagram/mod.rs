@@ -341,7 +341,7 @@ pub const FAR_OUTSIDE: f64 = 64.0;
 ///
 /// The curve is only as fine as locality needs, about 4^D cells per site: interleaving all
 /// 63 bits cost 5% of a CVT's instructions at 1,000 sites.
-fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
+pub fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
     let bounds = Aabb::of_points(sites);
     let bits = (sites.len().max(1).ilog2() / D as u32 + 3).min(63 / D as u32);
     let cells = (1u64 << bits) as f64;
@@ -1093,6 +1093,55 @@ impl<const D: usize> Diagram<D> {
     /// Energy gradient `∂E/∂x_i = 2 m_i (x_i - c_i) = -2 ∫(x - x_i)` (DESIGN §4), `L^(d+1)`.
     pub fn gradient(&self) -> Vec<[f64; D]> {
         self.moments.iter().map(|m| scale(m.first, -2.0)).collect()
+    }
+
+    /// The same diagram for the sites renamed by `order`: row `k` becomes row `order[k]`
+    /// and neighbour `j` becomes `order[j]` (each row's neighbours sorted again, their
+    /// measures and Hessian blocks with them). `order` must be a permutation of `0..n`.
+    pub fn reordered(&self, order: &[u32]) -> Self {
+        let n = self.len();
+        let mut out = Diagram {
+            moments: vec![Moments::zero(); n],
+            boundary_measure: vec![0.0; n],
+            neighbor_offsets: vec![0; n + 1],
+            neighbor_sites: vec![0; self.neighbor_sites.len()],
+            neighbor_measures: vec![0.0; self.neighbor_measures.len()],
+            hessian: self.hessian.as_ref().map(|h| Hessian {
+                diagonal: vec![[[0.0; D]; D]; n],
+                off_diagonal: vec![[[0.0; D]; D]; h.off_diagonal.len()],
+            }),
+        };
+        for (k, &i) in order.iter().enumerate() {
+            let i = i as usize;
+            out.moments[i] = self.moments[k];
+            out.boundary_measure[i] = self.boundary_measure[k];
+            out.neighbor_offsets[i + 1] = self.neighbor_offsets[k + 1] - self.neighbor_offsets[k];
+        }
+        for i in 0..n {
+            out.neighbor_offsets[i + 1] += out.neighbor_offsets[i];
+        }
+        let mut row: Vec<(u32, usize)> = Vec::new();
+        for (k, &i) in order.iter().enumerate() {
+            let i = i as usize;
+            row.clear();
+            row.extend(
+                (self.neighbor_offsets[k]..self.neighbor_offsets[k + 1])
+                    .map(|e| (order[self.neighbor_sites[e] as usize], e)),
+            );
+            row.sort_unstable();
+            let from = out.neighbor_offsets[i];
+            for (slot, &(j, e)) in row.iter().enumerate() {
+                out.neighbor_sites[from + slot] = j;
+                out.neighbor_measures[from + slot] = self.neighbor_measures[e];
+            }
+            if let (Some(h), Some(to)) = (self.hessian.as_ref(), out.hessian.as_mut()) {
+                to.diagonal[i] = h.diagonal[k];
+                for (slot, &(_, e)) in row.iter().enumerate() {
+                    to.off_diagonal[from + slot] = h.off_diagonal[e];
+                }
+            }
+        }
+        out
     }
 
     /// The product `H v` of the energy's [`Hessian`] with `v` (one row per site), `None`

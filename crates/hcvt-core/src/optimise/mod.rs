@@ -46,7 +46,7 @@ pub mod newton;
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use crate::diagram::{clipped_diagram, ConvexCell, Diagram, Options};
+use crate::diagram::{clipped_diagram, morton_order, ConvexCell, Diagram, Options};
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
@@ -362,9 +362,55 @@ impl<const D: usize> Tracker<D> {
 /// the run by returning `ControlFlow::Break` (the binding does so on Ctrl-C, or when the
 /// Python callback asks).
 ///
-/// Errors: those of the first diagram (sites outside the domain, coinciding, non-finite).
-/// Later steps keep the sites inside the domain and distinct, so they do not fail.
+/// The run holds the sites in the order of a Morton curve through their starting
+/// positions, so that sites near in space are near in memory (the diagram's rows, the
+/// Hessian's products); the observer and the outcome see the caller's order. Sums over
+/// sites (energy, norms) run in the run's order.
+///
+/// Errors: those of the first diagram (sites outside the domain, coinciding, non-finite),
+/// naming sites in the caller's order. Later steps keep the sites inside the domain and
+/// distinct, so they do not fail.
 pub fn cvt<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+    settings: &Settings,
+    observer: &mut Observer<'_, D>,
+) -> Result<Outcome<D>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let order = morton_order(&sites);
+    let along_curve: Vec<[f64; D]> = order.iter().map(|&i| sites[i as usize]).collect();
+    let mut caller_order = vec![[0.0; D]; sites.len()];
+    let mut observe = |record: &Record, held: &[[f64; D]]| {
+        for (&i, &x) in order.iter().zip(held) {
+            caller_order[i as usize] = x;
+        }
+        observer(record, &caller_order)
+    };
+    match cvt_in_order::<D, C>(boundary, along_curve, settings, &mut observe) {
+        Ok(out) => {
+            let mut sites = vec![[0.0; D]; out.sites.len()];
+            for (&i, &x) in order.iter().zip(&out.sites) {
+                sites[i as usize] = x;
+            }
+            Ok(Outcome {
+                sites,
+                diagram: out.diagram.reordered(&order),
+                history: out.history,
+                stop_reason: out.stop_reason,
+            })
+        }
+        // The first offending site in the caller's order, as a diagram of them names it.
+        Err(e) => match clipped_diagram::<D, C>(boundary, &sites, Options::default(), false) {
+            Err(first) => Err(first),
+            Ok(_) => Err(e),
+        },
+    }
+}
+
+/// [`cvt`] with the sites in the order given.
+fn cvt_in_order<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
     settings: &Settings,
