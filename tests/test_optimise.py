@@ -229,6 +229,20 @@ def test_ball_reaches_the_paper_rule_near_the_paper_mean_g(method):
     assert abs(res.mean_G - 0.08020) < 7e-5, res.mean_G
 
 
+def test_real_coordinates_far_from_the_origin_converge_by_the_gap():
+    # Staten Island in State Plane feet: coordinates near 9e5, cells about 900 ft across.
+    domain = hcvt.load_domain(DATA / "2d" / "nybb_staten_island_main.geojson")
+    res = hcvt.cvt(domain, hcvt.initialise(domain, 2000, seed=0), "newton")
+    assert res.converged
+    diagram = hcvt.voronoi(domain, res.sites)
+    # Pinned sites sit on the coast with their cell's centroid in the water (module docs).
+    free = domain.contains(diagram.centroid)
+    assert np.count_nonzero(~free) == res.history["pinned"][-1] <= 10
+    offset = np.linalg.norm(res.sites - diagram.centroid, axis=1)[free]
+    gap = offset / np.sqrt(diagram.volume[free])
+    assert np.sqrt(np.mean(gap**2)) < 1e-7 and gap.max() < 1e-4, (gap.max(), len(gap))
+
+
 @pytest.mark.slow
 def test_star_10k_reaches_the_default_rule_everywhere():
     domain = shapes.star()
