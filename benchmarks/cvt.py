@@ -11,8 +11,9 @@ the ratio. Only this column is set beside the paper.
 
 The column "default rule" is, separately, the median time to our default scale-free rule
 (RMS of ``|x_i - c_i| / V_i^(1/d)`` below 1e-7): read off the same runs, whose trajectory is
-the same up to that stop. Homer 50k is run to the default rule (its paper-rule time is
-printed when the paper's rule is reached within ``HOMER_BUDGET`` seconds).
+the same up to that stop. Homer 50k is run to the default rule only: in the units of
+``homer.obj`` (volume 0.021) the paper's rule holds within a few diagrams, at an RMS gap
+near 1e-2, so no ratio to the paper's 15,720 s is printed for it.
 
 Iterations, diagrams, mean G and the final gaps are those of seed 0. In the same run, at 1k
 sites in the square, two baselines a Python user would write: scipy's L-BFGS-B (maxcor 7)
@@ -48,7 +49,7 @@ from hcvt import shapes
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 TOL = 1e-10  # the paper's rule, input coordinates
 LONG = 30.0  # seconds: longer runs are timed once
-HOMER_BUDGET = 300.0  # seconds: Homer 50k's run towards the paper's rule stops here
+HOMER_BUDGET = 600.0  # seconds: Homer 50k's run stops here if not converged
 
 # Paper Table 8, "Standard" rows: (name, domain, sites, seconds).
 TABLE8: list[tuple[str, Callable[[], hcvt.Domain], int, float]] = [
@@ -61,7 +62,7 @@ TABLE8: list[tuple[str, Callable[[], hcvt.Domain], int, float]] = [
     ("Homer", lambda: hcvt.load_domain(DATA / "3d" / "homer.obj"), 50_000, 15720.0),
 ]
 
-# Above this many sites the run goes to the default rule (and to the paper's within budget).
+# Above this many sites (Homer) the run goes to the default rule.
 PAPER_RULE_MAX = 10_000
 
 
@@ -83,16 +84,6 @@ def default_rule_seconds(res: hcvt.CVTResult) -> float:
     """Seconds until the default rule held along ``res``'s run (the same trajectory)."""
     reached = res.history["rms_gap"] < hcvt.optimise.GAP_TOL
     return float(res.history["seconds"][np.argmax(reached)]) if reached.any() else np.nan
-
-
-def budgeted(domain: hcvt.Domain, sites: np.ndarray, method: str, budget: float):
-    """A run towards the paper's rule stopped after ``budget`` seconds by the callback."""
-    start = time.perf_counter()
-
-    def callback(info: dict) -> bool:
-        return time.perf_counter() - start > budget
-
-    return hcvt.cvt(domain, sites, method, rule="paper", max_iter=100_000, callback=callback)
 
 
 def scipy_baseline(domain: hcvt.Domain, sites: np.ndarray) -> tuple[float, int, float]:
@@ -182,24 +173,27 @@ def lloyd_baselines(domain: hcvt.Domain, sites: np.ndarray) -> None:
 def homer_row(
     name: str, n: int, paper: float, domain: hcvt.Domain, sites: np.ndarray, method: str
 ) -> None:
-    """One run from seed 0 towards the paper's rule within HOMER_BUDGET; both rules' times."""
-    res = budgeted(domain, sites, method, HOMER_BUDGET)
-    default = default_rule_seconds(res)
-    reached = res.converged
-    paper_col = (
-        f"{res.seconds:>9.1f}{paper:>9.0f}{paper / res.seconds:>6.0f}x"
-        if reached
-        else f"{'> ' + str(int(HOMER_BUDGET)):>9}{paper:>9.0f}{'':>7}"
-    )
+    """One run from seed 0 to the default rule (within HOMER_BUDGET seconds).
+
+    No ratio to the paper: in this file's units (volume 0.021) the paper's rule holds long
+    before the CVT has converged, so its time means nothing; where it first held, and the
+    RMS gap there, are printed instead.
+    """
+    start = time.perf_counter()
+
+    def callback(info: dict) -> bool:
+        return time.perf_counter() - start > HOMER_BUDGET
+
+    res = hcvt.cvt(domain, sites, method, max_iter=100_000, callback=callback)
+    h = res.history
+    first = int(np.argmax(h["grad_norm"] < TOL))
     print(
-        f"{name:<12}{n:>7}{method:>8}{paper_col}{res.iterations:>7}{res.evaluations:>9}"
-        f"{res.mean_G:>9.5f}{res.history['rms_gap'][-1]:>9.1e}{res.history['max_gap'][-1]:>9.1e}"
-        f"{default:>12.3f} s"
-        + (
-            ""
-            if reached
-            else f"  [paper's rule not reached: ‖g‖/‖X‖ {res.history['grad_norm'][-1]:.1e}]"
-        ),
+        f"{name:<12}{n:>7}{method:>8}{'-':>9}{paper:>9.0f}{'-':>7}{res.iterations:>7}"
+        f"{res.evaluations:>9}{res.mean_G:>9.5f}{h['rms_gap'][-1]:>9.1e}{h['max_gap'][-1]:>9.1e}"
+        f"{res.seconds:>12.3f} s"
+        + ("" if res.converged else f"  [stopped after {HOMER_BUDGET:.0f} s]")
+        + f"  (paper's rule already held after {h['evaluations'][first]} diagrams, at RMS gap "
+        f"{h['rms_gap'][first]:.1e})",
         flush=True,
     )
 
