@@ -13,13 +13,12 @@ from hcvt.shapes import square
 def square_run():
     domain = square()
     start = hcvt.initialise(domain, 1033, method="random", seed=3)
-    plain = hcvt.cvt(domain, start, method="lbfgs", tol=1e-10)
-    mc = hcvt.global_monte_carlo(domain, start, updates=40, seed=3, tol=1e-10)
-    return domain, plain, mc
+    mc = hcvt.global_monte_carlo(domain, start, updates=40, seed=3)
+    return domain, mc
 
 
 def test_energy_never_goes_up_over_accepted_updates(square_run):
-    _, _, mc = square_run
+    _, mc = square_run
     kept = mc.history.best_energy
     assert len(kept) == 41
     assert np.all(np.diff(kept) <= 0)
@@ -31,11 +30,18 @@ def test_energy_never_goes_up_over_accepted_updates(square_run):
     assert mc.diagram.energy == kept[-1]
 
 
-def test_more_regular_than_plain_lbfgs_from_the_same_start(square_run):
-    # Paper Table 4: global Monte-Carlo 0.08075 against random + L-BFGS 0.08101.
-    _, plain, mc = square_run
-    assert mc.diagram.energy < plain.diagram.energy
-    assert mc.diagram.mean_G < plain.diagram.mean_G
+def test_rejected_updates_found_no_lower_minimum(square_run):
+    # What can fail: a rejected update whose minimum was lower (a wrong comparison), or an
+    # acceptance rate of 0 or 1 (perturbations too small to leave the basin, or too large).
+    # Measured: 16 of 40 accepted. (Whether 40 updates beat plain L-BFGS cannot be tested
+    # cheaply: mean G 0.080956 against a median of 0.080951 over 6 independent L-BFGS starts;
+    # the paper's 200 updates are in docs/results.md, Table 4 (c).)
+    _, mc = square_run
+    history = mc.history
+    rejected = np.flatnonzero(~history.accepted[1:]) + 1
+    assert np.all(history.energy[rejected] >= history.best_energy[rejected - 1])
+    assert np.array_equal(history.best_energy[rejected], history.best_energy[rejected - 1])
+    assert 4 <= mc.accepted <= 36, mc.accepted
     assert mc.sites.shape == (1033, 2)
 
 

@@ -129,8 +129,9 @@ def test_every_level_has_exactly_the_scheduled_count(shape, n, s, edges):
 
 def test_regularity_on_the_square_meets_the_paper():
     # Paper Table 4 (medians over 10 seeds): random + L-BFGS 0.08101, hierarchical from
-    # random sites (s = 4) 0.08086, from a lattice (s = 1) 0.08077. Ours: 0.08080 over 24
-    # seeds (hierarchical, random) and 0.080745 (lattice, deterministic).
+    # random sites (s = 4) 0.08086, from a lattice (s = 1) 0.08077. Ours: random + L-BFGS
+    # 0.08092-0.08106 over seeds 0-7 (tests/test_optimise.py), hierarchical 0.08080 over 24
+    # seeds and 0.080745 from the lattice (deterministic).
     from hcvt.shapes import square
 
     domain = square()
@@ -139,6 +140,6 @@ def test_regularity_on_the_square_meets_the_paper():
         hcvt.cvt(domain, hcvt.initialise(domain, 1033, seed=k)).diagram.mean_G for k in range(5)
     ]
     lattice = hcvt.hierarchical_cvt(domain, 1033, 1, init="lattice").diagram.mean_G
-    assert 0.0805 < np.median(plain) <= 0.0815
+    assert abs(np.median(plain) - 0.08101) < 1e-4
     assert np.median(hier) <= 0.08086 < np.median(plain)
     assert lattice <= 0.08077
