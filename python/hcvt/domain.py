@@ -141,11 +141,13 @@ class Domain:
         repair : bool, default False
             Merge duplicate vertices (equal positions), drop degenerate and duplicate faces
             and the faces on non-manifold edges, orient every component consistently, fill
-            each hole with a fan from its centroid, split pinched vertices, and flip
-            components whose volume is negative; ``domain.repair_report`` says what changed.
-            The diagram is then exact for the repaired surface. Crossing triangles cannot be
-            repaired: they are reported, and overlapping parts count with their winding
-            number.
+            each hole with a fan from its centroid, split pinched vertices, and orient each
+            shell by the parity of its nesting (inside an even number of other shells it
+            faces outward, inside an odd number it bounds a cavity and faces inward); shells
+            that cross each other are united (manifold3d). ``domain.repair_report`` says
+            what changed. The diagram is then exact for the repaired surface. A shell that
+            crosses itself cannot be repaired: it is left, the report says where, and the
+            overlaps count with their winding number (2, or -1) near the crossing.
 
         Raises
         ------
@@ -153,7 +155,10 @@ class Domain:
             Without ``repair``: any of degenerate faces, duplicate vertices, open boundary
             edges, non-manifold edges, inconsistent winding, pinched vertices, inward
             orientation, zero volume, triangles crossing each other (exact test of pairs
-            sharing no vertex), each with its count and first offending element.
+            sharing no vertex; the message names their shells), shells whose nesting makes
+            the winding number other than 0 or 1 somewhere (a shell inside another facing
+            the same way, a cavity facing outward), each with its count and first offending
+            element.
             Always: NaN/inf coordinates, out-of-range indices, nothing left after repair.
 
         Examples
@@ -173,14 +178,21 @@ class Domain:
         core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
         count, pairs = core.crossing_triangles(1)
         if count:
-            where = f"{count} pairs of triangles cross each other, first: faces {pairs[0]}"
             if not repair:
+                where = mesh.describe_crossings(f, count, pairs)
                 raise InvalidDomainError(
                     f"the mesh does not bound a solid:\n  - self-intersection: {where}\n"
-                    "pass repair=True to accept it (overlaps then count with their winding "
-                    "number)"
+                    "pass repair=True to unite overlapping shells"
                 )
-            actions.append(f"left a self-intersection ({where}): overlaps count twice")
+            v, f = mesh.unite_shells(v, f, core.crossing_triangles(count)[1], actions)
+            core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
+        else:
+            nested = mesh.nesting_defects(mesh.nesting(v, f))
+            if nested:
+                advice = "repair=True could not fix it" if repair else "pass repair=True to fix it"
+                raise InvalidDomainError(
+                    "the mesh does not bound a solid:\n  - " + "\n  - ".join(nested) + "\n" + advice
+                )
         report = None
         if repair:
             report = RepairReport(bool(actions), actions, before, mesh.signed_volume(v, f))
@@ -249,12 +261,9 @@ class Domain:
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Whether each point (m, d) lies strictly inside the domain, shape (m,).
 
-        Exact winding numbers; for a 3D domain built with ``repair=True`` the generalised
-        winding number (> 1/2) instead, so that the repaired holes and overlaps of an
-        imperfect surface do not flip answers.
+        The core's exact winding number, the same test the diagram uses for its sites, for
+        every domain (a repaired one too: its repaired surface is the domain).
         """
-        if self.dim == 3 and self.repair_report is not None and self.repair_report.changed:
-            return self.generalized_winding_numbers(points) > 0.5
         winding, on_boundary = self.winding_numbers(points)
         return (winding != 0) & ~on_boundary
 
@@ -395,7 +404,28 @@ def _describe(geometry: Polygon | MultiPolygon) -> str:
         for name, ring in rings[1:]:
             if not shell.covers(Polygon(ring)):
                 return prefix + f"{name} lies partly outside the outer ring"
+        for a in range(1, len(rings)):
+            for b in range(a + 1, len(rings)):
+                found = _overlap(Polygon(rings[a][1]), Polygon(rings[b][1]), -1)
+                if found:
+                    return prefix + f"{rings[a][0]} and {rings[b][0]} overlap: {found}"
+    for a in range(len(parts)):
+        for b in range(a + 1, len(parts)):
+            found = _overlap(parts[a], parts[b], 2)
+            if found:
+                return f"parts {a} and {b} overlap: {found}"
     return shapely.is_valid_reason(geometry)
+
+
+def _overlap(first: Polygon, second: Polygon, winding: int) -> str | None:
+    """Where two regions share area, which then has winding number ``winding``, or None."""
+    common = shapely.intersection(first, second)
+    if not common.area > 0:
+        return None
+    return (
+        f"the winding number is {winding} on an area of {common.area:.6g} around "
+        f"{_xy(common.representative_point().coords[0])}"
+    )
 
 
 def _ring_self_contact(coords: NDArray[np.float64]) -> str | None:
