@@ -353,7 +353,7 @@ def hierarchical_cvt(
     HierarchicalResult
         ``sites`` (n, d), ``diagram``, and ``levels`` (the paper's Table 1 in ``table()``).
     """
-    from hcvt.initialise import initialise
+    from hcvt.initialisation import initialise
     from hcvt.optimise import cvt
 
     if init not in ("random", "lattice"):

@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
-import trimesh
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon, shape
 
@@ -69,6 +68,8 @@ def read_mesh(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int64]]
     if path.suffix.lower() == ".obj":
         return _read_obj(path)
     try:
+        import trimesh  # slow to import (~0.5 s): only when a file needs it
+
         loaded = trimesh.load(path, process=False, force="mesh")
     except (ValueError, KeyError, IndexError, TypeError) as err:
         raise InvalidDomainError(f"{path.name}: cannot read a mesh ({err})") from err

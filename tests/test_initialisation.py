@@ -18,11 +18,10 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
 import hcvt
-from hcvt.initialise import LatticeResult, initialise, lattice
+from hcvt.initialisation import LatticeResult, initialise, lattice
 from helpers import DATA, POLYGON_FILES
 
-# The module itself: `hcvt.initialise` is the function once the package is imported.
-init = importlib.import_module("hcvt.initialise")
+init = importlib.import_module("hcvt.initialisation")
 MESH_FILES = sorted(p for p in (DATA / "3d").glob("*.*") if p.suffix in {".obj", ".off", ".ply"})
 needs_data = pytest.mark.skipif(not POLYGON_FILES, reason="../shared/data not found")
 _DOMAINS: dict[Path, hcvt.Domain] = {}
@@ -240,7 +239,13 @@ def test_hammersley_ignores_the_seed(square_with_holes: hcvt.Domain) -> None:
 
 
 def test_public_names() -> None:
-    assert hcvt.initialise.lattice is lattice
+    import types
+
+    # issue 16: `hcvt.initialise` is a function only, with no attributes patched on; the
+    # module is `hcvt.initialisation`.
+    assert isinstance(hcvt.initialise, types.FunctionType)
+    assert hcvt.initialise is init.initialise and not hasattr(hcvt.initialise, "lattice")
+    assert isinstance(init, types.ModuleType) and init.lattice is lattice
     assert hcvt.LatticeResult is LatticeResult
     assert hcvt.initialise(unit_square(), 3, "lattice").shape == (3, 2)
 
@@ -270,3 +275,18 @@ def test_numpy_integers_are_counts() -> None:
 def test_unknown_method_raises() -> None:
     with pytest.raises(ValueError, match=r"unknown method 'sobol'; expected one of random"):
         initialise(unit_square(), 10, method="sobol")
+
+
+def test_memory_check_reads_mem_available(tmp_path: Path, monkeypatch) -> None:  # noqa: ANN001
+    # issue 16: the check used free pages (SC_AVPHYS_PAGES), which leave out the page cache
+    # the kernel gives back on demand, and refused n that fit.
+    meminfo = tmp_path / "meminfo"
+    meminfo.write_text("MemTotal:  8000000 kB\nMemFree:     20000 kB\nMemAvailable: 6000000 kB\n")
+    assert init._available_bytes(str(meminfo)) == 6000000 * 1024
+    assert init._available_bytes(str(tmp_path / "missing")) is None
+    monkeypatch.setattr(init._available_bytes, "__defaults__", (str(meminfo),))
+    # 2D: fits in 6 GB available, though far more than the 20 MB free.
+    n = 6000000 * 1024 // (2 * init.BYTES_PER_SITE[2])
+    assert init.check_count(n, 2) == n
+    with pytest.raises(ValueError, match="available"):
+        init.check_count(4 * n, 2)
