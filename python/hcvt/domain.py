@@ -204,7 +204,7 @@ class Domain:
         return np.asarray(self._core.vertices)
 
     @property
-    def faces(self) -> NDArray[np.uint32]:
+    def faces(self) -> NDArray[np.intp]:
         """3D only: boundary triangles, shape (F, 3), counter-clockwise seen from outside."""
         if self.dim != 3:
             raise AttributeError("faces exist for 3D domains only")
@@ -267,9 +267,32 @@ class Domain:
         winding, on_boundary = self.winding_numbers(points)
         return (winding != 0) & ~on_boundary
 
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        # Pickled as its checked boundary (dask, joblib, multiprocessing); the core rebuilds
+        # its index from the same arrays, so diagrams in another process are bitwise equal.
+        simplices = self._core.segments if self.dim == 2 else self._core.faces
+        return _unpickle, (self.dim, self.vertices, simplices, self.geometry, self.repair_report)
+
     def __repr__(self) -> str:
         kind = "polygon" if self.dim == 2 else "solid"
         return f"<hcvt.Domain {kind}, volume={self.volume:.6g}>"
+
+
+def _unpickle(
+    dim: int,
+    vertices: NDArray[np.float64],
+    simplices: NDArray[np.intp],
+    geometry: Any,
+    repair_report: RepairReport | None,
+) -> Domain:
+    """A Domain from the arrays :meth:`Domain.__reduce__` saved, checked anew by the core."""
+    boundary = _core.PolygonDomain if dim == 2 else _core.SolidDomain
+    # Aligned copies: dask hands arrays over as views of its message frames, which may
+    # start at any byte.
+    core = boundary(
+        np.require(vertices, np.float64, ["C", "A"]), np.require(simplices, np.uint32, ["C", "A"])
+    )
+    return Domain(core, dim, geometry, repair_report)
 
 
 def _as_points(points: ArrayLike, dim: int, name: str) -> NDArray[np.float64]:

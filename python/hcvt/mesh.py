@@ -5,7 +5,7 @@ cycle of triangles: every directed edge matched by its reverse, positive volume.
 module finds every defect that breaks that (with counts and the first offending element)
 and, on request, repairs the mesh and says what it changed.
 
-Arrays: ``vertices`` (V, 3) float64, ``faces`` (F, 3) int64 indices into ``vertices``.
+Arrays: ``vertices`` (V, 3) float64, ``faces`` (F, 3) intp indices into ``vertices``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from scipy.sparse.csgraph import connected_components
 from hcvt.errors import InvalidDomainError
 
 Vertices = NDArray[np.float64]
-Faces = NDArray[np.int64]
+Faces = NDArray[np.intp]
 
 
 @dataclass
@@ -48,7 +48,7 @@ def as_mesh_arrays(vertices: object, faces: object) -> tuple[Vertices, Faces]:
     if f.dtype.kind not in "iu" or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
         raise InvalidDomainError(f"faces must be integers of shape (F, 3), got {f.dtype} {f.shape}")
     v = np.ascontiguousarray(v, dtype=np.float64)
-    f = np.ascontiguousarray(f, dtype=np.int64)
+    f = np.ascontiguousarray(f, dtype=np.intp)
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         raise InvalidDomainError(
@@ -90,7 +90,7 @@ def _duplicate_vertices(v: Vertices, f: Faces) -> tuple[int, tuple[int, int] | N
     return len(dup), (int(used[first[inverse.ravel()[k]]]), int(used[k]))
 
 
-def _edges(f: Faces) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def _edges(f: Faces) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Directed edges (3F, 2) in face order, and the face of each (3F,)."""
     directed = np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
     return directed, np.repeat(np.arange(len(f)), 3)
@@ -118,7 +118,7 @@ def _edge_counts(f: Faces) -> dict[str, tuple[int, list[int] | None]]:
     return out
 
 
-def vertex_fans(f: Faces, n_vertices: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def vertex_fans(f: Faces, n_vertices: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Edge-connected fans of faces around each vertex.
 
     Returns the fan label of each corner (3F,), corner ``3 t + k`` being vertex ``f[t, k]``,
@@ -263,7 +263,7 @@ def _drop_faces(v: Vertices, f: Faces, actions: list[str]) -> Faces:
     return f
 
 
-def _face_adjacency(f: Faces) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
+def _face_adjacency(f: Faces) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_]]:
     """Pairs of faces sharing a manifold edge, and whether they run it the same way.
 
     Faces running a shared edge the same way disagree: one of them must flip.
@@ -425,7 +425,7 @@ class Nesting:
     """
 
     label: NDArray[np.intp]
-    sign: NDArray[np.int64]
+    sign: NDArray[np.intp]
     inside: NDArray[np.bool_]
 
     @property
@@ -434,7 +434,7 @@ class Nesting:
         return self.inside.sum(axis=1).astype(np.intp)
 
     @property
-    def outside_winding(self) -> NDArray[np.int64]:
+    def outside_winding(self) -> NDArray[np.intp]:
         """Winding number just outside each shell, from all the others as oriented (S,)."""
         return (self.inside * self.sign[None, :]).sum(axis=1)
 
@@ -462,7 +462,7 @@ def nesting(v: Vertices, f: Faces) -> Nesting:
     starts = np.searchsorted(label[order], np.arange(count + 1))
     members = [order[starts[s] : starts[s + 1]] for s in range(count)]
     volume = np.array([signed_volume(v, f[m]) for m in members])
-    sign = np.where(flat_shells(v, volume), 0, np.sign(volume)).astype(np.int64)
+    sign = np.where(flat_shells(v, volume), 0, np.sign(volume)).astype(np.intp)
     inside = np.zeros((count, count), dtype=bool)
     if count == 1:
         return Nesting(label, sign, inside)
@@ -490,8 +490,9 @@ def nesting(v: Vertices, f: Faces) -> Nesting:
 
 def flat_shells(v: Vertices, volume: NDArray[np.float64]) -> NDArray[np.bool_]:
     """Shells whose volume is round-off of the mesh's extent (a sheet folded onto itself)."""
-    extent = float(np.max(v.max(axis=0) - v.min(axis=0)))
-    return np.abs(volume) <= 1e-12 * extent**3
+    extent = np.max(v.max(axis=0) - v.min(axis=0))
+    with np.errstate(over="ignore"):
+        return np.abs(volume) <= 1e-12 * extent**3
 
 
 def nesting_defects(nest: Nesting) -> list[str]:
@@ -526,6 +527,8 @@ def orient_by_nesting(v: Vertices, f: Faces, actions: list[str]) -> Faces:
     edges = _edge_counts(f)
     if any(edges[k][0] for k in ("open", "non-manifold", "same-direction")):
         return f  # not closed: check_mesh reports why
+    if not np.isfinite(signed_volume(v, f)):
+        return f  # the volume overflows: check_mesh reports it
     nest = nesting(v, f)
     if (nest.sign == 0).any():
         flat = np.flatnonzero(nest.sign == 0)
@@ -600,7 +603,7 @@ def unite_shells(
         parts.append(m3.Manifold(mesh))
     union = m3.Manifold.batch_boolean(parts, m3.OpType.Add).to_mesh64()
     v_out = np.ascontiguousarray(np.asarray(union.vert_properties)[:, :3], dtype=np.float64)
-    f_out = np.ascontiguousarray(union.tri_verts, dtype=np.int64)
+    f_out = np.ascontiguousarray(union.tri_verts, dtype=np.intp)
     k = len(np.unique(label[crossing]))
     actions.append(
         f"united {count} shells, {k} of them crossing (first: faces {crossing[0].tolist()}), "
