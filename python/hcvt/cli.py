@@ -116,13 +116,11 @@ def run(
         if method == "voronoi":
             diagram = hcvt.voronoi(domain, sites)
         elif method == "monte-carlo":
-            result = hcvt.global_monte_carlo(domain, sites, seed=seed, tol=tol, progress=True)
-            sites, diagram, iterations = result.sites, result.diagram, result.iterations
+            mc = hcvt.global_monte_carlo(domain, sites, seed=seed, tol=tol, progress=True)
+            sites, diagram, iterations = mc.sites, mc.diagram, mc.iterations
         else:
-            result = hcvt.cvt(
-                domain, sites, method=method, tol=tol, max_iter=max_iter, progress=True
-            )
-            sites, diagram, iterations = result.sites, result.diagram, result.iterations
+            run = hcvt.cvt(domain, sites, method=method, tol=tol, max_iter=max_iter, progress=True)
+            sites, diagram, iterations = run.sites, run.diagram, run.iterations
     seconds = time.perf_counter() - start
     info = {
         "input": input_,
