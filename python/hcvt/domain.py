@@ -180,19 +180,16 @@ class Domain:
         if count:
             if not repair:
                 where = mesh.describe_crossings(f, count, pairs)
-                raise InvalidDomainError(
-                    f"the mesh does not bound a solid:\n  - self-intersection: {where}\n"
-                    "pass repair=True to unite overlapping shells"
+                mesh.refuse(
+                    [f"self-intersection: {where}"],
+                    advice="pass repair=True to unite overlapping shells",
                 )
             v, f = mesh.unite_shells(v, f, core.crossing_triangles(count)[1], actions)
             core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
         else:
             nested = mesh.nesting_defects(mesh.nesting(v, f))
             if nested:
-                advice = "repair=True could not fix it" if repair else "pass repair=True to fix it"
-                raise InvalidDomainError(
-                    "the mesh does not bound a solid:\n  - " + "\n  - ".join(nested) + "\n" + advice
-                )
+                mesh.refuse(nested, repaired=repair)
         report = None
         if repair:
             report = RepairReport(bool(actions), actions, before, mesh.signed_volume(v, f))

@@ -11,6 +11,7 @@ Arrays: ``vertices`` (V, 3) float64, ``faces`` (F, 3) intp indices into ``vertic
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
@@ -199,10 +200,18 @@ def check_mesh(v: Vertices, f: Faces, *, repaired: bool = False) -> None:
     """Raise InvalidDomainError listing every defect, or return."""
     d = find_defects(v, f, allow_duplicates=repaired)
     if d:
-        advice = "repair=True could not fix it" if repaired else "pass repair=True to fix it"
-        raise InvalidDomainError(
-            "the mesh does not bound a solid:\n  - " + "\n  - ".join(d.lines) + "\n" + advice
-        )
+        refuse(d.lines, repaired=repaired)
+
+
+def refuse(
+    lines: list[str], *, repaired: bool = False, advice: str = "pass repair=True to fix it"
+) -> NoReturn:
+    """Raise InvalidDomainError with one line per defect, and what to do about it."""
+    if repaired:
+        advice = "repair=True could not fix it"
+    raise InvalidDomainError(
+        "the mesh does not bound a solid:\n  - " + "\n  - ".join(lines) + "\n" + advice
+    )
 
 
 # ---------------------------------------------------------------------------- repair
@@ -479,10 +488,12 @@ def nesting(v: Vertices, f: Faces) -> Nesting:
                 continue
             winding, on = core.winding_numbers(v[f[tries[i]]].mean(axis=1))
             if on.all():
-                raise InvalidDomainError(
-                    f"the mesh does not bound a solid:\n  - shells {min(i, j)} and {max(i, j)} "
-                    f"(faces {members[min(i, j)][0]} and {members[max(i, j)][0]}) touch along "
-                    "a surface"
+                a, b = min(i, j), max(i, j)
+                refuse(
+                    [
+                        f"shells {a} and {b} (faces {members[a][0]} and {members[b][0]}) touch "
+                        "along a surface"
+                    ]
                 )
             inside[i, j] = winding[int(np.argmin(on))] != 0
     return Nesting(label, sign, inside)
