@@ -4,6 +4,7 @@ paper's stopping rule and mean G, non-convex domains, thread independence."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import threading
 import time
@@ -276,9 +277,17 @@ def test_callback_errors_propagate():
         hcvt.cvt(shapes.unit_square(), [[0.2, 0.3], [0.6, 0.7]], callback=callback)
 
 
-def test_progress_bar_runs(capsys):
+def test_progress_bar_shows_the_final_state(capsys):
+    # issue 16: the test checked only that nothing crashed. The bar's last render must show
+    # the run's end: the paper's rule below tol, the mean G and diagram count of the result.
     res = hcvt.cvt(shapes.unit_square(), random_inside(shapes.unit_square(), 30), progress=True)
     assert res.converged
+    out = capsys.readouterr().out
+    assert out.lstrip().startswith("CVT")
+    rule = re.findall(r"\|g\|/\|X\| (\S+)", out)
+    assert rule and float(rule[-1]) < 1e-10
+    assert re.findall(r"mean G (\S+)", out)[-1] == f"{res.diagram.mean_G:.6f}"
+    assert re.findall(r"diagrams (\d+)", out)[-1] == str(res.evaluations)
 
 
 def test_bad_input_is_refused():
