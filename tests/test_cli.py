@@ -44,6 +44,24 @@ def test_run_writes_sites_cells_summary_and_picture(method, tmp_path):
     assert re.search(r"mean G = 0\.08\d+", result.output)
 
 
+@pytest.mark.parametrize(
+    ("rule", "field", "tol"), [("gap", "rms_gap", 1e-7), ("paper", "grad_norm", 1e-10)]
+)
+def test_run_stops_by_the_rule_asked_and_says_so(rule, field, tol, tmp_path):
+    summary = tmp_path / "s.json"
+    result = invoke("run", "square", "-n", 200, "--method", "newton", "--rule", rule,
+                    "--summary", summary)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    info = json.loads(summary.read_text())
+    assert (info["rule"], info["tol"]) == (rule, tol)
+    assert info[field] < tol and info["pinned"] == 0
+    assert f"rule = {rule}" in result.output and "max gap" in result.output
+    loose = invoke("run", "square", "-n", 200, "--method", "newton", "--rule", rule,
+                   "--tol", tol * 1e4, "--summary", summary)  # fmt: skip
+    assert loose.exit_code == 0, loose.output
+    assert tol <= json.loads(summary.read_text())[field] < tol * 1e4
+
+
 def test_show_redraws_a_saved_result(tmp_path):
     summary, png = tmp_path / "s.json", tmp_path / "again.png"
     invoke("run", "square", "-n", 100, "--out", tmp_path / "s.csv", "--summary", summary)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -65,7 +66,8 @@ def global_monte_carlo(
     radius: float = 2.0,
     step: float = 0.5,
     seed: int = 0,
-    tol: float = 1e-10,
+    rule: str = "gap",
+    tol: float | None = None,
     max_iter: int = 2000,
     progress: bool = False,
 ) -> MonteCarloResult:
@@ -84,8 +86,9 @@ def global_monte_carlo(
         A move that would leave the domain is not made (the site stays).
     seed : int
         Seeds the choice of sites and displacements.
-    tol, max_iter
-        Stopping rule of each L-BFGS minimisation (see :func:`hcvt.cvt`).
+    rule, tol, max_iter
+        Stopping rule, its tolerance and the iteration cap of each L-BFGS minimisation
+        (see :func:`hcvt.cvt`).
     progress : bool
         Show a rich progress bar over the updates.
 
@@ -100,7 +103,8 @@ def global_monte_carlo(
         raise ValueError(f"updates must be a non-negative integer, got {updates!r}")
     rng = np.random.default_rng(seed)
     start = time.perf_counter()
-    best = cvt(domain, sites, method="lbfgs", tol=tol, max_iter=max_iter)
+    minimise = partial(cvt, method="lbfgs", rule=rule, tol=tol, max_iter=max_iter)
+    best = minimise(domain, sites)
     n, dim = best.sites.shape
     h = (domain.volume / n) ** (1.0 / dim)
     iterations, evaluations = best.iterations, best.evaluations
@@ -108,7 +112,7 @@ def global_monte_carlo(
     times = [time.perf_counter() - start]
     for _ in _progress(range(int(updates)), progress):
         trial_sites = perturb(domain, best.sites, rng, radius * h, step * h)
-        trial = cvt(domain, trial_sites, method="lbfgs", tol=tol, max_iter=max_iter)
+        trial = minimise(domain, trial_sites)
         iterations += trial.iterations
         evaluations += trial.evaluations
         accepted = trial.diagram.energy < best.diagram.energy

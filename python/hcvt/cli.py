@@ -17,6 +17,8 @@ from typing import Any
 import click
 import numpy as np
 
+from hcvt.optimise import RULES, default_tol
+
 METHODS = ("hierarchical", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
 OPTIMISERS = ("lbfgs", "newton", "lloyd")
 INITS = ("random", "halton", "hammersley", "lattice")
@@ -67,7 +69,16 @@ def _load(input_: str, repair: bool):
     help="Optimiser of every hierarchy level (newton: often 2-4x faster).",
 )
 @click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--tol", type=float, default=1e-10, show_default=True, help="‖g‖/‖X‖ stop.")
+@click.option(
+    "--rule",
+    type=click.Choice(RULES),
+    default="gap",
+    show_default=True,
+    help="Stop on the scale-free RMS gap |x-c|/V^(1/d), or on the paper's ‖g‖/‖X‖.",
+)
+@click.option(
+    "--tol", type=float, default=None, help="The rule's tolerance [default: 1e-7 gap, 1e-10 paper]."
+)
 @click.option("--max-iter", type=int, default=10_000, show_default=True)
 @click.option("--repair", is_flag=True, help="Repair an invalid polygon or mesh first.")
 @click.option("--out", type=click.Path(dir_okay=False), help="Sites: .npy or .csv.")
@@ -82,7 +93,8 @@ def run(
     subdivisions: int | None,
     optimiser: str,
     seed: int,
-    tol: float,
+    rule: str,
+    tol: float | None,
     max_iter: int,
     repair: bool,
     out: str | None,
@@ -98,6 +110,7 @@ def run(
         click.echo(str(domain.repair_report))
     start = time.perf_counter()
     iterations: int | None = None
+    history: dict[str, Any] | None = None
     if method == "hierarchical":
         result = hcvt.hierarchical_cvt(
             domain,
@@ -105,22 +118,35 @@ def run(
             subdivisions,
             init=init,
             seed=seed,
+            rule=rule,
             tol=tol,
             max_iter=max_iter,
             method=optimiser,
         )
         sites, diagram = result.sites, result.diagram
         iterations = sum(level.iterations for level in result.levels)
+        history = result.levels[-1].history
     else:
         sites = hcvt.initialise(domain, n, method=init, seed=seed)
         if method == "voronoi":
             diagram = hcvt.voronoi(domain, sites)
         elif method == "monte-carlo":
-            mc = hcvt.global_monte_carlo(domain, sites, seed=seed, tol=tol, progress=True)
+            mc = hcvt.global_monte_carlo(
+                domain, sites, seed=seed, rule=rule, tol=tol, progress=True
+            )
             sites, diagram, iterations = mc.sites, mc.diagram, mc.iterations
         else:
-            run = hcvt.cvt(domain, sites, method=method, tol=tol, max_iter=max_iter, progress=True)
+            run = hcvt.cvt(
+                domain,
+                sites,
+                method=method,
+                rule=rule,
+                tol=tol,
+                max_iter=max_iter,
+                progress=True,
+            )
             sites, diagram, iterations = run.sites, run.diagram, run.iterations
+            history = run.history
     seconds = time.perf_counter() - start
     info = {
         "input": input_,
@@ -134,10 +160,20 @@ def run(
         "seconds": seconds,
         "seed": seed,
     }
+    if method != "voronoi":
+        info["rule"] = rule
+        info["tol"] = default_tol(rule) if tol is None else tol
+    if history is not None:
+        info.update({key: _scalar(history[key][-1]) for key in CONVERGENCE_FIELDS})
     click.echo(
         f"n = {info['n']}  mean G = {info['mean_G']:.6f}  energy = {info['energy']:.6g}  "
         f"iterations = {iterations}  seconds = {seconds:.2f}"
     )
+    if history is not None:
+        click.echo(
+            f"rule = {rule}  RMS gap = {info['rms_gap']:.2e}  max gap = {info['max_gap']:.2e}  "
+            f"|g|/|X| = {info['grad_norm']:.2e}  pinned = {info['pinned']}"
+        )
     if out:
         _write_sites(Path(out), sites)
         info["sites"] = str(out)
@@ -148,6 +184,15 @@ def run(
         _plot(diagram, plot)
     if summary:
         Path(summary).write_text(json.dumps(info, indent=2))
+
+
+#: The last iterate's convergence measures, written to the summary (``hcvt.cvt`` docs).
+CONVERGENCE_FIELDS = ("rms_gap", "max_gap", "grad_norm", "pinned")
+
+
+def _scalar(value: Any) -> float | int:
+    """A numpy scalar as the plain Python number JSON takes."""
+    return value.item() if hasattr(value, "item") else value
 
 
 def _write_sites(path: Path, sites: np.ndarray) -> None:

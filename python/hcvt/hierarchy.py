@@ -317,7 +317,8 @@ def hierarchical_cvt(
     *,
     init: str = "random",
     seed: int = 0,
-    tol: float = 1e-10,
+    rule: str = "gap",
+    tol: float | None = None,
     max_iter: int = 10_000,
     edges: str = "restricted",
     method: str = "lbfgs",
@@ -337,8 +338,11 @@ def hierarchical_cvt(
         Level 0: random sites + L-BFGS, or an exact-count hexagonal/BCC lattice + L-BFGS.
     seed : int
         Seeds the initialisation and every top-up.
-    tol : float
-        The paper's stopping rule ``‖g‖/‖X‖ < tol`` at every level.
+    rule : {"gap", "paper"}
+        The stopping rule of every level (:func:`hcvt.cvt`): the scale-free RMS gap
+        (default) or the paper's ``‖g‖/‖X‖`` in input coordinates.
+    tol : float, optional
+        Its tolerance; default 1e-7 (gap) or the paper's 1e-10.
     max_iter : int
         Iterations per level at most.
     edges : {"restricted", "delaunay"}
@@ -354,8 +358,9 @@ def hierarchical_cvt(
         ``sites`` (n, d), ``diagram``, and ``levels`` (the paper's Table 1 in ``table()``).
     """
     from hcvt.initialisation import initialise
-    from hcvt.optimise import cvt
+    from hcvt.optimise import check_rule, cvt
 
+    check_rule(rule)
     if init not in ("random", "lattice"):
         raise ValueError(f"init must be 'random' or 'lattice', got {init!r}")
     if edges not in EDGE_KINDS:
@@ -368,7 +373,7 @@ def hierarchical_cvt(
 
     start = time.perf_counter()
     sites = initialise(domain, plan.k0, method=init, seed=seed)
-    optimise = partial(cvt, method=method, tol=tol, max_iter=max_iter)
+    optimise = partial(cvt, method=method, rule=rule, tol=tol, max_iter=max_iter)
     level = _optimise_level(optimise, domain, sites, len(sites), 0, start)
     result.levels.append(level)
     if callback is not None:

@@ -4,17 +4,25 @@ The whole iteration runs in the Rust core (``hcvt-core/src/optimise``), one exac
 diagram per energy evaluation, with the GIL released; Python is called back once per
 iteration only to check for Ctrl-C and, if asked, to run ``callback`` or show progress.
 
-Stopping rule: the paper's ``‖g‖/‖X‖ < tol`` (§5.4, after Quinn et al. 2012), evaluated in
-normalised coordinates ``y = (x - o)/s`` with ``o`` the centre of the domain's bounding box
-and ``s`` its longest side, so that the rule depends neither on the unit nor on where the
-domain sits: ``‖g‖/‖X‖ = ‖∇E(x)‖ / (s^d ‖x - o‖)``. The history also holds the scale-free
-gap ``max_i |x_i - c_i| / h`` with ``h = (V/n)^(1/d)``.
+Stopping rules (``rule=``, DESIGN §7), both reported at every iterate:
+
+- ``"gap"`` (the default): the scale-free gap ``r_i = |x_i - c_i| / h_i`` of each site to
+  its centroid, ``h_i = V_i^(1/d)`` the size of its own cell; stop when ``RMS(r) < tol``
+  (default ``1e-7``, :data:`GAP_TOL`), with ``max(r)`` reported beside it. It means the same
+  for every unit, position, shape and number of sites: at the default, mean G is settled to
+  8 digits and no site is farther than about 1e-5 spacings from its centroid
+  (``docs/results.md``, "Stopping rule").
+- ``"paper"``: the paper's rule to the letter, ``‖g‖/‖X‖ < tol`` (default ``1e-10``,
+  :data:`PAPER_TOL`) with the gradient ``g_i = 2 m_i (x_i - c_i)`` and the sites ``X`` in the
+  input coordinates (§5.4, after Quinn et al. 2012). It changes with the unit and with a
+  translation (on Staten Island in State Plane feet ``‖X‖`` is the offset), so it is the rule
+  for figures set beside the paper's, in the paper's coordinates, and little else.
 
 Sites stay inside the domain: a step is shortened site by site until it ends inside. In a
 non-convex domain the centroid of a cell at a notch can lie outside; its site then ends
 pinned on the boundary, where its gradient cannot vanish. Such sites (centroid outside, and
 not even 2^-20 of the way towards it inside) are counted in ``history["pinned"]`` and left
-out of the stopping rule and the gap; Newton's steps leave them where they are.
+out of both rules and the gaps; Newton's steps leave them where they are.
 """
 
 from __future__ import annotations
@@ -32,6 +40,23 @@ from hcvt.diagram import Diagram, as_sites
 from hcvt.domain import Domain
 
 METHODS = ("lbfgs", "lloyd", "newton")
+RULES = ("gap", "paper")
+#: Default tolerance of ``rule="gap"`` on the RMS of ``|x_i - c_i| / V_i^(1/d)``.
+GAP_TOL = 1e-7
+#: Default tolerance of ``rule="paper"`` on ``‖g‖/‖X‖`` in input coordinates (the paper's).
+PAPER_TOL = 1e-10
+
+
+def default_tol(rule: str) -> float:
+    """The tolerance used for ``rule`` when none is given: 1e-7 (gap) or 1e-10 (paper)."""
+    check_rule(rule)
+    return GAP_TOL if rule == "gap" else PAPER_TOL
+
+
+def check_rule(rule: str) -> None:
+    """Raise ``ValueError`` unless ``rule`` is ``"gap"`` or ``"paper"``."""
+    if rule not in RULES:
+        raise ValueError(f"rule must be one of {RULES}, got {rule!r}")
 
 
 @dataclass
@@ -46,15 +71,20 @@ class CVTResult:
         Clipped Voronoi diagram of the final sites.
     history : dict of str to ndarray
         One entry per iterate, the initial sites first (length ``iterations + 1``):
-        ``energy`` (L^(d+2)), ``mean_G``, ``grad_norm`` (``‖g‖/‖X‖``, normalised),
-        ``gap`` (``max |x_i - c_i| / h``), ``pinned`` (sites held on the boundary with
-        their centroid outside, left out of ``grad_norm`` and ``gap``; module docs),
+        ``energy`` (L^(d+2)), ``mean_G``, ``rms_gap`` and ``max_gap`` (RMS and largest
+        ``|x_i - c_i| / V_i^(1/d)``, dimensionless), ``grad_norm`` (the paper's
+        ``‖g‖/‖X‖`` in input coordinates, L^d), ``pinned`` (sites held on the boundary with
+        their centroid outside, left out of the gaps and ``grad_norm``; module docs),
         ``seconds`` (since the start),
         ``evaluations`` (diagrams so far), ``step`` (``"start"``, ``"lbfgs"``, ``"newton"``,
         ``"lloyd"`` -- also the fallback when a step search stalls in round-off --
         or ``"reseed"``).
+    rule : str
+        The stopping rule, ``"gap"`` or ``"paper"``.
+    tol : float
+        Its tolerance.
     converged : bool
-        Whether ``grad_norm < tol`` was reached.
+        Whether the rule's value (``rms_gap`` or ``grad_norm``) fell below ``tol``.
     stop_reason : str
         ``"converged"``, ``"max_iter"`` or ``"interrupted"`` (the callback asked).
     iterations : int
@@ -68,6 +98,8 @@ class CVTResult:
     sites: NDArray[np.float64]
     diagram: Diagram
     history: dict[str, NDArray[Any]] = field(repr=False)
+    rule: str
+    tol: float
     converged: bool
     stop_reason: str
     iterations: int
@@ -90,7 +122,8 @@ def cvt(
     sites: ArrayLike,
     method: str = "lbfgs",
     *,
-    tol: float = 1e-10,
+    rule: str = "gap",
+    tol: float | None = None,
     max_iter: int = 10_000,
     memory: int = 7,
     callback: Callable[[dict[str, Any]], Any] | None = None,
@@ -111,8 +144,12 @@ def cvt(
         fewer diagrams, see ``hcvt-core/src/optimise/newton.rs``; the Hessian takes about
         0.2 kB per site in 2D and 1.2 kB in 3D on top of the diagram) or Lloyd's
         ``x_i <- c_i``.
-    tol : float
-        Stop when ``‖g‖/‖X‖ < tol`` in normalised coordinates (module docs; paper 1e-10).
+    rule : {"gap", "paper"}
+        Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
+        (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates
+        (``"paper"``, the paper's rule to the letter); module docs.
+    tol : float, optional
+        The rule's tolerance; default 1e-7 for ``"gap"``, the paper's 1e-10 for ``"paper"``.
     max_iter : int
         Stop after this many iterations.
     memory : int
@@ -122,18 +159,18 @@ def cvt(
         with the history fields of that iterate and ``sites`` (n, d). Returning a true
         value stops the run (``stop_reason == "interrupted"``).
     progress : bool
-        Show a progress bar (rich) towards ``tol``.
+        Show a progress bar (rich) of the rule's value towards ``tol``.
 
     Returns
     -------
     CVTResult
-        ``sites``, ``diagram``, ``history``, ``converged``, ``stop_reason``,
-        ``iterations``, ``evaluations``, ``seconds``.
+        ``sites``, ``diagram``, ``history``, ``rule``, ``tol``, ``converged``,
+        ``stop_reason``, ``iterations``, ``evaluations``, ``seconds``.
 
     Raises
     ------
     ValueError
-        Unknown method, negative tol, bad shape.
+        Unknown method or rule, negative tol, bad shape.
     InvalidSitesError
         Sites outside the domain, coinciding or non-finite; the message names the row.
 
@@ -156,6 +193,7 @@ def cvt(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    tol = default_tol(rule) if tol is None else tol
     if not tol >= 0:
         raise ValueError(f"tol must be a number >= 0, got {tol!r}")
     if max_iter < 0 or memory < 1:
@@ -164,13 +202,14 @@ def cvt(
     run = getattr(_core, f"cvt_{domain.dim}d", None)
     if run is None:
         raise NotImplementedError(f"no CVT for dimension {domain.dim} in this build")
-    bar = _Progress(tol) if progress else None
+    bar = _Progress(rule, tol) if progress else None
     observe = _chain(callback, bar)
     try:
         out = run(
             domain._core,
             points,
             method=method,
+            rule=rule,
             tol=float(tol),
             max_iter=int(max_iter),
             memory=int(memory),
@@ -185,6 +224,8 @@ def cvt(
         sites=sites_out,
         diagram=Diagram(domain, sites_out, out["diagram"]),
         history=history,
+        rule=rule,
+        tol=float(tol),
         converged=out["stop_reason"] == "converged",
         stop_reason=out["stop_reason"],
         iterations=int(out["iterations"]),
@@ -208,12 +249,17 @@ def _chain(
     return observe
 
 
-class _Progress:
-    """A rich progress bar whose completion is ``log(g0/g) / log(g0/tol)``."""
+#: The history field that decides the stop, by rule, and how the progress bar names it.
+RULE_FIELDS = {"gap": ("rms_gap", "RMS gap"), "paper": ("grad_norm", "|g|/|X|")}
 
-    def __init__(self, tol: float) -> None:
+
+class _Progress:
+    """A rich progress bar of the deciding value ``v``: ``log(v0/v) / log(v0/tol)``."""
+
+    def __init__(self, rule: str, tol: float) -> None:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+        self._field, self._label = RULE_FIELDS[rule]
         self._tol = max(tol, 1e-300)
         self._start: float | None = None
         self._progress = Progress(
@@ -227,14 +273,14 @@ class _Progress:
         self._progress.start()
 
     def update(self, info: dict[str, Any]) -> None:
-        g = max(float(info["grad_norm"]), 1e-300)
+        value = max(float(info[self._field]), 1e-300)
         if self._start is None:
-            self._start = g
+            self._start = value
         span = math.log(self._start / self._tol) if self._start > self._tol else 1.0
-        done = min(max(math.log(self._start / g) / span, 0.0), 1.0) if span > 0 else 1.0
+        done = min(max(math.log(self._start / value) / span, 0.0), 1.0) if span > 0 else 1.0
         status = (
-            f"|g|/|X| {g:.2e}  gap {info['gap']:.2e}  mean G {info['mean_G']:.6f}  "
-            f"diagrams {info['evaluations']}"
+            f"{self._label} {value:.2e} (stop < {self._tol:.0e})  max gap "
+            f"{info['max_gap']:.2e}  mean G {info['mean_G']:.6f}  diagrams {info['evaluations']}"
         )
         self._progress.update(self._task, completed=done, status=status)
 
@@ -242,4 +288,4 @@ class _Progress:
         self._progress.stop()
 
 
-__all__ = ["CVTResult", "cvt"]
+__all__ = ["CVTResult", "GAP_TOL", "PAPER_TOL", "RULES", "cvt", "default_tol"]

@@ -1,14 +1,15 @@
 //! Time CVTs of uniform random sites, for profiling the optimisation loop.
 //! `cargo run --release --example cvt_profile -- square 1000 [lbfgs|newton|lloyd] [seed]
-//! [repeats]` (or `star 2000`): the run, then `repeats` (default 50, 0 to skip) diagrams of
-//! the final sites alone, with the Hessian for Newton.
+//! [repeats] [paper|gap]` (or `star 2000`): the run to the paper's rule (`‖g‖/‖X‖ < 1e-10`
+//! in input coordinates; `gap` for the default rule), then `repeats` (default 50, 0 to skip)
+//! diagrams of the final sites alone, with the Hessian for Newton.
 
 use std::ops::ControlFlow;
 use std::time::Instant;
 
 use hcvt_core::diagram::{Options, PolygonCell};
 use hcvt_core::domain::Polygon;
-use hcvt_core::optimise::{cvt, evaluate_with, Method, Settings};
+use hcvt_core::optimise::{cvt, evaluate_with, Method, Rule, Settings};
 use hcvt_core::sample::interior_sites;
 
 fn main() -> Result<(), hcvt_core::CoreError> {
@@ -22,8 +23,14 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     };
     let seed: u64 = args.next().and_then(|a| a.parse().ok()).unwrap_or(7);
     let repeats: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(50);
+    let rule = match args.next().as_deref() {
+        Some("gap") => Rule::Gap,
+        _ => Rule::Paper,
+    };
     let settings = Settings {
         method,
+        rule,
+        tol: rule.default_tol(),
         ..Settings::default()
     };
     let ring: Vec<[f64; 2]> = if shape == "star" {
@@ -55,7 +62,8 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     })?;
     let seconds = t.elapsed().as_secs_f64();
     println!(
-        "{shape} n = {n}: {} in {} iterations, {} diagrams, {seconds:.3} s ({:.3} ms per diagram)",
+        "{shape} n = {n}, {} rule: {} in {} iterations, {} diagrams, {seconds:.3} s ({:.3} ms per diagram)",
+        rule.as_str(),
         out.stop_reason.as_str(),
         out.iterations(),
         out.evaluations(),

@@ -11,7 +11,7 @@ use std::time::Duration;
 use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::{cvt, Method, Outcome, Record, Settings};
+use hcvt_core::optimise::{cvt, Method, Outcome, Record, Rule, Settings};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -26,43 +26,51 @@ use crate::errors::to_py_err;
 /// arrays of `voronoi_2d`), `history` (a dict of per-iterate arrays), `stop_reason`.
 /// `callback(record)`, if given, gets a dict per iterate; a true return value stops.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", tol=1e-10, max_iter=10_000, memory=7, callback=None))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt_2d<'py>(
     py: Python<'py>,
     domain: &PolygonDomain,
     sites: PyReadonlyArray2<'py, f64>,
     method: &str,
-    tol: f64,
+    rule: &str,
+    tol: Option<f64>,
     max_iter: usize,
     memory: usize,
     callback: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let settings = settings(method, tol, max_iter, memory)?;
+    let settings = settings(method, rule, tol, max_iter, memory)?;
     let points = rows::<f64, 2>(&sites, "sites")?;
     run::<2, PolygonCell>(py, &domain.0, points, &settings, callback)
 }
 
 /// CVT of `sites` (n, 3) in the solid `domain`; as `cvt_2d`.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", tol=1e-10, max_iter=10_000, memory=7, callback=None))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt_3d<'py>(
     py: Python<'py>,
     domain: &SolidDomain,
     sites: PyReadonlyArray2<'py, f64>,
     method: &str,
-    tol: f64,
+    rule: &str,
+    tol: Option<f64>,
     max_iter: usize,
     memory: usize,
     callback: Option<Py<PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let settings = settings(method, tol, max_iter, memory)?;
+    let settings = settings(method, rule, tol, max_iter, memory)?;
     let points = rows::<f64, 3>(&sites, "sites")?;
     run::<3, PolyhedronCell>(py, &domain.0, points, &settings, callback)
 }
 
-fn settings(method: &str, tol: f64, max_iter: usize, memory: usize) -> PyResult<Settings> {
+fn settings(
+    method: &str,
+    rule: &str,
+    tol: Option<f64>,
+    max_iter: usize,
+    memory: usize,
+) -> PyResult<Settings> {
     let method = match method {
         "lbfgs" => Method::Lbfgs,
         "lloyd" => Method::Lloyd,
@@ -73,6 +81,16 @@ fn settings(method: &str, tol: f64, max_iter: usize, memory: usize) -> PyResult<
             )))
         }
     };
+    let rule = match rule {
+        "gap" => Rule::Gap,
+        "paper" => Rule::Paper,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "rule must be 'gap' or 'paper', got {other:?}"
+            )))
+        }
+    };
+    let tol = tol.unwrap_or_else(|| rule.default_tol());
     if tol.is_nan() || tol < 0.0 {
         return Err(PyValueError::new_err(format!(
             "tol must be a number >= 0, got {tol}"
@@ -80,6 +98,7 @@ fn settings(method: &str, tol: f64, max_iter: usize, memory: usize) -> PyResult<
     }
     Ok(Settings {
         method,
+        rule,
         tol,
         max_iter,
         memory,
@@ -171,9 +190,10 @@ fn call<const D: usize>(
     let info = PyDict::new(py);
     info.set_item("energy", record.energy)?;
     info.set_item("mean_G", record.mean_g)?;
-    info.set_item("grad_norm", record.grad_norm)?;
-    info.set_item("gap", record.gap)?;
-    info.set_item("pinned", record.pinned)?;
+    info.set_item("rms_gap", record.measures.rms_gap)?;
+    info.set_item("max_gap", record.measures.max_gap)?;
+    info.set_item("grad_norm", record.measures.grad_norm)?;
+    info.set_item("pinned", record.measures.pinned)?;
     info.set_item("seconds", record.seconds)?;
     info.set_item("evaluations", record.evaluations)?;
     info.set_item("step", record.step.as_str())?;
@@ -190,9 +210,10 @@ fn outcome_dict<'py, const D: usize>(
     let history = PyDict::new(py);
     history.set_item("energy", column(|r| r.energy))?;
     history.set_item("mean_G", column(|r| r.mean_g))?;
-    history.set_item("grad_norm", column(|r| r.grad_norm))?;
-    history.set_item("gap", column(|r| r.gap))?;
-    let pinned: Vec<usize> = h.iter().map(|r| r.pinned).collect();
+    history.set_item("rms_gap", column(|r| r.measures.rms_gap))?;
+    history.set_item("max_gap", column(|r| r.measures.max_gap))?;
+    history.set_item("grad_norm", column(|r| r.measures.grad_norm))?;
+    let pinned: Vec<usize> = h.iter().map(|r| r.measures.pinned).collect();
     history.set_item("pinned", crate::arrays::to_intp(py, &pinned)?)?;
     history.set_item("seconds", column(|r| r.seconds))?;
     let evaluations: Vec<usize> = h.iter().map(|r| r.evaluations).collect();

@@ -11,15 +11,10 @@
 //! | [`lloyd`] | Lloyd's `x_i ← c_i`, held inside the domain; reseeding of empty cells |
 //! | [`newton`] | Newton with the exact Hessian: truncated CG in a trust region (often 2–5× fewer diagrams) |
 //!
-//! **Stopping rule.** The paper stops at `‖g‖/‖X‖ < 1e-10` (§5.4, after Quinn et al.
-//! 2012). In raw coordinates that ratio grows as `L^d` with the domain's size and changes
-//! with a translation, so we evaluate it in normalised coordinates `y = (x − o)/s`, where
-//! `o` is the centre of the domain's bounding box and `s` its longest side (the domain
-//! then fits in `[−½, ½]^d`). With `E_y = E/s^{d+2}` and `g_y = g/s^{d+1}`:
-//! `‖g_y‖/‖Y‖ = ‖g‖ / (s^d ‖X − o‖)` ([`Scale::grad_norm`]). We also report the scale-free
-//! gap `max_i |x_i − c_i| / h`, `h = (V/n)^{1/d}` ([`Scale::gap`]). Both leave out sites
-//! pinned against the boundary of a non-convex domain with their centroid outside
-//! ([`lloyd::pinned_sites`]), whose gradient cannot vanish while sites stay inside.
+//! **Stopping rules** ([`stopping`], DESIGN §7). By default a run stops when the RMS over
+//! the sites of the scale-free gap `|x_i − c_i| / V_i^{1/d}` is below the tolerance; the
+//! paper's `‖g‖/‖X‖ < 1e-10` in the input coordinates is selectable by name
+//! ([`Rule::Paper`]). Every record holds both, and the largest gap.
 //!
 //! **Round-off.** Near a minimum, energy differences between line-search trials sink into
 //! round-off once the gap is about `√eps`. The line search then also accepts a step whose
@@ -42,6 +37,7 @@
 pub mod lbfgs;
 pub mod lloyd;
 pub mod newton;
+pub mod stopping;
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -49,9 +45,10 @@ use std::time::Instant;
 use crate::diagram::{clipped_diagram, morton_order, ConvexCell, Diagram, Options};
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
-use crate::geometry::{norm2, sub, Euclid, Space};
+use crate::geometry::{Euclid, Space};
 use lbfgs::{LineSearch, Memory};
 use newton::TrustRegion;
+pub use stopping::{Measures, Rule};
 
 /// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the
 /// energy (translating the domain and 2,000 random sites changed `E` by at most 2.4e-14
@@ -75,7 +72,9 @@ pub enum Method {
 pub struct Settings {
     /// [`Method::Lbfgs`] or [`Method::Lloyd`].
     pub method: Method,
-    /// Stop when `‖g‖/‖X‖` in normalised coordinates drops below this (paper: 1e-10).
+    /// The stopping rule ([`stopping`]).
+    pub rule: Rule,
+    /// Stop when the rule's value drops below this ([`Rule::default_tol`]).
     pub tol: f64,
     /// Stop after this many iterations (steps) at most.
     pub max_iter: usize,
@@ -89,7 +88,8 @@ impl Default for Settings {
     fn default() -> Self {
         Self {
             method: Method::Lbfgs,
-            tol: 1e-10,
+            rule: Rule::Gap,
+            tol: Rule::Gap.default_tol(),
             max_iter: 10_000,
             memory: 7,
             max_line_evaluations: 20,
@@ -100,7 +100,7 @@ impl Default for Settings {
 /// Why [`cvt`] stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StopReason {
-    /// `‖g‖/‖X‖ < tol`.
+    /// The rule's value fell below `tol`.
     Converged,
     /// `max_iter` iterations were made first.
     MaxIter,
@@ -154,13 +154,8 @@ pub struct Record {
     pub energy: f64,
     /// Mean dimensionless second moment over the cells (paper eq. 3).
     pub mean_g: f64,
-    /// `‖g‖/‖X‖` in normalised coordinates (the stopping rule).
-    pub grad_norm: f64,
-    /// `max_i |x_i − c_i| / h`, dimensionless.
-    pub gap: f64,
-    /// Sites pinned against the boundary, left out of `grad_norm` and `gap`
-    /// ([`lloyd::pinned_sites`]).
-    pub pinned: usize,
+    /// Distances of the sites from their centroids, by every rule ([`Measures`]).
+    pub measures: Measures,
     /// Wall time since the start, seconds.
     pub seconds: f64,
     /// Diagrams computed so far.
@@ -238,66 +233,13 @@ where
     })
 }
 
-/// The normalisation of the stopping rule and of the gap (module docs).
-#[derive(Debug, Clone, Copy)]
-pub struct Scale<const D: usize> {
-    /// Centre `o` of the domain's bounding box.
-    pub origin: [f64; D],
-    /// Longest side `s` of the bounding box, `L`.
-    pub side: f64,
-    /// Spacing `h = (V/n)^{1/d}`, `L`.
-    pub h: f64,
-}
-
-impl<const D: usize> Scale<D> {
-    /// The scale of `n` sites in `boundary`.
-    pub fn new(boundary: &Boundary<D>, n: usize) -> Self
-    where
-        Euclid: Space<D>,
-    {
-        let b = boundary.bounds();
-        let side = (0..D).map(|k| b.hi[k] - b.lo[k]).fold(0.0, f64::max);
-        Self {
-            origin: b.center(),
-            side,
-            h: (boundary.volume() / n.max(1) as f64).powf(1.0 / D as f64),
-        }
-    }
-
-    /// `‖g_y‖/‖Y‖ = ‖g‖ / (s^d ‖X − o‖)`: the paper's rule in normalised coordinates, `g`
-    /// without the sites marked in `pinned` ([`lloyd::pinned_sites`]). Zero when that
-    /// gradient is zero, even for a single site at the origin.
-    pub fn grad_norm(&self, point: &Point<D>, pinned: &[bool]) -> f64 {
-        let g2: f64 = point
-            .gradient
-            .iter()
-            .zip(pinned)
-            .filter(|(_, &p)| !p)
-            .map(|(&g, _)| norm2(g))
-            .sum();
-        if g2 == 0.0 {
-            return 0.0;
-        }
-        let x2: f64 = point
-            .sites
-            .iter()
-            .map(|&x| norm2(sub(x, self.origin)))
-            .sum();
-        g2.sqrt() / (self.side.powi(D as i32) * x2.sqrt().max(f64::MIN_POSITIVE))
-    }
-
-    /// `max_i |x_i − c_i| / h` over the non-empty cells of the sites not `pinned`.
-    pub fn gap(&self, point: &Point<D>, pinned: &[bool]) -> f64 {
-        let largest = point
-            .diagram
-            .moments
-            .iter()
-            .zip(pinned)
-            .filter(|(m, &p)| m.mass > 0.0 && !p)
-            .map(|(m, _)| norm2(m.first).sqrt() / m.mass)
-            .fold(0.0, f64::max);
-        largest / self.h
-    }
+/// The mean spacing `h = (V/n)^{1/d}` of `n` sites in `boundary`, `L`: how far a reseeded
+/// site moves ([`lloyd::reseed_empty`]).
+fn mean_spacing<const D: usize>(boundary: &Boundary<D>, n: usize) -> f64
+where
+    Euclid: Space<D>,
+{
+    (boundary.volume() / n.max(1) as f64).powf(1.0 / D as f64)
 }
 
 /// Mean of `G` over the non-empty cells (paper eq. 3).
@@ -315,7 +257,8 @@ pub type Observer<'a, const D: usize> = dyn FnMut(&Record, &[[f64; D]]) -> Contr
 
 /// Counts diagram computations and tells how far the run has come.
 struct Tracker<const D: usize> {
-    scale: Scale<D>,
+    /// Mean spacing `h`, `L`.
+    h: f64,
     start: Instant,
     evaluations: usize,
     /// Diagram options: the Hessian for Newton.
@@ -344,9 +287,7 @@ impl<const D: usize> Tracker<D> {
         let record = Record {
             energy: point.energy,
             mean_g: mean_g(&point.diagram),
-            grad_norm: self.scale.grad_norm(point, &pinned),
-            gap: self.scale.gap(point, &pinned),
-            pinned: pinned.iter().filter(|&&p| p).count(),
+            measures: Measures::of(point, &pinned),
             seconds: self.start.elapsed().as_secs_f64(),
             evaluations: self.evaluations,
             step,
@@ -356,7 +297,8 @@ impl<const D: usize> Tracker<D> {
     }
 }
 
-/// A CVT from `sites`: Lloyd or L-BFGS until `‖g‖/‖X‖ < tol` (module docs) or `max_iter`.
+/// A CVT from `sites`: Lloyd, L-BFGS or Newton until the stopping rule's value is below
+/// `tol` ([`stopping`]) or `max_iter`.
 ///
 /// `observer` sees every record (the initial sites first) with the current sites, and stops
 /// the run by returning `ControlFlow::Break` (the binding does so on Ctrl-C, or when the
@@ -420,7 +362,7 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let mut tracker = Tracker {
-        scale: Scale::new(boundary, sites.len()),
+        h: mean_spacing(boundary, sites.len()),
         start: Instant::now(),
         evaluations: 0,
         options: Options {
@@ -441,13 +383,13 @@ where
         if observer(&record, &point.sites).is_break() {
             break StopReason::Interrupted;
         }
-        if record.grad_norm < settings.tol {
+        if settings.rule.value(&record.measures) < settings.tol {
             break StopReason::Converged;
         }
         if tracker.history.len() > settings.max_iter {
             break StopReason::MaxIter;
         }
-        let h = tracker.scale.h;
+        let h = tracker.h;
         let (next, step) = match lloyd::reseed_empty(boundary, &point, h) {
             Some(sites) => {
                 solver.memory.clear();
@@ -457,7 +399,7 @@ where
                 boundary,
                 &point,
                 &mut solver,
-                record.grad_norm,
+                &record.measures,
                 &mut tracker,
             )?,
         };
@@ -482,12 +424,12 @@ struct Solver<const D: usize> {
 
 /// One iteration of the solver's method from `point`: an L-BFGS or Newton step, or a Lloyd
 /// step when that is the method or when no step was found (module docs, "Round-off").
-/// `grad_norm` is the stopping rule's value at `point`.
+/// `measures` are those of `point`.
 fn iterate<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     point: &Point<D>,
     solver: &mut Solver<D>,
-    grad_norm: f64,
+    measures: &Measures,
     tracker: &mut Tracker<D>,
 ) -> Result<(Point<D>, Step), CoreError>
 where
@@ -501,7 +443,7 @@ where
         };
         let hold = |moves: &mut [[f64; D]]| lloyd::hold_inside(boundary, &point.sites, moves);
         let next = if solver.method == Method::Newton {
-            let forcing = grad_norm.sqrt().min(0.5);
+            let forcing = newton::forcing(measures);
             let trials = solver.search.max_evaluations;
             let frozen = lloyd::pinned_sites(boundary, point);
             let next = newton::step(

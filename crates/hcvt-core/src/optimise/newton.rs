@@ -16,8 +16,8 @@
 //!
 //! The region is a ball in the norm `‖p‖_M = √(Σ 2 m_i |p_i|²)` of the preconditioner,
 //! each site's term scaled by its stiffness (below), first as large as the Lloyd step. CG
-//! stops inside it at relative residual `η = min(1/2, √(‖g‖/‖X‖))` (the forcing sequence
-//! of Nocedal and Wright, made scale-free with the stopping rule's value). Trials that put
+//! stops inside it at relative residual `η` ([`forcing`]: the forcing sequence of Nocedal
+//! and Wright, made scale-free with the RMS gap). Trials that put
 //! a site outside the domain are rejected like steps that raise the energy. Near the
 //! minimum, where energy differences are round-off, a step is judged by the gradient
 //! instead (module docs of [`super`], "Round-off").
@@ -37,13 +37,25 @@ use crate::error::CoreError;
 use crate::geometry::norm2;
 
 use super::lbfgs::{axpy, dot_rows, mass_preconditioner, moved, Evaluator};
-use super::Point;
+use super::{Measures, Point};
 
 /// Most CG iterations per step.
 pub const MAX_CG_ITERATIONS: usize = 200;
 
 /// Accept a step when the energy falls by at least this fraction of the model's decrease.
 const ACCEPT: f64 = 0.1;
+
+/// CG's relative residual `η = min(1/2, FORCING √RMS gap)` at a point with `measures`.
+///
+/// Nocedal and Wright's `min(1/2, √‖g‖)` gives superlinear convergence but depends on the
+/// unit; the RMS gap is the gradient per site relative to its cell (`|g_i| / (2 m_i h_i)`),
+/// so the same sequence is free of unit and `n`.
+pub fn forcing(measures: &Measures) -> f64 {
+    (FORCING * measures.rms_gap.sqrt()).min(0.5)
+}
+
+/// Factor of [`forcing`].
+const FORCING: f64 = 1.0;
 
 /// The trust region's radius and per-site stiffness, kept from step to step.
 #[derive(Debug, Clone, Default)]
