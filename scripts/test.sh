@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Install everything the project needs, then run every check and test: rustfmt, clippy,
-# cargo test (core), ruff, pytest (Python API, doctests). Exit non-zero on any failure.
+# cargo test (core), ruff, mypy (python/hcvt against _core.pyi), pytest (Python API,
+# doctests). Exit non-zero on any failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export OPENBLAS_NUM_THREADS=1
@@ -12,6 +13,7 @@ echo "== clippy";   cargo clippy --workspace --all-targets --release -- -D warni
 echo "== cargo test"; cargo test --workspace --release
 echo "== ruff";     python -m ruff check python tests benchmarks
 python -m ruff format --check python tests benchmarks
+echo "== mypy";     python -m mypy && python -m mypy.stubtest hcvt._core
 echo "== pytest";   python -m pytest python tests
 # A miscompilation seen once with one codegen unit (crates/hcvt-core/src/moments.rs,
 # FaceMoments::simplex): the Hessian's finite-difference test, built that way too.

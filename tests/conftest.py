@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
+
+# Figures in tests go to files; hcvt itself leaves the backend to the user.
+os.environ.setdefault("MPLBACKEND", "Agg")
 
 import hcvt
 

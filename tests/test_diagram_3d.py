@@ -270,3 +270,37 @@ def test_sites_on_mesh_vertices_and_a_single_site(domains: dict[str, hcvt.Domain
     one = hcvt.voronoi(domain, sites[:1])
     assert abs(one.volume[0] - domain.volume) < 1e-13 * domain.volume
     np.testing.assert_allclose(one.centroid[0], domain.centroid, rtol=0, atol=1e-14)
+
+
+def test_integer_arrays_are_intp() -> None:
+    # issue 16: neighbour offsets were uint64, neighbour sites uint32, faces uint32.
+    domain = hcvt.load_domain(DATA_3D / "sphere.ply")
+    d = hcvt.voronoi(domain, interior_sites(domain, 60, seed=2))
+    arrays = {
+        "neighbor_offsets": d.neighbor_offsets,
+        "neighbor_sites": d.neighbor_sites,
+        "neighbors": d.neighbors,
+        "cell_neighbors": d.cell_neighbors(0)[0],
+        "faces": domain.faces,
+        "read_mesh": hcvt.io.read_mesh(DATA_3D / "sphere.ply")[1],
+        "cell faces": d.cells()[0][1],
+    }
+    result = hcvt.cvt(domain, d.sites, max_iter=2)
+    arrays["pinned"] = result.history["pinned"]
+    arrays["evaluations"] = result.history["evaluations"]
+    for name, array in arrays.items():
+        assert array.dtype == np.intp, f"{name}: {array.dtype}"
+
+
+def test_adjacency_is_the_restricted_delaunay_graph(domains: dict[str, hcvt.Domain]) -> None:
+    from scipy.sparse.csgraph import connected_components
+
+    domain = domains["bunny.off"]
+    d = hcvt.voronoi(domain, interior_sites(domain, 400, seed=5))
+    a = d.adjacency
+    assert a.shape == (400, 400) and a.format == "csr" and a.dtype == np.float64
+    assert (a != a.T).nnz == 0
+    i, j = d.neighbors.T
+    np.testing.assert_array_equal(a[i, j], d.face_measures)
+    assert a.nnz == 2 * len(d.neighbors)
+    assert connected_components(a, directed=False)[0] == 1  # the bunny is one piece

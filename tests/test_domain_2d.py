@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 import shapely
+from shapely.geometry import MultiPolygon, Polygon, box
 
 import hcvt
 from helpers import BAD_POLYGON_FILES, DATA, POLYGON_FILES, random_inside
@@ -106,3 +107,39 @@ def test_unreadable_files_are_refused(tmp_path):
         hcvt.load_domain(tmp_path / "z.txt")
     with pytest.raises(FileNotFoundError):
         hcvt.load_domain(tmp_path / "missing.wkt")
+
+
+@pytest.mark.parametrize(
+    ("geometry", "match", "area"),
+    [
+        (
+            MultiPolygon([box(0, 0, 2, 2), box(1, 1, 3, 3)]),
+            r"parts 0 and 1 overlap: the winding number is 2 on an area of 1 around \(1\.5, 1\.5\)",
+            7.0,
+        ),
+        (
+            MultiPolygon([box(0, 0, 4, 4), box(1, 1, 2, 2)]),
+            r"parts 0 and 1 overlap: the winding number is 2 on an area of 1",
+            16.0,
+        ),
+        (
+            Polygon(
+                [(0, 0), (2, 0), (2, 2), (0, 2)],
+                [box(0.5, 0.5, 1.5, 1.5).exterior.coords, box(0.7, 0.7, 1.2, 1.2).exterior.coords],
+            ),
+            r"hole 0 and hole 1 overlap: the winding number is -1 on an area of 0\.25",
+            None,
+        ),
+    ],
+)
+def test_overlapping_rings_are_named_or_repaired(geometry, match: str, area) -> None:
+    with pytest.raises(hcvt.InvalidDomainError, match=match):
+        hcvt.Domain.from_polygon(geometry)
+    repaired = hcvt.Domain.from_polygon(geometry, repair=True)
+    assert "made valid" in str(repaired.repair_report)
+    if area is not None:
+        assert repaired.volume == area
+    # The repaired domain's exact winding number is 0 or 1 everywhere.
+    points = np.random.default_rng(0).uniform(-1, 5, size=(2000, 2))
+    winding, _ = repaired.winding_numbers(points)
+    assert set(winding.tolist()) <= {0, 1}

@@ -5,6 +5,7 @@ non-convex domains, thread independence."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import threading
 import time
@@ -349,9 +350,24 @@ def test_callback_errors_propagate():
         hcvt.cvt(shapes.unit_square(), [[0.2, 0.3], [0.6, 0.7]], callback=callback)
 
 
-def test_progress_bar_runs(capsys):
-    res = hcvt.cvt(shapes.unit_square(), random_inside(shapes.unit_square(), 30), progress=True)
+@pytest.mark.parametrize(("rule", "label"), [("gap", "RMS gap"), ("paper", "|g|/|X|")])
+def test_progress_bar_shows_the_final_state(capsys, monkeypatch, rule, label):
+    # issue 16: the test checked only that nothing crashed. The bar's last render must show
+    # the run's end: the deciding value below its tolerance, the mean G and diagram count of
+    # the result. 160 columns: at rich's default of 80 for a pipe the status line is cut.
+    monkeypatch.setenv("COLUMNS", "160")
+    square = shapes.unit_square()
+    res = hcvt.cvt(square, random_inside(square, 30), rule=rule, progress=True)
     assert res.converged
+    out = capsys.readouterr().out
+    assert out.lstrip().startswith("CVT")
+    shown = re.findall(re.escape(label) + r" (\S+) \(stop < (\S+)\)", out)
+    assert shown, out
+    value, tol = map(float, shown[-1])
+    assert value < tol
+    assert re.findall(r"max gap (\S+)", out)[-1] == f"{res.history['max_gap'][-1]:.2e}"
+    assert re.findall(r"mean G (\S+)", out)[-1] == f"{res.diagram.mean_G:.6f}"
+    assert re.findall(r"diagrams (\d+)", out)[-1] == str(res.evaluations)
 
 
 def test_bad_input_is_refused():

@@ -5,14 +5,16 @@ The public API (DESIGN §1): :class:`Domain` and :func:`load_domain` build domai
 centroidal Voronoi tessellation.
 """
 
-from hcvt import io, plot
+from typing import TYPE_CHECKING, Any
+
+from hcvt import io
 from hcvt._core import get_num_threads, set_num_threads
 from hcvt.baselines import MonteCarloResult, global_monte_carlo
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
-from hcvt.initialise import LatticeResult, initialise
+from hcvt.initialisation import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
 from hcvt.optimise import CVTResult, cvt
 
@@ -39,3 +41,16 @@ __all__ = [
     "write_cells",
 ]
 __version__ = "0.1.0"
+
+if TYPE_CHECKING:
+    from hcvt import plot
+
+
+def __getattr__(name: str) -> Any:
+    # `hcvt.plot` imports matplotlib on first use only (PEP 562): `import hcvt` must not
+    # pull it in, nor touch the backend.
+    if name == "plot":
+        import importlib
+
+        return importlib.import_module("hcvt.plot")
+    raise AttributeError(f"module 'hcvt' has no attribute {name!r}")

@@ -131,12 +131,12 @@ def run(
         if method == "voronoi":
             diagram = hcvt.voronoi(domain, sites)
         elif method == "monte-carlo":
-            result = hcvt.global_monte_carlo(
+            mc = hcvt.global_monte_carlo(
                 domain, sites, seed=seed, rule=rule, tol=tol, progress=True
             )
-            sites, diagram, iterations = result.sites, result.diagram, result.iterations
+            sites, diagram, iterations = mc.sites, mc.diagram, mc.iterations
         else:
-            result = hcvt.cvt(
+            run = hcvt.cvt(
                 domain,
                 sites,
                 method=method,
@@ -145,8 +145,8 @@ def run(
                 max_iter=max_iter,
                 progress=True,
             )
-            sites, diagram, iterations = result.sites, result.diagram, result.iterations
-            history = result.history
+            sites, diagram, iterations = run.sites, run.diagram, run.iterations
+            history = run.history
     seconds = time.perf_counter() - start
     info = {
         "input": input_,

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import shapely
 from numpy.typing import ArrayLike, NDArray
+from scipy import sparse
 
 from hcvt import _core
 from hcvt.domain import Domain
@@ -21,10 +22,16 @@ NEIGHBOR_REL_TOL = 1e-9
 class Diagram:
     """A clipped Voronoi diagram; row ``i`` of every array is site ``i``.
 
+    Integer arrays are ``np.intp``, the dtype numpy indexes with.
+
     Attributes
     ----------
     domain : Domain
-    sites : ndarray, shape (n, d)
+        The domain the cells are clipped to.
+    sites : ndarray of float64, shape (n, d)
+        The generators, L (a private C-contiguous copy).
+    n : int
+        Number of sites.
     volume : ndarray, shape (n,)
         Cell areas (2D) or volumes (3D), L^d.
     centroid : ndarray, shape (n, d)
@@ -34,12 +41,34 @@ class Diagram:
     G : ndarray, shape (n,)
         Dimensionless second moment of each cell (paper eq. 2); NaN only for the empty
         cell of a site outside the domain.
+    mean_G : float
+        Average of ``G`` over the non-empty cells (paper eq. 3).
     energy : float
         CVT energy ``Σ_i ∫_cell_i |x - x_i|² dx`` about the sites, L^(d+2).
+    energy_terms : ndarray, shape (n,)
+        Each cell's term of ``energy``, L^(d+2).
     gradient : ndarray, shape (n, d)
         ``∂E/∂x_i = 2 m_i (x_i - c_i)``, L^(d+1).
     boundary_measure : ndarray, shape (n,)
         Length (2D) or area (3D) of each cell's part of the domain boundary.
+    neighbor_offsets : ndarray of intp, shape (n + 1,)
+        Cell ``i``'s faces are entries ``neighbor_offsets[i]:neighbor_offsets[i + 1]`` of
+        the two arrays below (CSR layout, as seen from ``i``, every face of the clipped
+        cell, however small).
+    neighbor_sites : ndarray of intp, shape (m,)
+        The site across each face.
+    neighbor_measures : ndarray, shape (m,)
+        Length (2D) or area (3D) of each face inside the domain.
+    neighbors : ndarray of intp, shape (k, 2)
+        Restricted Delaunay edges ``(i, j)``, ``i < j``, sorted: the faces above of
+        positive measure (more than ``NEIGHBOR_REL_TOL · h^(d-1)``).
+    face_measures : ndarray, shape (k,)
+        The measure of each face of ``neighbors``.
+    adjacency : scipy.sparse.csr_array of float64, shape (n, n)
+        ``neighbors`` as a symmetric sparse matrix whose entries are ``face_measures``.
+
+    Methods ``cell_neighbors(i)`` and ``cells()`` give one cell's faces and every cell's
+    geometry.
     """
 
     def __init__(self, domain: Domain, sites: NDArray[np.float64], arrays: dict[str, Any]):
@@ -53,8 +82,8 @@ class Diagram:
         self.energy = float(arrays["energy"])
         self.gradient: NDArray[np.float64] = arrays["gradient"]
         self.boundary_measure: NDArray[np.float64] = arrays["boundary_measure"]
-        self.neighbor_offsets: NDArray[np.uint64] = arrays["neighbor_offsets"]
-        self.neighbor_sites: NDArray[np.uint32] = arrays["neighbor_sites"]
+        self.neighbor_offsets: NDArray[np.intp] = arrays["neighbor_offsets"]
+        self.neighbor_sites: NDArray[np.intp] = arrays["neighbor_sites"]
         self.neighbor_measures: NDArray[np.float64] = arrays["neighbor_measures"]
         self._allow_outside = bool(arrays.get("_allow_outside", False))
 
@@ -69,17 +98,17 @@ class Diagram:
         return float(np.nanmean(self.G))
 
     @cached_property
-    def _pairs(self) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-        counts = np.diff(self.neighbor_offsets.astype(np.int64))
-        owner = np.repeat(np.arange(self.n, dtype=np.int64), counts)
-        other = self.neighbor_sites.astype(np.int64)
+    def _pairs(self) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+        counts = np.diff(self.neighbor_offsets)
+        owner = np.repeat(np.arange(self.n, dtype=np.intp), counts)
+        other = self.neighbor_sites
         h = (self.domain.volume / self.n) ** (1.0 / self.domain.dim)
         floor = NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1)
         keep = (owner < other) & (self.neighbor_measures > floor)
         return np.column_stack([owner[keep], other[keep]]), self.neighbor_measures[keep]
 
     @property
-    def neighbors(self) -> NDArray[np.int64]:
+    def neighbors(self) -> NDArray[np.intp]:
         """Restricted Delaunay edges, shape (k, 2), ``i < j``, sorted by ``(i, j)``.
 
         Pairs of cells sharing a face of positive measure inside the domain (DESIGN §3.5).
@@ -94,7 +123,29 @@ class Diagram:
         """
         return self._pairs[1]
 
-    def cell_neighbors(self, i: int) -> tuple[NDArray[np.uint32], NDArray[np.float64]]:
+    @cached_property
+    def adjacency(self) -> sparse.csr_array:
+        """Restricted Delaunay graph, (n, n) symmetric, entry ``(i, j)`` the face measure.
+
+        For scipy.sparse.csgraph (components, shortest paths) and graph Laplacians.
+
+        Examples
+        --------
+        >>> import hcvt
+        >>> square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
+        >>> d = hcvt.voronoi(square, [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]])
+        >>> d.adjacency.toarray()
+        array([[0. , 0.5, 0.5, 0. ],
+               [0.5, 0. , 0. , 0.5],
+               [0.5, 0. , 0. , 0.5],
+               [0. , 0.5, 0.5, 0. ]])
+        """
+        (i, j), measure = self.neighbors.T, self.face_measures
+        rows, cols = np.concatenate([i, j]), np.concatenate([j, i])
+        values = np.concatenate([measure, measure])
+        return sparse.csr_array((values, (rows, cols)), shape=(self.n, self.n))
+
+    def cell_neighbors(self, i: int) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
         """Sites sharing a face with cell ``i`` and that face's measure, as seen from ``i``."""
         s, e = int(self.neighbor_offsets[i]), int(self.neighbor_offsets[i + 1])
         return self.neighbor_sites[s:e], self.neighbor_measures[s:e]
@@ -118,7 +169,7 @@ class Diagram:
             self.domain._core, self.sites, allow_outside=self._allow_outside, keep_cells=True
         )
         vertices = arrays["cell_vertices"]
-        counts = np.diff(arrays["cell_offsets"].astype(np.int64))
+        counts = np.diff(arrays["cell_offsets"])
         convex = shapely.polygons(
             shapely.linearrings(vertices, indices=np.repeat(np.arange(self.n), counts))
         )
@@ -129,15 +180,15 @@ class Diagram:
             clipped[mask] = shapely.intersection(convex[mask], self.domain.geometry)
         return list(clipped)
 
-    def _cells_3d(self) -> list[tuple[NDArray[np.float64], NDArray[np.int64]]]:
+    def _cells_3d(self) -> list[tuple[NDArray[np.float64], NDArray[np.intp]]]:
         arrays = _core.voronoi_3d(
             self.domain._core, self.sites, allow_outside=self._allow_outside, keep_cells=True
         )
         vo, vertices = arrays["cell_vertex_offsets"], arrays["cell_vertices"]
-        fo, faces = arrays["cell_face_offsets"], arrays["cell_faces"].astype(np.int64)
+        fo, faces = arrays["cell_face_offsets"], arrays["cell_faces"]
         solid = None
         out = []
-        empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64))
+        empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.intp))
         for i in range(self.n):
             v, f = vertices[vo[i] : vo[i + 1]], faces[fo[i] : fo[i + 1]]
             if self.volume[i] <= 0:
@@ -149,7 +200,7 @@ class Diagram:
                     solid = _manifold(self.domain.vertices, self.domain.faces)
                 mesh = (_manifold_module().Manifold.hull_points(v) ^ solid).to_mesh64()
                 points = np.asarray(mesh.vert_properties)[:, :3]
-                out.append((points, mesh.tri_verts.astype(np.int64)))
+                out.append((points, mesh.tri_verts.astype(np.intp)))
         return out
 
     def __repr__(self) -> str:
@@ -234,7 +285,7 @@ def _manifold_module() -> Any:
     return manifold3d
 
 
-def _manifold(vertices: NDArray[np.float64], faces: NDArray[np.uint32]) -> Any:
+def _manifold(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> Any:
     """Build the domain as a manifold3d solid, in double precision."""
     m3 = _manifold_module()
     mesh = m3.Mesh64(

@@ -141,11 +141,13 @@ class Domain:
         repair : bool, default False
             Merge duplicate vertices (equal positions), drop degenerate and duplicate faces
             and the faces on non-manifold edges, orient every component consistently, fill
-            each hole with a fan from its centroid, split pinched vertices, and flip
-            components whose volume is negative; ``domain.repair_report`` says what changed.
-            The diagram is then exact for the repaired surface. Crossing triangles cannot be
-            repaired: they are reported, and overlapping parts count with their winding
-            number.
+            each hole with a fan from its centroid, split pinched vertices, and orient each
+            shell by the parity of its nesting (inside an even number of other shells it
+            faces outward, inside an odd number it bounds a cavity and faces inward); shells
+            that cross each other are united (manifold3d). ``domain.repair_report`` says
+            what changed. The diagram is then exact for the repaired surface. A shell that
+            crosses itself cannot be repaired: it is left, the report says where, and the
+            overlaps count with their winding number (2, or -1) near the crossing.
 
         Raises
         ------
@@ -153,7 +155,10 @@ class Domain:
             Without ``repair``: any of degenerate faces, duplicate vertices, open boundary
             edges, non-manifold edges, inconsistent winding, pinched vertices, inward
             orientation, zero volume, triangles crossing each other (exact test of pairs
-            sharing no vertex), each with its count and first offending element.
+            sharing no vertex; the message names their shells), shells whose nesting makes
+            the winding number other than 0 or 1 somewhere (a shell inside another facing
+            the same way, a cavity facing outward), each with its count and first offending
+            element.
             Always: NaN/inf coordinates, out-of-range indices, nothing left after repair.
 
         Examples
@@ -173,14 +178,18 @@ class Domain:
         core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
         count, pairs = core.crossing_triangles(1)
         if count:
-            where = f"{count} pairs of triangles cross each other, first: faces {pairs[0]}"
             if not repair:
-                raise InvalidDomainError(
-                    f"the mesh does not bound a solid:\n  - self-intersection: {where}\n"
-                    "pass repair=True to accept it (overlaps then count with their winding "
-                    "number)"
+                where = mesh.describe_crossings(f, count, pairs)
+                mesh.refuse(
+                    [f"self-intersection: {where}"],
+                    advice="pass repair=True to unite overlapping shells",
                 )
-            actions.append(f"left a self-intersection ({where}): overlaps count twice")
+            v, f = mesh.unite_shells(v, f, core.crossing_triangles(count)[1], actions)
+            core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
+        else:
+            nested = mesh.nesting_defects(mesh.nesting(v, f))
+            if nested:
+                mesh.refuse(nested, repaired=repair)
         report = None
         if repair:
             report = RepairReport(bool(actions), actions, before, mesh.signed_volume(v, f))
@@ -192,7 +201,7 @@ class Domain:
         return np.asarray(self._core.vertices)
 
     @property
-    def faces(self) -> NDArray[np.uint32]:
+    def faces(self) -> NDArray[np.intp]:
         """3D only: boundary triangles, shape (F, 3), counter-clockwise seen from outside."""
         if self.dim != 3:
             raise AttributeError("faces exist for 3D domains only")
@@ -249,18 +258,38 @@ class Domain:
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
         """Whether each point (m, d) lies strictly inside the domain, shape (m,).
 
-        Exact winding numbers; for a 3D domain built with ``repair=True`` the generalised
-        winding number (> 1/2) instead, so that the repaired holes and overlaps of an
-        imperfect surface do not flip answers.
+        The core's exact winding number, the same test the diagram uses for its sites, for
+        every domain (a repaired one too: its repaired surface is the domain).
         """
-        if self.dim == 3 and self.repair_report is not None and self.repair_report.changed:
-            return self.generalized_winding_numbers(points) > 0.5
         winding, on_boundary = self.winding_numbers(points)
         return (winding != 0) & ~on_boundary
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        # Pickled as its checked boundary (dask, joblib, multiprocessing); the core rebuilds
+        # its index from the same arrays, so diagrams in another process are bitwise equal.
+        simplices = self._core.segments if self.dim == 2 else self._core.faces
+        return _unpickle, (self.dim, self.vertices, simplices, self.geometry, self.repair_report)
 
     def __repr__(self) -> str:
         kind = "polygon" if self.dim == 2 else "solid"
         return f"<hcvt.Domain {kind}, volume={self.volume:.6g}>"
+
+
+def _unpickle(
+    dim: int,
+    vertices: NDArray[np.float64],
+    simplices: NDArray[np.intp],
+    geometry: Any,
+    repair_report: RepairReport | None,
+) -> Domain:
+    """A Domain from the arrays :meth:`Domain.__reduce__` saved, checked anew by the core."""
+    boundary = _core.PolygonDomain if dim == 2 else _core.SolidDomain
+    # Aligned copies: dask hands arrays over as views of its message frames, which may
+    # start at any byte.
+    core = boundary(
+        np.require(vertices, np.float64, ["C", "A"]), np.require(simplices, np.uint32, ["C", "A"])
+    )
+    return Domain(core, dim, geometry, repair_report)
 
 
 def _as_points(points: ArrayLike, dim: int, name: str) -> NDArray[np.float64]:
@@ -395,7 +424,28 @@ def _describe(geometry: Polygon | MultiPolygon) -> str:
         for name, ring in rings[1:]:
             if not shell.covers(Polygon(ring)):
                 return prefix + f"{name} lies partly outside the outer ring"
+        for a in range(1, len(rings)):
+            for b in range(a + 1, len(rings)):
+                found = _overlap(Polygon(rings[a][1]), Polygon(rings[b][1]), -1)
+                if found:
+                    return prefix + f"{rings[a][0]} and {rings[b][0]} overlap: {found}"
+    for a in range(len(parts)):
+        for b in range(a + 1, len(parts)):
+            found = _overlap(parts[a], parts[b], 2)
+            if found:
+                return f"parts {a} and {b} overlap: {found}"
     return shapely.is_valid_reason(geometry)
+
+
+def _overlap(first: Polygon, second: Polygon, winding: int) -> str | None:
+    """Where two regions share area, which then has winding number ``winding``, or None."""
+    common = shapely.intersection(first, second)
+    if not common.area > 0:
+        return None
+    return (
+        f"the winding number is {winding} on an area of {common.area:.6g} around "
+        f"{_xy(common.representative_point().coords[0])}"
+    )
 
 
 def _ring_self_contact(coords: NDArray[np.float64]) -> str | None:

@@ -217,7 +217,7 @@ def _experiments(quick: bool) -> dict[str, Experiment]:
             for s in range(5)
         ),
     )
-    table7_cases = [
+    table7_cases: list[tuple[str, int, float | None]] = [
         ("ball", 1000, 0.55),
         ("homer.obj", 35000, 28.66),
         ("bunny.off", 50000, 30.06),
@@ -353,14 +353,13 @@ def run_config(config: Config) -> Row:
         history = result.levels[-1].history if config.keep_history else None
     else:
         sites = hcvt.initialise(domain, config.n, method=config.init, seed=config.seed)
+        run: hcvt.MonteCarloResult | hcvt.CVTResult
         if config.method == "monte-carlo":
-            result = hcvt.global_monte_carlo(
-                domain, sites, updates=config.updates, seed=config.seed
-            )
+            run = hcvt.global_monte_carlo(domain, sites, updates=config.updates, seed=config.seed)
         else:
-            result = hcvt.cvt(domain, sites, method=config.method)
-        diagram, iterations = result.diagram, result.iterations
-        history = result.history if config.keep_history else None
+            run = hcvt.cvt(domain, sites, method=config.method)
+        diagram, iterations = run.diagram, run.iterations
+        history = run.history if config.keep_history else None
     seconds = time.perf_counter() - start
     row: Row = {
         **{k: v for k, v in asdict(config).items() if not k.startswith("keep")},
@@ -385,7 +384,7 @@ def expand(experiment: Experiment, runs: int) -> list[Config]:
 
     Lattice and Hammersley initialisations are deterministic: one run each.
     """
-    out = []
+    out: list[Config] = []
     for config in experiment.configs:
         random = config.init == "random" or config.method == "voronoi"
         count = runs if (random or not experiment.random_only_runs) else 1

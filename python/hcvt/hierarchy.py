@@ -171,7 +171,7 @@ def sample_in_cells(
         ok = (r > 0) & diagram.domain.contains(candidates)
         ok[ok] &= tree.query(candidates[ok])[1] == cells[owner[ok]]
         hit = np.zeros(len(cells), dtype=bool)
-        first = {}
+        first: dict[np.intp, np.intp] = {}
         for k in np.flatnonzero(ok):
             first.setdefault(owner[k], k)
         for j, k in first.items():
@@ -357,7 +357,7 @@ def hierarchical_cvt(
     HierarchicalResult
         ``sites`` (n, d), ``diagram``, and ``levels`` (the paper's Table 1 in ``table()``).
     """
-    from hcvt.initialise import initialise
+    from hcvt.initialisation import initialise
     from hcvt.optimise import check_rule, cvt
 
     check_rule(rule)

@@ -5,11 +5,10 @@ from __future__ import annotations
 import base64
 import json
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import shapely
-import trimesh
 from numpy.typing import NDArray
 from shapely.geometry import MultiPolygon, Polygon, shape
 
@@ -58,7 +57,7 @@ def load_domain(path: str | Path, *, repair: bool = False) -> Domain:
     )
 
 
-def read_mesh(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def read_mesh(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """Vertices (V, 3) and triangles (F, 3) of a mesh file, as indexed in the file.
 
     OBJ is read directly (``v`` and ``f`` records; polygons fanned; texture and normal
@@ -69,18 +68,20 @@ def read_mesh(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int64]]
     if path.suffix.lower() == ".obj":
         return _read_obj(path)
     try:
-        loaded = trimesh.load(path, process=False, force="mesh")
+        import trimesh  # slow to import (~0.5 s): only when a file needs it
+
+        loaded = cast("trimesh.Trimesh", trimesh.load(path, process=False, force="mesh"))
     except (ValueError, KeyError, IndexError, TypeError) as err:
         raise InvalidDomainError(f"{path.name}: cannot read a mesh ({err})") from err
     vertices = np.asarray(loaded.vertices, dtype=np.float64)
-    faces = np.asarray(loaded.faces, dtype=np.int64)
+    faces = np.asarray(loaded.faces, dtype=np.intp)
     if path.suffix.lower() == ".stl":
         vertices, inverse = np.unique(vertices, axis=0, return_inverse=True)
         faces = inverse.ravel()[faces]
     return vertices, faces
 
 
-def _read_obj(path: Path) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def _read_obj(path: Path) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     vertices: list[list[float]] = []
     faces: list[list[int]] = []
     try:
@@ -98,7 +99,7 @@ def _read_obj(path: Path) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
         raise InvalidDomainError(f"{path.name}: cannot read OBJ ({err})") from err
     if not vertices or not faces:
         raise InvalidDomainError(f"{path.name}: no vertices or faces in the file")
-    return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+    return np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.intp)
 
 
 def read_polygon(path: Path) -> Polygon | MultiPolygon:
@@ -184,7 +185,7 @@ def _finite(x: float) -> float | None:
 
 
 def _stack_cells(
-    cells: list[tuple[NDArray[np.float64], NDArray[np.int64]]],
+    cells: list[tuple[NDArray[np.float64], NDArray[np.intp]]],
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], list[tuple[int, NDArray[np.int64]]]]:
     """Non-empty cells' ids, all their points (P, 3), and (id, global faces) per cell."""
     ids, points, faces = [], [], []

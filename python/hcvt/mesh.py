@@ -5,12 +5,13 @@ cycle of triangles: every directed edge matched by its reverse, positive volume.
 module finds every defect that breaks that (with counts and the first offending element)
 and, on request, repairs the mesh and says what it changed.
 
-Arrays: ``vertices`` (V, 3) float64, ``faces`` (F, 3) int64 indices into ``vertices``.
+Arrays: ``vertices`` (V, 3) float64, ``faces`` (F, 3) intp indices into ``vertices``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,7 +21,7 @@ from scipy.sparse.csgraph import connected_components
 from hcvt.errors import InvalidDomainError
 
 Vertices = NDArray[np.float64]
-Faces = NDArray[np.int64]
+Faces = NDArray[np.intp]
 
 
 @dataclass
@@ -48,7 +49,7 @@ def as_mesh_arrays(vertices: object, faces: object) -> tuple[Vertices, Faces]:
     if f.dtype.kind not in "iu" or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
         raise InvalidDomainError(f"faces must be integers of shape (F, 3), got {f.dtype} {f.shape}")
     v = np.ascontiguousarray(v, dtype=np.float64)
-    f = np.ascontiguousarray(f, dtype=np.int64)
+    f = np.ascontiguousarray(f, dtype=np.intp)
     bad = ~np.isfinite(v).all(axis=1)
     if bad.any():
         raise InvalidDomainError(
@@ -90,7 +91,7 @@ def _duplicate_vertices(v: Vertices, f: Faces) -> tuple[int, tuple[int, int] | N
     return len(dup), (int(used[first[inverse.ravel()[k]]]), int(used[k]))
 
 
-def _edges(f: Faces) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def _edges(f: Faces) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Directed edges (3F, 2) in face order, and the face of each (3F,)."""
     directed = np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
     return directed, np.repeat(np.arange(len(f)), 3)
@@ -118,7 +119,7 @@ def _edge_counts(f: Faces) -> dict[str, tuple[int, list[int] | None]]:
     return out
 
 
-def vertex_fans(f: Faces, n_vertices: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+def vertex_fans(f: Faces, n_vertices: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Edge-connected fans of faces around each vertex.
 
     Returns the fan label of each corner (3F,), corner ``3 t + k`` being vertex ``f[t, k]``,
@@ -199,10 +200,18 @@ def check_mesh(v: Vertices, f: Faces, *, repaired: bool = False) -> None:
     """Raise InvalidDomainError listing every defect, or return."""
     d = find_defects(v, f, allow_duplicates=repaired)
     if d:
-        advice = "repair=True could not fix it" if repaired else "pass repair=True to fix it"
-        raise InvalidDomainError(
-            "the mesh does not bound a solid:\n  - " + "\n  - ".join(d.lines) + "\n" + advice
-        )
+        refuse(d.lines, repaired=repaired)
+
+
+def refuse(
+    lines: list[str], *, repaired: bool = False, advice: str = "pass repair=True to fix it"
+) -> NoReturn:
+    """Raise InvalidDomainError with one line per defect, and what to do about it."""
+    if repaired:
+        advice = "repair=True could not fix it"
+    raise InvalidDomainError(
+        "the mesh does not bound a solid:\n  - " + "\n  - ".join(lines) + "\n" + advice
+    )
 
 
 # ---------------------------------------------------------------------------- repair
@@ -210,8 +219,8 @@ def repair_mesh(v: Vertices, f: Faces) -> tuple[Vertices, Faces, list[str]]:
     """Repair a mesh; return the new arrays and one line per action taken.
 
     Merge duplicate vertices, drop degenerate and duplicate faces and faces on
-    non-manifold edges, fill holes, split pinched vertices, orient every component
-    consistently and outward.
+    non-manifold edges, fill holes, split pinched vertices, orient every shell
+    consistently and by the parity of its nesting (outward, cavities inward).
     """
     actions: list[str] = []
     v, f = _merge_vertices(v, f, actions)
@@ -225,7 +234,7 @@ def repair_mesh(v: Vertices, f: Faces) -> tuple[Vertices, Faces, list[str]]:
             break
     f = _orient_consistently(f, actions)
     v, f = _split_pinched(v, f, actions)
-    f = _orient_outward(v, f, actions)
+    f = orient_by_nesting(v, f, actions)
     return v, f, actions
 
 
@@ -263,7 +272,7 @@ def _drop_faces(v: Vertices, f: Faces, actions: list[str]) -> Faces:
     return f
 
 
-def _face_adjacency(f: Faces) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]:
+def _face_adjacency(f: Faces) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_]]:
     """Pairs of faces sharing a manifold edge, and whether they run it the same way.
 
     Faces running a shared edge the same way disagree: one of them must flip.
@@ -401,18 +410,215 @@ def _split_pinched(v: Vertices, f: Faces, actions: list[str]) -> tuple[Vertices,
     return np.concatenate([v, copies]), corner_vertex.reshape(-1, 3)
 
 
-def _orient_outward(v: Vertices, f: Faces, actions: list[str]) -> Faces:
-    """Flip each edge-connected component whose signed volume is negative."""
+def shells(f: Faces) -> tuple[int, NDArray[np.intp]]:
+    """Edge-connected components of the faces: their count and the shell of each face (F,)."""
     fa, fb, _ = _face_adjacency(f)
     graph = coo_matrix((np.ones(len(fa)), (fa, fb)), shape=(len(f), len(f)))
-    count, comp = connected_components(graph, directed=False)
-    c = 0.5 * (v.min(axis=0) + v.max(axis=0))
-    a, b, d = v[f[:, 0]] - c, v[f[:, 1]] - c, v[f[:, 2]] - c
-    vol = np.bincount(comp, weights=np.einsum("ij,ij->i", a, np.cross(b, d)), minlength=count)
-    inward = vol < 0
-    if inward.any():
-        f = f.copy()
-        rows = inward[comp]
-        f[rows] = f[rows][:, ::-1]
-        actions.append(f"flipped {int(inward.sum())} of {count} components to face outward")
+    count, label = connected_components(graph, directed=False)
+    return int(count), label.astype(np.intp)
+
+
+@dataclass
+class Nesting:
+    """How the closed shells of a mesh sit inside each other.
+
+    Attributes
+    ----------
+    label : ndarray of intp, shape (F,)
+        Shell of each face, numbered by first face.
+    sign : ndarray of int, shape (S,)
+        +1 where a shell faces outward on its own (positive volume), -1 inward.
+    inside : ndarray of bool, shape (S, S)
+        ``inside[i, j]``: shell ``i`` lies inside shell ``j`` (exact winding number of a
+        point of shell ``i`` about shell ``j`` alone, from the core).
+    """
+
+    label: NDArray[np.intp]
+    sign: NDArray[np.intp]
+    inside: NDArray[np.bool_]
+
+    @property
+    def depth(self) -> NDArray[np.intp]:
+        """How many shells enclose each shell (S,)."""
+        return self.inside.sum(axis=1).astype(np.intp)
+
+    @property
+    def outside_winding(self) -> NDArray[np.intp]:
+        """Winding number just outside each shell, from all the others as oriented (S,)."""
+        return (self.inside * self.sign[None, :]).sum(axis=1)
+
+    def first_face(self, shell: int) -> int:
+        """The lowest face index of a shell."""
+        return int(np.argmax(self.label == shell))
+
+
+# Faces of a shell tried, in turn, as the point whose winding number about the other shells
+# says where the shell lies; only a face lying on another shell is passed over.
+NESTING_TRIES = 8
+
+
+def nesting(v: Vertices, f: Faces) -> Nesting:
+    """Shells of a closed, consistently oriented mesh whose shells do not cross.
+
+    Each shell's signed volume gives its orientation; a point of each shell (the centroid of
+    one of its faces not lying on another shell) tested against every other shell, oriented
+    outward on its own, by the core's exact winding number, says which shells enclose it.
+    """
+    from hcvt import _core
+
+    count, label = shells(f)
+    order = np.argsort(label, kind="stable")
+    starts = np.searchsorted(label[order], np.arange(count + 1))
+    members = [order[starts[s] : starts[s + 1]] for s in range(count)]
+    volume = np.array([signed_volume(v, f[m]) for m in members])
+    sign = np.where(flat_shells(v, volume), 0, np.sign(volume)).astype(np.intp)
+    inside = np.zeros((count, count), dtype=bool)
+    if count == 1:
+        return Nesting(label, sign, inside)
+    tries = [
+        m[np.linspace(0, len(m) - 1, min(NESTING_TRIES, len(m))).astype(np.intp)] for m in members
+    ]
+    for j, m in enumerate(members):
+        if sign[j] == 0:
+            continue  # encloses nothing: the winding number is 0 about it everywhere
+        shell = f[m] if sign[j] > 0 else f[m][:, ::-1]
+        core = _core.SolidDomain(v, np.ascontiguousarray(shell, dtype=np.uint32))
+        for i in range(count):
+            if i == j:
+                continue
+            winding, on = core.winding_numbers(v[f[tries[i]]].mean(axis=1))
+            if on.all():
+                a, b = min(i, j), max(i, j)
+                refuse(
+                    [
+                        f"shells {a} and {b} (faces {members[a][0]} and {members[b][0]}) touch "
+                        "along a surface"
+                    ]
+                )
+            inside[i, j] = winding[int(np.argmin(on))] != 0
+    return Nesting(label, sign, inside)
+
+
+def flat_shells(v: Vertices, volume: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Shells whose volume is round-off of the mesh's extent (a sheet folded onto itself)."""
+    extent = np.max(v.max(axis=0) - v.min(axis=0))
+    with np.errstate(over="ignore"):
+        return np.abs(volume) <= 1e-12 * extent**3
+
+
+def nesting_defects(nest: Nesting) -> list[str]:
+    """Shells where the winding number is not 0 on one side and 1 on the other.
+
+    A shell facing outward needs winding number 0 just outside it, one facing inward (a
+    cavity) needs 1 there; anything else counts some region twice or below zero.
+    """
+    lines = []
+    outside = nest.outside_winding
+    for i in np.flatnonzero(nest.sign == 0).tolist():
+        lines.append(f"shell {i} (first face {nest.first_face(i)}) encloses no volume")
+    for i in np.flatnonzero((outside != (nest.sign < 0)) & (nest.sign != 0)).tolist():
+        enclosing = np.flatnonzero(nest.inside[i]).tolist()
+        facing = "outward" if nest.sign[i] > 0 else "inward"
+        where = f"inside shells {enclosing}" if enclosing else "inside no other shell"
+        lines.append(
+            f"shell {i} (first face {nest.first_face(i)}) faces {facing} {where}: the winding "
+            f"number is {int(outside[i])} outside it and {int(outside[i] + nest.sign[i])} "
+            "inside, not 0 and 1 (nested shells must alternate: a cavity faces inward)"
+        )
+    return lines
+
+
+def orient_by_nesting(v: Vertices, f: Faces, actions: list[str]) -> Faces:
+    """Orient each shell by the parity of its nesting depth.
+
+    Shells inside an even number of others bound solid and face outward; inside an odd
+    number they bound a cavity and face inward. So a cavity stays a cavity, a reversed outer
+    shell turns outward, and a nested shell facing the same way as its parent becomes one.
+    """
+    edges = _edge_counts(f)
+    if any(edges[k][0] for k in ("open", "non-manifold", "same-direction")):
+        return f  # not closed: check_mesh reports why
+    if not np.isfinite(signed_volume(v, f)):
+        return f  # the volume overflows: check_mesh reports it
+    nest = nesting(v, f)
+    if (nest.sign == 0).any():
+        flat = np.flatnonzero(nest.sign == 0)
+        actions.append(f"dropped {len(flat)} shells enclosing no volume (first: shell {flat[0]})")
+        f = f[~np.isin(nest.label, flat)]
+        if len(f) == 0:
+            raise InvalidDomainError("no faces are left after dropping the flat shells")
+        nest = nesting(v, f)
+    wanted = np.where(nest.depth % 2 == 0, 1, -1)
+    flip = np.flatnonzero(nest.sign != wanted)
+    if len(flip) == 0:
+        return f
+    f = f.copy()
+    rows = np.isin(nest.label, flip)
+    f[rows] = f[rows][:, ::-1]
+    for i in flip.tolist():
+        depth = int(nest.depth[i])
+        why = (
+            "to face outward: it encloses solid"
+            if wanted[i] > 0
+            else "to face inward: it bounds a cavity"
+        )
+        actions.append(
+            f"flipped shell {i} (first face {nest.first_face(i)}, inside {depth} other "
+            f"shells) {why}"
+        )
     return f
+
+
+def describe_crossings(f: Faces, count: int, pairs: list[tuple[int, int]]) -> str:
+    """The first crossing pair of faces, with the shells they belong to."""
+    _, label = shells(f)
+    s, t = pairs[0]
+    where = f"shell {label[s]}" if label[s] == label[t] else f"shells {label[s]} and {label[t]}"
+    return f"{count} pairs of triangles cross each other, first: faces ({s}, {t}) of {where}"
+
+
+def unite_shells(
+    v: Vertices, f: Faces, pairs: list[tuple[int, int]], actions: list[str]
+) -> tuple[Vertices, Faces]:
+    """Replace the shells, which cross each other, by their union (manifold3d, float64).
+
+    Where shells cross, nesting no longer says which side is a cavity: every shell is taken
+    as a solid on its own, facing outward, and the solids are united. A shell that crosses
+    itself is left as it is, and the action says so.
+    """
+    from hcvt.diagram import _manifold_module
+
+    count, label = shells(f)
+    crossing = np.array(pairs, dtype=np.intp).reshape(-1, 2)
+    same = label[crossing[:, 0]] == label[crossing[:, 1]]
+    if same.any():
+        # manifold3d's booleans need inputs free of self-intersections; a shell crossing
+        # itself has winding number 2 or -1 beside the crossing whatever its orientation.
+        s, t = crossing[int(np.argmax(same))].tolist()
+        actions.append(
+            f"left a self-intersection ({len(crossing)} pairs of triangles cross, first: faces "
+            f"({s}, {t}) of shell {label[s]}, which crosses itself and cannot be repaired): "
+            "the winding number is 2 or -1 beside it, and overlaps count with it"
+        )
+        return v, f
+    members = [np.flatnonzero(label == k) for k in range(count)]
+    m3 = _manifold_module()
+    parts = []
+    for m in members:
+        shell = f[m] if signed_volume(v, f[m]) > 0 else f[m][:, ::-1]
+        used, local = np.unique(shell, return_inverse=True)
+        mesh = m3.Mesh64(
+            vert_properties=np.ascontiguousarray(v[used], dtype=np.float64),
+            tri_verts=np.ascontiguousarray(local.reshape(-1, 3), dtype=np.uint32),
+        )
+        parts.append(m3.Manifold(mesh))
+    union = m3.Manifold.batch_boolean(parts, m3.OpType.Add).to_mesh64()
+    v_out = np.ascontiguousarray(np.asarray(union.vert_properties)[:, :3], dtype=np.float64)
+    f_out = np.ascontiguousarray(union.tri_verts, dtype=np.intp)
+    k = len(np.unique(label[crossing]))
+    actions.append(
+        f"united {count} shells, {k} of them crossing (first: faces {crossing[0].tolist()}), "
+        f"each taken as a solid, with manifold3d: "
+        f"{len(f)} -> {len(f_out)} faces"
+    )
+    return v_out, f_out

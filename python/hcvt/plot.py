@@ -2,6 +2,8 @@
 
 Every function draws into a matplotlib Axes (a new figure when none is given) and returns
 it; pass one ``vmin``/``vmax`` to several calls to share a colour scale across a figure.
+The backend is the user's: importing this module leaves it alone (inline figures in
+Jupyter keep working; without a display matplotlib itself falls back to Agg).
 """
 
 from __future__ import annotations
@@ -9,15 +11,13 @@ from __future__ import annotations
 from typing import Any
 
 import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import shapely
+from matplotlib.collections import PolyCollection
+from numpy.typing import ArrayLike
 
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import shapely  # noqa: E402
-from matplotlib.collections import PolyCollection  # noqa: E402
-from numpy.typing import ArrayLike  # noqa: E402
-
-from hcvt.diagram import Diagram  # noqa: E402
+from hcvt.diagram import Diagram
 
 G_OPTIMUM = {2: 5.0 / (36.0 * np.sqrt(3.0)), 3: 19.0 / (192.0 * 2.0 ** (1.0 / 3.0))}
 CMAP = "RdYlBu_r"

@@ -33,3 +33,28 @@ pub fn to_array2<'py, T: numpy::Element + Copy, const D: usize>(
     let flat: Vec<T> = rows.iter().flatten().copied().collect();
     PyArray1::from_vec(py, flat).reshape([rows.len(), D])
 }
+
+/// Indices (offsets, site and vertex numbers, counts) as `np.intp`, the integer numpy
+/// indexes with: one integer dtype across the Python API, whatever the core stores.
+pub fn to_intp<'py, T: Copy>(py: Python<'py>, values: &[T]) -> PyResult<Bound<'py, PyArray1<isize>>>
+where
+    isize: TryFrom<T>,
+{
+    let out = values
+        .iter()
+        .map(|&x| isize::try_from(x).map_err(|_| PyValueError::new_err("index exceeds intp")))
+        .collect::<PyResult<Vec<isize>>>()?;
+    Ok(PyArray1::from_vec(py, out))
+}
+
+/// Rows of indices into an `(n, D)` `np.intp` array.
+pub fn to_intp2<'py, T: Copy, const D: usize>(
+    py: Python<'py>,
+    rows: &[[T; D]],
+) -> PyResult<Bound<'py, PyArray2<isize>>>
+where
+    isize: TryFrom<T>,
+{
+    let flat: Vec<T> = rows.iter().flatten().copied().collect();
+    to_intp(py, &flat)?.reshape([rows.len(), D])
+}

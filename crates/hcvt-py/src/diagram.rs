@@ -5,7 +5,7 @@ use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{rows, to_array2};
+use crate::arrays::{rows, to_array2, to_intp, to_intp2};
 use crate::domain::{PolygonDomain, SolidDomain};
 use crate::errors::to_py_err;
 
@@ -41,7 +41,7 @@ pub fn voronoi_2d<'py>(
             vertices.extend(cell.vertices().iter().map(|v| [v[0] + s[0], v[1] + s[1]]));
             offsets.push(vertices.len());
         }
-        out.set_item("cell_offsets", PyArray1::from_vec(py, offsets))?;
+        out.set_item("cell_offsets", to_intp(py, &offsets)?)?;
         out.set_item("cell_vertices", to_array2(py, &vertices)?)?;
     }
     Ok(out)
@@ -88,13 +88,10 @@ pub fn voronoi_3d<'py>(
             vertex_offsets.push(vertices.len());
             face_offsets.push(faces.len());
         }
-        out.set_item(
-            "cell_vertex_offsets",
-            PyArray1::from_vec(py, vertex_offsets),
-        )?;
+        out.set_item("cell_vertex_offsets", to_intp(py, &vertex_offsets)?)?;
         out.set_item("cell_vertices", to_array2(py, &vertices)?)?;
-        out.set_item("cell_face_offsets", PyArray1::from_vec(py, face_offsets))?;
-        out.set_item("cell_faces", to_array2(py, &faces)?)?;
+        out.set_item("cell_face_offsets", to_intp(py, &face_offsets)?)?;
+        out.set_item("cell_faces", to_intp2(py, &faces)?)?;
     }
     Ok(out)
 }
@@ -123,14 +120,8 @@ pub(crate) fn diagram_dict<'py, const D: usize>(
         "boundary_measure",
         PyArray1::from_vec(py, diagram.boundary_measure.clone()),
     )?;
-    out.set_item(
-        "neighbor_offsets",
-        PyArray1::from_vec(py, diagram.neighbor_offsets.clone()),
-    )?;
-    out.set_item(
-        "neighbor_sites",
-        PyArray1::from_vec(py, diagram.neighbor_sites.clone()),
-    )?;
+    out.set_item("neighbor_offsets", to_intp(py, &diagram.neighbor_offsets)?)?;
+    out.set_item("neighbor_sites", to_intp(py, &diagram.neighbor_sites)?)?;
     out.set_item(
         "neighbor_measures",
         PyArray1::from_vec(py, diagram.neighbor_measures.clone()),

@@ -5,7 +5,7 @@ use hcvt_core::geometry::Euclid;
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use crate::arrays::{rows, to_array2};
+use crate::arrays::{rows, to_array2, to_intp2};
 use crate::errors::to_py_err;
 
 /// Winding numbers (m,) and on-boundary flags (m,).
@@ -77,6 +77,12 @@ impl PolygonDomain {
         to_array2(py, self.0.vertices())
     }
 
+    /// `segments` (S, 2) as indexed, `np.intp`.
+    #[getter]
+    fn segments<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
+        to_intp2(py, self.0.simplices())
+    }
+
     /// Winding number of each point (m,), exact; `on_boundary` marks points on a segment
     /// (their winding number is reported as 0).
     fn winding_numbers<'py>(
@@ -132,10 +138,10 @@ impl SolidDomain {
         to_array2(py, self.0.vertices())
     }
 
-    /// `faces` (F, 3) as indexed.
+    /// `faces` (F, 3) as indexed, `np.intp`.
     #[getter]
-    fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<u32>>> {
-        to_array2(py, self.0.simplices())
+    fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
+        to_intp2(py, self.0.simplices())
     }
 
     /// Exact winding number of each point (m,); `on_boundary` marks points on a triangle

@@ -213,15 +213,11 @@ fn outcome_dict<'py, const D: usize>(
     history.set_item("rms_gap", column(|r| r.measures.rms_gap))?;
     history.set_item("max_gap", column(|r| r.measures.max_gap))?;
     history.set_item("grad_norm", column(|r| r.measures.grad_norm))?;
-    history.set_item(
-        "pinned",
-        PyArray1::from_iter(py, h.iter().map(|r| r.measures.pinned as u64)),
-    )?;
+    let pinned: Vec<usize> = h.iter().map(|r| r.measures.pinned).collect();
+    history.set_item("pinned", crate::arrays::to_intp(py, &pinned)?)?;
     history.set_item("seconds", column(|r| r.seconds))?;
-    history.set_item(
-        "evaluations",
-        PyArray1::from_iter(py, h.iter().map(|r| r.evaluations as u64)),
-    )?;
+    let evaluations: Vec<usize> = h.iter().map(|r| r.evaluations).collect();
+    history.set_item("evaluations", crate::arrays::to_intp(py, &evaluations)?)?;
     let steps: Vec<&str> = h.iter().map(|r| r.step.as_str()).collect();
     history.set_item("step", steps)?;
     let out = PyDict::new(py);

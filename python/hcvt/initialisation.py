@@ -14,7 +14,6 @@ rows pass :meth:`hcvt.Domain.contains` (strictly inside).
 from __future__ import annotations
 
 import itertools
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -119,12 +118,26 @@ def check_count(n: object, dim: int) -> int:
     return int(n)
 
 
-def _available_bytes() -> int | None:
-    """Physical memory available now, in bytes, or None where the OS does not say."""
+MEMINFO = "/proc/meminfo"
+
+
+def _available_bytes(meminfo: str = MEMINFO) -> int | None:
+    """Memory available for a new allocation now, in bytes, or None where the OS won't say.
+
+    Linux's ``MemAvailable``: free pages plus the page cache and reclaimable slabs the
+    kernel would give up. Free pages alone (``SC_AVPHYS_PAGES``) leave out the cache, which
+    on a machine that has read a few files is most of its memory: an n that fits would be
+    refused.
+    """
     try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
+        with open(meminfo, encoding="ascii") as lines:
+            for line in lines:
+                if line.startswith("MemAvailable:"):
+                    value, unit = line.split()[1:3]
+                    return int(value) * {"kB": 1024}[unit]
+    except (OSError, ValueError, KeyError, IndexError):
+        pass
+    return None
 
 
 # ---------------------------------------------------------------------- rejection sampling
@@ -595,11 +608,3 @@ def _lattice_result(domain: Domain, pose: _Pose, scale: float, n: int) -> Lattic
         sites = np.delete(sites, drop, axis=0)
     spacing = scale * UNIT_SPACING[domain.dim]
     return LatticeResult(np.ascontiguousarray(sites), spacing, offset, rotation, max(surplus, 0))
-
-
-# `hcvt.initialise` is the function above once the package is imported (the re-export
-# shadows this submodule as an attribute of `hcvt`); these keep `hcvt.initialise.lattice`
-# and friends working either way. `from hcvt.initialise import ...` is unaffected.
-initialise.lattice = lattice  # type: ignore[attr-defined]
-initialise.hammersley = hammersley  # type: ignore[attr-defined]
-initialise.LatticeResult = LatticeResult  # type: ignore[attr-defined]

@@ -18,11 +18,10 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
 import hcvt
-from hcvt.initialise import LatticeResult, initialise, lattice
+from hcvt.initialisation import LatticeResult, initialise, lattice
 from helpers import DATA, POLYGON_FILES
 
-# The module itself: `hcvt.initialise` is the function once the package is imported.
-init = importlib.import_module("hcvt.initialise")
+init = importlib.import_module("hcvt.initialisation")
 MESH_FILES = sorted(p for p in (DATA / "3d").glob("*.*") if p.suffix in {".obj", ".off", ".ply"})
 needs_data = pytest.mark.skipif(not POLYGON_FILES, reason="../shared/data not found")
 _DOMAINS: dict[Path, hcvt.Domain] = {}
@@ -102,12 +101,28 @@ def test_exactly_n_inside_every_mesh(path: Path, method: str) -> None:
 @needs_data
 @pytest.mark.parametrize("name", ["blobby-shuffled.off", "cow.obj"])
 def test_repaired_meshes_get_sites_inside(name: str) -> None:
-    # Repaired domains answer `contains` by generalised winding numbers (cow: crossing
-    # triangles left in place), so the check here is the domain's own.
+    # Checked by the core's diagram, not by the `contains` that chose the sites: every site
+    # accepted (none outside) and given a cell of positive volume, the cells adding up.
     domain = hcvt.load_domain(DATA / "3d" / "bad" / name, repair=True)
     for method in ("random", "lattice"):
         sites = initialise(domain, 1033, method=method)
-        assert sites.shape == (1033, 3) and domain.contains(sites).all()
+        assert sites.shape == (1033, 3)
+        diagram = hcvt.voronoi(domain, sites)
+        assert (diagram.volume > 0).all(), f"{name} {method}: empty cells"
+        assert abs(diagram.volume.sum() - domain.volume) <= 1e-12 * domain.volume
+
+
+@needs_data
+@pytest.mark.parametrize("name", ["blobby-shuffled.off", "cow.obj"])
+def test_repaired_meshes_contain_what_the_core_contains(name: str) -> None:
+    # issue 16: `contains` on a repaired mesh used generalised winding numbers, so points it
+    # accepted could be refused by the core. Now it is the core's exact test.
+    domain = hcvt.load_domain(DATA / "3d" / "bad" / name, repair=True)
+    points = np.random.default_rng(2).uniform(*domain.bounds, size=(20000, 3))
+    winding, on_boundary = domain.winding_numbers(points)
+    np.testing.assert_array_equal(domain.contains(points), (winding != 0) & ~on_boundary)
+    inside = points[domain.contains(points)]
+    assert (hcvt.voronoi(domain, inside[:500]).volume > 0).all()
 
 
 def test_ray_oracle_sees_outside_points() -> None:
@@ -224,7 +239,13 @@ def test_hammersley_ignores_the_seed(square_with_holes: hcvt.Domain) -> None:
 
 
 def test_public_names() -> None:
-    assert hcvt.initialise.lattice is lattice
+    import types
+
+    # issue 16: `hcvt.initialise` is a function only, with no attributes patched on; the
+    # module is `hcvt.initialisation`.
+    assert isinstance(hcvt.initialise, types.FunctionType)
+    assert hcvt.initialise is init.initialise and not hasattr(hcvt.initialise, "lattice")
+    assert isinstance(init, types.ModuleType) and init.lattice is lattice
     assert hcvt.LatticeResult is LatticeResult
     assert hcvt.initialise(unit_square(), 3, "lattice").shape == (3, 2)
 
@@ -254,3 +275,18 @@ def test_numpy_integers_are_counts() -> None:
 def test_unknown_method_raises() -> None:
     with pytest.raises(ValueError, match=r"unknown method 'sobol'; expected one of random"):
         initialise(unit_square(), 10, method="sobol")
+
+
+def test_memory_check_reads_mem_available(tmp_path: Path, monkeypatch) -> None:  # noqa: ANN001
+    # issue 16: the check used free pages (SC_AVPHYS_PAGES), which leave out the page cache
+    # the kernel gives back on demand, and refused n that fit.
+    meminfo = tmp_path / "meminfo"
+    meminfo.write_text("MemTotal:  8000000 kB\nMemFree:     20000 kB\nMemAvailable: 6000000 kB\n")
+    assert init._available_bytes(str(meminfo)) == 6000000 * 1024
+    assert init._available_bytes(str(tmp_path / "missing")) is None
+    monkeypatch.setattr(init._available_bytes, "__defaults__", (str(meminfo),))
+    # 2D: fits in 6 GB available, though far more than the 20 MB free.
+    n = 6000000 * 1024 // (2 * init.BYTES_PER_SITE[2])
+    assert init.check_count(n, 2) == n
+    with pytest.raises(ValueError, match="available"):
+        init.check_count(4 * n, 2)

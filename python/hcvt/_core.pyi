@@ -1,0 +1,100 @@
+"""Type stubs of ``hcvt._core``, the PyO3 binding of hcvt-core (crates/hcvt-py).
+
+Arrays in are C-contiguous (``hcvt`` guarantees it); float arrays are float64, integer arrays
+out are ``np.intp``. Keep in step with crates/hcvt-py/src/*.rs; ``mypy python/hcvt``
+and ``python -m mypy.stubtest hcvt._core`` (scripts/test.sh) check the package against
+these and these against the module.
+"""
+
+from collections.abc import Callable
+from typing import Any, final
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "PolygonDomain",
+    "SolidDomain",
+    "cvt_2d",
+    "cvt_3d",
+    "get_num_threads",
+    "set_num_threads",
+    "voronoi_2d",
+    "voronoi_3d",
+]
+
+_Float1 = NDArray[np.float64]
+_Float2 = NDArray[np.float64]
+_Index2 = NDArray[np.intp]
+_Windings = tuple[NDArray[np.int32], NDArray[np.bool_]]
+
+@final
+class PolygonDomain:
+    """Segments (S, 2) uint32 into vertices (V, 2), interior on the left of each."""
+
+    def __new__(cls, vertices: _Float2, segments: NDArray[np.uint32]) -> PolygonDomain: ...
+    @property
+    def volume(self) -> float: ...
+    @property
+    def first_moment(self) -> tuple[float, float]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]: ...
+    @property
+    def vertices(self) -> _Float2: ...
+    @property
+    def segments(self) -> _Index2: ...
+    def winding_numbers(self, points: _Float2) -> _Windings: ...
+
+@final
+class SolidDomain:
+    """Triangles (F, 3) uint32 into vertices (V, 3), counter-clockwise seen from outside."""
+
+    def __new__(cls, vertices: _Float2, faces: NDArray[np.uint32]) -> SolidDomain: ...
+    @property
+    def volume(self) -> float: ...
+    @property
+    def first_moment(self) -> tuple[float, float, float]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]: ...
+    @property
+    def vertices(self) -> _Float2: ...
+    @property
+    def faces(self) -> _Index2: ...
+    def winding_numbers(self, points: _Float2) -> _Windings: ...
+    def crossing_triangles(self, max: int = 10) -> tuple[int, list[tuple[int, int]]]: ...
+    def generalized_winding_numbers(self, points: _Float2) -> _Float1: ...
+
+# Diagram dicts: volume, centroid, second_moment, G, energy_terms, energy, gradient,
+# boundary_measure, neighbor_offsets, neighbor_sites, neighbor_measures; with keep_cells the
+# cells too (see hcvt.diagram).
+def voronoi_2d(
+    domain: PolygonDomain, sites: _Float2, allow_outside: bool = False, keep_cells: bool = False
+) -> dict[str, Any]: ...
+def voronoi_3d(
+    domain: SolidDomain, sites: _Float2, allow_outside: bool = False, keep_cells: bool = False
+) -> dict[str, Any]: ...
+
+# CVT dicts: sites, diagram (a diagram dict), history (arrays per field), stop_reason,
+# iterations, evaluations (see hcvt.optimise).
+def cvt_2d(
+    domain: PolygonDomain,
+    sites: _Float2,
+    method: str = "lbfgs",
+    rule: str = "gap",
+    tol: float | None = None,
+    max_iter: int = 10_000,
+    memory: int = 7,
+    callback: Callable[[dict[str, Any]], Any] | None = None,
+) -> dict[str, Any]: ...
+def cvt_3d(
+    domain: SolidDomain,
+    sites: _Float2,
+    method: str = "lbfgs",
+    rule: str = "gap",
+    tol: float | None = None,
+    max_iter: int = 10_000,
+    memory: int = 7,
+    callback: Callable[[dict[str, Any]], Any] | None = None,
+) -> dict[str, Any]: ...
+def set_num_threads(n: int) -> None: ...
+def get_num_threads() -> int: ...
