@@ -254,19 +254,22 @@ RULE_FIELDS = {"gap": ("rms_gap", "RMS gap"), "paper": ("grad_norm", "|g|/|X|")}
 
 
 class _Progress:
-    """A rich progress bar of the deciding value ``v``: ``log(v0/v) / log(v0/tol)``."""
+    """A rich progress bar of the deciding value ``v``: ``log(v0/v) / log(v0/tol)``.
+
+    One line that fits 80 columns (a pipe's width to rich): ``CVT, RMS gap < 1e-07``, the
+    bar, then the value, the largest gap, mean G and the diagrams so far.
+    """
 
     def __init__(self, rule: str, tol: float) -> None:
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, Progress, TextColumn
 
-        self._field, self._label = RULE_FIELDS[rule]
+        self._field, label = RULE_FIELDS[rule]
         self._tol = max(tol, 1e-300)
         self._start: float | None = None
         self._progress = Progress(
-            TextColumn("CVT"),
-            BarColumn(),
+            TextColumn(f"CVT, {label} < {tol:.0e}"),
+            BarColumn(bar_width=10),
             TextColumn("{task.fields[status]}"),
-            TimeElapsedColumn(),
             transient=False,
         )
         self._task = self._progress.add_task("cvt", total=1.0, status="")
@@ -279,8 +282,8 @@ class _Progress:
         span = math.log(self._start / self._tol) if self._start > self._tol else 1.0
         done = min(max(math.log(self._start / value) / span, 0.0), 1.0) if span > 0 else 1.0
         status = (
-            f"{self._label} {value:.2e} (stop < {self._tol:.0e})  max gap "
-            f"{info['max_gap']:.2e}  mean G {info['mean_G']:.6f}  diagrams {info['evaluations']}"
+            f"{value:.2e} max {info['max_gap']:.1e} G {info['mean_G']:.6f} "
+            f"{info['evaluations']} diagrams"
         )
         self._progress.update(self._task, completed=done, status=status)
 
