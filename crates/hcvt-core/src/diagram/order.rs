@@ -1,0 +1,90 @@
+//! The Morton order of the sites, in which the diagram visits its cells and the CVT holds
+//! its sites (locality in memory, DESIGN §3 and §4), and [`Diagram::reordered`], which
+//! renames a diagram's sites by such an order and back.
+
+use rayon::prelude::*;
+
+use crate::geometry::Aabb;
+use crate::moments::Moments;
+
+use super::{Diagram, Hessian};
+
+/// Site indices sorted along a Z-order (Morton) curve over the sites' bounding box, ties
+/// broken by index so that the order is deterministic.
+///
+/// The curve is only as fine as locality needs, about 4^D cells per site: interleaving all
+/// 63 bits cost 5% of a CVT's instructions at 1,000 sites.
+pub fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
+    let bounds = Aabb::of_points(sites);
+    let bits = (sites.len().max(1).ilog2() / D as u32 + 3).min(63 / D as u32);
+    let cells = (1u64 << bits) as f64;
+    let key = |p: &[f64; D]| -> u64 {
+        let mut key = 0u64;
+        for (k, &x) in p.iter().enumerate() {
+            let extent = (bounds.hi[k] - bounds.lo[k]).max(f64::MIN_POSITIVE);
+            let q = (((x - bounds.lo[k]) / extent) * (cells - 1.0)) as u64;
+            for b in 0..bits {
+                key |= ((q >> b) & 1) << (b * D as u32 + k as u32);
+            }
+        }
+        key
+    };
+    let mut keyed: Vec<(u64, u32)> = sites
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (key(p), i as u32))
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+impl<const D: usize> Diagram<D> {
+    /// The same diagram for the sites renamed by `order`: row `k` becomes row `order[k]`
+    /// and neighbour `j` becomes `order[j]` (each row's neighbours sorted again, their
+    /// measures and Hessian blocks with them). `order` must be a permutation of `0..n`.
+    pub fn reordered(&self, order: &[u32]) -> Self {
+        let n = self.len();
+        let mut out = Diagram {
+            moments: vec![Moments::zero(); n],
+            boundary_measure: vec![0.0; n],
+            neighbor_offsets: vec![0; n + 1],
+            neighbor_sites: vec![0; self.neighbor_sites.len()],
+            neighbor_measures: vec![0.0; self.neighbor_measures.len()],
+            hessian: self.hessian.as_ref().map(|h| Hessian {
+                diagonal: vec![[[0.0; D]; D]; n],
+                off_diagonal: vec![[[0.0; D]; D]; h.off_diagonal.len()],
+            }),
+        };
+        for (k, &i) in order.iter().enumerate() {
+            let i = i as usize;
+            out.moments[i] = self.moments[k];
+            out.boundary_measure[i] = self.boundary_measure[k];
+            out.neighbor_offsets[i + 1] = self.neighbor_offsets[k + 1] - self.neighbor_offsets[k];
+        }
+        for i in 0..n {
+            out.neighbor_offsets[i + 1] += out.neighbor_offsets[i];
+        }
+        let mut row: Vec<(u32, usize)> = Vec::new();
+        for (k, &i) in order.iter().enumerate() {
+            let i = i as usize;
+            row.clear();
+            row.extend(
+                (self.neighbor_offsets[k]..self.neighbor_offsets[k + 1])
+                    .map(|e| (order[self.neighbor_sites[e] as usize], e)),
+            );
+            row.sort_unstable();
+            let from = out.neighbor_offsets[i];
+            for (slot, &(j, e)) in row.iter().enumerate() {
+                out.neighbor_sites[from + slot] = j;
+                out.neighbor_measures[from + slot] = self.neighbor_measures[e];
+            }
+            if let (Some(h), Some(to)) = (self.hessian.as_ref(), out.hessian.as_mut()) {
+                to.diagonal[i] = h.diagonal[k];
+                for (slot, &(_, e)) in row.iter().enumerate() {
+                    to.off_diagonal[from + slot] = h.off_diagonal[e];
+                }
+            }
+        }
+        out
+    }
+}
