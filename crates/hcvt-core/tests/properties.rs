@@ -115,7 +115,7 @@ proptest! {
             sites.push(sites[0]);
         }
         let measure = b.diagonal().powi(2);
-        let options = Options { allow_outside: true, ..Options::default() };
+        let options = Options { allow_outside: true };
         let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
         if duplicate {
             let is_duplicate_error = matches!(result, Err(CoreError::DuplicateSites { .. }));
@@ -136,7 +136,7 @@ proptest! {
         if let Ok(domain) = ring(vertices) {
             let b = domain.bounds();
             let measure = (b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]);
-            let options = Options { allow_outside: true, ..Options::default() };
+            let options = Options { allow_outside: true };
             let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
             // Self-intersecting rings are the front end's to refuse: only no panic here.
             let _ = (result, measure);
@@ -165,7 +165,7 @@ proptest! {
         if outside {
             sites.push([2.5, 0.5, 0.5]);
         }
-        let options = Options { allow_outside: true, ..Options::default() };
+        let options = Options { allow_outside: true };
         let result = clipped_diagram::<3, PolyhedronCell>(&solid, &sites, options, false);
         check(result.map(|r| r.0), 2.0, 6.0f64.powf(1.5))?;
     }
@@ -211,7 +211,6 @@ fn site_within_round_off_of_a_face_regression() {
     };
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     for t in [0u32, 1, 199, 500, 1000] {
         let tri = solid.simplex(t);
@@ -245,7 +244,6 @@ fn cell_touching_the_domain_at_a_point_is_empty_regression() {
     }
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     for (i, m) in d.moments.iter().enumerate() {
@@ -275,7 +273,6 @@ fn apex_nudged_along_the_boundary_regression() {
     ];
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
@@ -291,7 +288,6 @@ fn site_far_outside_is_refused_regression() {
     let domain = ring(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]).unwrap();
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let far = clipped_diagram::<2, PolygonCell>(&domain, &[[1e10, 0.5]], options, false);
     assert!(matches!(
@@ -327,7 +323,6 @@ fn degenerate_cell_edge_excludes_nothing_regression() {
     let sites = [[1.5, -1.55], [2.0, -1.55], [1.5, -1.1], [2.0, -1.1]];
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();

@@ -10,7 +10,7 @@ use crate::geometry::{add, dot, norm2, scale, sub, Aabb, Euclid, HalfSpace, Spac
 use crate::moments::Moments;
 
 use super::convex_cell::{ConvexCell, Face};
-use super::faces::{FaceSums, HessianRow};
+use super::faces::{FaceRow, FaceSums};
 
 /// Buffers of [`clip_by_domain`], reused from cell to cell.
 pub(super) struct MeasureScratch<const D: usize, C> {
@@ -57,7 +57,7 @@ pub(super) fn clip_by_domain<const D: usize, C: ConvexCell<D>>(
     cell: &C,
     site: [f64; D],
     site_winding: Option<i32>,
-    hessian: Option<HessianRow<'_, D>>,
+    row: Option<FaceRow<'_, D>>,
     scratch: &mut MeasureScratch<D, C>,
 ) -> Moments<D>
 where
@@ -76,14 +76,14 @@ where
     boundary_candidates(boundary, cell, site, candidates);
     if site_winding == Some(1) && (candidates.is_empty() || boundary.is_convex()) {
         // Strictly inside, and no boundary near (or a convex one): no cones to cut.
-        return clip_convex(boundary, cell, site, candidates, hessian, faces, piece);
+        return clip_convex(boundary, cell, site, candidates, row, faces, piece);
     }
     let (apex, winding) = choose_apex(boundary, cell, site, site_winding, candidates);
     // Σ |mass| of the signed terms: what their round-off scales with.
     let mut gross = 0.0;
     let mut total = Moments::zero();
     if winding != 0 {
-        let m = faces.integrate(cell, winding as f64, hessian);
+        let m = faces.integrate(cell, winding as f64, row);
         total.add_scaled(&m, winding as f64);
         gross += (winding as f64 * m.mass).abs();
     }
@@ -125,7 +125,7 @@ where
         if piece.is_empty() {
             continue;
         }
-        let m = faces.integrate(piece, sigma, hessian);
+        let m = faces.integrate(piece, sigma, row);
         total.add_scaled(&m, sigma);
         gross += m.mass.abs();
     }
@@ -159,7 +159,7 @@ fn clip_convex<const D: usize, C: ConvexCell<D>>(
     cell: &C,
     site: [f64; D],
     candidates: &[u32],
-    hessian: Option<HessianRow<'_, D>>,
+    row: Option<FaceRow<'_, D>>,
     faces: &mut FaceSums<D>,
     piece: &mut Option<C>,
 ) -> Moments<D>
@@ -168,12 +168,12 @@ where
 {
     if candidates.is_empty() {
         // An interior cell: nothing to cut, and no copy to make.
-        return measure(cell, hessian, faces);
+        return measure(cell, row, faces);
     }
     let clipped = piece.get_or_insert_with(|| cell.clone());
     clipped.clone_from(cell);
     clip_by_planes(boundary, clipped, site, candidates);
-    measure(clipped, hessian, faces)
+    measure(clipped, row, faces)
 }
 
 /// [`clip_convex`]'s cut inside [`voronoi_cell`]: `cell` (relative to `site`, strictly
@@ -229,14 +229,14 @@ fn clip_by_planes<const D: usize, C: ConvexCell<D>>(
 }
 
 /// The moments of a cell that lies in the domain, its face measures (and, for the
-/// Hessian, face moments) into `faces`.
+/// integrand of a `row`, face integrals) into `faces`.
 pub(super) fn measure<const D: usize, C: ConvexCell<D>>(
     cell: &C,
-    hessian: Option<HessianRow<'_, D>>,
+    row: Option<FaceRow<'_, D>>,
     faces: &mut FaceSums<D>,
 ) -> Moments<D> {
     faces.clear();
-    faces.integrate(cell, 1.0, hessian)
+    faces.integrate(cell, 1.0, row)
 }
 
 /// The `D` side half-spaces of the cone from `apex` through the simplex `rel` (both

@@ -38,8 +38,8 @@ use crate::geometry::{add, norm2, scale, Euclid, Space};
 use crate::moments::Moments;
 use clip::{clip_by_domain, measure, MeasureScratch};
 pub use convex_cell::{ConvexCell, Face};
-pub use faces::{Block, Hessian};
-use faces::{FaceSums, HessianRow};
+pub use faces::{FaceIntegrals, FaceIntegrand, Matrix};
+use faces::{FaceRow, FaceSums};
 pub use knn::{NearScratch, NearSites, SiteIndex};
 pub use order::morton_order;
 pub use polygon_cell::PolygonCell;
@@ -52,8 +52,6 @@ pub struct Options {
     /// Accept sites outside the domain. The cell of such a site is the part of its Voronoi
     /// cell that lies inside the domain: possibly empty, and not containing its site.
     pub allow_outside: bool,
-    /// Also compute the Hessian of the CVT energy ([`Hessian`]).
-    pub hessian: bool,
 }
 
 /// The clipped diagram: row `i` of every array is site `i`.
@@ -69,8 +67,6 @@ pub struct Diagram<const D: usize> {
     pub neighbor_sites: Vec<u32>,
     /// Measure of each shared face inside the domain (length in 2D, area in 3D).
     pub neighbor_measures: Vec<f64>,
-    /// The Hessian of the energy, when [`Options::hessian`] asked for it.
-    pub hessian: Option<Hessian<D>>,
 }
 
 /// Cells visited one after the other, measured into flat arrays in visiting order: one
@@ -79,12 +75,12 @@ struct Batch<const D: usize, C> {
     sites: Vec<u32>,
     moments: Vec<Moments<D>>,
     boundary_measure: Vec<f64>,
-    /// Faces of each cell, its entries of `neighbors` (and of `blocks`) in turn.
+    /// Faces of each cell, its entries of `neighbors` (and of `face_integrals`) in turn.
     face_counts: Vec<u32>,
     neighbors: Vec<(u32, f64)>,
-    /// With the Hessian: `H_ii` per cell, `H_ij` per entry of `neighbors`.
-    diagonal: Vec<Block<D>>,
-    blocks: Vec<Block<D>>,
+    /// With a [`FaceIntegrand`]: its sum per cell, and per entry of `neighbors`.
+    cell_integrals: Vec<Matrix<D>>,
+    face_integrals: Vec<Matrix<D>>,
     /// Each cell's convex cell, when kept.
     cells: Vec<C>,
     /// The error of the batch's first offending site in index order.
@@ -96,32 +92,32 @@ struct Batch<const D: usize, C> {
 const BATCH: usize = 256;
 
 impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
-    fn new(cells: usize, hessian: bool) -> Self {
-        let faces = if hessian { 8 * cells } else { 0 };
+    fn new(cells: usize, integrals: bool) -> Self {
+        let faces = if integrals { 8 * cells } else { 0 };
         Self {
             sites: Vec::with_capacity(cells),
             moments: Vec::with_capacity(cells),
             boundary_measure: Vec::with_capacity(cells),
             face_counts: Vec::with_capacity(cells),
             neighbors: Vec::with_capacity(8 * cells),
-            diagonal: Vec::with_capacity(if hessian { cells } else { 0 }),
-            blocks: Vec::with_capacity(faces),
+            cell_integrals: Vec::with_capacity(if integrals { cells } else { 0 }),
+            face_integrals: Vec::with_capacity(faces),
             cells: Vec::new(),
             error: None,
         }
     }
 
     /// Append site `i`'s cell: its `moments` and the faces measured into `faces`.
-    fn push(&mut self, i: usize, moments: Moments<D>, faces: &mut FaceSums<D>, hessian: bool) {
+    fn push(&mut self, i: usize, moments: Moments<D>, faces: &mut FaceSums<D>, integrals: bool) {
         faces.sort_neighbors();
         self.sites.push(i as u32);
         self.moments.push(moments);
         self.boundary_measure.push(faces.boundary);
         self.face_counts.push(faces.neighbors.len() as u32);
         self.neighbors.extend_from_slice(&faces.neighbors);
-        if hessian {
-            self.diagonal.push(faces.hessian_diagonal(moments.mass));
-            self.blocks.extend_from_slice(&faces.blocks);
+        if integrals {
+            self.cell_integrals.push(faces.cell_integral);
+            self.face_integrals.extend_from_slice(&faces.integrals);
         }
     }
 
@@ -146,6 +142,23 @@ pub fn clipped_diagram<const D: usize, C: ConvexCell<D>>(
     options: Options,
     keep_cells: bool,
 ) -> Result<(Diagram<D>, Vec<C>), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let (diagram, cells, _) =
+        clipped_diagram_with::<D, C>(boundary, sites, options, keep_cells, None)?;
+    Ok((diagram, cells))
+}
+
+/// [`clipped_diagram`], and the sums of `integrand` over the faces between cells (empty
+/// without one), taken in the pass that measures the faces.
+pub fn clipped_diagram_with<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    options: Options,
+    keep_cells: bool,
+    integrand: Option<&dyn FaceIntegrand<D>>,
+) -> Result<(Diagram<D>, Vec<C>, FaceIntegrals<D>), CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
@@ -197,7 +210,7 @@ where
         .map_init(
             || (CellScratch::default(), MeasureScratch::default()),
             |(scratch, measuring), chunk| {
-                let mut batch = Batch::new(chunk.len(), options.hessian);
+                let mut batch = Batch::new(chunk.len(), integrand.is_some());
                 for &i in chunk {
                     let i = i as usize;
                     let convex_inside = convex && windings[i] == Some(1);
@@ -215,13 +228,13 @@ where
                             continue;
                         }
                     };
-                    let hessian = options.hessian.then_some(HessianRow { sites, site: i });
+                    let row = integrand.map(|integrand| FaceRow { integrand, site: i });
                     let moments = if inside {
-                        measure(cell, hessian, &mut measuring.faces)
+                        measure(cell, row, &mut measuring.faces)
                     } else {
-                        clip_by_domain(boundary, cell, sites[i], windings[i], hessian, measuring)
+                        clip_by_domain(boundary, cell, sites[i], windings[i], row, measuring)
                     };
-                    batch.push(i, moments, &mut measuring.faces, options.hessian);
+                    batch.push(i, moments, &mut measuring.faces, integrand.is_some());
                     if keep_cells {
                         batch.cells.push(cell.clone());
                     }
@@ -242,16 +255,22 @@ where
             .expect("the batch of the first error");
         return Err(batch.error.take().expect("its error").1);
     }
-    Ok(assemble(sites.len(), batches, options.hessian, keep_cells))
+    Ok(assemble(
+        sites.len(),
+        batches,
+        integrand.is_some(),
+        keep_cells,
+    ))
 }
 
-/// The diagram in index order from the batches (visiting order), and the kept cells.
+/// The diagram in index order from the batches (visiting order), the kept cells and the
+/// face integrals.
 fn assemble<const D: usize, C: ConvexCell<D>>(
     n: usize,
     batches: Vec<Batch<D, C>>,
-    hessian: bool,
+    integrals: bool,
     keep_cells: bool,
-) -> (Diagram<D>, Vec<C>) {
+) -> (Diagram<D>, Vec<C>, FaceIntegrals<D>) {
     let mut diagram = Diagram {
         moments: vec![Moments::zero(); n],
         boundary_measure: vec![0.0; n],
@@ -269,10 +288,11 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
     let faces = diagram.neighbor_offsets[n];
     diagram.neighbor_sites = vec![0; faces];
     diagram.neighbor_measures = vec![0.0; faces];
-    let mut h = hessian.then(|| Hessian {
-        diagonal: vec![[[0.0; D]; D]; n],
-        off_diagonal: vec![[[0.0; D]; D]; faces],
-    });
+    let mut sums = FaceIntegrals::default();
+    if integrals {
+        sums.cells = vec![[[0.0; D]; D]; n];
+        sums.faces = vec![[[0.0; D]; D]; faces];
+    }
     let mut cells: Vec<Option<C>> = Vec::new();
     if keep_cells {
         cells.resize_with(n, || None);
@@ -289,9 +309,9 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
                 diagram.neighbor_sites[from + e] = j;
                 diagram.neighbor_measures[from + e] = measure;
             }
-            if let Some(h) = h.as_mut() {
-                h.diagonal[i] = b.diagonal[k];
-                h.off_diagonal[from..from + count].copy_from_slice(&b.blocks[at..at + count]);
+            if integrals {
+                sums.cells[i] = b.cell_integrals[k];
+                sums.faces[from..from + count].copy_from_slice(&b.face_integrals[at..at + count]);
             }
             at += count;
         }
@@ -299,8 +319,7 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
             cells[i as usize] = Some(cell);
         }
     }
-    diagram.hessian = h;
-    (diagram, cells.into_iter().flatten().collect())
+    (diagram, cells.into_iter().flatten().collect(), sums)
 }
 
 /// How far outside the domain's box an allowed outside site may lie, in units of the

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::geometry::Aabb;
 use crate::moments::Moments;
 
-use super::{Diagram, Hessian};
+use super::Diagram;
 
 /// Site indices sorted along a Z-order (Morton) curve over the sites' bounding box, ties
 /// broken by index so that the order is deterministic.
@@ -41,8 +41,14 @@ pub fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
 impl<const D: usize> Diagram<D> {
     /// The same diagram for the sites renamed by `order`: row `k` becomes row `order[k]`
     /// and neighbour `j` becomes `order[j]` (each row's neighbours sorted again, their
-    /// measures and Hessian blocks with them). `order` must be a permutation of `0..n`.
+    /// measures with them). `order` must be a permutation of `0..n`.
     pub fn reordered(&self, order: &[u32]) -> Self {
+        self.reordered_faces(order).0
+    }
+
+    /// [`Diagram::reordered`], and for each of its face entries the entry it was: what a
+    /// caller needs to move its own per-face data along (the optimiser's Hessian).
+    pub fn reordered_faces(&self, order: &[u32]) -> (Self, Vec<usize>) {
         let n = self.len();
         let mut out = Diagram {
             moments: vec![Moments::zero(); n],
@@ -50,11 +56,8 @@ impl<const D: usize> Diagram<D> {
             neighbor_offsets: vec![0; n + 1],
             neighbor_sites: vec![0; self.neighbor_sites.len()],
             neighbor_measures: vec![0.0; self.neighbor_measures.len()],
-            hessian: self.hessian.as_ref().map(|h| Hessian {
-                diagonal: vec![[[0.0; D]; D]; n],
-                off_diagonal: vec![[[0.0; D]; D]; h.off_diagonal.len()],
-            }),
         };
+        let mut faces = vec![0; self.neighbor_sites.len()];
         for (k, &i) in order.iter().enumerate() {
             let i = i as usize;
             out.moments[i] = self.moments[k];
@@ -77,14 +80,9 @@ impl<const D: usize> Diagram<D> {
             for (slot, &(j, e)) in row.iter().enumerate() {
                 out.neighbor_sites[from + slot] = j;
                 out.neighbor_measures[from + slot] = self.neighbor_measures[e];
-            }
-            if let (Some(h), Some(to)) = (self.hessian.as_ref(), out.hessian.as_mut()) {
-                to.diagonal[i] = h.diagonal[k];
-                for (slot, &(_, e)) in row.iter().enumerate() {
-                    to.off_diagonal[from + slot] = h.off_diagonal[e];
-                }
+                faces[from + slot] = e;
             }
         }
-        out
+        (out, faces)
     }
 }
