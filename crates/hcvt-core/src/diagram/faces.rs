@@ -1,9 +1,9 @@
 //! Each cell's faces, summed over its signed pieces (DESIGN §3, step 5): the measure of the
 //! faces shared with each neighbour (the restricted Delaunay edges) and the cell's share of
 //! the domain boundary. A caller may also have a [`FaceIntegrand`] summed over the faces
-//! between cells in the same pass: the optimiser's Hessian (DESIGN §4) is one
-//! ([`crate::optimise::hessian`]); the diagram hands it each piece's face moments and keeps
-//! the sums in [`FaceIntegrals`], knowing nothing of what they mean.
+//! between cells in the same pass: the optimiser's Hessian (DESIGN §4, `optimise::hessian`,
+//! a layer above) is one. The diagram hands it each piece's face moments and keeps the sums
+//! in [`FaceIntegrals`], knowing nothing of what they mean.
 
 use crate::moments::{FaceMoments, Moments};
 
