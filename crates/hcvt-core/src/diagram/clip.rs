@@ -1,9 +1,9 @@
-//! The convex cell clipped by the domain (DESIGN §3, step 2, and §4 for the apex on the
+//! The convex cell clipped by the domain (DESIGN §3, step 2, and step 4 for an apex on the
 //! boundary): integrated through signed cones from an apex ([`clip_by_domain`], with
 //! [`choose_apex`] and [`cone_sides`]), or, for a site strictly inside a convex domain or
 //! far from the boundary, clipped by the boundary planes near it ([`clip_convex`],
-//! [`clip_by_planes`]). Owns the measuring of a finished cell into its moments and
-//! [`FaceSums`].
+//! [`clip_by_planes`]). Owns the measuring of a finished cell into its moments and its
+//! `FaceSums`.
 
 use crate::domain::{Boundary, WindingNumber};
 use crate::geometry::{add, dot, norm2, scale, sub, Aabb, Euclid, HalfSpace, Space};

@@ -14,21 +14,21 @@
 //! | file | owns |
 //! |------|------|
 //! | `mod.rs` | [`Options`], the result [`Diagram`] and the driver [`clipped_diagram`]: validation, batches of cells in Morton order, assembly in index order |
-//! | [`voronoi_cell`](mod@voronoi_cell) | one site's convex Voronoi cell: kNN and the security radius, localisation to the domain (step 1) |
-//! | [`clip`] | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
-//! | [`faces`] | each cell's face measures: neighbours, boundary share, and face integrals for a caller |
-//! | [`order`] | the Morton order of the sites and [`Diagram::reordered`] |
+//! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
+//! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
+//! | `faces.rs` | each cell's face measures (neighbours, boundary share) and a caller's [`FaceIntegrand`] over them |
+//! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | [`convex_cell`], [`polygon_cell`], [`polyhedron_cell`] | the convex cell in 2D and 3D |
-//! | `knn` | the nearest-site index |
+//! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
 
-pub mod clip;
+mod clip;
 pub mod convex_cell;
-pub mod faces;
+mod faces;
 mod knn;
-pub mod order;
+mod order;
 pub mod polygon_cell;
 pub mod polyhedron_cell;
-pub mod voronoi_cell;
+mod voronoi_cell;
 
 use rayon::prelude::*;
 

@@ -3,7 +3,7 @@
 //! reached; a cell that reaches outside a non-convex domain localised to a box around its
 //! part in the domain and validated by its vertices' nearest sites; a cell of a convex
 //! domain cut early by the boundary planes near it. Owns [`voronoi_cell`] and its buffers;
-//! the clip by the domain that follows is [`super::clip`]'s.
+//! the clip by the domain that follows is `clip.rs`'s.
 
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
