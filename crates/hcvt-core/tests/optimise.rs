@@ -2,7 +2,7 @@
 //! points, convergence in a non-convex polygon, reseeding of empty cells.
 
 mod common;
-use common::{dented_cube, interior_sites};
+use common::{dented_cube, interior_sites, polygon};
 
 use std::ops::ControlFlow;
 
@@ -14,19 +14,6 @@ use hcvt_core::optimise::{
     cvt, evaluate, evaluate_with, Measures, Method, Outcome, Point, Rule, Settings, Step,
     StopReason,
 };
-
-/// Closed rings as one polygon: outer rings counter-clockwise, holes clockwise.
-fn polygon(rings: &[&[[f64; 2]]]) -> Polygon {
-    let mut vertices = Vec::new();
-    let mut segments = Vec::new();
-    for ring in rings {
-        let start = vertices.len() as u32;
-        let n = ring.len() as u32;
-        vertices.extend_from_slice(ring);
-        segments.extend((0..n).map(|k| [start + k, start + (k + 1) % n]));
-    }
-    Polygon::new(vertices, segments).unwrap()
-}
 
 /// An L-shaped polygon with a square hole: non-convex, and with a hole.
 fn l_shape() -> Polygon {

@@ -4,7 +4,8 @@
 //!
 //! `PROPTEST_CASES` sets the number of cases per property (default 1,000 here; 3,000 in all).
 
-use std::path::PathBuf;
+mod common;
+use common::{data_3d, read_mesh};
 
 use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Polygon, Solid};
@@ -178,25 +179,7 @@ fn cuboid(s: [f64; 3]) -> Solid {
 
 /// The icosphere of ../shared/data/3d/sphere.ply (ASCII PLY), or None without the data.
 fn sphere() -> Option<Solid> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/3d/sphere.ply");
-    let text = std::fs::read_to_string(path).ok()?;
-    let body = text.split("end_header").nth(1)?;
-    let mut lines = body.lines().filter(|l| !l.trim().is_empty());
-    let numbers =
-        |l: &str| -> Vec<f64> { l.split_whitespace().map(|x| x.parse().unwrap()).collect() };
-    let vertices: Vec<[f64; 3]> = (0..642)
-        .map(|_| {
-            let p = numbers(lines.next().unwrap());
-            [p[0], p[1], p[2]]
-        })
-        .collect();
-    let faces: Vec<[u32; 3]> = (0..1280)
-        .map(|_| {
-            let p = numbers(lines.next().unwrap());
-            [p[1] as u32, p[2] as u32, p[3] as u32]
-        })
-        .collect();
-    Some(Solid::new(vertices, faces).unwrap())
+    Some(read_mesh(&data_3d()?.join("sphere.ply")))
 }
 
 /// Found by tests/test_properties.py: one site at the centroid of face 199 of the sphere,
