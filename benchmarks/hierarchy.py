@@ -24,7 +24,7 @@ import statistics
 import time
 
 import hcvt
-from hcvt.experiments import TABLE8
+from hcvt.experiments import PAPER
 from hcvt.shapes import builtin_domain
 
 
@@ -53,7 +53,7 @@ def main() -> None:
         f"{'paper std':>11}{'paper hier':>11}{'x paper std':>12}{'x paper hier':>13}"
         f"{'G std':>9}{'G hier':>9}"
     )
-    for shape, n, paper_std, paper_hier, s in TABLE8:
+    for (shape, n), (paper_std, paper_hier, s) in PAPER["table8"].items():
         if args.quick and n > 2000:
             continue
         domain = builtin_domain(shape)

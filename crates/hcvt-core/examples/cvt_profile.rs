@@ -7,7 +7,7 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use hcvt_core::diagram::{Options, PolygonCell};
+use hcvt_core::diagram::PolygonCell;
 use hcvt_core::domain::Polygon;
 use hcvt_core::optimise::{cvt, evaluate_with, Method, Rule, Settings};
 use hcvt_core::sample::interior_sites;
@@ -72,13 +72,10 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     if repeats == 0 {
         return Ok(());
     }
-    let options = Options {
-        hessian: method == Method::Newton,
-        ..Options::default()
-    };
+    let hessian = method == Method::Newton;
     let t = Instant::now();
     for _ in 0..repeats {
-        evaluate_with::<2, PolygonCell>(&domain, out.sites.clone(), options)?;
+        evaluate_with::<2, PolygonCell>(&domain, out.sites.clone(), hessian)?;
     }
     println!(
         "one diagram alone: {:.3} ms",

@@ -11,7 +11,7 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use hcvt_core::diagram::{Options, PolyhedronCell};
+use hcvt_core::diagram::PolyhedronCell;
 use hcvt_core::domain::Solid;
 use hcvt_core::optimise::{cvt, evaluate_with, Method, Settings};
 
@@ -39,10 +39,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     });
     let repeat: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(20);
     let mode = args.get(3).map_or("", String::as_str);
-    let options = Options {
-        hessian: mode == "hessian",
-        ..Options::default()
-    };
+    let hessian = mode == "hessian";
     let vertices: Vec<[f64; 3]> = read_rows(&format!("{mesh}_v.txt"));
     let faces: Vec<[u32; 3]> = read_rows(&format!("{mesh}_f.txt"));
     let domain = Solid::new(vertices, faces)?;
@@ -51,7 +48,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let t = Instant::now();
     let mut energy = 0.0;
     for _ in 0..repeat {
-        energy = evaluate_with::<3, PolyhedronCell>(&domain, sites.clone(), options)?.energy;
+        energy = evaluate_with::<3, PolyhedronCell>(&domain, sites.clone(), hessian)?.energy;
     }
     println!(
         "{n} sites: {:.3} ms per diagram, energy {energy:.17e}",

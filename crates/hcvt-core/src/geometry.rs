@@ -4,8 +4,6 @@
 //! differ between the plane and space (the normal of a hyperplane through `D`
 //! points, the exact side-of-hyperplane predicate) live behind [`Space`].
 
-use crate::moments::{tetra_moments, triangle_moments, Moments};
-
 /// `a - b`.
 #[inline]
 pub fn sub<const D: usize>(a: [f64; D], b: [f64; D]) -> [f64; D] {
@@ -240,11 +238,6 @@ pub trait Space<const D: usize> {
     /// `D` points `p`: positive on the side [`Space::normal`] points to, negative on the
     /// other, zero exactly on it (Shewchuk's adaptive predicates, crate `robust`).
     fn side(p: &[[f64; D]; D], q: &[f64; D]) -> f64;
-
-    /// Signed moments about the origin of the simplex spanned by the origin and the `D`
-    /// points `p` (a triangle in 2D, a tetrahedron in 3D); positive when `p` is a boundary
-    /// piece oriented outward as seen from the origin.
-    fn cone_moments(p: &[[f64; D]; D]) -> Moments<D>;
 }
 
 impl Space<2> for Euclid {
@@ -259,11 +252,6 @@ impl Space<2> for Euclid {
         let c = |v: &[f64; 2]| robust::Coord { x: v[0], y: v[1] };
         // orient2d > 0 when q is left of a -> b, the inner side of a CCW ring.
         -robust::orient2d(c(&p[0]), c(&p[1]), c(q))
-    }
-
-    #[inline]
-    fn cone_moments(p: &[[f64; 2]; 2]) -> Moments<2> {
-        triangle_moments(p[0], p[1])
     }
 }
 
@@ -288,11 +276,6 @@ impl Space<3> for Euclid {
         };
         // orient3d > 0 when q is below the plane of a counter-clockwise (a, b, c): inside.
         -robust::orient3d(c(&p[0]), c(&p[1]), c(&p[2]), c(q))
-    }
-
-    #[inline]
-    fn cone_moments(p: &[[f64; 3]; 3]) -> Moments<3> {
-        tetra_moments(p[0], p[1], p[2])
     }
 }
 

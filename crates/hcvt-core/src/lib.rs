@@ -9,7 +9,12 @@
 //! | [`domain`]  | the oriented boundary of a 2D polygon or 3D solid, its BVH and winding number |
 //! | [`diagram`] | convex Voronoi cells by kNN + half-space clipping, clipped exactly by the domain |
 //! | [`optimise`]| CVT energy, gradient and Hessian from the diagram; Lloyd, L-BFGS and Newton to the stopping rule |
-//! | [`sample`]  | deterministic pseudo-random points for tests and examples               |
+//!
+//! [`error`] holds [`CoreError`], which every layer returns.
+//!
+//! With the cargo feature `sample` (on for this crate's tests and examples, off for the
+//! binding), `sample` gives deterministic pseudo-random points for tests and examples: not
+//! part of the API.
 //!
 //! Units: every length is in the unit of the input coordinates (`L`); volumes are `L^d`,
 //! first moments `L^(d+1)`, second moments `L^(d+2)`.
@@ -24,6 +29,7 @@ pub mod error;
 pub mod geometry;
 pub mod moments;
 pub mod optimise;
+#[cfg(any(test, feature = "sample"))]
 pub mod sample;
 
 pub use error::CoreError;

@@ -4,7 +4,7 @@
 //! differences are formed before products so that small cells far from the coordinate
 //! origin keep their accuracy.
 
-use crate::geometry::{add, dot, norm2, scale, sub};
+use crate::geometry::{add, dot, norm2, scale, sub, Euclid};
 
 /// Signed moments of a region about an origin.
 ///
@@ -131,6 +131,29 @@ pub fn tetra_moments(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> Moments<3> {
         first: s.map(|x| mass * x / 4.0),
         second: mass * (dot(a, a) + dot(b, b) + dot(c, c) + dot(a, b) + dot(b, c) + dot(c, a))
             / 10.0,
+    }
+}
+
+/// The moments of the cone from the origin over one boundary simplex, per dimension: what
+/// the domain sums for its own moments (DESIGN §3).
+pub trait ConeMoments<const D: usize> {
+    /// Signed moments about the origin of the simplex spanned by the origin and the `D`
+    /// points `p` (a triangle in 2D, a tetrahedron in 3D); positive when `p` is a boundary
+    /// piece oriented outward as seen from the origin.
+    fn cone_moments(p: &[[f64; D]; D]) -> Moments<D>;
+}
+
+impl ConeMoments<2> for Euclid {
+    #[inline]
+    fn cone_moments(p: &[[f64; 2]; 2]) -> Moments<2> {
+        triangle_moments(p[0], p[1])
+    }
+}
+
+impl ConeMoments<3> for Euclid {
+    #[inline]
+    fn cone_moments(p: &[[f64; 3]; 3]) -> Moments<3> {
+        tetra_moments(p[0], p[1], p[2])
     }
 }
 

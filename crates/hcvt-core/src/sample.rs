@@ -1,5 +1,9 @@
 //! Deterministic pseudo-random points for tests, examples and benchmarks: the same points
 //! on every platform and with every version of every crate (no RNG dependency).
+//!
+//! Not part of the API: compiled for this crate's unit tests, and with the cargo feature
+//! `sample`, which the integration tests and examples turn on through the crate's
+//! dev-dependency on itself.
 
 use crate::domain::{Boundary, WindingNumber};
 use crate::geometry::{Euclid, Space};

@@ -2,9 +2,7 @@
 //! domain's own integrals on the real meshes of `../shared/data/3d`.
 
 mod common;
-use common::{dented_cube, interior_sites};
-
-use std::path::PathBuf;
+use common::{data_3d, dented_cube, interior_sites, read_mesh};
 
 use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolyhedronCell};
 use hcvt_core::domain::Solid;
@@ -83,43 +81,14 @@ fn bcc_lattice_in_a_cube_gives_truncated_octahedra() {
     );
 }
 
-fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/3d");
-    dir.is_dir().then_some(dir)
-}
-
-/// Read an OFF file of triangles as indexed.
-fn read_off(path: &PathBuf) -> Solid {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut tokens = text
-        .lines()
-        .map(|l| l.split('#').next().unwrap_or(""))
-        .flat_map(str::split_whitespace)
-        .skip(1); // "OFF"
-    let mut next = || tokens.next().unwrap();
-    let nv: usize = next().parse().unwrap();
-    let nf: usize = next().parse().unwrap();
-    let _edges = next();
-    let v = (0..nv)
-        .map(|_| [0; 3].map(|_| next().parse::<f64>().unwrap()))
-        .collect();
-    let t = (0..nf)
-        .map(|_| {
-            assert_eq!(next(), "3");
-            [0; 3].map(|_| next().parse::<u32>().unwrap())
-        })
-        .collect();
-    Solid::new(v, t).unwrap()
-}
-
 #[test]
 fn sums_over_cells_match_the_mesh_integrals() {
-    let Some(dir) = data_dir() else {
+    let Some(dir) = data_3d() else {
         eprintln!("skipped: ../shared/data/3d not found");
         return;
     };
     for name in ["bunny.off", "fandisk.off", "anchor_dense.off", "cheese.off"] {
-        let solid = read_off(&dir.join(name));
+        let solid = read_mesh(&dir.join(name));
         for n in [100, 2000] {
             let sites = interior_sites(&solid, n, 7);
             let d = diagram(&solid, &sites);

@@ -2,7 +2,7 @@
 //! points, convergence in a non-convex polygon, reseeding of empty cells.
 
 mod common;
-use common::{dented_cube, interior_sites};
+use common::{dented_cube, interior_sites, polygon};
 
 use std::ops::ControlFlow;
 
@@ -14,19 +14,6 @@ use hcvt_core::optimise::{
     cvt, evaluate, evaluate_with, Measures, Method, Outcome, Point, Rule, Settings, Step,
     StopReason,
 };
-
-/// Closed rings as one polygon: outer rings counter-clockwise, holes clockwise.
-fn polygon(rings: &[&[[f64; 2]]]) -> Polygon {
-    let mut vertices = Vec::new();
-    let mut segments = Vec::new();
-    for ring in rings {
-        let start = vertices.len() as u32;
-        let n = ring.len() as u32;
-        vertices.extend_from_slice(ring);
-        segments.extend((0..n).map(|k| [start + k, start + (k + 1) % n]));
-    }
-    Polygon::new(vertices, segments).unwrap()
-}
 
 /// An L-shaped polygon with a square hole: non-convex, and with a hole.
 fn l_shape() -> Polygon {
@@ -103,11 +90,7 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
-    let with_hessian = Options {
-        hessian: true,
-        ..Options::default()
-    };
-    let point = evaluate_with::<D, C>(boundary, sites.clone(), with_hessian).unwrap();
+    let point = evaluate_with::<D, C>(boundary, sites.clone(), true).unwrap();
     // A direction from the sites' own digits: deterministic, in every coordinate.
     let v: Vec<[f64; D]> = sites
         .iter()
@@ -122,7 +105,7 @@ where
         evaluate::<D, C>(boundary, moved).unwrap().gradient
     };
     let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
-    let exact = point.diagram.hessian_product(&v).unwrap();
+    let exact = point.hessian_product(&v).unwrap();
     let (mut err2, mut norm2) = (0.0, 0.0);
     for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
         for k in 0..D {
@@ -142,7 +125,7 @@ fn hessian_matches_central_differences_of_the_gradient() {
     let err = hessian_error::<3, PolyhedronCell>(&dented, interior_sites(&dented, 60, 2));
     assert!(err < 1e-6, "3D: relative error {err:e}");
     let without = evaluate::<2, PolygonCell>(&l, interior_sites(&l, 10, 1)).unwrap();
-    assert!(without.diagram.hessian_product(&[[0.0; 2]; 10]).is_none());
+    assert!(without.hessian_product(&[[0.0; 2]; 10]).is_none());
 }
 
 fn settings(method: Method, tol: f64, max_iter: usize) -> Settings {
@@ -289,7 +272,6 @@ fn empty_cells_are_reseeded_deterministically_inside() {
     sites[7] = [3.5, 3.5]; // outside the L, in its missing corner: an empty cell
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let (diagram, _) = clipped_diagram::<2, PolygonCell>(&l, &sites, options, false).unwrap();
     assert_eq!(diagram.moments[7].mass, 0.0);
@@ -297,6 +279,7 @@ fn empty_cells_are_reseeded_deterministically_inside() {
         energy: diagram.energy(),
         gradient: diagram.gradient(),
         diagram,
+        hessian: None,
         sites: sites.clone(),
     };
     let reseeded = reseed_empty(&l, &point, 0.5).unwrap();
@@ -374,11 +357,8 @@ fn the_caller_sees_its_own_order() {
         )
         .unwrap();
         assert_eq!(first.as_deref(), Some(&sites[..]));
-        let options = Options {
-            hessian: method == Method::Newton,
-            ..Options::default()
-        };
-        let fresh = evaluate_with::<2, PolygonCell>(&l, out.sites.clone(), options).unwrap();
+        let newton = method == Method::Newton;
+        let fresh = evaluate_with::<2, PolygonCell>(&l, out.sites.clone(), newton).unwrap();
         let (a, b) = (&out.diagram, &fresh.diagram);
         assert_eq!(a.neighbor_offsets, b.neighbor_offsets);
         assert_eq!(a.neighbor_sites, b.neighbor_sites);
@@ -389,8 +369,8 @@ fn the_caller_sees_its_own_order() {
         if method == Method::Newton {
             let v: Vec<[f64; 2]> = out.sites.iter().map(|s| [s[1].sin(), s[0].cos()]).collect();
             let (ha, hb) = (
-                a.hessian_product(&v).unwrap(),
-                b.hessian_product(&v).unwrap(),
+                out.hessian.as_ref().unwrap().product(a, &v),
+                fresh.hessian_product(&v).unwrap(),
             );
             let scale = hb
                 .iter()

@@ -4,7 +4,8 @@
 //!
 //! `PROPTEST_CASES` sets the number of cases per property (default 1,000 here; 3,000 in all).
 
-use std::path::PathBuf;
+mod common;
+use common::{data_3d, read_mesh};
 
 use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Polygon, Solid};
@@ -115,7 +116,7 @@ proptest! {
             sites.push(sites[0]);
         }
         let measure = b.diagonal().powi(2);
-        let options = Options { allow_outside: true, ..Options::default() };
+        let options = Options { allow_outside: true };
         let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
         if duplicate {
             let is_duplicate_error = matches!(result, Err(CoreError::DuplicateSites { .. }));
@@ -136,7 +137,7 @@ proptest! {
         if let Ok(domain) = ring(vertices) {
             let b = domain.bounds();
             let measure = (b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]);
-            let options = Options { allow_outside: true, ..Options::default() };
+            let options = Options { allow_outside: true };
             let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
             // Self-intersecting rings are the front end's to refuse: only no panic here.
             let _ = (result, measure);
@@ -165,7 +166,7 @@ proptest! {
         if outside {
             sites.push([2.5, 0.5, 0.5]);
         }
-        let options = Options { allow_outside: true, ..Options::default() };
+        let options = Options { allow_outside: true };
         let result = clipped_diagram::<3, PolyhedronCell>(&solid, &sites, options, false);
         check(result.map(|r| r.0), 2.0, 6.0f64.powf(1.5))?;
     }
@@ -178,25 +179,7 @@ fn cuboid(s: [f64; 3]) -> Solid {
 
 /// The icosphere of ../shared/data/3d/sphere.ply (ASCII PLY), or None without the data.
 fn sphere() -> Option<Solid> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/3d/sphere.ply");
-    let text = std::fs::read_to_string(path).ok()?;
-    let body = text.split("end_header").nth(1)?;
-    let mut lines = body.lines().filter(|l| !l.trim().is_empty());
-    let numbers =
-        |l: &str| -> Vec<f64> { l.split_whitespace().map(|x| x.parse().unwrap()).collect() };
-    let vertices: Vec<[f64; 3]> = (0..642)
-        .map(|_| {
-            let p = numbers(lines.next().unwrap());
-            [p[0], p[1], p[2]]
-        })
-        .collect();
-    let faces: Vec<[u32; 3]> = (0..1280)
-        .map(|_| {
-            let p = numbers(lines.next().unwrap());
-            [p[1] as u32, p[2] as u32, p[3] as u32]
-        })
-        .collect();
-    Some(Solid::new(vertices, faces).unwrap())
+    Some(read_mesh(&data_3d()?.join("sphere.ply")))
 }
 
 /// Found by tests/test_properties.py: one site at the centroid of face 199 of the sphere,
@@ -211,7 +194,6 @@ fn site_within_round_off_of_a_face_regression() {
     };
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     for t in [0u32, 1, 199, 500, 1000] {
         let tri = solid.simplex(t);
@@ -245,7 +227,6 @@ fn cell_touching_the_domain_at_a_point_is_empty_regression() {
     }
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     for (i, m) in d.moments.iter().enumerate() {
@@ -275,7 +256,6 @@ fn apex_nudged_along_the_boundary_regression() {
     ];
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
@@ -291,7 +271,6 @@ fn site_far_outside_is_refused_regression() {
     let domain = ring(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]).unwrap();
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let far = clipped_diagram::<2, PolygonCell>(&domain, &[[1e10, 0.5]], options, false);
     assert!(matches!(
@@ -327,7 +306,6 @@ fn degenerate_cell_edge_excludes_nothing_regression() {
     let sites = [[1.5, -1.55], [2.0, -1.55], [1.5, -1.1], [2.0, -1.1]];
     let options = Options {
         allow_outside: true,
-        ..Options::default()
     };
     let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();

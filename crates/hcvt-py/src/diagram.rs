@@ -22,10 +22,7 @@ pub fn voronoi_2d<'py>(
     keep_cells: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 2>(&sites, "sites")?;
-    let options = Options {
-        allow_outside,
-        ..Options::default()
-    };
+    let options = Options { allow_outside };
     let (diagram, cells) = py
         .detach(|| {
             crate::threads::run(|| {
@@ -62,10 +59,7 @@ pub fn voronoi_3d<'py>(
     keep_cells: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 3>(&sites, "sites")?;
-    let options = Options {
-        allow_outside,
-        ..Options::default()
-    };
+    let options = Options { allow_outside };
     let (diagram, cells) = py
         .detach(|| {
             crate::threads::run(|| {

@@ -79,7 +79,7 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     }
 
     /// Call `f(face, moments)` for every face, with the face's moments about the site: the
-    /// integrals behind the Hessian ([`crate::optimise::newton`]).
+    /// integrals behind the optimiser's Hessian (`optimise::hessian`).
     fn for_each_face_moments(&self, f: impl FnMut(Face, FaceMoments<D>));
 
     /// [`ConvexCell::for_each_face_moments`] and [`ConvexCell::moments`] together.

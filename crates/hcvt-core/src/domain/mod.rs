@@ -13,7 +13,7 @@ use std::collections::HashMap;
 
 use crate::error::CoreError;
 use crate::geometry::{dot, sub, Aabb, Euclid, Space};
-use crate::moments::Moments;
+use crate::moments::{ConeMoments, Moments};
 pub use bvh::Bvh;
 pub use winding::{generalized_winding_number, WindingNumber};
 
@@ -43,7 +43,7 @@ pub type Solid = Boundary<3>;
 
 impl<const D: usize> Boundary<D>
 where
-    Euclid: Space<D>,
+    Euclid: Space<D> + ConeMoments<D>,
 {
     /// Check and index a boundary.
     ///
@@ -93,6 +93,17 @@ where
             });
         }
         Ok(boundary)
+    }
+
+    /// Moments of the enclosed region about `origin`: the sum of the signed cones from
+    /// `origin` over the boundary (DESIGN §3 with `w = 0` taken far away).
+    fn integrate_from(&self, origin: [f64; D]) -> Moments<D> {
+        let mut total = Moments::zero();
+        for t in 0..self.simplices.len() as u32 {
+            let p = self.simplex(t).map(|v| crate::geometry::sub(v, origin));
+            total.add_scaled(&Euclid::cone_moments(&p), 1.0);
+        }
+        total
     }
 }
 
@@ -151,17 +162,6 @@ where
     pub fn first_moment(&self) -> [f64; D] {
         let o = self.moments_origin();
         std::array::from_fn(|k| self.moments.first[k] + self.moments.mass * o[k])
-    }
-
-    /// Moments of the enclosed region about `origin`: the sum of the signed cones from
-    /// `origin` over the boundary (DESIGN §3 with `w = 0` taken far away).
-    fn integrate_from(&self, origin: [f64; D]) -> Moments<D> {
-        let mut total = Moments::zero();
-        for t in 0..self.simplices.len() as u32 {
-            let p = self.simplex(t).map(|v| crate::geometry::sub(v, origin));
-            total.add_scaled(&Euclid::cone_moments(&p), 1.0);
-        }
-        total
     }
 }
 

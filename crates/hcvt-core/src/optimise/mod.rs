@@ -10,6 +10,7 @@
 //! | [`lbfgs`] | L-BFGS direction (memory 7, preconditioned by `1/(2 m_i)`) and its strong-Wolfe line search |
 //! | [`lloyd`] | Lloyd's `x_i ← c_i`, held inside the domain; reseeding of empty cells |
 //! | [`newton`] | Newton with the exact Hessian: truncated CG in a trust region (often 2–5× fewer diagrams) |
+//! | [`hessian`] | the exact Hessian, summed by the diagram over the faces between cells; its product |
 //!
 //! **Stopping rules** ([`stopping`], DESIGN §7). By default a run stops when the RMS over
 //! the sites of the scale-free gap `|x_i − c_i| / V_i^{1/d}` is below the tolerance; the
@@ -34,6 +35,7 @@
 //! Every step is sequential over the sites in index order and the diagram does not depend
 //! on the thread count, so neither does the result.
 
+pub mod hessian;
 pub mod lbfgs;
 pub mod lloyd;
 pub mod newton;
@@ -42,10 +44,14 @@ pub mod stopping;
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use crate::diagram::{clipped_diagram, morton_order, ConvexCell, Diagram, Options};
+use crate::diagram::{
+    clipped_diagram, clipped_diagram_with, morton_order, ConvexCell, Diagram, FaceIntegrand,
+    Options,
+};
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{Euclid, Space};
+use hessian::{Hessian, HessianTerms};
 use lbfgs::{LineSearch, Memory};
 use newton::TrustRegion;
 pub use stopping::{Measures, Rule};
@@ -171,6 +177,8 @@ pub struct Outcome<const D: usize> {
     pub sites: Vec<[f64; D]>,
     /// Their clipped diagram.
     pub diagram: Diagram<D>,
+    /// The energy's Hessian at the final sites, for [`Method::Newton`].
+    pub hessian: Option<Hessian<D>>,
     /// One record per iterate, the initial sites first.
     pub history: Vec<Record>,
     /// Why the iteration stopped.
@@ -196,10 +204,31 @@ pub struct Point<const D: usize> {
     pub sites: Vec<[f64; D]>,
     /// Their clipped diagram.
     pub diagram: Diagram<D>,
+    /// The energy's Hessian, when asked for ([`evaluate_with`]).
+    pub hessian: Option<Hessian<D>>,
     /// `E = Σ_i tr M2_i`, summed in index order, `L^(d+2)`.
     pub energy: f64,
     /// `g_i = −2 m1_i`, `L^(d+1)`.
     pub gradient: Vec<[f64; D]>,
+}
+
+impl<const D: usize> Point<D> {
+    /// The product `H v` of the energy's [`Hessian`] with `v` (one row per site), `None`
+    /// unless the point was evaluated with it ([`Hessian::product`]).
+    pub fn hessian_product(&self, v: &[[f64; D]]) -> Option<Vec<[f64; D]>> {
+        let h = self.hessian.as_ref()?;
+        Some(h.product(&self.diagram, v))
+    }
+
+    /// [`Point::hessian_product`] into `out` (one row per site); `false` (and `out`
+    /// untouched) without the Hessian.
+    pub fn hessian_product_into(&self, v: &[[f64; D]], out: &mut [[f64; D]]) -> bool {
+        let Some(h) = self.hessian.as_ref() else {
+            return false;
+        };
+        h.product_into(&self.diagram, v, out);
+        true
+    }
 }
 
 /// The diagram of `sites` with its energy and gradient: one diagram computation.
@@ -212,22 +241,27 @@ pub fn evaluate<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    evaluate_with::<D, C>(boundary, sites, Options::default())
+    evaluate_with::<D, C>(boundary, sites, false)
 }
 
-/// [`evaluate`] with diagram `options` (the Hessian, for Newton).
+/// [`evaluate`], with the energy's [`Hessian`] if `hessian` (for Newton): its face terms
+/// are summed in the diagram's pass over the faces ([`HessianTerms`]).
 pub fn evaluate_with<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
-    options: Options,
+    hessian: bool,
 ) -> Result<Point<D>, CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    let (diagram, _) = clipped_diagram::<D, C>(boundary, &sites, options, false)?;
+    let terms = HessianTerms { sites: &sites };
+    let integrand = hessian.then_some(&terms as &dyn FaceIntegrand<D>);
+    let (diagram, _, sums) =
+        clipped_diagram_with::<D, C>(boundary, &sites, Options::default(), false, integrand)?;
     Ok(Point {
         energy: diagram.energy(),
         gradient: diagram.gradient(),
+        hessian: hessian.then(|| Hessian::new(&diagram, sums)),
         diagram,
         sites,
     })
@@ -261,8 +295,8 @@ struct Tracker<const D: usize> {
     h: f64,
     start: Instant,
     evaluations: usize,
-    /// Diagram options: the Hessian for Newton.
-    options: Options,
+    /// With the Hessian, for Newton.
+    hessian: bool,
     history: Vec<Record>,
 }
 
@@ -276,7 +310,7 @@ impl<const D: usize> Tracker<D> {
         Euclid: Space<D> + WindingNumber<D>,
     {
         self.evaluations += 1;
-        evaluate_with::<D, C>(boundary, sites, self.options)
+        evaluate_with::<D, C>(boundary, sites, self.hessian)
     }
 
     fn record(&mut self, boundary: &Boundary<D>, point: &Point<D>, step: Step) -> Record
@@ -336,9 +370,11 @@ where
             for (&i, &x) in order.iter().zip(&out.sites) {
                 sites[i as usize] = x;
             }
+            let (diagram, faces) = out.diagram.reordered_faces(&order);
             Ok(Outcome {
                 sites,
-                diagram: out.diagram.reordered(&order),
+                diagram,
+                hessian: out.hessian.map(|h| h.reordered(&order, &faces)),
                 history: out.history,
                 stop_reason: out.stop_reason,
             })
@@ -365,10 +401,7 @@ where
         h: mean_spacing(boundary, sites.len()),
         start: Instant::now(),
         evaluations: 0,
-        options: Options {
-            hessian: settings.method == Method::Newton,
-            ..Options::default()
-        },
+        hessian: settings.method == Method::Newton,
         history: Vec::new(),
     };
     let mut point = tracker.evaluate::<C>(boundary, sites)?;
@@ -409,6 +442,7 @@ where
     Ok(Outcome {
         sites: point.sites,
         diagram: point.diagram,
+        hessian: point.hessian,
         history: tracker.history,
         stop_reason: stop,
     })

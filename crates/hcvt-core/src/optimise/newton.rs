@@ -1,5 +1,5 @@
 //! Newton's method on the CVT energy in a trust region: the exact
-//! [`Hessian`](crate::diagram::Hessian) from the same diagram as the gradient, and a step
+//! [`Hessian`](super::hessian::Hessian) from the same diagram as the gradient, and a step
 //! from truncated conjugate gradients preconditioned by `1/(2 m_i)` (Steihaug 1983;
 //! Nocedal and Wright, *Numerical Optimization*, Algorithms 4.1 and 7.2).
 //!
@@ -115,7 +115,7 @@ pub fn step<const D: usize>(
         let mut model = steihaug(point, &weighted, radius, forcing);
         let before = model.moves.clone();
         hold(&mut model.moves);
-        let Some(hs) = point.diagram.hessian_product(&model.moves) else {
+        let Some(hs) = point.hessian_product(&model.moves) else {
             break;
         };
         if model.moves != before {
@@ -243,7 +243,7 @@ fn steihaug<const D: usize>(
         return step(z, decrease, false);
     }
     for iteration in 1..=MAX_CG_ITERATIONS {
-        if !point.diagram.hessian_product_into(&d, &mut hd) {
+        if !point.hessian_product_into(&d, &mut hd) {
             break;
         }
         let curvature = dot_rows(&d, &hd);
@@ -294,6 +294,7 @@ mod tests {
         Point {
             sites: vec![[0.0; 2]; gradient.len()],
             diagram: Diagram::default(),
+            hessian: None,
             energy: 0.0,
             gradient,
         }

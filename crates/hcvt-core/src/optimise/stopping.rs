@@ -150,6 +150,7 @@ mod tests {
             gradient: diagram.gradient(),
             energy: 0.0,
             diagram,
+            hessian: None,
         }
     }
 

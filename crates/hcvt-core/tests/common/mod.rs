@@ -1,7 +1,10 @@
 //! Helpers shared by the integration tests.
 
-use hcvt_core::domain::Solid;
+use std::path::{Path, PathBuf};
 
+use hcvt_core::domain::{Polygon, Solid};
+
+#[allow(unused_imports)] // not every test file uses it
 pub use hcvt_core::sample::interior_sites;
 
 /// The unit cube with its top face (z = 1) pushed in to a point at z = 0.8: not convex.
@@ -17,5 +20,65 @@ pub fn dented_cube() -> Solid {
         .filter(|t| !t.iter().all(|&v| v >= 4))
         .collect();
     faces.extend([[4, 5, 8], [5, 7, 8], [7, 6, 8], [6, 4, 8]]);
+    Solid::new(vertices, faces).unwrap()
+}
+
+/// Closed rings as one polygon: outer rings counter-clockwise, holes clockwise.
+#[allow(dead_code)]
+pub fn polygon(rings: &[&[[f64; 2]]]) -> Polygon {
+    let mut vertices = Vec::new();
+    let mut segments = Vec::new();
+    for ring in rings {
+        let start = vertices.len() as u32;
+        let n = ring.len() as u32;
+        vertices.extend_from_slice(ring);
+        segments.extend((0..n).map(|k| [start + k, start + (k + 1) % n]));
+    }
+    Polygon::new(vertices, segments).unwrap()
+}
+
+/// `../shared/data/3d` beside the repository, or `None` where the shared data is absent.
+#[allow(dead_code)]
+pub fn data_3d() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/3d");
+    dir.is_dir().then_some(dir)
+}
+
+/// A closed mesh of triangles from an OFF or ASCII PLY file.
+#[allow(dead_code)]
+pub fn read_mesh(path: &Path) -> Solid {
+    let text = std::fs::read_to_string(path).unwrap();
+    let (counts, body) = match text.split_once("end_header") {
+        Some((header, body)) => {
+            let count = |element: &str| -> usize {
+                let line = header
+                    .lines()
+                    .find_map(|l| l.strip_prefix(element))
+                    .unwrap();
+                line.trim().parse().unwrap()
+            };
+            (Some((count("element vertex"), count("element face"))), body)
+        }
+        None => (None, text.trim_start().strip_prefix("OFF").unwrap()),
+    };
+    let mut tokens = body
+        .lines()
+        .map(|l| l.split('#').next().unwrap_or(""))
+        .flat_map(str::split_whitespace);
+    let mut next = || tokens.next().unwrap();
+    let (nv, nf): (usize, usize) = counts.unwrap_or_else(|| {
+        let counts = (next().parse().unwrap(), next().parse().unwrap());
+        next(); // edges
+        counts
+    });
+    let vertices = (0..nv)
+        .map(|_| [0; 3].map(|_| next().parse::<f64>().unwrap()))
+        .collect();
+    let faces = (0..nf)
+        .map(|_| {
+            assert_eq!(next(), "3");
+            [0; 3].map(|_| next().parse::<u32>().unwrap())
+        })
+        .collect();
     Solid::new(vertices, faces).unwrap()
 }

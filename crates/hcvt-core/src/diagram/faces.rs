@@ -1,0 +1,161 @@
+//! Each cell's faces, summed over its signed pieces (DESIGN §3, step 5): the measure of the
+//! faces shared with each neighbour (the restricted Delaunay edges) and the cell's share of
+//! the domain boundary. A caller may also have a [`FaceIntegrand`] summed over the faces
+//! between cells in the same pass: the optimiser's Hessian (DESIGN §4, `optimise::hessian`,
+//! a layer above) is one. The diagram hands it each piece's face moments and keeps the sums
+//! in [`FaceIntegrals`], knowing nothing of what they mean.
+
+use crate::moments::{FaceMoments, Moments};
+
+use super::convex_cell::{ConvexCell, Face};
+
+/// A `D × D` matrix, row-major: what a [`FaceIntegrand`] sums per face and per cell.
+pub type Matrix<const D: usize> = [[f64; D]; D];
+
+/// A `D × D` matrix integrated over the faces between cells while the diagram measures
+/// them: one entry per face shared with a neighbour, and one sum per cell.
+pub trait FaceIntegrand<const D: usize>: Sync {
+    /// Add one signed piece of the face between cell `i` and its neighbour `j` to `face`
+    /// (the entry of `j` in row `i`, zero at first) and to `cell` (row `i`'s sum): `m` holds
+    /// the piece's moments about site `i`, and `sign` (±1) is the sign of the piece in the
+    /// cone identity of DESIGN §3.
+    fn add(
+        &self,
+        i: usize,
+        j: usize,
+        sign: f64,
+        m: &FaceMoments<D>,
+        face: &mut Matrix<D>,
+        cell: &mut Matrix<D>,
+    );
+}
+
+/// What a [`FaceIntegrand`] summed over a diagram, in the diagram's rows.
+#[derive(Debug, Clone, Default)]
+pub struct FaceIntegrals<const D: usize> {
+    /// One per cell: the sum over its faces shared with neighbours.
+    pub cells: Vec<Matrix<D>>,
+    /// One per entry of [`super::Diagram::neighbor_sites`].
+    pub faces: Vec<Matrix<D>>,
+}
+
+/// The integrand of a cell's row: the caller's [`FaceIntegrand`] and the cell's site.
+#[derive(Clone, Copy)]
+pub(super) struct FaceRow<'a, const D: usize> {
+    pub(super) integrand: &'a dyn FaceIntegrand<D>,
+    pub(super) site: usize,
+}
+
+/// Signed face measures of a cell, summed over its pieces, and with a [`FaceRow`] its face
+/// integrals; buffers reused from cell to cell.
+#[derive(Debug)]
+pub(super) struct FaceSums<const D: usize> {
+    pub(super) neighbors: Vec<(u32, f64)>,
+    /// With a [`FaceRow`]: the integral over each face of `neighbors`; else empty.
+    pub(super) integrals: Vec<Matrix<D>>,
+    /// With a [`FaceRow`]: the cell's sum of the integrals.
+    pub(super) cell_integral: Matrix<D>,
+    pub(super) boundary: f64,
+}
+
+impl<const D: usize> Default for FaceSums<D> {
+    fn default() -> Self {
+        Self {
+            neighbors: Vec::new(),
+            integrals: Vec::new(),
+            cell_integral: [[0.0; D]; D],
+            boundary: 0.0,
+        }
+    }
+}
+
+impl<const D: usize> FaceSums<D> {
+    /// Forget the last cell.
+    pub(super) fn clear(&mut self) {
+        self.neighbors.clear();
+        self.integrals.clear();
+        self.cell_integral = [[0.0; D]; D];
+        self.boundary = 0.0;
+    }
+
+    /// Add the faces of `piece` with `sign` (and their integrals, for a `row`), and return
+    /// its moments (not signed).
+    pub(super) fn integrate<C: ConvexCell<D>>(
+        &mut self,
+        piece: &C,
+        sign: f64,
+        row: Option<FaceRow<'_, D>>,
+    ) -> Moments<D> {
+        match row {
+            Some(row) => piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m, row)),
+            None => piece.moments_and_faces(|f, m| {
+                self.add(f, sign * m);
+            }),
+        }
+    }
+
+    /// Add a face's measure; the index of its neighbour's entry, if it has one.
+    pub(super) fn add(&mut self, face: Face, measure: f64) -> Option<usize> {
+        match face {
+            Face::Neighbor(j) => Some(match self.neighbors.iter().position(|(k, _)| *k == j) {
+                Some(at) => {
+                    self.neighbors[at].1 += measure;
+                    at
+                }
+                None => {
+                    self.neighbors.push((j, measure));
+                    self.neighbors.len() - 1
+                }
+            }),
+            // Each piece's face on T is T ∩ C itself, whatever the piece's sign.
+            Face::Boundary(_) => {
+                self.boundary += measure.abs();
+                None
+            }
+            Face::Box | Face::Cone => None,
+        }
+    }
+
+    /// Add a face with its moments `m` about the site, and its terms of the integrand of
+    /// `row`.
+    fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>, row: FaceRow<'_, D>) {
+        let Some(at) = self.add(face, sign * m.measure) else {
+            return;
+        };
+        let j = self.neighbors[at].0 as usize;
+        if at == self.integrals.len() {
+            self.integrals.push([[0.0; D]; D]);
+        }
+        let (face, cell) = (&mut self.integrals[at], &mut self.cell_integral);
+        row.integrand.add(row.site, j, sign, m, face, cell);
+    }
+
+    /// Keep the faces of positive measure, sorted by neighbour, with their integrals if
+    /// kept: both lists together, in place.
+    pub(super) fn sort_neighbors(&mut self) {
+        let paired = !self.integrals.is_empty();
+        let mut kept = 0;
+        for k in 0..self.neighbors.len() {
+            if self.neighbors[k].1 > 0.0 {
+                self.neighbors.swap(kept, k);
+                if paired {
+                    self.integrals.swap(kept, k);
+                }
+                kept += 1;
+            }
+        }
+        self.neighbors.truncate(kept);
+        self.integrals.truncate(kept);
+        // Insertion sort by neighbour: a dozen entries or so.
+        for k in 1..kept {
+            let mut at = k;
+            while at > 0 && self.neighbors[at - 1].0 > self.neighbors[at].0 {
+                self.neighbors.swap(at - 1, at);
+                if paired {
+                    self.integrals.swap(at - 1, at);
+                }
+                at -= 1;
+            }
+        }
+    }
+}

@@ -1,0 +1,151 @@
+//! The faces of a [`PolyhedronCell`]: walked as rings of vertices around each plane (O(1)
+//! per step through the triangles' adjacency), and integrated as fans of triangles for the
+//! cell's moments, the face measures and the face moments (DESIGN §3).
+
+use super::{cross, PolyhedronCell};
+use crate::diagram::convex_cell::Face;
+use crate::geometry::{add, dot, norm2, scale, sub};
+use crate::moments::{FaceMoments, Moments};
+
+/// Scratch of [`PolyhedronCell::for_each_ring`].
+#[derive(Default)]
+struct WalkBuffers {
+    first: Vec<u32>,
+    ring: Vec<u32>,
+}
+
+thread_local! {
+    static WALK_BUFFERS: std::cell::RefCell<WalkBuffers> = std::cell::RefCell::default();
+}
+
+impl PolyhedronCell {
+    /// Vertices relative to the site; vertex `t` is where the planes of triangle `t` meet.
+    pub fn vertices(&self) -> &[[f64; 3]] {
+        &self.vertices
+    }
+
+    /// Call `f(face, polygon)` for every face with at least three vertices; the polygon is
+    /// counter-clockwise seen from outside, relative to the site. Vertices where more than
+    /// three planes meet appear once per triangle, so a polygon may repeat a point.
+    pub fn for_each_polygon(&self, mut f: impl FnMut(Face, &[[f64; 3]])) {
+        let mut polygon = Vec::new();
+        self.for_each_ring(|face, ring| {
+            polygon.clear();
+            polygon.extend(ring.iter().map(|&t| self.vertices[t as usize]));
+            f(face, &polygon);
+        });
+    }
+
+    /// [`PolyhedronCell::walk_faces`] with per-thread buffers: every cell of every diagram
+    /// is walked. A nested walk (from inside `f`) finds them taken and uses fresh ones.
+    pub(super) fn for_each_ring(&self, mut f: impl FnMut(Face, &[u32])) {
+        WALK_BUFFERS.with(|cell| {
+            let mut fresh = WalkBuffers::default();
+            let mut taken = cell.try_borrow_mut();
+            let b = match taken.as_deref_mut() {
+                Ok(b) => b,
+                Err(_) => &mut fresh,
+            };
+            self.walk_faces(&mut b.first, &mut b.ring, |plane, ring| {
+                f(self.planes[plane as usize].face, ring);
+            });
+        });
+    }
+
+    /// Moments of the cone from the site over the face with vertices `ring`, fanned from
+    /// its first vertex `v_0`, and the face's area.
+    ///
+    /// Each fan triangle `(v_0, a, b)` needs one cross product `c = (a - v_0) × (b - v_0)`:
+    /// `c / 2` is its vector area and `v_0 · c = det[v_0 a b]` six times its cone's volume.
+    /// With `s = v_0 + a + b` the cone's second moment is `mass (|s|² + |v_0|² + |a|² +
+    /// |b|²) / 20`, the sum of the six products `u · w` of `tetra_moments` rewritten.
+    pub(super) fn fan(&self, ring: &[u32]) -> (Moments<3>, f64) {
+        let v = |k: usize| self.vertices[ring[k] as usize];
+        let v0 = v(0);
+        let n0 = norm2(v0);
+        let (mut a, mut na) = (v(1), norm2(v(1)));
+        let mut m = Moments::zero();
+        let mut area = [0.0; 3];
+        for k in 2..ring.len() {
+            let b = v(k);
+            let nb = norm2(b);
+            let c = cross(sub(a, v0), sub(b, v0));
+            area = add(area, c);
+            let mass = dot(v0, c) / 6.0;
+            let s = add(add(v0, a), b);
+            m.mass += mass;
+            m.first = add(m.first, scale(s, mass / 4.0));
+            m.second += mass * (norm2(s) + n0 + na + nb) / 20.0;
+            (a, na) = (b, nb);
+        }
+        (m, 0.5 * norm2(area).sqrt())
+    }
+
+    /// [`PolyhedronCell::fan`]'s cone moments with the face's own moments about the site
+    /// (for the Hessian), summed over the same fan triangles.
+    pub(super) fn fan_moments(&self, ring: &[u32]) -> (Moments<3>, FaceMoments<3>) {
+        let v = |k: usize| self.vertices[ring[k] as usize];
+        let v0 = v(0);
+        let mut face = FaceMoments::zero();
+        for k in 2..ring.len() {
+            let (a, b) = (v(k - 1), v(k));
+            let area = 0.5 * norm2(cross(sub(a, v0), sub(b, v0))).sqrt();
+            face.add_scaled(&FaceMoments::simplex(&[v0, a, b], area), 1.0);
+        }
+        (self.fan(ring).0, face)
+    }
+
+    /// The closed, outward boundary triangulation of the cell: every face fanned from its
+    /// first vertex, as indices into [`PolyhedronCell::vertices`], appended to `out`.
+    pub fn boundary_triangles(&self, out: &mut Vec<[u32; 3]>) {
+        let (mut first, mut ring) = (Vec::new(), Vec::new());
+        self.walk_faces(&mut first, &mut ring, |_, ring| {
+            for k in 1..ring.len() - 1 {
+                out.push([ring[0], ring[k], ring[k + 1]]);
+            }
+        });
+    }
+
+    /// Walk each face in plane order and hand `f(plane, ring)` its vertices (triangle
+    /// indices) counter-clockwise from outside, starting at the first triangle holding the
+    /// plane; faces with fewer than three vertices are skipped. From vertex `(p, q, r)` the
+    /// next vertex of face `p` is its neighbour across the edge `r -> p`, the triangle
+    /// `(p, r, s)`: the adjacency makes each step O(1), with no sorting or searching.
+    pub(super) fn walk_faces(
+        &self,
+        first: &mut Vec<u32>,
+        ring: &mut Vec<u32>,
+        mut f: impl FnMut(u16, &[u32]),
+    ) {
+        const NONE: u32 = u32::MAX;
+        first.clear();
+        first.resize(self.planes.len(), NONE);
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &p in tri {
+                if first[p as usize] == NONE {
+                    first[p as usize] = t as u32;
+                }
+            }
+        }
+        for (p, &start) in first.iter().enumerate() {
+            if start == NONE {
+                continue;
+            }
+            ring.clear();
+            let mut at = start as usize;
+            // A consistent adjacency comes back to `start`; the bound only guards the loop.
+            for _ in 0..self.triangles.len() {
+                ring.push(at as u32);
+                let k = self.triangles[at].iter().position(|&x| x as usize == p);
+                let next = self.neighbors[at][(k.unwrap_or(0) + 2) % 3] as usize;
+                if next == start as usize || next >= self.triangles.len() {
+                    break;
+                }
+                at = next;
+            }
+            if ring.len() >= 3 {
+                f(p as u16, ring);
+            }
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! The exact Hessian of the CVT energy (DESIGN §4, Liu et al. 2009 §3) for Newton's method:
+//! its face terms as a [`FaceIntegrand`] that the diagram sums over each cell's faces in the
+//! pass that measures them ([`HessianTerms`]), the [`Hessian`] assembled from those sums and
+//! the cells' masses, its product with a vector, and its rows renamed with the diagram's.
+
+use rayon::prelude::*;
+
+use crate::diagram::{Diagram, FaceIntegrals, FaceIntegrand, Matrix};
+use crate::geometry::{add, dot, norm2, sub};
+use crate::moments::FaceMoments;
+
+/// The Hessian of the CVT energy `E(X) = Σ_i ∫_{Ω_i} |x − x_i|²`, exact, in `D × D` blocks.
+///
+/// With `F_ij` the face shared by cells `i` and `j` inside the domain, `d_ij = |x_j − x_i|`
+/// and `y = x − x_i` (Liu et al. 2009, §3; the domain boundary does not move, so only the
+/// faces between cells contribute):
+/// `H_ij = (2/d_ij) ∫_{F_ij} (x − x_i)(x − x_j)ᵀ` and
+/// `H_ii = 2 m_i I − Σ_j (2/d_ij) ∫_{F_ij} (x − x_i)(x − x_i)ᵀ`.
+/// Row `i` is computed by cell `i` alone, so `H_ij` and `H_jiᵀ` agree to round-off.
+#[derive(Debug, Clone, Default)]
+pub struct Hessian<const D: usize> {
+    /// `H_ii`, `L^d`.
+    pub diagonal: Vec<Block<D>>,
+    /// `H_ij` for each entry of [`Diagram::neighbor_sites`], `L^d`.
+    pub off_diagonal: Vec<Block<D>>,
+}
+
+/// A `D × D` block of the [`Hessian`], row-major.
+pub type Block<const D: usize> = Matrix<D>;
+
+/// The face terms of the [`Hessian`] of the diagram of `sites`: per face
+/// `H_ij = (2/d_ij) ∫_{F_ij} y (y − q_ij)ᵀ` (`y = x − x_i`, `q_ij = x_j − x_i`), per cell
+/// `Σ_j (2/d_ij) ∫_{F_ij} y yᵀ`.
+#[derive(Debug, Clone, Copy)]
+pub struct HessianTerms<'a, const D: usize> {
+    /// Every site, `L`.
+    pub sites: &'a [[f64; D]],
+}
+
+impl<const D: usize> FaceIntegrand<D> for HessianTerms<'_, D> {
+    fn add(
+        &self,
+        i: usize,
+        j: usize,
+        sign: f64,
+        m: &FaceMoments<D>,
+        face: &mut Matrix<D>,
+        cell: &mut Matrix<D>,
+    ) {
+        let q = sub(self.sites[j], self.sites[i]);
+        let w = sign * 2.0 / norm2(q).sqrt();
+        let rows = face.iter_mut().zip(cell.iter_mut());
+        for ((block_row, face_row), (s2_row, &s1)) in rows.zip(m.second.iter().zip(&m.first)) {
+            let entries = block_row.iter_mut().zip(face_row.iter_mut());
+            for ((b, f), (&s2, &qc)) in entries.zip(s2_row.iter().zip(&q)) {
+                *b += w * (s2 - s1 * qc);
+                *f += w * s2;
+            }
+        }
+    }
+}
+
+impl<const D: usize> Hessian<D> {
+    /// The Hessian of `diagram` from the sums of its [`HessianTerms`]:
+    /// `H_ii = 2 m_i I − Σ_j (2/d_ij) ∫_{F_ij} y yᵀ`, and the face terms as they are.
+    pub fn new(diagram: &Diagram<D>, terms: FaceIntegrals<D>) -> Self {
+        let diagonal = diagram
+            .moments
+            .iter()
+            .zip(&terms.cells)
+            .map(|(m, face_second)| {
+                std::array::from_fn(|r| {
+                    std::array::from_fn(|c| {
+                        let diagonal = if r == c { 2.0 * m.mass } else { 0.0 };
+                        diagonal - face_second[r][c]
+                    })
+                })
+            })
+            .collect();
+        Self {
+            diagonal,
+            off_diagonal: terms.faces,
+        }
+    }
+
+    /// The product `H v` with `v` (one row per site) over the neighbours of `diagram`. Rows
+    /// in parallel, each summed in neighbour order: the result does not depend on the
+    /// thread count.
+    pub fn product(&self, diagram: &Diagram<D>, v: &[[f64; D]]) -> Vec<[f64; D]> {
+        let mut out = vec![[0.0; D]; diagram.len()];
+        self.product_into(diagram, v, &mut out);
+        out
+    }
+
+    /// [`Hessian::product`] into `out` (one row per site).
+    pub fn product_into(&self, diagram: &Diagram<D>, v: &[[f64; D]], out: &mut [[f64; D]]) {
+        let row = |i: usize| -> [f64; D] {
+            let mut sum = mat_vec(&self.diagonal[i], v[i]);
+            for e in diagram.neighbor_offsets[i]..diagram.neighbor_offsets[i + 1] {
+                let j = diagram.neighbor_sites[e] as usize;
+                sum = add(sum, mat_vec(&self.off_diagonal[e], v[j]));
+            }
+            sum
+        };
+        out.par_chunks_mut(PRODUCT_ROWS)
+            .enumerate()
+            .for_each(|(c, rows)| {
+                for (k, o) in rows.iter_mut().enumerate() {
+                    *o = row(c * PRODUCT_ROWS + k);
+                }
+            });
+    }
+
+    /// The Hessian for the sites renamed by `order`, with the diagram's face entries moved
+    /// as [`Diagram::reordered_faces`] moved them (`faces[e]` the old entry of new entry `e`).
+    pub fn reordered(&self, order: &[u32], faces: &[usize]) -> Self {
+        let mut diagonal = vec![[[0.0; D]; D]; self.diagonal.len()];
+        for (k, &i) in order.iter().enumerate() {
+            diagonal[i as usize] = self.diagonal[k];
+        }
+        Self {
+            diagonal,
+            off_diagonal: faces.iter().map(|&e| self.off_diagonal[e]).collect(),
+        }
+    }
+}
+
+#[inline]
+fn mat_vec<const D: usize>(m: &Matrix<D>, v: [f64; D]) -> [f64; D] {
+    m.map(|row| dot(row, v))
+}
+
+/// Rows of a Hessian product per parallel task: a few microseconds of work each.
+const PRODUCT_ROWS: usize = 1024;
