@@ -23,7 +23,7 @@ intersected with the polygon by shapely), timed to an RMS gap of ``LLOYD_TOL`` b
 Lloyd, L-BFGS and Newton to the same value (Lloyd to 1e-7 takes thousands of iterations).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/cvt.py [--quick] [--seeds 3] [--repeat 1]
-        [--methods lbfgs newton]
+        [--methods lbfgs newton] [--no-homer]
 """
 
 from __future__ import annotations
@@ -206,6 +206,7 @@ def main() -> None:
     )
     parser.add_argument("--quick", action="store_true", help="1 run, smaller cases only")
     parser.add_argument("--methods", nargs="+", default=["lbfgs", "newton"], help="optimisers")
+    parser.add_argument("--no-homer", action="store_true", help="leave out Homer 50k (minutes)")
     args = parser.parse_args()
     repeat = 1 if args.quick else args.repeat
     seeds = 1 if args.quick else args.seeds
@@ -221,7 +222,7 @@ def main() -> None:
     )
     print(header)
     for name, make, n, paper in TABLE8:
-        if args.quick and n > 2_000:
+        if (args.quick and n > 2_000) or (args.no_homer and n > PAPER_RULE_MAX):
             continue
         domain = make()
         starts = [hcvt.initialise(domain, n, method="random", seed=k) for k in range(seeds)]

@@ -238,14 +238,19 @@ def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any,
 
 
 def levels_figure(domain: Any, run: dict, path: Any) -> None:
-    """The CVT of every hierarchy level (paper Fig. 5), one shared colour scale."""
+    """The CVT of every hierarchy level (paper Figs. 1 and 5), one shared colour scale.
+
+    2D: the cells; 3D: cut views (the cells behind the median plane, Fig. 1 (e)).
+    """
     from hcvt.diagram import voronoi
 
     diagrams = [voronoi(domain, sites) for sites in run["levels_sites"]]
     vmin, vmax = shared_range([d.G for d in diagrams], domain.dim)
-    fig, axes = plt.subplots(1, len(diagrams), figsize=(4 * len(diagrams), 4.4))
-    for ax, diagram in zip(np.atleast_1d(axes), diagrams, strict=True):
-        plot_cells(diagram, ax, vmin=vmin, vmax=vmax, colorbar=False)
+    fig = plt.figure(figsize=(4 * len(diagrams), 4.4))
+    for k, diagram in enumerate(diagrams):
+        ax = fig.add_subplot(1, len(diagrams), k + 1, projection="3d" if domain.dim == 3 else None)
+        draw = plot_cells if domain.dim == 2 else plot_cut
+        draw(diagram, ax, vmin=vmin, vmax=vmax, colorbar=False)
     _shared_colorbar(fig, vmin, vmax, "cells")
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)

@@ -1,4 +1,4 @@
-"""Reproduction of the paper's experiments (tables 2–8, figures 5, 8, 9, 10, 12).
+"""Reproduction of the paper's experiments (tables 2–8, figures 1, 5, 8–12).
 
 One module per table or figure builds its :class:`Experiment`: a grid of :class:`Config`
 rows with its own dimension and table, and the paper's values from :data:`PAPER` (one
@@ -24,7 +24,18 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from hcvt.experiments import fig12, table2, table3, table4, table5, table6, table7, table8
+from hcvt.experiments import (
+    fig1,
+    fig11,
+    fig12,
+    table2,
+    table3,
+    table4,
+    table5,
+    table6,
+    table7,
+    table8,
+)
 from hcvt.experiments.base import (
     Config,
     Experiment,
@@ -71,7 +82,7 @@ __all__ = [
 ]
 
 # In the order of ``hcvt reproduce all``.
-MODULES = (table2, table3, table4, table5, table6, table7, table8, fig12)
+MODULES = (table2, table3, table4, table5, table6, table7, table8, fig12, fig1, fig11)
 
 
 def experiments(quick: bool) -> dict[str, Experiment]:
@@ -108,7 +119,7 @@ def reproduce(
         reports = [
             reproduce(e, runs=runs, quick=quick, scheduler=scheduler, out=out, progress=progress)
             for e in known
-            if not e.startswith("fig") or e == "fig12"
+            if not e.startswith("fig") or e in ("fig12", "fig1", "fig11")
         ]
         index = out / "all.md"
         index.write_text("\n".join(f"- [{p.stem}]({p.name})" for p in reports) + "\n")

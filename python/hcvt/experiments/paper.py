@@ -54,5 +54,10 @@ PAPER: dict[str, Any] = {
         ("star", 10000): (26.94, 26.97, 4),
         ("ball", 1000): (521.86, 205.82, 2),
         ("ball", 5000): (1484.69, 665.01, 3),
+        ("homer.obj", 50000): (15720.0, 7860.0, 4),
     },
+    # Figure 1: Homer, hierarchical from random sites, levels of 546, 4,375 and 35,000 cells
+    # (pictures only). Figure 11: CVTs of 50k, 80k and 100k sites (pictures only), by mesh.
+    "fig1": ("homer.obj", 35000, 2),
+    "fig11": {"bunny.off": 50000, "kitten.obj": 80000, "armadillo.obj": 100000},
 }

@@ -16,5 +16,6 @@ def experiments(quick: bool) -> list[Experiment]:
         2,
         ("levels",),
         table=levels_table,
+        paper_levels="table2",
     )
     return [table2, replace(table2, name="fig5")]
