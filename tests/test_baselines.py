@@ -19,13 +19,13 @@ def square_run():
 
 def test_energy_never_goes_up_over_accepted_updates(square_run):
     _, mc = square_run
-    kept = mc.history.best_energy
+    kept = mc.history["best_energy"]
     assert len(kept) == 41
     assert np.all(np.diff(kept) <= 0)
     # An accepted update is one whose local minimum is lower than what was kept before.
-    accepted = np.flatnonzero(mc.history.accepted[1:]) + 1
-    np.testing.assert_array_equal(kept[accepted], mc.history.energy[accepted])
-    assert np.all(mc.history.energy[accepted] < kept[accepted - 1])
+    accepted = np.flatnonzero(mc.history["accepted"][1:]) + 1
+    np.testing.assert_array_equal(kept[accepted], mc.history["energy"][accepted])
+    assert np.all(mc.history["energy"][accepted] < kept[accepted - 1])
     assert mc.accepted > 0
     assert mc.diagram.energy == kept[-1]
 
@@ -38,9 +38,9 @@ def test_rejected_updates_found_no_lower_minimum(square_run):
     # the paper's 200 updates are in docs/results.md, Table 4 (c).)
     _, mc = square_run
     history = mc.history
-    rejected = np.flatnonzero(~history.accepted[1:]) + 1
-    assert np.all(history.energy[rejected] >= history.best_energy[rejected - 1])
-    assert np.array_equal(history.best_energy[rejected], history.best_energy[rejected - 1])
+    rejected = np.flatnonzero(~history["accepted"][1:]) + 1
+    assert np.all(history["energy"][rejected] >= history["best_energy"][rejected - 1])
+    assert np.array_equal(history["best_energy"][rejected], history["best_energy"][rejected - 1])
     assert 4 <= mc.accepted <= 36, mc.accepted
     assert mc.sites.shape == (1033, 2)
 

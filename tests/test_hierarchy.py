@@ -143,3 +143,41 @@ def test_regularity_on_the_square_meets_the_paper():
     assert abs(np.median(plain) - 0.08101) < 1e-4
     assert np.median(hier) <= 0.08086 < np.median(plain)
     assert lattice <= 0.08077
+
+
+def test_history_has_the_shape_of_a_cvt_history_and_a_callback_can_stop():
+    from hcvt.shapes import square
+
+    domain = square()
+    levels = []
+
+    def callback(level):
+        levels.append(level.n)
+        if len(levels) == 2:
+            raise StopIteration
+
+    result = hcvt.hierarchical_cvt(domain, 400, 2, seed=1, callback=callback)
+    assert [lv.n for lv in result.levels] == levels == [25, 100]
+    h = result.history
+    per_level = [len(lv.history["energy"]) for lv in result.levels]
+    assert set(h) >= {"energy", "mean_G", "rms_gap", "max_gap", "grad_norm", "level"}
+    assert all(len(v) == sum(per_level) for v in h.values())
+    assert np.array_equal(np.bincount(h["level"]), per_level)
+    assert np.all(np.diff(h["evaluations"]) >= 0) and np.all(np.diff(h["seconds"]) >= 0)
+    assert h["rms_gap"][-1] == result.levels[-1].history["rms_gap"][-1] < 1e-7
+
+
+def test_rng_takes_a_seed_or_a_generator_as_numpy_does():
+    from hcvt.shapes import star
+
+    domain = star()
+    for method in ("random", "halton", "lattice"):
+        by_seed = hcvt.initialise(domain, 50, method=method, seed=4)
+        assert np.array_equal(hcvt.initialise(domain, 50, method=method, rng=4), by_seed)
+        generator = np.random.default_rng(4)
+        first = hcvt.initialise(domain, 50, method=method, rng=generator)
+        again = hcvt.initialise(domain, 50, method=method, rng=generator)
+        assert not np.array_equal(first, again), method  # the generator advanced
+    a = hcvt.hierarchical_cvt(domain, 200, 1, seed=3)
+    b = hcvt.hierarchical_cvt(domain, 200, 1, rng=3)
+    assert np.array_equal(a.sites, b.sites)

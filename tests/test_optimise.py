@@ -385,3 +385,17 @@ def test_single_site_goes_to_the_centroid():
     res = hcvt.cvt(domain, start, tol=1e-12)
     assert res.converged
     assert np.allclose(res.sites[0], domain.centroid, atol=1e-9 * spacing(domain, 1))
+
+
+def test_a_callback_may_stop_the_run_by_raising_stop_iteration():
+    # As scipy.optimize's callbacks do (issue 16).
+    domain = shapes.unit_square()
+    seen = []
+
+    def callback(info):
+        seen.append(info["evaluations"])
+        if len(seen) == 3:
+            raise StopIteration
+
+    res = hcvt.cvt(domain, random_inside(domain, 40, seed=2), callback=callback)
+    assert res.stop_reason == "interrupted" and res.iterations == 2 and len(seen) == 3

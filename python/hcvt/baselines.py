@@ -22,23 +22,14 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 from functools import partial
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt.diagram import Diagram
 from hcvt.domain import Domain
-
-
-@dataclass
-class MonteCarloHistory:
-    """One entry per update (index 0: the first local minimisation)."""
-
-    energy: NDArray[np.float64]  # energy of the local minimum reached by the update
-    best_energy: NDArray[np.float64]  # energy kept after the update (non-increasing)
-    mean_G: NDArray[np.float64]  # noqa: N815 - the paper's symbol; mean G kept
-    accepted: NDArray[np.bool_]  # whether the update was accepted (index 0: True)
-    seconds: NDArray[np.float64]  # wall-clock seconds since the start
+from hcvt.initialisation import RandomState, random_state
 
 
 @dataclass
@@ -47,7 +38,10 @@ class MonteCarloResult:
 
     sites: NDArray[np.float64]  # (n, d) the best sites found
     diagram: Diagram  # their diagram
-    history: MonteCarloHistory
+    # Arrays per field, as CVTResult.history, one entry per update (index 0: the first local
+    # minimisation): energy (of the minimum the update reached), best_energy (kept after it,
+    # non-increasing), mean_G (kept), accepted (bool; index 0 True), seconds (since start).
+    history: dict[str, NDArray[Any]]
     iterations: int  # L-BFGS iterations over every local minimisation
     evaluations: int  # diagrams computed
     seconds: float
@@ -55,7 +49,7 @@ class MonteCarloResult:
     @property
     def accepted(self) -> int:
         """Number of accepted perturbations (the first minimisation not counted)."""
-        return int(self.history.accepted[1:].sum())
+        return int(self.history["accepted"][1:].sum())
 
 
 def global_monte_carlo(
@@ -66,6 +60,7 @@ def global_monte_carlo(
     radius: float = 2.0,
     step: float = 0.5,
     seed: int = 0,
+    rng: RandomState = None,
     rule: str = "gap",
     tol: float | None = None,
     max_iter: int = 2000,
@@ -86,6 +81,8 @@ def global_monte_carlo(
         A move that would leave the domain is not made (the site stays).
     seed : int
         Seeds the choice of sites and displacements.
+    rng : int, numpy.random.Generator or None, optional
+        Random state as numpy takes it (SPEC 7); overrides ``seed``.
     rule, tol, max_iter
         Stopping rule, its tolerance and the iteration cap of each L-BFGS minimisation
         (see :func:`hcvt.cvt`).
@@ -101,7 +98,7 @@ def global_monte_carlo(
 
     if int(updates) != updates or updates < 0:
         raise ValueError(f"updates must be a non-negative integer, got {updates!r}")
-    rng = np.random.default_rng(seed)
+    generator = np.random.default_rng(random_state(seed, rng))
     start = time.perf_counter()
     minimise = partial(cvt, method="lbfgs", rule=rule, tol=tol, max_iter=max_iter)
     best = minimise(domain, sites)
@@ -111,7 +108,7 @@ def global_monte_carlo(
     records = [(best.diagram.energy, best.diagram.energy, best.diagram.mean_G, True)]
     times = [time.perf_counter() - start]
     for _ in _progress(range(int(updates)), progress):
-        trial_sites = perturb(domain, best.sites, rng, radius * h, step * h)
+        trial_sites = perturb(domain, best.sites, generator, radius * h, step * h)
         trial = minimise(domain, trial_sites)
         iterations += trial.iterations
         evaluations += trial.evaluations
@@ -121,13 +118,13 @@ def global_monte_carlo(
         records.append((trial.diagram.energy, best.diagram.energy, best.diagram.mean_G, accepted))
         times.append(time.perf_counter() - start)
     energy, best_energy, mean_g, accepted_flags = map(np.asarray, zip(*records, strict=True))
-    history = MonteCarloHistory(
-        energy=energy.astype(np.float64),
-        best_energy=best_energy.astype(np.float64),
-        mean_G=mean_g.astype(np.float64),
-        accepted=accepted_flags.astype(bool),
-        seconds=np.asarray(times),
-    )
+    history = {
+        "energy": energy.astype(np.float64),
+        "best_energy": best_energy.astype(np.float64),
+        "mean_G": mean_g.astype(np.float64),
+        "accepted": accepted_flags.astype(bool),
+        "seconds": np.asarray(times),
+    }
     return MonteCarloResult(
         sites=best.sites,
         diagram=best.diagram,

@@ -20,6 +20,7 @@ from scipy.spatial import cKDTree
 
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain
+from hcvt.initialisation import RandomState
 
 # Sites per subdivision in the ideal lattice: hexagonal 1 + 6/2, BCC 1 + 14/2 (paper §4.1.1).
 GROWTH = {2: 4, 3: 8}
@@ -293,6 +294,26 @@ class HierarchicalResult:
         """Total seconds over all levels."""
         return sum(level.seconds for level in self.levels)
 
+    @property
+    def history(self) -> dict[str, NDArray[Any]]:
+        """Every level's CVT history end to end, as :attr:`hcvt.CVTResult.history`.
+
+        Arrays per field, one entry per iterate of every level (each level's initial sites
+        first), with ``level`` (int) saying which; ``seconds`` and ``evaluations`` run on
+        across levels.
+        """
+        parts = [lv.history for lv in self.levels]
+        out: dict[str, NDArray[Any]] = {
+            key: np.concatenate([np.asarray(h[key]) for h in parts]) for key in parts[0]
+        }
+        out["level"] = np.repeat(np.arange(len(parts)), [len(h["energy"]) for h in parts])
+        for key in ("seconds", "evaluations"):
+            ends = np.cumsum([0] + [h[key][-1] for h in parts[:-1]])
+            out[key] = np.concatenate(
+                [np.asarray(h[key]) + end for h, end in zip(parts, ends, strict=True)]
+            )
+        return out
+
     def table(self) -> list[dict[str, Any]]:
         """The paper's Table 1 (k_i, b_i - k_i per level) with mean G and energy."""
         return [
@@ -317,6 +338,7 @@ def hierarchical_cvt(
     *,
     init: str = "random",
     seed: int = 0,
+    rng: RandomState = None,
     rule: str = "gap",
     tol: float | None = None,
     max_iter: int = 10_000,
@@ -338,6 +360,9 @@ def hierarchical_cvt(
         Level 0: random sites + L-BFGS, or an exact-count hexagonal/BCC lattice + L-BFGS.
     seed : int
         Seeds the initialisation and every top-up.
+    rng : int, numpy.random.Generator or None, optional
+        Random state as numpy takes it (SPEC 7); overrides ``seed`` (``rng=k`` is
+        ``seed=k``).
     rule : {"gap", "paper"}
         The stopping rule of every level (:func:`hcvt.cvt`): the scale-free RMS gap
         (default) or the paper's ``‖g‖/‖X‖`` in input coordinates.
@@ -350,14 +375,15 @@ def hierarchical_cvt(
     method : {"lbfgs", "newton", "lloyd"}
         The optimiser of every level (:func:`hcvt.cvt`); the paper's is L-BFGS.
     callback : callable, optional
-        Called with each finished :class:`Level`.
+        Called with each finished :class:`Level`; a true return value or ``StopIteration``
+        ends the run after that level (the result then holds the levels made).
 
     Returns
     -------
     HierarchicalResult
         ``sites`` (n, d), ``diagram``, and ``levels`` (the paper's Table 1 in ``table()``).
     """
-    from hcvt.initialisation import initialise
+    from hcvt.initialisation import initialise, random_state
     from hcvt.optimise import check_rule, cvt
 
     check_rule(rule)
@@ -368,16 +394,18 @@ def hierarchical_cvt(
     if subdivisions is None:
         subdivisions = max_subdivisions(int(n), domain.dim)
     plan = schedule(n, subdivisions, domain.dim)
-    rng = np.random.default_rng(seed)
+    generator = np.random.default_rng(random_state(seed, rng))
     result = HierarchicalResult(schedule=plan)
 
     start = time.perf_counter()
-    sites = initialise(domain, plan.k0, method=init, seed=seed)
+    # An int seeds the initialisation and the top-ups apart (as ``seed`` always has); a
+    # Generator serves both, in that order.
+    sites = initialise(domain, plan.k0, method=init, rng=random_state(seed, rng))
     optimise = partial(cvt, method=method, rule=rule, tol=tol, max_iter=max_iter)
     level = _optimise_level(optimise, domain, sites, len(sites), 0, start)
     result.levels.append(level)
-    if callback is not None:
-        callback(level)
+    if _stop_asked(callback, level):
+        return result
     for target in plan.targets:
         start = time.perf_counter()
         previous = result.levels[-1]
@@ -386,12 +414,22 @@ def hierarchical_cvt(
         if k > target:
             midpoints = trim(previous.diagram, midpoints, pairs, k - target)
         sites = np.vstack([previous.sites, midpoints])
-        sites = top_up(domain, sites, target, rng)
+        sites = top_up(domain, sites, target, generator)
         level = _optimise_level(optimise, domain, sites, k, target - k, start)
         result.levels.append(level)
-        if callback is not None:
-            callback(level)
+        if _stop_asked(callback, level):
+            break
     return result
+
+
+def _stop_asked(callback: Any, level: Level) -> bool:
+    """Call ``callback(level)``; a true return value or ``StopIteration`` asks to stop."""
+    if callback is None:
+        return False
+    try:
+        return bool(callback(level))
+    except StopIteration:
+        return True
 
 
 def _optimise_level(

@@ -44,8 +44,22 @@ LATTICE_POSES = 8
 UNIT_SPACING = {2: 1.0, 3: np.sqrt(3.0) / 2.0}
 
 
+#: What ``rng=`` takes (SPEC 7): a seed, a generator (used and advanced), or None (fresh).
+RandomState = int | np.random.Generator | None
+
+
+def random_state(seed: int, rng: RandomState) -> int | np.random.Generator | None:
+    """``rng`` when given, else the legacy ``seed``: what numpy's and scipy's ``rng=`` take."""
+    return seed if rng is None else rng
+
+
 def initialise(
-    domain: Domain, n: int, method: str = "random", seed: int = 0
+    domain: Domain,
+    n: int,
+    method: str = "random",
+    seed: int = 0,
+    *,
+    rng: RandomState = None,
 ) -> NDArray[np.float64]:
     """Exactly ``n`` sites strictly inside ``domain``.
 
@@ -62,7 +76,11 @@ def initialise(
         sequence order until ``n`` lie inside; the sequence is extensible, so the count is
         exact. ``hammersley``: see :func:`hammersley`. ``lattice``: see :func:`lattice`.
     seed : int
-        Seeds the method (the Hammersley set is fixed and ignores it).
+        Seeds the method (the Hammersley set is fixed and ignores it); kept for
+        compatibility, ``rng`` is the numpy way.
+    rng : int, numpy.random.Generator or None, optional
+        Random state as numpy's ``default_rng`` takes it (SPEC 7); overrides ``seed``.
+        ``rng=k`` gives the same sites as ``seed=k``.
 
     Returns
     -------
@@ -86,15 +104,16 @@ def initialise(
     n = check_count(n, domain.dim)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
+    state = random_state(seed, rng)
     if method == "random":
-        rng = np.random.default_rng(seed)
-        return _rejection(domain, n, lambda m: rng.random((m, domain.dim)))
+        generator = np.random.default_rng(state)
+        return _rejection(domain, n, lambda m: generator.random((m, domain.dim)))
     if method == "halton":
-        engine = qmc.Halton(domain.dim, scramble=True, rng=seed)
+        engine = qmc.Halton(domain.dim, scramble=True, rng=state)
         return _rejection(domain, n, engine.random)
     if method == "hammersley":
         return hammersley(domain, n)
-    return lattice(domain, n, seed).sites
+    return lattice(domain, n, seed, rng=rng).sites
 
 
 def check_count(n: object, dim: int) -> int:
@@ -305,7 +324,7 @@ class _Gaps:
     count: NDArray[np.int64]
 
 
-def lattice(domain: Domain, n: int, seed: int = 0) -> LatticeResult:
+def lattice(domain: Domain, n: int, seed: int = 0, *, rng: RandomState = None) -> LatticeResult:
     """Hexagonal (2D) or BCC (3D) lattice with exactly ``n`` sites inside ``domain``.
 
     The lattice is posed once per attempt (a random rotation and a random offset from
@@ -331,6 +350,8 @@ def lattice(domain: Domain, n: int, seed: int = 0) -> LatticeResult:
         Number of sites, at least 1.
     seed : int
         Seeds the poses.
+    rng : int, numpy.random.Generator or None, optional
+        As for :func:`initialise`; overrides ``seed``.
 
     Returns
     -------
@@ -339,14 +360,14 @@ def lattice(domain: Domain, n: int, seed: int = 0) -> LatticeResult:
     """
     n = check_count(n, domain.dim)
     dim = domain.dim
-    rng = np.random.default_rng(seed)
+    generator = np.random.default_rng(random_state(seed, rng))
     pieces = _boundary_pieces(domain)
     # Unit-lattice scale with the lattice's Voronoi cell volume V / n.
     cell_volume = {2: np.sqrt(3.0) / 2.0, 3: 0.5}[dim]
     scale0 = float((domain.volume / n / cell_volume) ** (1.0 / dim))
     closest: tuple[int, _Pose, float] | None = None
     for _ in range(LATTICE_POSES):
-        pose = _Pose.of(pieces, *_random_pose(domain, scale0, rng))
+        pose = _Pose.of(pieces, *_random_pose(domain, scale0, generator))
 
         def count(scale: float, pose: _Pose = pose) -> int:
             return int(_gaps(domain, pose, scale).count.sum())

@@ -157,7 +157,8 @@ def cvt(
     callback : callable, optional
         ``callback(info)`` after every iterate (the initial sites first), ``info`` a dict
         with the history fields of that iterate and ``sites`` (n, d). Returning a true
-        value stops the run (``stop_reason == "interrupted"``).
+        value, or raising ``StopIteration`` as with scipy.optimize, stops the run
+        (``stop_reason == "interrupted"``).
     progress : bool
         Show a progress bar (rich) of the rule's value towards ``tol``.
 
@@ -244,7 +245,12 @@ def _chain(
     def observe(info: dict[str, Any]) -> bool:
         if bar is not None:
             bar.update(info)
-        return bool(callback(info)) if callback is not None else False
+        if callback is None:
+            return False
+        try:
+            return bool(callback(info))
+        except StopIteration:  # scipy.optimize's way to stop from a callback
+            return True
 
     return observe
 
