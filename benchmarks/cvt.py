@@ -170,9 +170,7 @@ def lloyd_baselines(domain: hcvt.Domain, sites: np.ndarray) -> None:
     )
 
 
-def homer_row(
-    name: str, n: int, paper: float, domain: hcvt.Domain, sites: np.ndarray, method: str
-) -> None:
+def homer_row(name: str, n: int, domain: hcvt.Domain, sites: np.ndarray, method: str) -> None:
     """One run from seed 0 to the default rule (within HOMER_BUDGET seconds).
 
     No ratio to the paper: in this file's units (volume 0.021) the paper's rule holds long
@@ -188,7 +186,7 @@ def homer_row(
     h = res.history
     first = int(np.argmax(h["grad_norm"] < TOL))
     print(
-        f"{name:<12}{n:>7}{method:>8}{'-':>9}{paper:>9.0f}{'-':>7}{res.iterations:>7}"
+        f"{name:<12}{n:>7}{method:>8}{'-':>9}{'-':>9}{'-':>7}{res.iterations:>7}"
         f"{res.evaluations:>9}{res.mean_G:>9.5f}{h['rms_gap'][-1]:>9.1e}{h['max_gap'][-1]:>9.1e}"
         f"{res.seconds:>12.3f} s"
         + ("" if res.converged else f"  [stopped after {HOMER_BUDGET:.0f} s]")
@@ -230,7 +228,7 @@ def main() -> None:
         timed = {}
         for method in args.methods:
             if n > PAPER_RULE_MAX:
-                homer_row(name, n, paper, domain, sites, method)
+                homer_row(name, n, domain, sites, method)
                 continue
             per_seed = [
                 median_run(lambda d=domain, s=s, m=method: hcvt.cvt(d, s, m, rule="paper"), repeat)

@@ -140,9 +140,9 @@ def cvt(
     method : {"lbfgs", "newton", "lloyd"}
         L-BFGS (memory ``memory``, strong-Wolfe line search, preconditioned so that its
         first step is a Lloyd step; the paper's method), Newton (the exact Hessian from
-        the same diagram, truncated conjugate gradients in a trust region; usually 2-4x
-        fewer diagrams, see ``hcvt-core/src/optimise/newton.rs``; the Hessian takes about
-        0.2 kB per site in 2D and 1.2 kB in 3D on top of the diagram) or Lloyd's
+        the same diagram, truncated conjugate gradients in a trust region; 3-5x fewer
+        diagrams from random sites, see ``hcvt-core/src/optimise/newton.rs``; the Hessian
+        takes about 0.2 kB per site in 2D and 1.2 kB in 3D on top of the diagram) or Lloyd's
         ``x_i <- c_i``.
     rule : {"gap", "paper"}
         Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``

@@ -313,7 +313,14 @@ impl<const D: usize> Tracker<D> {
         evaluate_with::<D, C>(boundary, sites, self.hessian)
     }
 
-    fn record(&mut self, boundary: &Boundary<D>, point: &Point<D>, step: Step) -> Record
+    /// Record `point` in the history; also returns which sites are pinned
+    /// ([`lloyd::pinned_sites`]), which Newton's next step holds still.
+    fn record(
+        &mut self,
+        boundary: &Boundary<D>,
+        point: &Point<D>,
+        step: Step,
+    ) -> (Record, Vec<bool>)
     where
         Euclid: Space<D> + WindingNumber<D>,
     {
@@ -327,7 +334,7 @@ impl<const D: usize> Tracker<D> {
             step,
         };
         self.history.push(record);
-        record
+        (record, pinned)
     }
 }
 
@@ -411,7 +418,7 @@ where
         region: TrustRegion::default(),
         search: LineSearch::new(settings.max_line_evaluations),
     };
-    let mut record = tracker.record(boundary, &point, Step::Start);
+    let (mut record, mut pinned) = tracker.record(boundary, &point, Step::Start);
     let stop = loop {
         if observer(&record, &point.sites).is_break() {
             break StopReason::Interrupted;
@@ -433,11 +440,12 @@ where
                 &point,
                 &mut solver,
                 &record.measures,
+                &pinned,
                 &mut tracker,
             )?,
         };
         point = next;
-        record = tracker.record(boundary, &point, step);
+        (record, pinned) = tracker.record(boundary, &point, step);
     };
     Ok(Outcome {
         sites: point.sites,
@@ -458,12 +466,13 @@ struct Solver<const D: usize> {
 
 /// One iteration of the solver's method from `point`: an L-BFGS or Newton step, or a Lloyd
 /// step when that is the method or when no step was found (module docs, "Round-off").
-/// `measures` are those of `point`.
+/// `measures` and `pinned` are those of `point`.
 fn iterate<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     point: &Point<D>,
     solver: &mut Solver<D>,
     measures: &Measures,
+    pinned: &[bool],
     tracker: &mut Tracker<D>,
 ) -> Result<(Point<D>, Step), CoreError>
 where
@@ -479,10 +488,9 @@ where
         let next = if solver.method == Method::Newton {
             let forcing = newton::forcing(measures);
             let trials = solver.search.max_evaluations;
-            let frozen = lloyd::pinned_sites(boundary, point);
             let next = newton::step(
                 point,
-                &frozen,
+                pinned,
                 &mut solver.region,
                 forcing,
                 trials,

@@ -45,17 +45,14 @@ pub const MAX_CG_ITERATIONS: usize = 200;
 /// Accept a step when the energy falls by at least this fraction of the model's decrease.
 const ACCEPT: f64 = 0.1;
 
-/// CG's relative residual `η = min(1/2, FORCING √RMS gap)` at a point with `measures`.
+/// CG's relative residual `η = min(1/2, √RMS gap)` at a point with `measures`.
 ///
 /// Nocedal and Wright's `min(1/2, √‖g‖)` gives superlinear convergence but depends on the
 /// unit; the RMS gap is the gradient per site relative to its cell (`|g_i| / (2 m_i h_i)`),
 /// so the same sequence is free of unit and `n`.
 pub fn forcing(measures: &Measures) -> f64 {
-    (FORCING * measures.rms_gap.sqrt()).min(0.5)
+    measures.rms_gap.sqrt().min(0.5)
 }
-
-/// Factor of [`forcing`].
-const FORCING: f64 = 1.0;
 
 /// The trust region's radius and per-site stiffness, kept from step to step.
 #[derive(Debug, Clone, Default)]
