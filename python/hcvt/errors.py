@@ -13,3 +13,10 @@ class InvalidSitesError(ValueError):
 
     The message names the first offending site by its row index.
     """
+
+
+class InvalidMeshError(ValueError):
+    """A :class:`hcvt.polymesh.PolyMesh` is not a conforming mesh (open cell, bad index, ...).
+
+    The message names the first offending cell or face.
+    """

@@ -1,0 +1,1 @@
+"""Writing conforming meshes: OpenFOAM cases, VTU files; their quality figures."""

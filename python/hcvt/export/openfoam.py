@@ -1,0 +1,353 @@
+"""OpenFOAM case: ``constant/polyMesh`` and the ``system/`` files its tools need.
+
+The polyMesh format (OpenFOAM user guide, "Mesh description"): ``points`` (vectorField),
+``faces`` (faceList; faceCompactList in binary), ``owner`` and ``neighbour`` (labelList),
+``boundary`` (polyBoundaryMesh). OpenFOAM requires
+
+- each face's normal pointing out of its owner, and owner < neighbour on interior faces;
+- interior faces first, in upper-triangular order: sorted by owner, then by neighbour;
+- boundary faces after them, grouped by patch; a patch is ``nFaces`` consecutive faces
+  from ``startFace``.
+
+A 2D mesh is extruded one cell thick along z, its front and back faces forming the patch
+``frontAndBack`` of type ``empty``: OpenFOAM's way of solving in 2D.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hcvt.export.patches import boundary_patches
+from hcvt.polymesh import PolyMesh
+
+if TYPE_CHECKING:
+    from hcvt.domain import Domain
+
+#: Label and scalar sizes written in binary files (OpenFOAM's default build, and Debian's).
+ARCH = "LSB;label=32;scalar=64"
+
+_BANNER = "// Written by hcvt.\n"
+
+
+def write_openfoam(
+    mesh: PolyMesh,
+    case: str | Path,
+    *,
+    domain: Domain | None = None,
+    labels: ArrayLike | None = None,
+    binary: bool = False,
+    thickness: float | None = None,
+    cell_data: dict[str, ArrayLike] | None = None,
+) -> Path:
+    """Write ``mesh`` as the OpenFOAM case directory ``case``.
+
+    Parameters
+    ----------
+    mesh : PolyMesh
+        A conforming mesh (checked with :meth:`PolyMesh.check`); its cells without faces
+        (empty cells) are left out, the others renumbered in order.
+    case : str or Path
+        Directory; created if missing. Written: ``constant/polyMesh/{points, faces,
+        owner, neighbour, boundary}``, ``system/{controlDict, fvSchemes, fvSolution}`` (so
+        ``checkMesh -case DIR`` and ``foamToVTK`` run), and ``0/site`` (the site of each
+        cell, a volScalarField) plus one ``0/<name>`` per ``cell_data`` entry.
+    domain, labels
+        Patches: see :func:`hcvt.export.patches.boundary_patches`. Every patch is of type
+        ``wall``.
+    binary : bool, default False
+        Binary lists (``format binary``, 32-bit labels, 64-bit scalars: ``ARCH``); much
+        faster to write and read for large meshes. Text otherwise, with every coordinate
+        written to the 17 digits that round-trip.
+    thickness : float, optional
+        2D only: the extrusion's depth along z, L; default the mean cell size ``(A/n)^½``.
+    cell_data : dict of str to array_like of shape (n,), optional
+        Per-cell values (row ``i`` is cell ``i`` of ``mesh``) written as volScalarFields.
+
+    Returns
+    -------
+    Path
+        ``case``.
+    """
+    mesh.check()
+    patch, names = boundary_patches(mesh, domain, labels)
+    compact, kept = mesh.compacted()
+    fields = {"site": kept.astype(np.float64)}
+    for name, values in (cell_data or {}).items():
+        fields[name] = np.asarray(values, dtype=np.float64)[kept]
+    types = ["wall"] * len(names)
+    if compact.dim == 2:
+        compact, patch, names = _extrude(compact, patch, names, thickness)
+        types.append("empty")
+    points, faces, owner, neighbour, sizes = _upper_triangular(compact, patch, len(names))
+    root = Path(case)
+    poly = root / "constant" / "polyMesh"
+    poly.mkdir(parents=True, exist_ok=True)
+    fmt = "binary" if binary else "ascii"
+    note = (
+        f"nPoints:{len(points)} nCells:{compact.n_cells} nFaces:{len(owner)} "
+        f"nInternalFaces:{len(neighbour)}"
+    )
+    _write_list(poly / "points", "vectorField", points, fmt)
+    _write_faces(poly / "faces", faces, fmt)
+    _write_list(poly / "owner", "labelList", owner, fmt, note)
+    _write_list(poly / "neighbour", "labelList", neighbour, fmt, note)
+    _write_boundary(poly / "boundary", names, types, sizes, len(neighbour))
+    _write_system(root)
+    for name, values in fields.items():
+        _write_field(root / "0" / name, name, values, names)
+    return root
+
+
+# ----------------------------------------------------------------------------- ordering
+def _upper_triangular(
+    mesh: PolyMesh, patch: NDArray[np.intp], n_patches: int
+) -> tuple[
+    NDArray[np.float64],
+    tuple[NDArray[np.intp], NDArray[np.intp]],
+    NDArray[np.intp],
+    NDArray[np.intp],
+    NDArray[np.intp],
+]:
+    """Points, faces (offsets, vertices), owner, neighbour and patch sizes, reordered.
+
+    OpenFOAM's order: interior faces with owner < neighbour sorted by (owner, neighbour),
+    then the boundary faces patch by patch (by owner within a patch).
+    """
+    owner, neighbour = mesh.owner.copy(), mesh.neighbour.copy()
+    flip = mesh.interior & (owner > neighbour)
+    owner[flip], neighbour[flip] = mesh.neighbour[flip], mesh.owner[flip]
+    inner = mesh.interior
+    # Sort keys: interior faces first (patch -1), then by patch, owner, neighbour, index.
+    order = np.lexsort((np.arange(mesh.n_faces), neighbour, owner, np.where(inner, -1, patch)))
+    sizes = mesh.face_sizes[order]
+    offsets = np.zeros(len(order) + 1, dtype=np.intp)
+    np.cumsum(sizes, out=offsets[1:])
+    # Gather each face's vertices in the new order, reversed where owner and neighbour
+    # swapped so that the normal still points out of the owner.
+    start = mesh.face_offsets[order]
+    within = np.arange(offsets[-1]) - np.repeat(offsets[:-1], sizes)
+    reverse = np.repeat(flip[order], sizes)
+    # A reversed loop keeps its first vertex: (v0, v_{k-1}, ..., v1).
+    k = np.repeat(sizes, sizes)
+    position = np.where(reverse, (k - within) % k, within)
+    vertices = mesh.face_vertices[np.repeat(start, sizes) + position]
+    n_inner = int(inner.sum())
+    counts = np.bincount(patch[order][n_inner:], minlength=n_patches)
+    return mesh.points, (offsets, vertices), owner[order], neighbour[order][:n_inner], counts
+
+
+# ----------------------------------------------------------------------------- 2D
+def _extrude(
+    mesh: PolyMesh, patch: NDArray[np.intp], names: list[str], thickness: float | None
+) -> tuple[PolyMesh, NDArray[np.intp], list[str]]:
+    """A 2D mesh extruded to one layer of prisms ``[0, thickness]`` along z.
+
+    Each edge becomes a quad (a0, b0, b1, a1), outward like its edge; each cell's boundary
+    loops become its back face (z = thickness, counter-clockwise seen from +z) and front
+    face (z = 0, reversed), in the patch ``frontAndBack``. A cell with a hole has its
+    front and back triangulated (shapely's constrained Delaunay, on its own vertices).
+    """
+    p = len(mesh.points)
+    volume = mesh.cell_geometry.volume
+    depth = float(np.sqrt(volume.sum() / mesh.n_cells)) if thickness is None else thickness
+    if not depth > 0:
+        raise ValueError(f"thickness must be positive, got {thickness}")
+    points = np.vstack(
+        [
+            np.column_stack([mesh.points, np.zeros(p)]),
+            np.column_stack([mesh.points, np.full(p, depth)]),
+        ]
+    )
+    a, b = mesh.face_vertices[0::2], mesh.face_vertices[1::2]
+    sides = np.column_stack([a, b, b + p, a + p])
+    caps: list[NDArray[np.intp]] = []
+    cap_cell: list[int] = []
+    for cell, pieces in enumerate(mesh.cell_polygons()):
+        for ring in pieces:
+            caps += [ring[::-1], ring + p]
+            cap_cell += [cell, cell]
+    cap_sizes = np.array([len(c) for c in caps], dtype=np.intp)
+    offsets = np.concatenate([np.arange(0, 4 * len(a) + 1, 4), 4 * len(a) + np.cumsum(cap_sizes)])
+    extruded = PolyMesh(
+        points=points,
+        face_offsets=offsets.astype(np.intp),
+        face_vertices=np.concatenate([sides.ravel(), *caps]).astype(np.intp),
+        owner=np.concatenate([mesh.owner, np.asarray(cap_cell, dtype=np.intp)]),
+        neighbour=np.concatenate([mesh.neighbour, np.full(len(caps), -1, dtype=np.intp)]),
+        boundary_element=np.concatenate([mesh.boundary_element, np.full(len(caps), -1)]),
+        n_cells=mesh.n_cells,
+    )
+    front_back = np.full(len(caps), len(names), dtype=np.intp)
+    return extruded, np.concatenate([patch, front_back]), [*names, "frontAndBack"]
+
+
+# ----------------------------------------------------------------------------- files
+def _header(cls: str, obj: str, fmt: str, location: str, note: str | None = None) -> str:
+    lines = [
+        _BANNER,
+        "FoamFile\n{\n",
+        "    version     2.0;\n",
+        f"    format      {fmt};\n",
+    ]
+    if fmt == "binary":
+        lines.append(f'    arch        "{ARCH}";\n')
+    lines.append(f"    class       {cls};\n")
+    if note:
+        lines.append(f'    note        "{note}";\n')
+    lines += [f'    location    "{location}";\n', f"    object      {obj};\n", "}\n\n"]
+    return "".join(lines)
+
+
+def _location(path: Path) -> str:
+    """``constant/polyMesh`` for a mesh file, else the directory's own name."""
+    if path.parent.name == "polyMesh":
+        return f"{path.parent.parent.name}/{path.parent.name}"
+    return path.parent.name
+
+
+def _write_list(path: Path, cls: str, values: NDArray, fmt: str, note: str | None = None) -> None:
+    """A vectorField (rows of 3) or labelList (ints), text or binary."""
+    head = _header(cls, path.name, fmt, _location(path), note)
+    with path.open("wb") as out:
+        out.write(head.encode("ascii"))
+        out.write(f"{len(values)}\n(".encode("ascii"))
+        if fmt == "binary":
+            dtype = "<f8" if cls == "vectorField" else "<i4"
+            out.write(np.ascontiguousarray(values, dtype=dtype).tobytes())
+            out.write(b")\n")
+        else:
+            out.write(b"\n")
+            out.write(_text(values).encode("ascii"))
+            out.write(b")\n")
+
+
+def _text(values: NDArray) -> str:
+    """Rows ``(x y z)`` of a (k, 3) float array, or one int per line.
+
+    Shortest round-trip digits, formatted by numpy in C rather than one Python call per
+    number.
+    """
+    if values.ndim == 1:
+        return "\n".join(values.astype(np.int64).astype(str).tolist()) + "\n"
+    words = np.ascontiguousarray(values, dtype=np.float64).astype(str)
+    rows = np.char.add(np.char.add(np.char.add("(", words[:, 0]), " "), words[:, 1])
+    rows = np.char.add(np.char.add(np.char.add(rows, " "), words[:, 2]), ")")
+    return "\n".join(rows.tolist()) + "\n"
+
+
+def _write_faces(path: Path, faces: tuple[NDArray[np.intp], NDArray[np.intp]], fmt: str) -> None:
+    """Write the faces: a faceList in text, a faceCompactList in binary.
+
+    Text: ``k( v0 v1 ... )`` per line. Binary: the offsets list, then the vertices list.
+    """
+    offsets, vertices = faces
+    sizes = np.diff(offsets)
+    cls = "faceCompactList" if fmt == "binary" else "faceList"
+    with path.open("wb") as out:
+        out.write(_header(cls, "faces", fmt, "constant/polyMesh").encode("ascii"))
+        if fmt == "binary":
+            for values in (offsets, vertices):
+                out.write(f"{len(values)}\n(".encode("ascii"))
+                out.write(np.ascontiguousarray(values, dtype="<i4").tobytes())
+                out.write(b")\n")
+            return
+        # Tokens "k(" v0 ... v_{k-1} ")" joined by spaces: OpenFOAM's tokenizer ignores
+        # the blank between a bracket and a number.
+        tokens = np.empty(len(vertices) + 2 * len(sizes), dtype=object)
+        face_of = np.repeat(np.arange(len(sizes)), sizes)
+        tokens[np.arange(len(vertices)) + 2 * face_of + 1] = vertices.astype(str).tolist()
+        tokens[offsets[:-1] + 2 * np.arange(len(sizes))] = np.char.add(
+            sizes.astype(str), "("
+        ).tolist()
+        tokens[offsets[1:] + 2 * np.arange(len(sizes)) + 1] = ")\n"
+        out.write(f"{len(sizes)}\n(\n".encode("ascii"))
+        out.write(" ".join(tokens.tolist()).replace("\n ", "\n").encode("ascii"))
+        out.write(b")\n")
+
+
+def _write_boundary(
+    path: Path, names: list[str], types: list[str], sizes: NDArray[np.intp], start: int
+) -> None:
+    entries = []
+    for name, kind, size in zip(names, types, sizes.tolist(), strict=True):
+        group = f"    inGroups        List<word> 1({kind});\n" if kind == "wall" else ""
+        entries.append(
+            f"    {name}\n    {{\n        type            {kind};\n"
+            + group.replace("    inGroups", "        inGroups")
+            + f"        nFaces          {size};\n        startFace       {start};\n    }}\n"
+        )
+        start += size
+    body = f"{len(names)}\n(\n" + "".join(entries) + ")\n"
+    path.write_text(_header("polyBoundaryMesh", "boundary", "ascii", "constant/polyMesh") + body)
+
+
+def _write_field(path: Path, name: str, values: NDArray[np.float64], patches: list[str]) -> None:
+    """A dimensionless volScalarField.
+
+    Its boundaries are zeroGradient (empty on the frontAndBack of an extruded 2D mesh).
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    words = values.astype(str).tolist()
+    boundary = "".join(
+        f"    {p}\n    {{\n        type            "
+        f"{'empty' if p == 'frontAndBack' else 'zeroGradient'};\n    }}\n"
+        for p in patches
+    )
+    body = (
+        "dimensions      [0 0 0 0 0 0 0];\n\n"
+        f"internalField   nonuniform List<scalar>\n{len(words)}\n(\n"
+        + "\n".join(words)
+        + "\n)\n;\n\nboundaryField\n{\n"
+        + boundary
+        + "}\n"
+    )
+    path.write_text(_header("volScalarField", name, "ascii", "0") + body)
+
+
+_CONTROL_DICT = """application     checkMesh;
+startFrom       startTime;
+startTime       0;
+stopAt          endTime;
+endTime         0;
+deltaT          1;
+writeControl    timeStep;
+writeInterval   1;
+purgeWrite      0;
+writeFormat     ascii;
+writePrecision  17;
+writeCompression off;
+timeFormat      general;
+timePrecision   6;
+runTimeModifiable false;
+"""
+
+_FV_SCHEMES = """ddtSchemes { default steadyState; }
+gradSchemes { default Gauss linear; }
+divSchemes { default none; }
+laplacianSchemes { default Gauss linear corrected; }
+interpolationSchemes { default linear; }
+snGradSchemes { default corrected; }
+"""
+
+_FV_SOLUTION = """solvers {}
+SIMPLE { nNonOrthogonalCorrectors 0; }
+"""
+
+
+def _write_system(root: Path) -> None:
+    """Minimal ``system/`` dictionaries, enough for checkMesh, foamToVTK and paraFoam.
+
+    A solver needs its own schemes and solvers.
+    """
+    system = root / "system"
+    system.mkdir(parents=True, exist_ok=True)
+    for name, body in (
+        ("controlDict", _CONTROL_DICT),
+        ("fvSchemes", _FV_SCHEMES),
+        ("fvSolution", _FV_SOLUTION),
+    ):
+        (system / name).write_text(_header("dictionary", name, "ascii", "system") + body)

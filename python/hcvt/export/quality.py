@@ -1,0 +1,132 @@
+"""Mesh quality as OpenFOAM's ``checkMesh`` measures it.
+
+Cell volume, face non-orthogonality and skewness.
+
+Definitions (OpenFOAM ``primitiveMeshTools``; centres as in
+:attr:`hcvt.polymesh.PolyMesh.face_geometry` and ``cell_geometry``, which follow it):
+
+- **non-orthogonality** of an interior face: the angle, in degrees, between its area
+  vector ``S`` and ``d = C_N - C_P``, the segment from the owner's centroid to the
+  neighbour's. 0 for a Voronoi face whose cells' centroids are their sites (a CVT).
+- **skewness** of an interior face: how far ``d`` misses the face centre ``c_f``. With
+  ``s = (c_f - C_P) - (S·(c_f - C_P) / S·d) d`` (from the point where ``d`` crosses the
+  face's plane to the face centre), skewness ``|s| / max(0.2 |d|, max_v |ŝ·(v - c_f)|)``
+  over the face's vertices ``v``: ``|s|`` relative to the face's extent in that direction.
+  A boundary face takes ``d`` as the normal projection of ``c_f - C_P`` and ``0.4 |d|``
+  (as if mirrored across the face). ``checkMesh`` flags faces above 4.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    from hcvt.polymesh import PolyMesh
+
+#: checkMesh's thresholds: non-orthogonality (degrees) and skewness it reports as bad.
+NON_ORTHOGONALITY_LIMIT = 70.0
+SKEWNESS_LIMIT = 4.0
+
+# OpenFOAM's guard against 0/0 in the skewness (ROOTVSMALL).
+_ROOT_VSMALL = 1e-150
+
+
+@dataclass(frozen=True)
+class MeshQuality:
+    """Per-cell and per-face quality of a mesh (see module docs for definitions).
+
+    Attributes
+    ----------
+    volume : ndarray, shape (n,)
+        Cell areas (2D) or volumes (3D) from the faces, L^d (0 for an empty cell).
+    non_orthogonality : ndarray, shape (f,)
+        Degrees, for interior faces; NaN on boundary faces.
+    skewness : ndarray, shape (f,)
+        Dimensionless, every face.
+    """
+
+    volume: NDArray[np.float64]
+    non_orthogonality: NDArray[np.float64]
+    skewness: NDArray[np.float64]
+    interior: NDArray[np.bool_]
+
+    def summary(self) -> dict[str, Any]:
+        """Figures in the style of ``checkMesh``, as plain numbers for JSON.
+
+        ``volume_min``, ``volume_max``, ``volume_total`` (non-empty cells),
+        ``non_orthogonality_max``, ``non_orthogonality_average`` (interior faces; the
+        angle of the mean cosine, as checkMesh prints it),
+        ``skewness_max``, and the counts of faces beyond checkMesh's limits.
+        """
+        cells = self.volume[self.volume > 0]
+        angle = self.non_orthogonality[self.interior]
+        return {
+            "cells": int(len(cells)),
+            "faces": int(len(self.skewness)),
+            "volume_min": float(cells.min()) if len(cells) else 0.0,
+            "volume_max": float(cells.max()) if len(cells) else 0.0,
+            "volume_total": float(cells.sum()),
+            "non_orthogonality_max": float(angle.max()) if len(angle) else 0.0,
+            # checkMesh's "average": the angle of the mean cosine, not the mean angle.
+            "non_orthogonality_average": (
+                float(np.degrees(np.arccos(np.cos(np.radians(angle)).mean())))
+                if len(angle)
+                else 0.0
+            ),
+            "non_orthogonal_faces": int((angle > NON_ORTHOGONALITY_LIMIT).sum()),
+            "skewness_max": float(self.skewness.max()) if len(self.skewness) else 0.0,
+            "skew_faces": int((self.skewness > SKEWNESS_LIMIT).sum()),
+        }
+
+
+def mesh_quality(mesh: PolyMesh) -> MeshQuality:
+    """Cell volumes, face non-orthogonality and skewness of ``mesh`` (module docs).
+
+    Examples
+    --------
+    A grid of boxes is orthogonal and unskewed:
+
+    >>> import numpy as np
+    >>> from hcvt.polymesh import PolyMesh
+    >>> pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], dtype=float)
+    >>> edges = [[1, 4], [0, 1], [4, 3], [3, 0], [1, 2], [2, 5], [5, 4]]
+    >>> m = PolyMesh(pts, np.arange(0, 15, 2), np.array(edges).ravel(),
+    ...              owner=np.array([0, 0, 0, 0, 1, 1, 1]),
+    ...              neighbour=np.array([1, -1, -1, -1, -1, -1, -1]),
+    ...              boundary_element=np.array([-1, 0, 1, 2, 0, 3, 1]), n_cells=2)
+    >>> q = mesh_quality(m)
+    >>> q.non_orthogonality[0], q.skewness.max()
+    (np.float64(0.0), np.float64(0.0))
+    """
+    centre, area = mesh.face_geometry
+    volume, centroid = mesh.cell_geometry
+    inner = mesh.interior
+    own = centroid[mesh.owner]
+    d = np.where(inner[:, None], centroid[np.maximum(mesh.neighbour, 0)] - own, 0.0)
+    cpf = centre - own
+    # A boundary face measures against its owner's mirror image: d along the normal.
+    unit = area / np.maximum(np.linalg.norm(area, axis=1), _ROOT_VSMALL)[:, None]
+    d = np.where(inner[:, None], d, unit * _dot(unit, cpf)[:, None])
+    cosine = _dot(d, area) / (
+        np.linalg.norm(d, axis=1) * np.linalg.norm(area, axis=1) + _ROOT_VSMALL
+    )
+    angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    angle[~inner] = np.nan
+    s = cpf - (_dot(area, cpf) / (_dot(area, d) + _ROOT_VSMALL))[:, None] * d
+    s_norm = np.linalg.norm(s, axis=1)
+    s_hat = s / (s_norm + _ROOT_VSMALL)[:, None]
+    # Extent of the face along s: the largest |ŝ·(v - c_f)| over its vertices.
+    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    reach = np.abs(_dot(s_hat[face_of], mesh.points[mesh.face_vertices] - centre[face_of]))
+    extent = np.maximum.reduceat(reach, mesh.face_offsets[:-1])
+    floor = np.where(inner, 0.2, 0.4) * np.linalg.norm(d, axis=1) + _ROOT_VSMALL
+    skewness = s_norm / np.maximum(floor, extent)
+    return MeshQuality(volume, angle, skewness, inner)
+
+
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.einsum("ij,ij->i", a, b)
