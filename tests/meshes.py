@@ -166,7 +166,7 @@ def quad_tri_grid(shape=(4, 3), lo=(0.0, 0.0), hi=(1.0, 1.0)) -> PolyMesh:
 
 
 def convex_voronoi(domain: hcvt.Domain, sites: np.ndarray, k: int = 48) -> PolyMesh:
-    """The Voronoi cells of ``sites`` clipped to a convex 3D ``domain``, as one PolyMesh.
+    """The Voronoi cells of ``sites`` clipped to a convex ``domain`` (2D or 3D), as one PolyMesh.
 
     Each cell is a ``HalfspaceIntersection`` of the bisectors with its ``k`` nearest sites
     (more where needed) and the planes of the domain's triangles, in coordinates relative
@@ -175,11 +175,16 @@ def convex_voronoi(domain: hcvt.Domain, sites: np.ndarray, k: int = 48) -> PolyM
     AssertionError if two cells disagree on a shared face.
     """
     sites = np.asarray(sites, dtype=np.float64)
-    n = len(sites)
-    h = (domain.volume / n) ** (1 / 3)
+    n, d = sites.shape
+    h = (domain.volume / n) ** (1 / d)
     tol = 1e-9 * h
-    tri = domain.vertices[domain.faces]
-    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    if d == 3:
+        tri = domain.vertices[domain.faces]
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    else:  # segments a -> b with the domain on their left: outward normal to the right
+        tri = domain.vertices[np.asarray(domain._core.segments)]
+        t = tri[:, 1] - tri[:, 0]
+        normals = np.column_stack([t[:, 1], -t[:, 0]])
     normals /= np.linalg.norm(normals, axis=1)[:, None]
     offsets = -np.einsum("ij,ij->i", normals, tri[:, 0])
     tree = cKDTree(sites)
@@ -189,16 +194,16 @@ def convex_voronoi(domain: hcvt.Domain, sites: np.ndarray, k: int = 48) -> PolyM
     )
     rep = np.sort(rep)
     planes_at_origin = np.column_stack([normals[rep], offsets[rep]])
-    cells = []  # per cell: (vertices (v, 3), [(key, vertex rows, plane normal)])
+    cells = []  # per cell: (vertices (v, d), [(key, vertex rows, plane normal)])
     for i in range(n):
         v, halfspaces, others = _clipped_cell(sites, i, tree, k, planes_at_origin)
-        signed = v @ halfspaces[:, :3].T + halfspaces[:, 3]
+        signed = v @ halfspaces[:, :d].T + halfspaces[:, d]
         faces = []
-        for h_idx in np.flatnonzero((np.abs(signed) < tol).sum(axis=0) >= 3):
+        for h_idx in np.flatnonzero((np.abs(signed) < tol).sum(axis=0) >= d):
             ring = np.flatnonzero(np.abs(signed[:, h_idx]) < tol)
             is_site = h_idx < len(others)
             key = ("site", int(others[h_idx])) if is_site else ("tri", rep[h_idx - len(others)])
-            faces.append((key, ring, halfspaces[h_idx, :3]))
+            faces.append((key, ring, halfspaces[h_idx, :d]))
         cells.append((v + sites[i], faces))
     # Weld every cell's vertices into shared points.
     all_v = np.concatenate([c[0] for c in cells])
@@ -215,7 +220,7 @@ def convex_voronoi(domain: hcvt.Domain, sites: np.ndarray, k: int = 48) -> PolyM
     for i, (_, cell_faces) in enumerate(cells):
         for key, ring, normal in cell_faces:
             ids = list(dict.fromkeys(label[starts[i] + ring].tolist()))
-            if len(ids) < 3:
+            if len(ids) < d:
                 continue
             loop = _ccw(points, ids, normal)
             if key[0] == "tri":
@@ -253,16 +258,24 @@ def _clipped_cell(sites, i, tree, k, planes):
         others = near[1:]
         q = sites[others] - p
         bisectors = np.column_stack([q, -0.5 * np.einsum("ij,ij->i", q, q)])
-        shifted = np.column_stack([planes[:, :3], planes[:, 3] + planes[:, :3] @ p])
+        d = len(p)
+        shifted = np.column_stack([planes[:, :d], planes[:, d] + planes[:, :d] @ p])
         halfspaces = np.vstack([bisectors, shifted])
-        v = HalfspaceIntersection(halfspaces, np.zeros(3)).intersections
+        v = HalfspaceIntersection(halfspaces, np.zeros(d)).intersections
         if len(others) == n - 1 or dist[-1] > 2 * np.linalg.norm(v, axis=1).max():
             return v, halfspaces, others
         k *= 2
 
 
 def _ccw(points: np.ndarray, ids: list[int], normal: np.ndarray) -> list[int]:
-    """``ids`` (points of a convex planar polygon) counter-clockwise about ``normal``."""
+    """``ids`` (points of a convex planar polygon) counter-clockwise about ``normal``.
+
+    2D: the edge's two ends, ordered so that ``normal`` points to its right.
+    """
+    if points.shape[1] == 2:
+        direction = np.array([-normal[1], normal[0]])
+        a, b = ids
+        return [a, b] if (points[b] - points[a]) @ direction > 0 else [b, a]
     xyz = points[ids]
     centre = xyz.mean(axis=0)
     u = xyz[0] - centre
@@ -274,7 +287,21 @@ def _ccw(points: np.ndarray, ids: list[int], normal: np.ndarray) -> list[int]:
 
 
 def _element_on_plane(tri, normals, t, point) -> int:
-    """Of the triangles coplanar with triangle ``t``, the one whose closure holds ``point``."""
+    """Of the triangles coplanar with triangle ``t``, the one whose closure holds ``point``.
+
+    2D: of the segments on the line of segment ``t``, the one holding ``point``.
+    """
+    if tri.shape[2] == 2:
+        on_line = np.flatnonzero(
+            (np.abs(normals @ normals[t] - 1) < 1e-12)
+            & (np.abs((tri[:, 0] - tri[t, 0]) @ normals[t]) < 1e-12)
+        )
+        for c in on_line:
+            a, b = tri[c]
+            u = (point - a) @ (b - a) / ((b - a) @ (b - a))
+            if -1e-9 <= u <= 1 + 1e-9:
+                return int(c)
+        return int(t)
     coplanar = np.flatnonzero(
         (np.abs(normals @ normals[t] - 1) < 1e-12)
         & (np.abs((tri[:, 0] - tri[t, 0]) @ normals[t]) < 1e-12)

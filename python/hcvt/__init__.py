@@ -12,7 +12,8 @@ from hcvt._core import get_num_threads, set_num_threads
 from hcvt.baselines import MonteCarloResult, global_monte_carlo
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
-from hcvt.errors import InvalidDomainError, InvalidSitesError
+from hcvt.errors import InvalidDomainError, InvalidMeshError, InvalidSitesError
+from hcvt.export import write_mesh
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.initialisation import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
@@ -24,6 +25,7 @@ __all__ = [
     "Domain",
     "HierarchicalResult",
     "InvalidDomainError",
+    "InvalidMeshError",
     "InvalidSitesError",
     "LatticeResult",
     "RepairReport",
@@ -39,6 +41,7 @@ __all__ = [
     "set_num_threads",
     "voronoi",
     "write_cells",
+    "write_mesh",
 ]
 __version__ = "0.1.0"
 

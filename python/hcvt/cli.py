@@ -2,6 +2,7 @@
 
 hcvt run star -n 2000 --plot star.png
 hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
+hcvt run bunny.off -n 50000 --mesh case/ --cells cells.vtu
 hcvt show result.json --plot cells.png
 hcvt reproduce table4 --runs 10 --out results
 """
@@ -82,7 +83,18 @@ def _load(input_: str, repair: bool):
 @click.option("--max-iter", type=int, default=10_000, show_default=True)
 @click.option("--repair", is_flag=True, help="Repair an invalid polygon or mesh first.")
 @click.option("--out", type=click.Path(dir_okay=False), help="Sites: .npy or .csv.")
-@click.option("--cells", "cells_path", type=click.Path(dir_okay=False), help="Cells file.")
+@click.option(
+    "--cells",
+    "cells_path",
+    type=click.Path(dir_okay=False),
+    help="Cells file: .vtu (polyhedra / polygons), .geojson (2D), .ply (3D triangles).",
+)
+@click.option(
+    "--mesh",
+    "mesh_dir",
+    type=click.Path(file_okay=False),
+    help="OpenFOAM case directory to write the conforming mesh into.",
+)
 @click.option("--summary", type=click.Path(dir_okay=False), help="Summary JSON file.")
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG of the cells by G.")
 def run(
@@ -99,6 +111,7 @@ def run(
     repair: bool,
     out: str | None,
     cells_path: str | None,
+    mesh_dir: str | None,
     summary: str | None,
     plot: str | None,
 ) -> None:
@@ -177,13 +190,59 @@ def run(
     if out:
         _write_sites(Path(out), sites)
         info["sites"] = str(out)
-    if cells_path:
-        hcvt.io.write_cells(diagram, cells_path)
-        info["cells"] = str(cells_path)
+    if cells_path or mesh_dir:
+        info.update(_write_meshes(diagram, cells_path, mesh_dir))
     if plot:
         _plot(diagram, plot)
     if summary:
         Path(summary).write_text(json.dumps(info, indent=2))
+
+
+def _write_meshes(diagram: Any, cells_path: str | None, mesh_dir: str | None) -> dict[str, Any]:
+    """Write --cells and --mesh, print the mesh's quality; the summary's entries.
+
+    The conforming mesh (``Diagram.mesh()``) goes to a .vtu and the OpenFOAM case; a build
+    without it writes --cells through :func:`hcvt.io.write_cells` (GeoJSON, VTU of each
+    cell's triangulated boundary, PLY) and refuses --mesh.
+    """
+    import hcvt
+    from hcvt.export import mesh_quality
+
+    info: dict[str, Any] = {}
+    conforming = hasattr(diagram, "mesh") and (
+        mesh_dir or Path(cells_path or "").suffix.lower() == ".vtu"
+    )
+    if cells_path and not conforming:
+        hcvt.io.write_cells(diagram, cells_path)
+        info["cells"] = str(cells_path)
+    if not conforming:
+        if mesh_dir:
+            raise NotImplementedError("--mesh needs Diagram.mesh(), missing from this build")
+        return info
+    mesh = diagram.mesh()
+    start = time.perf_counter()
+    if cells_path:
+        written = Path(cells_path)
+        if written.suffix.lower() == ".vtu":
+            hcvt.write_mesh(diagram, written)
+        else:
+            hcvt.io.write_cells(diagram, written)
+        info["cells"] = str(written)
+    if mesh_dir:
+        hcvt.write_mesh(diagram, mesh_dir)
+        info["mesh"] = str(mesh_dir)
+    info["write_seconds"] = time.perf_counter() - start
+    quality = mesh_quality(mesh).summary()
+    info["mesh_quality"] = quality
+    click.echo(
+        f"mesh: {quality['cells']} cells, {quality['faces']} faces  "
+        f"volume min {quality['volume_min']:.4g} max {quality['volume_max']:.4g} "
+        f"total {quality['volume_total']:.12g}  non-orthogonality max "
+        f"{quality['non_orthogonality_max']:.2f} average "
+        f"{quality['non_orthogonality_average']:.2f} deg  skewness max "
+        f"{quality['skewness_max']:.3f}"
+    )
+    return info
 
 
 #: The last iterate's convergence measures, written to the summary (``hcvt.cvt`` docs).

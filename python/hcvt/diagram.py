@@ -203,6 +203,17 @@ class Diagram:
                 out.append((points, mesh.tri_verts.astype(np.intp)))
         return out
 
+    def to_pyvista(self) -> Any:
+        """The conforming mesh of the cells as a ``pyvista.UnstructuredGrid``.
+
+        For interactive viewing (``diagram.to_pyvista().plot()``); cell data ``site``,
+        ``volume``, ``G``. Needs pyvista, an optional extra (``pip install 'hcvt[viz]'``),
+        and ``Diagram.mesh()``. See :func:`hcvt.export.to_pyvista`.
+        """
+        from hcvt.export import to_pyvista
+
+        return to_pyvista(self)
+
     def __repr__(self) -> str:
         return (
             f"<hcvt.Diagram n={self.n} d={self.domain.dim} "

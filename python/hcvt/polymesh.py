@@ -200,7 +200,7 @@ class PolyMesh:
         apex = _sum_by(cells, c, n) / np.maximum(count, 1)[:, None]
         cone = np.einsum("ij,ij->i", s, c - apex[cells]) / d
         cone_centroid = (d * c + apex[cells]) / (d + 1)
-        volume = np.bincount(cells, weights=cone, minlength=n)
+        volume = np.bincount(cells, weights=cone, minlength=n).astype(np.float64)
         with np.errstate(invalid="ignore", divide="ignore"):
             centroid = _sum_by(cells, cone[:, None] * cone_centroid, n) / volume[:, None]
         centroid[count == 0] = np.nan

@@ -1,1 +1,148 @@
-"""Writing conforming meshes: OpenFOAM cases, VTU files; their quality figures."""
+"""Writing conforming meshes: OpenFOAM cases, VTU files, GeoJSON; their quality figures.
+
+:func:`write_mesh` takes a :class:`hcvt.polymesh.PolyMesh` or anything with a ``mesh()``
+method returning one (a :class:`hcvt.Diagram`), and picks the format from the path.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hcvt.export.geojson import write_geojson
+from hcvt.export.openfoam import write_openfoam
+from hcvt.export.patches import boundary_patches
+from hcvt.export.quality import MeshQuality, mesh_quality
+from hcvt.export.vtu import write_vtu
+from hcvt.polymesh import PolyMesh
+
+if TYPE_CHECKING:
+    from hcvt.domain import Domain
+
+__all__ = [
+    "MeshQuality",
+    "as_polymesh",
+    "boundary_patches",
+    "mesh_quality",
+    "to_pyvista",
+    "write_geojson",
+    "write_mesh",
+    "write_openfoam",
+    "write_vtu",
+]
+
+
+def as_polymesh(source: Any) -> tuple[PolyMesh, Domain | None, dict[str, ArrayLike]]:
+    """The mesh of ``source``, its domain (or None) and per-cell data to export with it.
+
+    A PolyMesh is taken as it is. Anything else must have ``mesh()`` (a Diagram): its
+    ``domain`` names the patches, and its ``volume`` and ``G`` go along as cell data.
+    """
+    if isinstance(source, PolyMesh):
+        return source, None, {}
+    make = getattr(source, "mesh", None)
+    if make is None:
+        raise NotImplementedError(
+            f"{type(source).__name__} has no conforming mesh: pass a hcvt.polymesh.PolyMesh "
+            "or a Diagram of a build with Diagram.mesh()"
+        )
+    data: dict[str, ArrayLike] = {}
+    for name in ("volume", "G"):
+        if hasattr(source, name):
+            data[name] = getattr(source, name)
+    return make(), getattr(source, "domain", None), data
+
+
+def write_mesh(
+    source: Any,
+    path: str | Path,
+    *,
+    domain: Domain | None = None,
+    labels: ArrayLike | None = None,
+    binary: bool = False,
+    thickness: float | None = None,
+) -> Path:
+    """Write the conforming mesh of a diagram (or a PolyMesh) to ``path``.
+
+    Parameters
+    ----------
+    source : Diagram or PolyMesh
+        A diagram's cells are its ``mesh()``; its domain names the patches and its
+        ``volume`` and ``G`` are written as cell data.
+    path : str or Path
+        ``*.vtu``: VTK polyhedra (3D) or polygons (2D), see :func:`write_vtu`.
+        ``*.geojson`` (2D): one Feature per cell on shared vertices, see
+        :func:`write_geojson`. Anything else, without suffix: an OpenFOAM case directory,
+        see :func:`write_openfoam`.
+    domain : Domain, optional
+        For the boundary patches (default: the diagram's).
+    labels : array_like, shape (E,), optional
+        One patch per label of the domain's boundary elements (OpenFOAM only).
+    binary : bool, default False
+        OpenFOAM: binary lists.
+    thickness : float, optional
+        OpenFOAM, 2D: the extrusion depth.
+
+    Returns
+    -------
+    Path
+        What was written.
+
+    Raises
+    ------
+    NotImplementedError
+        ``source`` has no ``mesh()``.
+    ValueError
+        An unknown suffix; a GeoJSON of a 3D mesh.
+    """
+    mesh, own_domain, data = as_polymesh(source)
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".vtu":
+        return write_vtu(mesh, path, cell_data=data)
+    if suffix in (".geojson", ".json"):
+        return write_geojson(mesh, path, cell_data=data)
+    if suffix:
+        raise ValueError(
+            f"{path.name}: meshes are written as .vtu, .geojson (2D) or an OpenFOAM case "
+            "directory (a path without suffix)"
+        )
+    return write_openfoam(
+        mesh,
+        path,
+        domain=domain if domain is not None else own_domain,
+        labels=labels,
+        binary=binary,
+        thickness=thickness,
+        cell_data=data,
+    )
+
+
+def to_pyvista(source: Any) -> Any:
+    """The conforming mesh as a ``pyvista.UnstructuredGrid``, for interactive viewing.
+
+    Needs pyvista (``pip install 'hcvt[viz]'``). Built by VTK's own reader from a
+    temporary VTU (:func:`write_vtu`), so what you see is what the file holds: cell data
+    ``site`` and, for a diagram, ``volume`` and ``G``.
+
+    Raises
+    ------
+    ImportError
+        pyvista is not installed.
+    """
+    try:
+        import pyvista
+    except ImportError as err:
+        raise ImportError(
+            "to_pyvista needs pyvista, an optional extra: pip install 'hcvt[viz]'"
+        ) from err
+    mesh, _, data = as_polymesh(source)
+    with tempfile.TemporaryDirectory() as tmp:
+        file = write_vtu(mesh, Path(tmp) / "mesh.vtu", cell_data=data)
+        grid = pyvista.read(file)
+        grid.points = np.array(grid.points)  # detached from the reader before tmp goes
+    return grid

@@ -1,0 +1,173 @@
+"""VTU (VTK XML UnstructuredGrid): polyhedron cells in 3D, polygon cells in 2D.
+
+3D cells are VTK_POLYHEDRON (type 42): besides ``connectivity``/``offsets`` (the cell's
+distinct points), the ``faces`` stream holds, per cell, its number of faces and then each
+face as its vertex count and vertex ids, outward; ``faceoffsets`` is the end of each
+cell's stream in ``faces`` (VTK's file format document, "Polyhedron"; VTK 9.4 and later
+still read these arrays, and meshio reads them).
+
+2D cells are VTK_POLYGON (type 7) in the plane z = 0, counter-clockwise. A cell the domain
+cuts into pieces becomes one polygon per piece, and a cell with a hole its triangles (VTK
+polygons have no holes); the cell data ``site`` says which cell each came from.
+
+Why our own writer and not meshio's: meshio 5.3 groups polyhedra in blocks by point count
+and writes them in a Python loop per cell, and VTK 9.7's volume filter gets wrong volumes
+from the file it writes (tested in tests/test_export.py); this one builds every array with
+numpy.
+"""
+
+from __future__ import annotations
+
+import base64
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hcvt.polymesh import PolyMesh
+
+VTK_POLYGON = 7
+VTK_POLYHEDRON = 42
+
+
+def write_vtu(
+    mesh: PolyMesh, path: str | Path, *, cell_data: dict[str, ArrayLike] | None = None
+) -> Path:
+    """Write ``mesh`` as a ``.vtu`` file; its empty cells are left out.
+
+    Parameters
+    ----------
+    mesh : PolyMesh
+        A conforming mesh (checked with :meth:`PolyMesh.check`).
+    path : str or Path
+        The file to write.
+    cell_data : dict of str to array_like of shape (n,), optional
+        Per-cell values, row ``i`` for cell ``i`` of ``mesh``, written as Float64 cell
+        data beside ``site`` (Int64: the cell's index in ``mesh``).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    mesh.check()
+    path = Path(path)
+    polyhedra: list[str] = []
+    if mesh.dim == 3:
+        compact, kept = mesh.compacted()
+        points = compact.points
+        connectivity, offsets, faces, face_offsets = _polyhedra(compact)
+        # Cells by increasing point count (stable): meshio (5.3) reads polyhedra into
+        # blocks by point count and pairs them with the cell data in that sorted order.
+        order = np.argsort(np.diff(offsets, prepend=0), kind="stable")
+        connectivity, offsets = _permute(connectivity, offsets, order)
+        faces, face_offsets = _permute(faces, face_offsets, order)
+        site = kept[order]
+        types = np.full(len(kept), VTK_POLYHEDRON, dtype=np.uint8)
+        polyhedra = [
+            _data_array("faces", faces.astype(np.int64), "Int64"),
+            _data_array("faceoffsets", face_offsets.astype(np.int64), "Int64"),
+        ]
+    else:
+        points = np.column_stack([mesh.points, np.zeros(len(mesh.points))])
+        site, connectivity, offsets = _polygons(mesh)
+        types = np.full(len(site), VTK_POLYGON, dtype=np.uint8)
+    arrays = [_data_array("site", site.astype(np.int64), "Int64")]
+    for name, values in (cell_data or {}).items():
+        column = np.asarray(values, dtype=np.float64)
+        if column.shape != (mesh.n_cells,):
+            raise ValueError(f"cell_data[{name!r}] must have shape ({mesh.n_cells},)")
+        arrays.append(_data_array(name, column[site], "Float64"))
+    cells = [
+        _data_array("connectivity", connectivity.astype(np.int64), "Int64"),
+        _data_array("offsets", offsets.astype(np.int64), "Int64"),
+        _data_array("types", types, "UInt8"),
+        *polyhedra,
+    ]
+    body = "".join(
+        [
+            '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" ',
+            'byte_order="LittleEndian" header_type="UInt64"><UnstructuredGrid>',
+            f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{len(types)}">',
+            "<Points>",
+            _data_array("Points", np.ascontiguousarray(points, dtype=np.float64), "Float64", 3),
+            "</Points><Cells>",
+            *cells,
+            '</Cells><CellData Scalars="site">',
+            *arrays,
+            "</CellData></Piece></UnstructuredGrid></VTKFile>\n",
+        ]
+    )
+    path.write_text(body)
+    return path
+
+
+def _polyhedra(
+    mesh: PolyMesh,
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """VTK polyhedron arrays of every cell (none empty).
+
+    ``connectivity``, ``offsets``, ``faces``, ``faceoffsets``, as the module docs say.
+    """
+    cf = mesh.cell_faces
+    per_cell = np.diff(cf.offsets)
+    sizes = mesh.face_sizes[cf.faces]
+    # Each face's vertices as the cell sees it: reversed (first vertex kept) where the
+    # cell is the neighbour, so that every face of the stream points out of its cell.
+    within = np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    k = np.repeat(sizes, sizes)
+    position = np.where(np.repeat(cf.outward, sizes), within, (k - within) % k)
+    vertices = mesh.face_vertices[np.repeat(mesh.face_offsets[cf.faces], sizes) + position]
+    # The stream: per cell [n_faces, then per face: size, vertices...].
+    stream_len = 1 + np.add.reduceat(sizes + 1, cf.offsets[:-1])
+    face_offsets = np.cumsum(stream_len)
+    stream = np.empty(int(face_offsets[-1]), dtype=np.intp)
+    cell_start = face_offsets - stream_len
+    stream[cell_start] = per_cell
+    entry_cell = np.repeat(np.arange(mesh.n_cells), per_cell)
+    # Entry j (a face of cell c) starts after the cell's count and the earlier entries.
+    before = np.cumsum(sizes + 1) - (sizes + 1)
+    entry_start = cell_start[entry_cell] + 1 + before - before[cf.offsets[:-1]][entry_cell]
+    stream[entry_start] = sizes
+    stream[np.repeat(entry_start + 1, sizes) + within] = vertices
+    # Connectivity: each cell's distinct points, in increasing order.
+    pairs = np.unique(np.repeat(entry_cell, sizes) * len(mesh.points) + vertices)
+    owner_of_pair = pairs // len(mesh.points)
+    connectivity = pairs % len(mesh.points)
+    offsets = np.cumsum(np.bincount(owner_of_pair, minlength=mesh.n_cells))
+    return connectivity, offsets, stream, face_offsets
+
+
+def _permute(
+    values: NDArray[np.intp], ends: NDArray[np.intp], order: NDArray[np.intp]
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Segments ``values[ends[i-1]:ends[i]]`` rearranged as ``order`` says; new ends."""
+    sizes = np.diff(ends, prepend=0)[order]
+    starts = (ends - np.diff(ends, prepend=0))[order]
+    within = np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes)
+    return values[np.repeat(starts, sizes) + within], np.cumsum(sizes)
+
+
+def _polygons(
+    mesh: PolyMesh,
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Per polygon piece (2D): its cell, then VTK connectivity and offsets."""
+    site, rings = [], []
+    for cell, pieces in enumerate(mesh.cell_polygons()):
+        for ring in pieces:
+            site.append(cell)
+            rings.append(ring)
+    connectivity = np.concatenate(rings) if rings else np.zeros(0, dtype=np.intp)
+    offsets = np.cumsum([len(r) for r in rings]).astype(np.intp)
+    return np.asarray(site, dtype=np.intp), connectivity, offsets
+
+
+def _data_array(name: str, array: NDArray, vtk_type: str, components: int = 1) -> str:
+    """A DataArray in VTK's inline binary: UInt64 byte count, then the data, base64."""
+    raw = np.ascontiguousarray(array).tobytes()
+    encoded = base64.b64encode(np.uint64(len(raw)).tobytes() + raw).decode("ascii")
+    # NumberOfComponents only for vectors: meshio reshapes a declared single component
+    # into a column, which its polyhedron reader then cannot index.
+    count = f' NumberOfComponents="{components}"' if components > 1 else ""
+    head = f'<DataArray type="{vtk_type}" Name="{name}"{count} format="binary">'
+    return f"{head}{encoded}</DataArray>"
