@@ -14,6 +14,7 @@ Each returns a :class:`hcvt.polymesh.PolyMesh` in the contract's layout (owner <
 from __future__ import annotations
 
 import numpy as np
+import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import HalfspaceIntersection, cKDTree
@@ -313,3 +314,65 @@ def _element_on_plane(tri, normals, t, point) -> int:
         if s >= -1e-9 and r >= -1e-9 and s + r <= 1 + 1e-9:
             return int(c)
     return int(t)
+
+
+def diagram_mesh_2d(diagram: hcvt.Diagram) -> PolyMesh:
+    """The conforming mesh of a 2D diagram of any polygon, from its shapely cells.
+
+    ``Diagram.cells()`` cuts each cell by GEOS on its own, so neighbours compute their shared
+    vertices separately: they are welded here (within 1e-9 h). Every welded ring edge
+    ``a -> b`` of cell i (outer rings counter-clockwise, holes clockwise) whose reverse
+    ``b -> a`` belongs to cell j is an interior face; the others lie on the domain boundary,
+    on the segment nearest their midpoint. Raises AssertionError if an edge is used twice
+    the same way (a T-junction the welding missed).
+    """
+    from shapely.geometry.polygon import orient
+
+    h = (diagram.domain.volume / diagram.n) ** 0.5
+    rings, ring_cell = [], []
+    for i, cell in enumerate(diagram.cells()):
+        for part in shapely.get_parts(cell):
+            part = orient(part, 1.0)
+            for ring in [part.exterior, *part.interiors]:
+                rings.append(np.asarray(ring.coords)[:-1])
+                ring_cell.append(i)
+    all_v = np.concatenate(rings)
+    pairs = cKDTree(all_v).query_pairs(1e-9 * h, output_type="ndarray")
+    graph = coo_matrix(
+        (np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(all_v), len(all_v))
+    )
+    _, label = connected_components(graph, directed=False)
+    _, first, label = np.unique(label, return_index=True, return_inverse=True)
+    points = all_v[first]
+    edges: dict[tuple[int, int], int] = {}
+    start = 0
+    for ring, cell in zip(rings, ring_cell, strict=True):
+        ids = label[start : start + len(ring)]
+        start += len(ring)
+        for a, b in zip(ids, np.roll(ids, -1), strict=True):
+            if a != b:
+                assert (int(a), int(b)) not in edges, f"edge {a}->{b} used twice"
+                edges[(int(a), int(b))] = cell
+    segments = diagram.domain.vertices[np.asarray(diagram.domain._core.segments)]
+    faces, owner, neighbour, element = [], [], [], []
+    for (a, b), cell in edges.items():
+        other = edges.get((b, a))
+        if other is not None:
+            if a > b:
+                continue  # the face was added from (b, a)
+            faces.append([a, b])
+            owner.append(cell)
+            neighbour.append(other)
+            element.append(-1)
+        else:
+            faces.append([a, b])
+            owner.append(cell)
+            neighbour.append(-1)
+            element.append(_nearest_segment(segments, (points[a] + points[b]) / 2))
+    return _mesh(points, faces, owner, neighbour, element, diagram.n)
+
+
+def _nearest_segment(segments: np.ndarray, point: np.ndarray) -> int:
+    a, b = segments[:, 0], segments[:, 1]
+    t = np.clip(np.einsum("ij,ij->i", point - a, b - a) / np.einsum("ij,ij->i", b - a, b - a), 0, 1)
+    return int(np.argmin(np.linalg.norm(a + t[:, None] * (b - a) - point, axis=1)))

@@ -320,6 +320,55 @@ def test_2d_cell_with_a_hole_and_in_pieces():
     assert abs(area - 8) < 1e-14
 
 
+def test_2d_real_polygon_cells_in_pieces_and_with_holes(tmp_path):
+    # Five sites in a polygon with two holes: one cell in two pieces, one around a hole.
+    domain = hcvt.load_domain(DATA / "2d" / "cgal_skeleton_sample_4.geojson")
+    diagram = hcvt.voronoi(domain, random_inside(domain, 5, seed=0))
+    mesh = meshes.diagram_mesh_2d(diagram)
+    mesh.check()
+    assert np.abs(mesh.cell_geometry.volume - diagram.volume).max() < 1e-13 * domain.volume
+    shapes = [sorted(len(r) > 0 for r in loops) for loops in mesh.cell_loops()]
+    assert sorted(len(s) for s in shapes) == [1, 1, 1, 2, 3]
+    grid = pv.read(write_vtu(mesh, tmp_path / "cells.vtu"))
+    assert set(np.unique(grid.cell_data["site"])) == set(range(5)) and grid.n_cells > 5
+    # VTK's own areas, through its triangulation (vtkCellSizeFilter alone is wrong on the
+    # large non-convex polygon of cell 0: 1798 for 439.7, measured with VTK 9.7).
+    triangles = grid.extract_surface(algorithm="dataset_surface").triangulate()
+    area = np.bincount(triangles.cell_data["site"], triangles.compute_cell_sizes()["Area"])
+    assert np.abs(area - diagram.volume).max() < 1e-12 * domain.volume
+    features = json.loads(hcvt.write_mesh(mesh, tmp_path / "c.geojson").read_text())["features"]
+    cells = [shapely.geometry.shape(f["geometry"]) for f in features]
+    assert sorted(c.geom_type for c in cells).count("MultiPolygon") == 1
+    assert sum(len(c.interiors) for c in cells if c.geom_type == "Polygon") >= 1
+    assert np.abs([c.area for c in cells] - diagram.volume).max() < 1e-12 * domain.volume
+    assert shapely.coverage_is_valid(shapely.GeometryCollection(cells))
+
+
+def test_openfoam_2d_patch_per_boundary_ring_and_checkmesh_errors(tmp_path):
+    # The letter B (an outline and two holes): three boundary components, three patches.
+    domain = hcvt.load_domain(DATA / "2d" / "dejavu_sans_B.geojson")
+    run = hcvt.cvt(domain, random_inside(domain, 200, seed=2), method="lbfgs", tol=1e-3)
+    mesh = meshes.diagram_mesh_2d(run.diagram)
+    case = write_openfoam(mesh, tmp_path / "case", domain=domain, thickness=10.0)
+    text = (case / "constant" / "polyMesh" / "boundary").read_text()
+    names = re.findall(r"^\s+(\w+)\s*\n\s*\{", text, flags=re.MULTILINE)
+    assert names == ["boundary0", "boundary1", "boundary2", "frontAndBack"]
+    log = _check_mesh(case)
+    total = _figure(log, rf"Total volume = {NUM}")
+    assert abs(total - 10 * domain.volume) < 1e-12 * total
+    # The B's reflex corners: a cell wrapping one has its centroid behind a boundary face,
+    # which checkMesh calls an error. hcvt counts the same faces, and the same skew ones.
+    quality = mesh_quality(mesh).summary()
+    assert quality["inverted_pyramids"] > 0
+    assert f"Error in face pyramids: {quality['inverted_pyramids']} faces" in log
+    assert f"{quality['skew_faces']} highly skew faces" in log
+    assert "Non-orthogonality check OK" in log and "Cell volumes OK" in log
+    # Each patch's faces are the mesh's boundary edges on that ring, extruded.
+    sizes = [int(x) for x in re.findall(r"nFaces\s+(\d+);", text)]
+    patch, _ = boundary_patches(mesh, domain)
+    assert sizes[:3] == list(np.bincount(patch[~mesh.interior]))
+
+
 # ----------------------------------------------------------------------------- API, CLI
 def test_write_mesh_picks_the_format(square_cvt, tmp_path):
     diagram, mesh = square_cvt

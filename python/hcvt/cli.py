@@ -240,7 +240,9 @@ def _write_meshes(diagram: Any, cells_path: str | None, mesh_dir: str | None) ->
         f"total {quality['volume_total']:.12g}  non-orthogonality max "
         f"{quality['non_orthogonality_max']:.2f} average "
         f"{quality['non_orthogonality_average']:.2f} deg  skewness max "
-        f"{quality['skewness_max']:.3f}"
+        f"{quality['skewness_max']:.3f}  (checkMesh's limits: {quality['non_orthogonal_faces']} "
+        f"faces > 70 deg, {quality['skew_faces']} skewness > 4, "
+        f"{quality['inverted_pyramids']} inverted pyramids)"
     )
     return info
 

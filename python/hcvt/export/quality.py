@@ -31,8 +31,9 @@ if TYPE_CHECKING:
 NON_ORTHOGONALITY_LIMIT = 70.0
 SKEWNESS_LIMIT = 4.0
 
-# OpenFOAM's guard against 0/0 in the skewness (ROOTVSMALL).
+# OpenFOAM's guard against 0/0 in the skewness (ROOTVSMALL), and its pyramid tolerance.
 _ROOT_VSMALL = 1e-150
+_SMALL = 1e-15
 
 
 @dataclass(frozen=True)
@@ -47,11 +48,18 @@ class MeshQuality:
         Degrees, for interior faces; NaN on boundary faces.
     skewness : ndarray, shape (f,)
         Dimensionless, every face.
+    inverted_pyramid : ndarray of bool, shape (f,)
+        Whether the cone from a cell's centroid over this face has negative volume on
+        either side (checkMesh's "face pyramids" error): the centroid lies beyond the
+        face's plane, as in a cell that wraps around a reflex corner of the domain.
+    interior : ndarray of bool, shape (f,)
+        Whether each face lies between two cells.
     """
 
     volume: NDArray[np.float64]
     non_orthogonality: NDArray[np.float64]
     skewness: NDArray[np.float64]
+    inverted_pyramid: NDArray[np.bool_]
     interior: NDArray[np.bool_]
 
     def summary(self) -> dict[str, Any]:
@@ -60,7 +68,8 @@ class MeshQuality:
         ``volume_min``, ``volume_max``, ``volume_total`` (non-empty cells),
         ``non_orthogonality_max``, ``non_orthogonality_average`` (interior faces; the
         angle of the mean cosine, as checkMesh prints it),
-        ``skewness_max``, and the counts of faces beyond checkMesh's limits.
+        ``skewness_max``, and the counts of faces beyond checkMesh's limits and of faces
+        with an inverted pyramid.
         """
         cells = self.volume[self.volume > 0]
         angle = self.non_orthogonality[self.interior]
@@ -80,6 +89,7 @@ class MeshQuality:
             "non_orthogonal_faces": int((angle > NON_ORTHOGONALITY_LIMIT).sum()),
             "skewness_max": float(self.skewness.max()) if len(self.skewness) else 0.0,
             "skew_faces": int((self.skewness > SKEWNESS_LIMIT).sum()),
+            "inverted_pyramids": int(self.inverted_pyramid.sum()),
         }
 
 
@@ -125,7 +135,12 @@ def mesh_quality(mesh: PolyMesh) -> MeshQuality:
     extent = np.maximum.reduceat(reach, mesh.face_offsets[:-1])
     floor = np.where(inner, 0.2, 0.4) * np.linalg.norm(d, axis=1) + _ROOT_VSMALL
     skewness = s_norm / np.maximum(floor, extent)
-    return MeshQuality(volume, angle, skewness, inner)
+    # checkMesh's face pyramids: 3 x the signed cone volume from each side's centroid,
+    # wrong below -SMALL (1e-15, OpenFOAM's tolerance, in L^3).
+    own_cone = _dot(area, cpf) / mesh.dim
+    nei_cone = _dot(area, centroid[np.maximum(mesh.neighbour, 0)] - centre) / mesh.dim
+    inverted = (own_cone < -_SMALL) | (inner & (nei_cone < -_SMALL))
+    return MeshQuality(volume, angle, skewness, inverted, inner)
 
 
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
