@@ -214,7 +214,12 @@ class PolyMesh:
         (3D); every cell is closed -- in 3D each directed edge of its outward faces is
         matched by the reverse edge of another of its faces, in 2D each vertex starts as
         many of its edges as it ends; every cell with faces has positive volume.
+
+        A mesh that passed is not checked again (the arrays are the caller's: do not
+        change them in place).
         """
+        if self.__dict__.get("_checked"):
+            return
         n, f = self.n_cells, self.n_faces
         _require(self.owner, 0, n, "owner")
         _require(self.neighbour, -1, n, "neighbour")
@@ -241,6 +246,7 @@ class PolyMesh:
         flat = np.flatnonzero(used & ~(volume > 0))
         if len(flat):
             raise InvalidMeshError(f"cell {flat[0]} has volume {volume[flat[0]]:.3g} <= 0")
+        object.__setattr__(self, "_checked", True)  # frozen dataclass: a private memo
 
     def _check_closed(self) -> None:
         """Every cell's outward boundary is a closed cycle (see :meth:`check`)."""
@@ -256,24 +262,35 @@ class PolyMesh:
         cell = np.concatenate([self.owner[face_of], self.neighbour[face_of][inner]])
         tail = np.concatenate([a, b[inner]])
         head = np.concatenate([b, a[inner]])
-        p = np.int64(len(self.points))
-        if self.dim == 2:  # per (cell, vertex): as many edges leave as arrive
-            keys = np.concatenate([cell * p + tail, cell * p + head])
-            sign = np.concatenate([np.ones(len(tail)), -np.ones(len(head))])
-            cells_of = np.concatenate([cell, cell])
-        else:  # per (cell, undirected edge): as many uses one way as the other
+        p = len(self.points)
+        # Each use becomes one integer: (group << 1) | direction, where a group is (cell,
+        # vertex) in 2D (leaving / arriving) and (cell, undirected edge) in 3D (the two
+        # ways round). A cell is closed when every group has as many uses each way: after
+        # one sort of the integers, runs 2g and 2g + 1 have equal lengths.
+        if self.dim == 2:
+            group = np.concatenate([cell * p + tail, cell * p + head]).astype(np.int64)
+            way = np.concatenate([np.zeros(len(tail), np.int64), np.ones(len(head), np.int64)])
+            per_cell = p
+        else:
             lo, hi = np.minimum(tail, head).astype(np.int64), np.maximum(tail, head)
-            _, edge = np.unique(lo * p + hi, return_inverse=True)
-            keys = cell.astype(np.int64) * (int(edge.max()) + 1) + edge
-            sign = np.where(tail < head, 1.0, -1.0)
-            cells_of = cell
-        # 1D integer keys: np.unique(axis=0) on rows is ten times slower.
-        _, slot = np.unique(keys, return_inverse=True)
-        balance = np.bincount(slot, weights=sign)
-        open_slots = np.flatnonzero(balance != 0)
-        if len(open_slots):
-            first = np.flatnonzero(np.isin(slot, open_slots))
-            raise InvalidMeshError(f"cell {int(cells_of[first].min())} is not closed")
+            if self.n_cells * float(p) * p < 2.0**61:
+                edge, edges = lo * p + hi, p * p
+            else:  # too many for one int64: number the edges first (slower)
+                _, edge = np.unique(lo * p + hi, return_inverse=True)
+                edges = int(edge.max()) + 1
+            group = cell.astype(np.int64) * edges + edge
+            way = (tail > head).astype(np.int64)
+            per_cell = edges
+        keys = np.sort((group << 1) | way)
+        starts = np.flatnonzero(np.diff(keys, prepend=-1))
+        value, length = keys[starts], np.diff(starts, append=len(keys))
+        matched = np.zeros(len(value), dtype=bool)
+        first = np.flatnonzero((value[:-1] & 1) == 0)
+        pair = (value[first + 1] == value[first] + 1) & (length[first + 1] == length[first])
+        matched[first[pair]] = matched[first[pair] + 1] = True
+        if not matched.all():
+            bad = value[np.flatnonzero(~matched)[0]] >> 1
+            raise InvalidMeshError(f"cell {int(bad // per_cell)} is not closed")
 
     def cell_loops(self) -> list[list[NDArray[np.intp]]]:
         """2D only: each cell's boundary as closed loops of point ids.
