@@ -201,35 +201,33 @@ def run(
 def _write_meshes(diagram: Any, cells_path: str | None, mesh_dir: str | None) -> dict[str, Any]:
     """Write --cells and --mesh, print the mesh's quality; the summary's entries.
 
-    The conforming mesh (``Diagram.mesh()``) goes to a .vtu and the OpenFOAM case; a build
-    without it writes --cells through :func:`hcvt.io.write_cells` (GeoJSON, VTU of each
-    cell's triangulated boundary, PLY) and refuses --mesh.
+    With ``Diagram.mesh()`` (the conforming mesh), --cells .vtu and .geojson and the
+    OpenFOAM case of --mesh are written from it; otherwise --cells goes through
+    :func:`hcvt.io.write_cells` (GeoJSON, VTU of each cell's triangulated boundary, PLY)
+    and --mesh is refused. PLY always goes through ``write_cells``.
     """
     import hcvt
     from hcvt.export import mesh_quality
 
     info: dict[str, Any] = {}
-    conforming = hasattr(diagram, "mesh") and (
-        mesh_dir or Path(cells_path or "").suffix.lower() == ".vtu"
-    )
-    if cells_path and not conforming:
+    has_mesh = hasattr(diagram, "mesh")
+    if mesh_dir and not has_mesh:
+        raise NotImplementedError("--mesh needs Diagram.mesh(), missing from this build")
+    suffix = Path(cells_path).suffix.lower() if cells_path else ""
+    cells_from_mesh = has_mesh and suffix in (".vtu", ".geojson", ".json")
+    if cells_path and not cells_from_mesh:
         hcvt.io.write_cells(diagram, cells_path)
         info["cells"] = str(cells_path)
-    if not conforming:
-        if mesh_dir:
-            raise NotImplementedError("--mesh needs Diagram.mesh(), missing from this build")
+    if not (cells_from_mesh or mesh_dir):
         return info
-    mesh = diagram.mesh()
+    mesh = diagram.mesh()  # once, for every file and the quality figures
+    data = {"volume": diagram.volume, "G": diagram.G}
     start = time.perf_counter()
-    if cells_path:
-        written = Path(cells_path)
-        if written.suffix.lower() == ".vtu":
-            hcvt.write_mesh(diagram, written)
-        else:
-            hcvt.io.write_cells(diagram, written)
-        info["cells"] = str(written)
+    if cells_path and cells_from_mesh:
+        hcvt.write_mesh(mesh, cells_path, cell_data=data)
+        info["cells"] = str(cells_path)
     if mesh_dir:
-        hcvt.write_mesh(diagram, mesh_dir)
+        hcvt.write_mesh(mesh, mesh_dir, domain=diagram.domain, cell_data=data)
         info["mesh"] = str(mesh_dir)
     info["write_seconds"] = time.perf_counter() - start
     quality = mesh_quality(mesh).summary()

@@ -65,6 +65,7 @@ def write_mesh(
     labels: ArrayLike | None = None,
     binary: bool = False,
     thickness: float | None = None,
+    cell_data: dict[str, ArrayLike] | None = None,
 ) -> Path:
     """Write the conforming mesh of a diagram (or a PolyMesh) to ``path``.
 
@@ -86,6 +87,8 @@ def write_mesh(
         OpenFOAM: binary lists.
     thickness : float, optional
         OpenFOAM, 2D: the extrusion depth.
+    cell_data : dict of str to array_like of shape (n,), optional
+        More per-cell values to write (beside a diagram's ``volume`` and ``G``).
 
     Returns
     -------
@@ -100,6 +103,7 @@ def write_mesh(
         An unknown suffix; a GeoJSON of a 3D mesh.
     """
     mesh, own_domain, data = as_polymesh(source)
+    data = {**data, **(cell_data or {})}
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix == ".vtu":
