@@ -185,6 +185,12 @@ def test_checkmesh_passes_the_sphere_cvt_mesh(sphere_cvt, sphere, tmp_path, bina
     assert abs(_figure(log, rf"Max skewness = {NUM}") - ours["skewness_max"]) < 1e-9
     # A CVT: centroids sit on (near) the sites, so faces are close to orthogonal.
     assert ours["non_orthogonality_max"] < 30
+    # Another OpenFOAM tool on the case as written: foamToVTK, fields included.
+    env = {**os.environ, "WM_PROJECT_DIR": os.environ.get("WM_PROJECT_DIR", "/usr/share/openfoam")}
+    subprocess.run(["foamToVTK", "-case", str(case)], check=True, capture_output=True, env=env)
+    internal = pv.read(next(case.glob("VTK/*_0/internal.vtu")))
+    assert internal.n_cells == mesh.n_cells
+    assert np.array_equal(np.sort(internal.cell_data["site"]), np.arange(mesh.n_cells))
 
 
 def test_openfoam_faces_are_upper_triangular(tmp_path):
