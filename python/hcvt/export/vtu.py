@@ -137,7 +137,9 @@ def _polyhedra(
     stream[entry_start] = sizes
     stream[np.repeat(entry_start + 1, sizes) + within] = vertices
     # Connectivity: each cell's distinct points, in increasing order.
-    pairs = np.unique(np.repeat(entry_cell, sizes) * len(mesh.points) + vertices)
+    # np.sort and a mask, not np.unique: numpy 2's hashing unique is 5x slower here.
+    pairs = np.sort(np.repeat(entry_cell, sizes).astype(np.int64) * len(mesh.points) + vertices)
+    pairs = pairs[np.diff(pairs, prepend=-1) != 0]
     owner_of_pair = pairs // len(mesh.points)
     connectivity = pairs % len(mesh.points)
     offsets = np.cumsum(np.bincount(owner_of_pair, minlength=mesh.n_cells))
