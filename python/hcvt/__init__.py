@@ -17,6 +17,7 @@ from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.initialisation import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
 from hcvt.optimise import CVTResult, cvt
+from hcvt.regular import RegularResult, defects, regular_cvt
 
 __all__ = [
     "CVTResult",
@@ -26,9 +27,11 @@ __all__ = [
     "InvalidDomainError",
     "InvalidSitesError",
     "LatticeResult",
+    "RegularResult",
     "RepairReport",
     "MonteCarloResult",
     "cvt",
+    "defects",
     "get_num_threads",
     "global_monte_carlo",
     "hierarchical_cvt",
@@ -36,6 +39,7 @@ __all__ = [
     "io",
     "load_domain",
     "plot",
+    "regular_cvt",
     "set_num_threads",
     "voronoi",
     "write_cells",
