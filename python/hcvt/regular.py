@@ -58,9 +58,16 @@ HEX_BASIS = np.array([[1.0, 0.5], [0.0, np.sqrt(3.0) / 2.0]])
 HEX_PERIOD = np.pi / 3.0
 #: A move is kept when it lowers E by more than this fraction of E (E's round-off is ~1e-15).
 ACCEPT_REL = 1e-11
+#: Default size of the pose search (:func:`posed_lattice`) and finalists, by dimension.
+SEARCH = {
+    2: {"orientations": 12, "offsets": 4, "refine": 4, "finalists": 3},
+    3: {"orientations": 6, "offsets": 2, "refine": 2, "finalists": 2},
+}
 #: Stages of :attr:`RegularResult.history`.
 STAGES = ("pose", "cvt", "move")
-STARTS = ("lattice", "hierarchical")
+#: Starts of :func:`regular_cvt`: the best-posed lattice, or the paper's hierarchical method
+#: from random sites (s maximal) or from a lattice (s = 1, its best in Tables 4-6).
+STARTS = ("lattice", "hierarchical", "hierarchical-lattice")
 
 
 # ----------------------------------------------------------------------------- defects
@@ -158,9 +165,9 @@ def posed_lattice(
     *,
     seed: int = 0,
     rng: RandomState = None,
-    orientations: int = 12,
-    offsets: int = 4,
-    refine: int = 4,
+    orientations: int | None = None,
+    offsets: int | None = None,
+    refine: int | None = None,
 ) -> list[Pose]:
     """Hexagonal (2D) or BCC (3D) lattices with exactly ``n`` sites, best first.
 
@@ -187,8 +194,9 @@ def posed_lattice(
     seed, rng
         Choose the candidate set (phases and 3D rotations); ``rng`` as in
         :func:`hcvt.initialise`.
-    orientations, offsets, refine : int
-        Sizes of the search above.
+    orientations, offsets, refine : int, optional
+        Sizes of the search above; defaults :data:`SEARCH` of the dimension (2D 12, 4, 4:
+        about 250 poses; 3D 6, 2, 2: about 100, a 3D pose costing ten 2D ones).
 
     Returns
     -------
@@ -201,6 +209,10 @@ def posed_lattice(
         Bad ``n`` or sizes, or no pose with exactly ``n`` sites.
     """
     n = check_count(n, domain.dim)
+    orientations, offsets, refine = (
+        SEARCH[domain.dim][k] if v is None else v
+        for k, v in (("orientations", orientations), ("offsets", offsets), ("refine", refine))
+    )
     if min(orientations, offsets) < 1 or refine < 0:
         raise ValueError(
             f"need orientations, offsets >= 1 and refine >= 0, got {orientations}, {offsets}, "
@@ -526,6 +538,8 @@ class RegularResult:
         The pose whose CVT was kept (None when ``start="hierarchical"``).
     start_energy : float
         Energy of the CVT the relaxation started from (best posed lattice or hierarchical).
+    start_mean_G : float
+        Its mean G.
     start_defects : int
         Its interior defects.
     relaxation : Relaxation
@@ -539,6 +553,7 @@ class RegularResult:
     history: dict[str, NDArray[Any]] = field(repr=False)
     pose: Pose | None
     start_energy: float
+    start_mean_G: float  # noqa: N815 (the paper's G)
     start_defects: int
     relaxation: Relaxation = field(repr=False)
     seconds: float
@@ -566,10 +581,10 @@ def regular_cvt(
     seed: int = 0,
     rng: RandomState = None,
     start: str = "lattice",
-    orientations: int = 12,
-    offsets: int = 4,
-    refine: int = 4,
-    finalists: int = 3,
+    orientations: int | None = None,
+    offsets: int | None = None,
+    refine: int | None = None,
+    finalists: int | None = None,
     moves: int = 60,
     patience: int | None = None,
     method: str = "newton",
@@ -582,7 +597,8 @@ def regular_cvt(
     1. ``start="lattice"`` (default): :func:`posed_lattice` ranks exact-count hexagonal/BCC
        poses by their clipped energy; the ``finalists`` best are optimised by ``method``
        (Newton by default) and the lowest energy is kept. ``start="hierarchical"``:
-       :func:`hcvt.hierarchical_cvt` with ``method`` instead.
+       :func:`hcvt.hierarchical_cvt` from random sites (maximal s) with ``method`` instead;
+       ``"hierarchical-lattice"``: from a lattice with s = 1 (the paper's best rows).
     2. :func:`relax_defects` with ``moves`` moves lowers the energy further.
 
     Parameters
@@ -593,11 +609,11 @@ def regular_cvt(
     seed, rng
         Choose the pose candidates, the hierarchy's random sites and the moves; ``rng``
         as in :func:`hcvt.initialise`. Deterministic for a seed.
-    start : {"lattice", "hierarchical"}
+    start : {"lattice", "hierarchical", "hierarchical-lattice"}
     orientations, offsets, refine
-        Size of the pose search (:func:`posed_lattice`).
-    finalists : int
-        Best poses optimised to a CVT.
+        Size of the pose search (:func:`posed_lattice`); defaults by dimension (:data:`SEARCH`).
+    finalists : int, optional
+        Best poses optimised to a CVT: 3 (2D) or 2 (3D) by default.
     moves, patience
         Relaxation budget (:func:`relax_defects`); ``moves=0`` stops after step 1.
     method, rule, tol, max_iter
@@ -617,6 +633,8 @@ def regular_cvt(
     n = check_count(n, domain.dim)
     if start not in STARTS:
         raise ValueError(f"start must be one of {STARTS}, got {start!r}")
+    if finalists is None:
+        finalists = SEARCH[domain.dim]["finalists"]
     if finalists < 1:
         raise ValueError(f"finalists must be at least 1, got {finalists}")
     if moves < 0:
@@ -656,8 +674,17 @@ def regular_cvt(
         assert best is not None
         sites, start_diagram = best.sites, best.diagram
     else:
+        from_lattice = start == "hierarchical-lattice"
         hier = hierarchical_cvt(
-            domain, n, rng=generator, rule=rule, tol=tol, max_iter=max_iter, method=method
+            domain,
+            n,
+            1 if from_lattice else None,
+            init="lattice" if from_lattice else "random",
+            rng=generator,
+            rule=rule,
+            tol=tol,
+            max_iter=max_iter,
+            method=method,
         )
         sites, start_diagram = hier.sites, hier.diagram
         rows.append(
@@ -709,6 +736,7 @@ def regular_cvt(
         history=history,
         pose=pose,
         start_energy=float(start_diagram.energy),
+        start_mean_G=float(start_diagram.mean_G),
         start_defects=defects(start_diagram).number,
         relaxation=relaxed,
         seconds=time.perf_counter() - clock,

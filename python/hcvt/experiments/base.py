@@ -30,7 +30,7 @@ class Config:
     label: str
     shape: str
     n: int
-    method: str  # "lbfgs", "newton", "hierarchical", "monte-carlo", "voronoi"
+    method: str  # "lbfgs", "newton", "hierarchical", "monte-carlo", "voronoi", "regular"
     init: str = "random"
     subdivisions: int | None = None
     seed: int = 0
@@ -41,7 +41,10 @@ class Config:
     keep_sites: bool = False
     keep_history: bool = False
     updates: int = 200  # Monte-Carlo only
-    optimiser: str = "lbfgs"  # hierarchical only: the optimiser of every level
+    optimiser: str = "lbfgs"  # hierarchical and regular: the optimiser of every CVT
+    moves: int = 60  # regular only: defect-relaxation moves (hcvt.regular_cvt)
+    start: str = "lattice"  # regular only: what the relaxation starts from
+    max_runs: int | None = None  # seeds at most, whatever --runs says (long cases)
     # The stopping rule of every CVT (hcvt.cvt): the paper's, ‖g‖/‖X‖ < 1e-10 in the input
     # coordinates, as the paper ran; "gap" (our scale-free default) where the paper's rule
     # means nothing in the mesh's units (homer.obj: it holds at an RMS gap near 1e-2).
@@ -87,20 +90,32 @@ def comparison_table(experiment: Experiment, summaries: list[Summary]) -> str:
     """Our median mean G and energy beside the paper's, with ratios (ours / paper)."""
     header = (
         "| configuration | runs | ours mean G | paper mean G | ratio | ours energy | "
-        "paper energy | ratio | seconds |\n|---|---|---|---|---|---|---|---|---|\n"
+        "paper energy | ratio | interior defects | seconds |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = []
     for s in summaries:
         g, e = s.median("mean_G"), s.median("energy")
         c = s.config
-        pe = None if experiment.dim is None else paper_energy_at(c, experiment.dim)
+        if experiment.dim is not None:
+            pe = paper_energy_at(c, experiment.dim)
+        else:  # mixed dimensions: the paper's energy only where n is the paper's
+            pe = c.paper_energy if (c.paper_n or c.n) == c.n else None
         paper_e = "" if pe is None else f"{pe:.6g}"
         lines.append(
             f"| {c.label} | {len(s.rows)} | {g:.5f} | {c.paper_g or ''} | {_ratio(g, c.paper_g)} "
-            f"| {e:.6g} | {paper_e} | {_ratio(e, pe)} "
+            f"| {e:.6g} | {paper_e} | {_ratio(e, pe)} | {_defects(s)} "
             f"| {s.median('seconds'):.2f} |"
         )
     return header + "\n".join(lines) + "\n"
+
+
+def _defects(summary: Summary) -> str:
+    """Median interior defects and their share of the interior cells (hcvt.defects)."""
+    if "defects" not in summary.rows[0]:
+        return ""
+    count, interior = summary.median("defects"), summary.median("interior_cells")
+    return f"{count:.0f} ({100 * count / interior:.1f}%)" if interior else f"{count:.0f}"
 
 
 def levels_table(experiment: Experiment, summaries: list[Summary]) -> str:
@@ -238,6 +253,7 @@ def run_config(config: Config) -> Row:
     levels_sites: list[np.ndarray] = []
     history = None
     iterations = 0
+    extra: Row = {}
     if config.method == "voronoi":
         sites = hcvt.initialise(domain, config.n, method=config.init, seed=config.seed)
         start = time.perf_counter()  # Table 7 times the diagram alone
@@ -258,6 +274,24 @@ def run_config(config: Config) -> Row:
             levels_sites = [level.sites for level in result.levels]
         iterations = sum(level.iterations for level in result.levels)
         history = result.levels[-1].history if config.keep_history else None
+    elif config.method == "regular":
+        regular = hcvt.regular_cvt(
+            domain,
+            config.n,
+            seed=config.seed,
+            start=config.start,
+            moves=config.moves,
+            method=config.optimiser,
+            rule=config.rule,
+        )
+        diagram = regular.diagram
+        iterations = regular.relaxation.moves
+        extra = {
+            "start_energy": regular.start_energy,
+            "start_mean_G": regular.start_mean_G,
+            "start_defects": regular.start_defects,
+            "accepted": regular.relaxation.accepted,
+        }
     else:
         sites = hcvt.initialise(domain, config.n, method=config.init, seed=config.seed)
         run: hcvt.MonteCarloResult | hcvt.CVTResult
@@ -277,6 +311,8 @@ def run_config(config: Config) -> Row:
         "iterations": int(iterations),
         "seconds": seconds,
         "levels_G": levels,
+        **hcvt.defects(diagram).summary(),
+        **extra,
     }
     if config.keep_sites:
         row["sites"] = diagram.sites
@@ -291,12 +327,14 @@ def run_config(config: Config) -> Row:
 def expand(experiment: Experiment, runs: int) -> list[Config]:
     """The experiment's configurations, each with ``runs`` seeds where the paper took a median.
 
-    Lattice and Hammersley initialisations are deterministic: one run each.
+    Lattice and Hammersley initialisations are deterministic: one run each; the regular
+    method's seed chooses its poses and moves, so it runs every seed.
     """
     out: list[Config] = []
     for config in experiment.configs:
-        random = config.init == "random" or config.method == "voronoi"
+        random = config.init == "random" or config.method in ("voronoi", "regular")
         count = runs if (random or not experiment.random_only_runs) else 1
+        count = count if config.max_runs is None else min(count, config.max_runs)
         out.extend(replace(config, seed=seed) for seed in range(count))
     return out
 
