@@ -39,6 +39,14 @@ def test_defects_of_the_paper_lattice_and_of_a_vacancy():
     found = hcvt.defects(vacancy.diagram)
     assert sorted(found.counts[found.defective].tolist()) == [5, 5, 7, 7]
     assert found.fraction == pytest.approx(4 / found.interior_cells)
+    assert found.deep_number == 4  # in the middle, far from the boundary layer
+    # The boundary layer: interior cells beside a boundary cell are not deep.
+    boundary = ~found.interior
+    i, j = vacancy.diagram.neighbors.T
+    beside = np.zeros(len(boundary), dtype=bool)
+    beside[i[boundary[j]]] = beside[j[boundary[i]]] = True
+    np.testing.assert_array_equal(found.deep, found.interior & ~beside)
+    assert 0 < (found.interior & beside).sum() < 200
 
 
 def test_regular_cvt_finds_the_lattice_pose_and_goes_below_it():
@@ -58,6 +66,9 @@ def test_regular_cvt_finds_the_lattice_pose_and_goes_below_it():
     assert result.relaxation.accepted >= 1
     assert result.mean_G < 0.08066
     assert result.pose is not None and result.pose.sites.shape == (1033, 2)
+    # Fewer defects in the bulk than the paper's hierarchical method (43 deep for seed 0).
+    hierarchical = hcvt.hierarchical_cvt(square(), 1033, seed=0, method="newton")
+    assert result.defects.deep_number < hcvt.defects(hierarchical.diagram).deep_number / 4
 
 
 def test_regular_beats_hierarchical_on_a_real_polygon():

@@ -196,7 +196,7 @@ def run(
     )
     click.echo(
         f"interior defects = {found.number} of {found.interior_cells} interior cells "
-        f"({100 * found.fraction:.1f}%)"
+        f"({100 * found.fraction:.1f}%), {found.deep_number} away from the boundary layer"
     )
     if history is not None:
         click.echo(

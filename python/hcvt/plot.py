@@ -220,7 +220,8 @@ def shared_range(G_sets: list[ArrayLike], dim: int) -> tuple[float, float]:
 def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any, *, kind: str):
     """One panel per labelled run with a shared colour scale, saved to ``path``.
 
-    ``kind``: ``"cells"`` (2D cells by G), ``"histograms"`` (G histograms with shared
+    ``kind``: ``"cells"`` (2D cells by G), ``"defects"`` (the same with the interior
+    defects marked, :func:`hcvt.defects`), ``"histograms"`` (G histograms with shared
     bins) or ``"cuts"`` (3D cut views). Each run holds ``sites`` and ``G``.
     """
     from hcvt.diagram import voronoi
@@ -240,15 +241,13 @@ def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any,
             ax.set_title(f"{label}\nmean G = {np.mean(run['G']):.5f}", fontsize=9)
             continue
         diagram = voronoi(domains[label], run["sites"])
+        title = f"{label}\nmean G = {diagram.mean_G:.5f}"
+        if kind == "defects":  # 2D cells with the defective interior sites marked
+            suffix = _mark_defects(ax, diagram)
+            plot_cells(diagram, ax, vmin=vmin, vmax=vmax, colorbar=False, title=title + suffix)
+            continue
         draw = plot_cells if kind == "cells" else plot_cut
-        draw(
-            diagram,
-            ax,
-            vmin=vmin,
-            vmax=vmax,
-            colorbar=False,
-            title=f"{label}\nmean G = {diagram.mean_G:.5f}",
-        )
+        draw(diagram, ax, vmin=vmin, vmax=vmax, colorbar=False, title=title)
     if kind == "histograms":
         fig.tight_layout()  # two-line titles would overlap the x labels above them
     _shared_colorbar(fig, vmin, vmax, kind)

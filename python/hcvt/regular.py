@@ -83,6 +83,11 @@ class Defects:
         Cells with no part of the domain boundary (``boundary_measure == 0``).
     defective : ndarray of bool, shape (n,)
         Interior cells with ``counts != ideal``.
+    deep : ndarray of bool, shape (n,)
+        Interior cells whose neighbours are all interior too (a layer away from the
+        boundary): defects there are dislocations of the bulk, not the boundary layer's
+        reconstruction (the moves of :func:`relax_defects` often trade a few of the latter
+        for lower energy).
     ideal : int
         6 (2D) or 14 (3D).
     """
@@ -90,6 +95,7 @@ class Defects:
     counts: NDArray[np.intp]
     interior: NDArray[np.bool_]
     defective: NDArray[np.bool_]
+    deep: NDArray[np.bool_]
     ideal: int
 
     @property
@@ -107,12 +113,18 @@ class Defects:
         """Defective interior cells over interior cells (0 when there are none)."""
         return self.number / self.interior_cells if self.interior_cells else 0.0
 
+    @property
+    def deep_number(self) -> int:
+        """Number of defective cells among the deep ones (no boundary cell as neighbour)."""
+        return int((self.defective & self.deep).sum())
+
     def summary(self) -> dict[str, float | int]:
-        """``defects``, ``interior_cells`` and ``defect_fraction``, for reports and JSON."""
+        """``defects``, ``interior_cells``, ``defect_fraction`` and ``deep_defects``."""
         return {
             "defects": self.number,
             "interior_cells": self.interior_cells,
             "defect_fraction": self.fraction,
+            "deep_defects": self.deep_number,
         }
 
 
@@ -130,7 +142,12 @@ def defects(diagram: Diagram) -> Defects:
     counts = neighbor_counts(diagram)
     ideal = IDEAL_NEIGHBORS[diagram.domain.dim]
     interior = diagram.boundary_measure == 0
-    return Defects(counts, interior, interior & (counts != ideal), ideal)
+    # A cell is deep when no edge joins it to a boundary cell.
+    i, j = diagram.neighbors.T
+    touches = np.zeros(diagram.n, dtype=bool)
+    touches[i[~interior[j]]] = True
+    touches[j[~interior[i]]] = True
+    return Defects(counts, interior, interior & (counts != ideal), interior & ~touches, ideal)
 
 
 # --------------------------------------------------------------------------- pose search

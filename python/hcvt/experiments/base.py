@@ -111,11 +111,15 @@ def comparison_table(experiment: Experiment, summaries: list[Summary]) -> str:
 
 
 def _defects(summary: Summary) -> str:
-    """Median interior defects and their share of the interior cells (hcvt.defects)."""
+    """Median interior defects, their share of the interior cells, and the deep ones."""
     if "defects" not in summary.rows[0]:
         return ""
     count, interior = summary.median("defects"), summary.median("interior_cells")
-    return f"{count:.0f} ({100 * count / interior:.1f}%)" if interior else f"{count:.0f}"
+    share = f" ({100 * count / interior:.1f}%)" if interior else ""
+    deep = (
+        f", deep {summary.median('deep_defects'):.0f}" if "deep_defects" in summary.rows[0] else ""
+    )
+    return f"{count:.0f}{share}{deep}"
 
 
 def levels_table(experiment: Experiment, summaries: list[Summary]) -> str:
@@ -415,6 +419,8 @@ def draw_figures(experiment: Experiment, summaries: list[Summary], out: Path) ->
                 load_shape(summaries[0].config.shape), _median_run(summaries[0]), path
             )
         else:
+            if kind == "defects":  # the rows that kept their sites (one shape, 2D)
+                summaries = [s for s in summaries if "sites" in s.rows[0]]
             runs = {s.config.label: _median_run(s) for s in summaries}
             domains = {s.config.label: load_shape(s.config.shape) for s in summaries}
             plot.comparison_figure(domains, runs, path, kind=kind)
