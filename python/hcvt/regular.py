@@ -198,8 +198,9 @@ def posed_lattice(
        the longest boundary edges (rows along an edge, or across it: ``+30°``); 3D,
        ``orientations`` random rotations from the seed plus the identity.
        Offsets: an ``offsets^d`` grid over the unit cell, phase from the seed.
-    2. Around each of the ``refine`` best poses, a pose halfway to each grid neighbour in
-       angle and offset.
+    2. Around each of the ``refine`` best poses: the angle and half a grid step either
+       side of it (3D: a turn of 0.05 rad about a random axis), each with the offset moved
+       a quarter of a grid step either way along every axis (``3 · 2^d`` poses).
 
     Poses whose count jumps over ``n`` (a row reaching a straight edge all at once) drop out.
 
@@ -213,7 +214,8 @@ def posed_lattice(
         :func:`hcvt.initialise`.
     orientations, offsets, refine : int, optional
         Sizes of the search above; defaults :data:`SEARCH` of the dimension (2D 12, 4, 4:
-        about 250 poses; 3D 6, 2, 2: about 100, a 3D pose costing ten 2D ones).
+        250 to 450 poses with the aligned angles; 3D 6, 2, 2: about 100, a 3D pose costing
+        ten 2D ones).
 
     Returns
     -------
