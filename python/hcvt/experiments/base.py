@@ -391,7 +391,10 @@ def markdown_table(experiment: Experiment, summaries: list[Summary]) -> str:
 
 def write_csv(rows: list[Row], path: Path) -> None:
     """Every run's scalar results, one line per run."""
-    scalar = [k for k, v in rows[0].items() if np.isscalar(v) or v is None]
+    # The union of every row's scalar keys, first seen first: methods add their own.
+    scalar = list(
+        dict.fromkeys(k for row in rows for k, v in row.items() if np.isscalar(v) or v is None)
+    )
     with path.open("w", newline="") as out:
         writer = csv.DictWriter(out, fieldnames=scalar, extrasaction="ignore")
         writer.writeheader()
