@@ -136,3 +136,23 @@ def test_cli_runs_the_regular_method_and_reports_defects(tmp_path):
     assert 0 <= info["defects"] < info["interior_cells"] < 200
     assert f"interior defects = {info['defects']} of {info['interior_cells']}" in result.output
     assert png.stat().st_size > 10_000
+
+
+def test_defects_figure_marks_the_defects(tmp_path):
+    from hcvt import plot
+
+    domain = square()
+    runs, domains = {}, {}
+    for label, method in (("hierarchical", "newton"), ("random", "lloyd")):
+        sites = hcvt.initialise(domain, 200, seed=1)
+        diagram = hcvt.cvt(domain, sites, method, max_iter=30).diagram
+        runs[label], domains[label] = {"sites": diagram.sites, "G": diagram.G}, domain
+    path = tmp_path / "defects.png"
+    plot.comparison_figure(domains, runs, path, kind="defects")
+    assert path.stat().st_size > 10_000
+    # The overlay: one marker per defective interior site, fewer (v) and more (^) neighbours.
+    ax = plot.plot_cells(hcvt.voronoi(domain, runs["random"]["sites"]), show_defects=True)
+    found = hcvt.defects(hcvt.voronoi(domain, runs["random"]["sites"]))
+    marked = sum(len(line.get_xdata()) for line in ax.get_lines())
+    assert marked == found.number > 0
+    assert ax.get_title().endswith(f", {found.number} defects")
