@@ -18,6 +18,7 @@ from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.initialisation import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
 from hcvt.optimise import CVTResult, cvt
+from hcvt.regular import RegularResult, defects, regular_cvt
 
 __all__ = [
     "CVTResult",
@@ -28,9 +29,11 @@ __all__ = [
     "InvalidMeshError",
     "InvalidSitesError",
     "LatticeResult",
+    "RegularResult",
     "RepairReport",
     "MonteCarloResult",
     "cvt",
+    "defects",
     "get_num_threads",
     "global_monte_carlo",
     "hierarchical_cvt",
@@ -38,6 +41,7 @@ __all__ = [
     "io",
     "load_domain",
     "plot",
+    "regular_cvt",
     "set_num_threads",
     "voronoi",
     "write_cells",

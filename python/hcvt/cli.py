@@ -3,6 +3,7 @@
 hcvt run star -n 2000 --plot star.png
 hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
 hcvt run bunny.off -n 50000 --mesh case/ --cells cells.vtu
+hcvt run square -n 1033 --method regular --moves 60 --plot square.png
 hcvt show result.json --plot cells.png
 hcvt reproduce table4 --runs 10 --out results
 """
@@ -20,7 +21,7 @@ import numpy as np
 
 from hcvt.optimise import RULES, default_tol
 
-METHODS = ("hierarchical", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
+METHODS = ("hierarchical", "regular", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
 OPTIMISERS = ("lbfgs", "newton", "lloyd")
 INITS = ("random", "halton", "hammersley", "lattice")
 
@@ -65,9 +66,16 @@ def _load(input_: str, repair: bool):
 @click.option(
     "--optimiser",
     type=click.Choice(OPTIMISERS),
-    default="lbfgs",
+    default=None,
+    help="Optimiser of every hierarchy level (newton: often 2-4x faster) or of the regular "
+    "method's CVTs [default: lbfgs hierarchical, newton regular].",
+)
+@click.option(
+    "--moves",
+    type=int,
+    default=60,
     show_default=True,
-    help="Optimiser of every hierarchy level (newton: often 2-4x faster).",
+    help="Regular method: defect-relaxation moves after the best-posed lattice.",
 )
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option(
@@ -103,7 +111,8 @@ def run(
     method: str,
     init: str,
     subdivisions: int | None,
-    optimiser: str,
+    optimiser: str | None,
+    moves: int,
     seed: int,
     rule: str,
     tol: float | None,
@@ -121,6 +130,7 @@ def run(
     domain = _load(input_, repair)
     if domain.repair_report is not None:
         click.echo(str(domain.repair_report))
+    optimiser = optimiser or ("newton" if method == "regular" else "lbfgs")
     start = time.perf_counter()
     iterations: int | None = None
     history: dict[str, Any] | None = None
@@ -139,6 +149,19 @@ def run(
         sites, diagram = result.sites, result.diagram
         iterations = sum(level.iterations for level in result.levels)
         history = result.levels[-1].history
+    elif method == "regular":
+        regular = hcvt.regular_cvt(
+            domain,
+            n,
+            seed=seed,
+            moves=moves,
+            method=optimiser,
+            rule=rule,
+            tol=tol,
+            max_iter=max_iter,
+        )
+        sites, diagram = regular.sites, regular.diagram
+        iterations = regular.relaxation.moves
     else:
         sites = hcvt.initialise(domain, n, method=init, seed=seed)
         if method == "voronoi":
@@ -164,8 +187,8 @@ def run(
     info = {
         "input": input_,
         "method": method,
-        "optimiser": optimiser if method == "hierarchical" else None,
-        "init": init,
+        "optimiser": optimiser if method in ("hierarchical", "regular") else None,
+        "init": "posed lattice" if method == "regular" else init,
         "n": int(diagram.n),
         "mean_G": diagram.mean_G,
         "energy": diagram.energy,
@@ -173,6 +196,8 @@ def run(
         "seconds": seconds,
         "seed": seed,
     }
+    found = hcvt.defects(diagram)
+    info.update(found.summary())
     if method != "voronoi":
         info["rule"] = rule
         info["tol"] = default_tol(rule) if tol is None else tol
@@ -181,6 +206,10 @@ def run(
     click.echo(
         f"n = {info['n']}  mean G = {info['mean_G']:.6f}  energy = {info['energy']:.6g}  "
         f"iterations = {iterations}  seconds = {seconds:.2f}"
+    )
+    click.echo(
+        f"interior defects = {found.number} of {found.interior_cells} interior cells "
+        f"({100 * found.fraction:.1f}%), {found.deep_number} away from the boundary layer"
     )
     if history is not None:
         click.echo(
@@ -267,7 +296,10 @@ def _write_sites(path: Path, sites: np.ndarray) -> None:
 def _plot(diagram: Any, path: str) -> None:
     from hcvt import plot
 
-    ax = plot.plot_cells(diagram) if diagram.domain.dim == 2 else plot.plot_cut(diagram)
+    if diagram.domain.dim == 2:
+        ax = plot.plot_cells(diagram, show_defects=True)
+    else:
+        ax = plot.plot_cut(diagram)
     plot.save(ax, path)
 
 

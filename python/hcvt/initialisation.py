@@ -381,6 +381,34 @@ def lattice(domain: Domain, n: int, seed: int = 0, *, rng: RandomState = None) -
     return _lattice_result(domain, closest[1], closest[2], n)
 
 
+def lattice_at(
+    domain: Domain,
+    n: int,
+    offset: NDArray[np.float64],
+    rotation: NDArray[np.float64],
+    *,
+    pieces: NDArray[np.float64] | None = None,
+) -> LatticeResult | None:
+    """The lattice of one pose with exactly ``n`` sites inside, or None if the pose misses ``n``.
+
+    The pose is fixed (``offset`` (d,) a lattice point in L, ``rotation`` (d, d) with the
+    lattice axes as columns, as in :class:`LatticeResult`); only the spacing is searched,
+    scaling about ``offset``, by the bisection of :func:`lattice`. A pose misses ``n`` when
+    the count jumps over it (a lattice row reaching a straight boundary all at once).
+    ``pieces`` (the domain's boundary segments or triangles) saves recomputing them per pose.
+    """
+    n = check_count(n, domain.dim)
+    cell_volume = {2: np.sqrt(3.0) / 2.0, 3: 0.5}[domain.dim]
+    scale0 = float((domain.volume / n / cell_volume) ** (1.0 / domain.dim))
+    pose = _Pose.of(_boundary_pieces(domain) if pieces is None else pieces, offset, rotation)
+
+    def count(scale: float) -> int:
+        return int(_gaps(domain, pose, scale).count.sum())
+
+    scale, found = _search_scale(count, n, scale0)
+    return _lattice_result(domain, pose, scale, n) if found == n else None
+
+
 def _search_scale(count: Callable[[float], int], n: int, scale0: float) -> tuple[float, int]:
     """A scale whose count is ``n``, or the closest found with more; and its count.
 
@@ -427,6 +455,11 @@ def _random_pose(
         rotation = Rotation.random(rng=rng).as_matrix()
     offset = domain.centroid + scale * rotation @ rng.random(domain.dim)
     return offset, rotation
+
+
+def boundary_pieces(domain: Domain) -> NDArray[np.float64]:
+    """Boundary segments (P, 2, 2) or triangles (P, 3, 3), world coordinates (L)."""
+    return _boundary_pieces(domain)
 
 
 def _boundary_pieces(domain: Domain) -> NDArray[np.float64]:

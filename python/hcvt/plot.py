@@ -39,6 +39,7 @@ def plot_cells(
     vmin: float | None = None,
     vmax: float | None = None,
     show_sites: bool = False,
+    show_defects: bool = False,
     colorbar: bool = True,
     title: str | None = None,
 ) -> Any:
@@ -53,6 +54,9 @@ def plot_cells(
         Colour range of G; default from :func:`g_colour_range`.
     show_sites : bool
         Also draw the sites as dots.
+    show_defects : bool
+        Mark the sites of interior cells without 6 neighbours (:func:`hcvt.defects`):
+        fewer as downward triangles, more as upward ones; the count goes in the title.
     colorbar : bool
         Add a colour bar labelled G.
     title : str, optional
@@ -78,6 +82,9 @@ def plot_cells(
     ax.add_collection(collection)
     if show_sites:
         ax.plot(diagram.sites[:, 0], diagram.sites[:, 1], "k.", markersize=1)
+    suffix = ""
+    if show_defects:
+        suffix = _mark_defects(ax, diagram)
     lo, hi = diagram.domain.bounds
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
@@ -85,8 +92,20 @@ def plot_cells(
     ax.set_axis_off()
     if colorbar:
         plt.colorbar(collection, ax=ax, shrink=0.7, label="G")
-    ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}")
+    ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}{suffix}")
     return ax
+
+
+def _mark_defects(ax: Any, diagram: Diagram) -> str:
+    """Mark defective interior sites on ``ax``; returns ``", D defects"`` for the title."""
+    from hcvt.regular import defects
+
+    found = defects(diagram)
+    for sign, marker, colour in ((-1, "v", "k"), (1, "^", "m")):
+        pick = found.defective & (np.sign(found.counts - found.ideal) == sign)
+        points = diagram.sites[pick]
+        ax.plot(points[:, 0], points[:, 1], marker, color=colour, markersize=2.5, linestyle="")
+    return f", {found.number} defects"
 
 
 def plot_histogram(
@@ -201,7 +220,8 @@ def shared_range(G_sets: list[ArrayLike], dim: int) -> tuple[float, float]:
 def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any, *, kind: str):
     """One panel per labelled run with a shared colour scale, saved to ``path``.
 
-    ``kind``: ``"cells"`` (2D cells by G), ``"histograms"`` (G histograms with shared
+    ``kind``: ``"cells"`` (2D cells by G), ``"defects"`` (the same with the interior
+    defects marked, :func:`hcvt.defects`), ``"histograms"`` (G histograms with shared
     bins) or ``"cuts"`` (3D cut views). Each run holds ``sites`` and ``G``.
     """
     from hcvt.diagram import voronoi
@@ -221,15 +241,13 @@ def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any,
             ax.set_title(f"{label}\nmean G = {np.mean(run['G']):.5f}", fontsize=9)
             continue
         diagram = voronoi(domains[label], run["sites"])
+        title = f"{label}\nmean G = {diagram.mean_G:.5f}"
+        if kind == "defects":  # 2D cells with the defective interior sites marked
+            suffix = _mark_defects(ax, diagram)
+            plot_cells(diagram, ax, vmin=vmin, vmax=vmax, colorbar=False, title=title + suffix)
+            continue
         draw = plot_cells if kind == "cells" else plot_cut
-        draw(
-            diagram,
-            ax,
-            vmin=vmin,
-            vmax=vmax,
-            colorbar=False,
-            title=f"{label}\nmean G = {diagram.mean_G:.5f}",
-        )
+        draw(diagram, ax, vmin=vmin, vmax=vmax, colorbar=False, title=title)
     if kind == "histograms":
         fig.tight_layout()  # two-line titles would overlap the x labels above them
     _shared_colorbar(fig, vmin, vmax, kind)

@@ -28,6 +28,7 @@ from hcvt.experiments import (
     fig1,
     fig11,
     fig12,
+    regular,
     table2,
     table3,
     table4,
@@ -82,7 +83,7 @@ __all__ = [
 ]
 
 # In the order of ``hcvt reproduce all``.
-MODULES = (table2, table3, table4, table5, table6, table7, table8, fig12, fig1, fig11)
+MODULES = (table2, table3, table4, table5, table6, table7, table8, fig12, fig1, fig11, regular)
 
 
 def experiments(quick: bool) -> dict[str, Experiment]:

@@ -30,7 +30,7 @@ class Config:
     label: str
     shape: str
     n: int
-    method: str  # "lbfgs", "newton", "hierarchical", "monte-carlo", "voronoi"
+    method: str  # "lbfgs", "newton", "hierarchical", "monte-carlo", "voronoi", "regular"
     init: str = "random"
     subdivisions: int | None = None
     seed: int = 0
@@ -41,7 +41,10 @@ class Config:
     keep_sites: bool = False
     keep_history: bool = False
     updates: int = 200  # Monte-Carlo only
-    optimiser: str = "lbfgs"  # hierarchical only: the optimiser of every level
+    optimiser: str = "lbfgs"  # hierarchical and regular: the optimiser of every CVT
+    moves: int = 60  # regular only: defect-relaxation moves (hcvt.regular_cvt)
+    start: str = "lattice"  # regular only: what the relaxation starts from
+    max_runs: int | None = None  # seeds at most, whatever --runs says (long cases)
     # The stopping rule of every CVT (hcvt.cvt): the paper's, ‖g‖/‖X‖ < 1e-10 in the input
     # coordinates, as the paper ran; "gap" (our scale-free default) where the paper's rule
     # means nothing in the mesh's units (homer.obj: it holds at an RMS gap near 1e-2).
@@ -87,20 +90,36 @@ def comparison_table(experiment: Experiment, summaries: list[Summary]) -> str:
     """Our median mean G and energy beside the paper's, with ratios (ours / paper)."""
     header = (
         "| configuration | runs | ours mean G | paper mean G | ratio | ours energy | "
-        "paper energy | ratio | seconds |\n|---|---|---|---|---|---|---|---|---|\n"
+        "paper energy | ratio | interior defects | seconds |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n"
     )
     lines = []
     for s in summaries:
         g, e = s.median("mean_G"), s.median("energy")
         c = s.config
-        pe = None if experiment.dim is None else paper_energy_at(c, experiment.dim)
+        if experiment.dim is not None:
+            pe = paper_energy_at(c, experiment.dim)
+        else:  # mixed dimensions: the paper's energy only where n is the paper's
+            pe = c.paper_energy if (c.paper_n or c.n) == c.n else None
         paper_e = "" if pe is None else f"{pe:.6g}"
         lines.append(
             f"| {c.label} | {len(s.rows)} | {g:.5f} | {c.paper_g or ''} | {_ratio(g, c.paper_g)} "
-            f"| {e:.6g} | {paper_e} | {_ratio(e, pe)} "
+            f"| {e:.6g} | {paper_e} | {_ratio(e, pe)} | {_defects(s)} "
             f"| {s.median('seconds'):.2f} |"
         )
     return header + "\n".join(lines) + "\n"
+
+
+def _defects(summary: Summary) -> str:
+    """Median interior defects, their share of the interior cells, and the deep ones."""
+    if "defects" not in summary.rows[0]:
+        return ""
+    count, interior = summary.median("defects"), summary.median("interior_cells")
+    share = f" ({100 * count / interior:.1f}%)" if interior else ""
+    deep = (
+        f", deep {summary.median('deep_defects'):.0f}" if "deep_defects" in summary.rows[0] else ""
+    )
+    return f"{count:.0f}{share}{deep}"
 
 
 def levels_table(experiment: Experiment, summaries: list[Summary]) -> str:
@@ -238,6 +257,7 @@ def run_config(config: Config) -> Row:
     levels_sites: list[np.ndarray] = []
     history = None
     iterations = 0
+    extra: Row = {}
     if config.method == "voronoi":
         sites = hcvt.initialise(domain, config.n, method=config.init, seed=config.seed)
         start = time.perf_counter()  # Table 7 times the diagram alone
@@ -258,6 +278,24 @@ def run_config(config: Config) -> Row:
             levels_sites = [level.sites for level in result.levels]
         iterations = sum(level.iterations for level in result.levels)
         history = result.levels[-1].history if config.keep_history else None
+    elif config.method == "regular":
+        regular = hcvt.regular_cvt(
+            domain,
+            config.n,
+            seed=config.seed,
+            start=config.start,
+            moves=config.moves,
+            method=config.optimiser,
+            rule=config.rule,
+        )
+        diagram = regular.diagram
+        iterations = regular.relaxation.moves
+        extra = {
+            "start_energy": regular.start_energy,
+            "start_mean_G": regular.start_mean_G,
+            "start_defects": regular.start_defects,
+            "accepted": regular.relaxation.accepted,
+        }
     else:
         sites = hcvt.initialise(domain, config.n, method=config.init, seed=config.seed)
         run: hcvt.MonteCarloResult | hcvt.CVTResult
@@ -277,6 +315,8 @@ def run_config(config: Config) -> Row:
         "iterations": int(iterations),
         "seconds": seconds,
         "levels_G": levels,
+        **hcvt.defects(diagram).summary(),
+        **extra,
     }
     if config.keep_sites:
         row["sites"] = diagram.sites
@@ -291,12 +331,14 @@ def run_config(config: Config) -> Row:
 def expand(experiment: Experiment, runs: int) -> list[Config]:
     """The experiment's configurations, each with ``runs`` seeds where the paper took a median.
 
-    Lattice and Hammersley initialisations are deterministic: one run each.
+    Lattice and Hammersley initialisations are deterministic: one run each; the regular
+    method's seed chooses its poses and moves, so it runs every seed.
     """
     out: list[Config] = []
     for config in experiment.configs:
-        random = config.init == "random" or config.method == "voronoi"
+        random = config.init == "random" or config.method in ("voronoi", "regular")
         count = runs if (random or not experiment.random_only_runs) else 1
+        count = count if config.max_runs is None else min(count, config.max_runs)
         out.extend(replace(config, seed=seed) for seed in range(count))
     return out
 
@@ -349,7 +391,10 @@ def markdown_table(experiment: Experiment, summaries: list[Summary]) -> str:
 
 def write_csv(rows: list[Row], path: Path) -> None:
     """Every run's scalar results, one line per run."""
-    scalar = [k for k, v in rows[0].items() if np.isscalar(v) or v is None]
+    # The union of every row's scalar keys, first seen first: methods add their own.
+    scalar = list(
+        dict.fromkeys(k for row in rows for k, v in row.items() if np.isscalar(v) or v is None)
+    )
     with path.open("w", newline="") as out:
         writer = csv.DictWriter(out, fieldnames=scalar, extrasaction="ignore")
         writer.writeheader()
@@ -377,6 +422,8 @@ def draw_figures(experiment: Experiment, summaries: list[Summary], out: Path) ->
                 load_shape(summaries[0].config.shape), _median_run(summaries[0]), path
             )
         else:
+            if kind == "defects":  # the rows that kept their sites (one shape, 2D)
+                summaries = [s for s in summaries if "sites" in s.rows[0]]
             runs = {s.config.label: _median_run(s) for s in summaries}
             domains = {s.config.label: load_shape(s.config.shape) for s in summaries}
             plot.comparison_figure(domains, runs, path, kind=kind)
