@@ -13,8 +13,7 @@
 //!
 //! Degenerate configurations (cocircular or cospherical sites, lattices, boundary vertices
 //! on bisectors) give several names to one point, or faces of no area. Two names are
-//! merged when a cell's face has them as consecutive vertices at one point (to
-//! `MERGE_REL` of the cell's size), or when a face's vertex seen from one of its cells
+//! merged when one cell has both at one point (to `MERGE_REL` of the cell's size), or when a face's vertex seen from one of its cells
 //! finds no vertex of that name in the other cell's view of the face but one at its
 //! position. Merging is a union of names, so every cell sees the same result; faces left
 //! with fewer than `d` vertices are dropped.
@@ -136,8 +135,8 @@ pub(crate) fn bisector_side<const D: usize>(
     (if i == lo { d } else { -d }, zero)
 }
 
-/// Consecutive vertices of a face closer than this fraction of the cell's size are one
-/// point of several names. Degenerate vertices of lattices coincide to about 1e-15 of the
+/// Vertices of a cell closer than this fraction of the cell's size are one point of
+/// several names. Degenerate vertices of lattices coincide to about 1e-15 of the
 /// cell; distinct vertices of a CVT are farther apart than 1e-6 of it.
 const MERGE_REL: f64 = 1e-10;
 
@@ -298,16 +297,9 @@ fn assemble<const D: usize>(cells: &[CellFaces<D>], sites: &[[f64; D]]) -> PolyM
             MERGE_REL * MERGE_REL * r2
         })
         .collect();
+    let mut seen = Vec::new();
     for (i, c) in cells.iter().enumerate() {
-        for k in 0..c.sides.len() {
-            let (a, b) = (c.starts[k] as usize, c.starts[k + 1] as usize);
-            for q in a..b {
-                let r = if q + 1 == b { a } else { q + 1 };
-                if norm2(sub(c.nodes[q].1, c.nodes[r].1)) <= tol2[i] {
-                    classes.union(node_ids[i][q], node_ids[i][r]);
-                }
-            }
-        }
+        merge_coinciding(c, &node_ids[i], tol2[i], &mut seen, &mut classes);
     }
     for i in 0..cells.len() {
         for &(j, _) in dedup_neighbors(&toward[i])
@@ -409,6 +401,36 @@ impl<const D: usize> PolyMesh<D> {
         self.owner.push(owner);
         self.neighbour.push(neighbour);
         self.boundary_element.push(element);
+    }
+}
+
+/// Merge the names of a cell's vertices that lie at one point (within `tol2`, squared):
+/// sorted along the first axis, so that only near neighbours are compared.
+fn merge_coinciding<const D: usize>(
+    cell: &CellFaces<D>,
+    ids: &[u32],
+    tol2: f64,
+    seen: &mut Vec<(f64, u32, [f64; D])>,
+    classes: &mut Classes,
+) {
+    seen.clear();
+    seen.extend(
+        ids.iter()
+            .zip(&cell.nodes)
+            .map(|(&id, (_, x))| (x[0], id, *x)),
+    );
+    seen.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    seen.dedup_by_key(|e| e.1);
+    let tol = tol2.sqrt();
+    for a in 0..seen.len() {
+        for b in a + 1..seen.len() {
+            if seen[b].0 - seen[a].0 > tol {
+                break;
+            }
+            if seen[a].1 != seen[b].1 && norm2(sub(seen[a].2, seen[b].2)) <= tol2 {
+                classes.union(seen[a].1, seen[b].1);
+            }
+        }
     }
 }
 
