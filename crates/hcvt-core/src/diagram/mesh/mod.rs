@@ -138,7 +138,7 @@ pub(crate) fn bisector_side<const D: usize>(
 /// Vertices of a cell closer than this fraction of the cell's size are one point of
 /// several names. Degenerate vertices of lattices coincide to about 1e-15 of the
 /// cell; distinct vertices of a CVT are farther apart than 1e-6 of it.
-const MERGE_REL: f64 = 1e-10;
+pub(crate) const MERGE_REL: f64 = 1e-10;
 
 /// Cells per parallel task.
 const BATCH: usize = 256;

@@ -7,6 +7,7 @@
 //! segment agree on whether they cross.
 
 use super::key::Key;
+use crate::geometry::{norm2, sub};
 
 /// A point of the plane: its projection `p` (where the tests are made), its position `x`
 /// relative to the cell's site, and its name.
@@ -126,7 +127,10 @@ pub(crate) fn clip_ring<const D: usize>(
     }
     ring_pieces(ring, crossings, inside, pieces);
     segment_pieces(ring, segments, crossings, pieces);
-    trace(pieces, used, out, ends)
+    // Points closer than this (squared) are one point: `MERGE_REL` of the polygon's size.
+    let size2 = ring.iter().map(|n| norm2(n.x)).fold(0.0, f64::max);
+    let tol2 = super::MERGE_REL * super::MERGE_REL * size2;
+    trace(pieces, tol2, used, out, ends)
 }
 
 /// The pieces of the ring's edges inside the domain. Inside or out changes only where a
@@ -235,6 +239,7 @@ fn segment_pieces<const D: usize>(
 /// dropped. Returns the number of chains that did not close.
 fn trace<const D: usize>(
     pieces: &[Piece<D>],
+    tol2: f64,
     used: &mut Vec<bool>,
     out: &mut Vec<(Node<D>, EdgeOf)>,
     ends: &mut Vec<usize>,
@@ -256,7 +261,16 @@ fn trace<const D: usize>(
                 ends.push(out.len());
                 break;
             }
-            match (0..pieces.len()).find(|&q| !used[q] && pieces[q].from.key == end) {
+            let by_name = (0..pieces.len()).find(|&q| !used[q] && pieces[q].from.key == end);
+            // Two names of one point (a degenerate crossing) join by position; the mesh
+            // assembly merges the names of a cell's coinciding vertices.
+            let here = pieces[at].to.x;
+            let near = |x: [f64; D]| norm2(sub(x, here)) <= tol2;
+            if by_name.is_none() && near(pieces[start].from.x) {
+                ends.push(out.len());
+                break;
+            }
+            match by_name.or_else(|| (0..pieces.len()).find(|&q| !used[q] && near(pieces[q].from.x))) {
                 Some(q) => at = q,
                 None => {
                     out.truncate(begin);
