@@ -57,15 +57,21 @@ def triangulated(mesh: PolyMesh) -> list[Triangulation]:
 
 
 def _face_triangles(mesh: PolyMesh) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Triangles (t, 3) of global vertex indices, in each face's orientation, and the face
-    of each, sorted by face."""
+    """Each face's triangles, sorted by face: the face of each, and (t, 3) vertex indices.
+
+    Triangles run the way their face does.
+    """
     sizes = np.diff(mesh.face_offsets)
     fans = np.maximum(sizes - 2, 0)
     face_of = np.repeat(np.arange(mesh.n_faces), fans)
     q = np.arange(fans.sum()) - np.repeat(np.cumsum(fans) - fans, fans) + 1
     start = mesh.face_offsets[face_of]
     triangles = np.stack(
-        [mesh.face_vertices[start], mesh.face_vertices[start + q], mesh.face_vertices[start + q + 1]],
+        [
+            mesh.face_vertices[start],
+            mesh.face_vertices[start + q],
+            mesh.face_vertices[start + q + 1],
+        ],
         axis=1,
     )
     bad = np.flatnonzero(_non_convex(mesh))
@@ -117,8 +123,9 @@ def _planar_triangles(points: NDArray[np.float64], face: NDArray[np.intp]) -> ND
     cdt = shapely.constrained_delaunay_triangles(shapely.Polygon(flat))
     out = []
     for tri in shapely.get_parts(cdt):
-        corners = [index.get(tuple(c)) for c in np.asarray(tri.exterior.coords)[:3].tolist()]
-        if None in corners:
+        found = [index.get(tuple(c)) for c in np.asarray(tri.exterior.coords)[:3].tolist()]
+        corners = [k for k in found if k is not None]
+        if len(corners) != 3:
             return _fan(face)  # GEOS moved a point: keep the fan
         if not tri.exterior.is_ccw:
             corners = corners[::-1]
@@ -134,8 +141,10 @@ def _fan(face: NDArray[np.intp]) -> NDArray[np.intp]:
 
 
 def polygons(mesh: PolyMesh) -> list[shapely.Geometry]:
-    """Each 2D cell as a shapely Polygon (with holes where the cell has them), a
-    MultiPolygon when the cell is in several pieces, or an empty Polygon.
+    """Each 2D cell as a shapely geometry.
+
+    A Polygon (with holes where the cell has them), a MultiPolygon when the cell is in
+    several pieces, or an empty Polygon.
     """
     cells, faces, reverse = _cell_faces(mesh)
     ends = mesh.face_vertices.reshape(-1, 2)[faces]

@@ -626,5 +626,7 @@ def _manifold_module() -> Any:
     try:
         import manifold3d
     except ImportError as err:  # pragma: no cover - depends on the environment
-        raise ImportError("uniting crossing shells needs manifold3d: pip install manifold3d") from err
+        raise ImportError(
+            "uniting crossing shells needs manifold3d: pip install manifold3d"
+        ) from err
     return manifold3d

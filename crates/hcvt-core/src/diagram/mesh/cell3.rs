@@ -269,9 +269,17 @@ impl PolyhedronCell {
                     } else if zw {
                         w
                     } else {
-                        let r = su / (su - sw);
+                        let x = match (u.vertex, w.vertex, face) {
+                            (Some(a), Some(b), Face::Neighbor(j)) => {
+                                edge_crossing(boundary, sites, i, j, a, b)
+                            }
+                            _ => {
+                                let r = su / (su - sw);
+                                std::array::from_fn(|c| u.x[c] + r * (w.x[c] - u.x[c]))
+                            }
+                        };
                         BoundaryNode {
-                            x: std::array::from_fn(|c| u.x[c] + r * (w.x[c] - u.x[c])),
+                            x,
                             key: Key::meet(ci, &[u.out, gen, Gen::Elem(t)]),
                             vertex: None,
                             out: u.out,
@@ -326,10 +334,8 @@ fn slice(
         } else if zl {
             (sub(abs[l], site), Key::vertex(tri[l]))
         } else {
-            let r = dk / (dk - dl);
-            let (a, b) = (sub(abs[k], site), sub(abs[l], site));
             (
-                std::array::from_fn(|c| a[c] + r * (b[c] - a[c])),
+                edge_crossing(boundary, sites, i, j, tri[k], tri[l]),
                 Key::meet(i as u32, &[Gen::Site(j), Gen::MeshEdge(tri[k], tri[l])]),
             )
         };
@@ -348,4 +354,25 @@ fn slice(
         std::mem::swap(&mut a, &mut b);
     }
     Some(Segment { a, b, elem: t })
+}
+
+/// Where mesh edge `(a, b)` crosses the bisector of sites `i` and `j`, relative to site
+/// `i`: interpolated from the smaller vertex index, so that both triangles of the edge
+/// (and the slice and the clipped triangle) get the same bits.
+fn edge_crossing(
+    boundary: &Solid,
+    sites: &[[f64; 3]],
+    i: usize,
+    j: u32,
+    a: u32,
+    b: u32,
+) -> [f64; 3] {
+    let (a, b) = (a.min(b), a.max(b));
+    let vertices = boundary.vertices();
+    let (pa, pb) = (vertices[a as usize], vertices[b as usize]);
+    let (da, _) = bisector_side(sites, i, j as usize, pa);
+    let (db, _) = bisector_side(sites, i, j as usize, pb);
+    let r = da / (da - db);
+    let (pa, pb) = (sub(pa, sites[i]), sub(pb, sites[i]));
+    std::array::from_fn(|c| pa[c] + r * (pb[c] - pa[c]))
 }

@@ -45,6 +45,11 @@ impl Key {
         }
     }
 
+    /// The boundary vertex this names, if it names one.
+    pub(crate) fn mesh_vertex(&self) -> Option<u32> {
+        (self.kind == VERTEX).then_some(self.ids[0])
+    }
+
     /// Where the generators `gens` meet in cell `cell`: the cell's own site joins every
     /// bisector. A mesh edge already lies in its triangles, so an element beside it adds
     /// nothing; a box side makes the vertex the cell's own.

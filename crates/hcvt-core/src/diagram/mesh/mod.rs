@@ -222,7 +222,7 @@ where
     if let Some((_, e)) = first_error {
         return Err(e);
     }
-    Ok(assemble(&cells, sites))
+    Ok(assemble(&cells, sites, boundary.vertices()))
 }
 
 /// Union-find over vertex ids; the root of a class is its smallest id.
@@ -251,10 +251,15 @@ impl Classes {
 /// thread count): names to ids in order of first appearance, degenerate names merged
 /// (module doc), each interior face taken once from its owner (the smaller site), or from
 /// the other cell, reversed, when the owner has no such face.
-fn assemble<const D: usize>(cells: &[CellFaces<D>], sites: &[[f64; D]]) -> PolyMesh<D> {
+fn assemble<const D: usize>(
+    cells: &[CellFaces<D>],
+    sites: &[[f64; D]],
+    boundary_vertices: &[[f64; D]],
+) -> PolyMesh<D> {
     let total: usize = cells.iter().map(|c| c.nodes.len()).sum();
     let mut ids: HashMap<Key, u32> = HashMap::with_capacity(total / 3);
     let mut positions: Vec<[f64; D]> = Vec::with_capacity(total / 3);
+    let mut is_exact: Vec<bool> = Vec::with_capacity(total / 3);
     let node_ids: Vec<Vec<u32>> = cells
         .iter()
         .map(|c| {
@@ -262,7 +267,10 @@ fn assemble<const D: usize>(cells: &[CellFaces<D>], sites: &[[f64; D]]) -> PolyM
                 .iter()
                 .map(|(key, x)| {
                     *ids.entry(*key).or_insert_with(|| {
-                        positions.push(*x);
+                        // A boundary vertex keeps its input coordinates exactly.
+                        let exact = key.mesh_vertex().map(|v| boundary_vertices[v as usize]);
+                        is_exact.push(exact.is_some());
+                        positions.push(exact.unwrap_or(*x));
                         (positions.len() - 1) as u32
                     })
                 })
@@ -318,16 +326,24 @@ fn assemble<const D: usize>(cells: &[CellFaces<D>], sites: &[[f64; D]]) -> PolyM
             match_views(&theirs, &mine, tol, &mut classes);
         }
     }
-    // Final indices in order of each class's first id; its position is that id's.
+    // Final indices in order of each class's first id; its position is that id's, or a
+    // boundary vertex's exact one when the class holds one.
     let mut index = vec![u32::MAX; positions.len()];
     let mut points = Vec::new();
+    let mut exact = Vec::new();
     for id in 0..positions.len() as u32 {
         let root = classes.find(id) as usize;
         if index[root] == u32::MAX {
             index[root] = points.len() as u32;
             points.push(positions[root]);
+            exact.push(is_exact[root]);
         }
+        let at = index[root] as usize;
         index[id as usize] = index[root];
+        if is_exact[id as usize] && !exact[at] {
+            points[at] = positions[id as usize];
+            exact[at] = true;
+        }
     }
     let mut mesh = PolyMesh {
         points,
@@ -391,10 +407,32 @@ fn assemble<const D: usize>(cells: &[CellFaces<D>], sites: &[[f64; D]]) -> PolyM
             f,
         );
     }
+    mesh.drop_unused_points();
     mesh
 }
 
 impl<const D: usize> PolyMesh<D> {
+    /// Keep only the points some face uses (those of collapsed faces and of the faces
+    /// taken from the other cell are not), in their order.
+    fn drop_unused_points(&mut self) {
+        let mut index = vec![u32::MAX; self.points.len()];
+        for &v in &self.face_vertices {
+            index[v as usize] = 0;
+        }
+        let mut kept = 0;
+        for (k, slot) in index.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = kept;
+                self.points[kept as usize] = self.points[k];
+                kept += 1;
+            }
+        }
+        self.points.truncate(kept as usize);
+        for v in &mut self.face_vertices {
+            *v = index[*v as usize];
+        }
+    }
+
     fn push(&mut self, owner: u32, neighbour: i64, element: i64, face: &[u32]) {
         self.face_vertices.extend_from_slice(face);
         self.face_offsets.push(self.face_vertices.len());

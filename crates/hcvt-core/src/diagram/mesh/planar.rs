@@ -270,7 +270,9 @@ fn trace<const D: usize>(
                 ends.push(out.len());
                 break;
             }
-            match by_name.or_else(|| (0..pieces.len()).find(|&q| !used[q] && near(pieces[q].from.x))) {
+            match by_name
+                .or_else(|| (0..pieces.len()).find(|&q| !used[q] && near(pieces[q].from.x)))
+            {
                 Some(q) => at = q,
                 None => {
                     out.truncate(begin);
