@@ -43,17 +43,22 @@ def triangulated(mesh: PolyMesh) -> list[Triangulation]:
     triangles = np.concatenate([triangles, triangles[inner][:, ::-1]])
     order = np.argsort(cells, kind="stable")
     cells, triangles = cells[order], triangles[order]
+    # Local vertex numbers: each cell's vertices in increasing global order.
+    n_points = len(mesh.points)
+    pairs, inverse = np.unique(
+        np.repeat(cells, 3) * n_points + triangles.ravel(), return_inverse=True
+    )
+    pair_cell, pair_vertex = np.divmod(pairs, n_points)
+    first_pair = np.searchsorted(pair_cell, np.arange(mesh.n_cells + 1))
+    local = (inverse.ravel() - first_pair[np.repeat(cells, 3)]).reshape(-1, 3).astype(np.intp)
     bounds = np.searchsorted(cells, np.arange(mesh.n_cells + 1))
-    empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.intp))
-    out: list[Triangulation] = []
-    for i in range(mesh.n_cells):
-        t = triangles[bounds[i] : bounds[i + 1]]
-        if len(t) == 0:
-            out.append(empty)
-            continue
-        used, local = np.unique(t, return_inverse=True)
-        out.append((mesh.points[used], local.reshape(-1, 3).astype(np.intp)))
-    return out
+    return [
+        (
+            mesh.points[pair_vertex[first_pair[i] : first_pair[i + 1]]],
+            local[bounds[i] : bounds[i + 1]],
+        )
+        for i in range(mesh.n_cells)
+    ]
 
 
 def _face_triangles(mesh: PolyMesh) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
@@ -78,14 +83,10 @@ def _face_triangles(mesh: PolyMesh) -> tuple[NDArray[np.intp], NDArray[np.intp]]
     if len(bad) == 0:
         return face_of, triangles
     keep = ~np.isin(face_of, bad)
-    faces, tris = [face_of[keep]], [triangles[keep]]
-    for k in bad.tolist():
-        t = _planar_triangles(mesh.points, mesh.face(k))
-        faces.append(np.full(len(t), k, dtype=np.intp))
-        tris.append(t)
-    face_of = np.concatenate(faces)
+    made_face, made = _planar_triangles(mesh, bad)
+    face_of = np.concatenate([face_of[keep], made_face])
     order = np.argsort(face_of, kind="stable")
-    return face_of[order], np.concatenate(tris)[order]
+    return face_of[order], np.concatenate([triangles[keep], made])[order]
 
 
 def _non_convex(mesh: PolyMesh) -> NDArray[np.bool_]:
@@ -110,29 +111,60 @@ def _non_convex(mesh: PolyMesh) -> NDArray[np.bool_]:
     return out
 
 
-def _planar_triangles(points: NDArray[np.float64], face: NDArray[np.intp]) -> NDArray[np.intp]:
-    """A planar polygon's constrained Delaunay triangles (shapely/GEOS) in its orientation."""
-    p = points[face]
-    normal = np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
-    axis = int(np.argmax(np.abs(normal)))
+def _planar_triangles(
+    mesh: PolyMesh, faces: NDArray[np.intp]
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Constrained Delaunay triangles (shapely/GEOS, one vectorised call) of planar faces.
+
+    Each face is projected to the two coordinates its normal leaves out, triangulated,
+    and its triangles mapped back to vertex indices by their (exact) projected corners,
+    turned the way the face runs. A face GEOS cannot triangulate with its own corners
+    (it moved a point, or the loop is not simple) keeps its fan.
+    """
+    sizes = np.diff(mesh.face_offsets)[faces]
+    starts = mesh.face_offsets[faces]
+    which = np.repeat(np.arange(len(faces)), sizes)
+    first = np.cumsum(sizes) - sizes  # of each face in the flat arrays below
+    pos = np.arange(sizes.sum()) - first[which]
+    vertex = mesh.face_vertices[starts[which] + pos]
+    p = mesh.points[vertex]
+    following = p[first[which] + (pos + 1) % sizes[which]]
+    normal = np.zeros((len(faces), 3))
+    np.add.at(normal, which, np.cross(p, following))
+    axis = np.argmax(np.abs(normal), axis=1)
     u, v = (axis + 1) % 3, (axis + 2) % 3
-    if normal[axis] < 0:
-        u, v = v, u  # keep counter-clockwise seen from +normal counter-clockwise in 2D
-    flat = p[:, [u, v]]
-    index = {tuple(xy): k for k, xy in enumerate(flat.tolist())}
-    cdt = shapely.constrained_delaunay_triangles(shapely.Polygon(flat))
-    out = []
-    for tri in shapely.get_parts(cdt):
-        found = [index.get(tuple(c)) for c in np.asarray(tri.exterior.coords)[:3].tolist()]
-        corners = [k for k in found if k is not None]
-        if len(corners) != 3:
-            return _fan(face)  # GEOS moved a point: keep the fan
-        if not tri.exterior.is_ccw:
-            corners = corners[::-1]
-        out.append(face[corners])
-    if len(out) != len(face) - 2:
-        return _fan(face)
-    return np.array(out, dtype=np.intp)
+    # Keep counter-clockwise seen from +normal counter-clockwise in the projection.
+    flip = normal[np.arange(len(faces)), axis] < 0
+    u, v = np.where(flip, v, u), np.where(flip, u, v)
+    flat = np.stack([p[np.arange(len(p)), u[which]], p[np.arange(len(p)), v[which]]], axis=1)
+    polygons = shapely.polygons(shapely.linearrings(flat, indices=which))
+    parts, part_of = shapely.get_parts(
+        shapely.constrained_delaunay_triangles(polygons), return_index=True
+    )
+    corners = shapely.get_coordinates(shapely.get_exterior_ring(parts)).reshape(-1, 4, 2)[:, :3]
+    lookup = {
+        (int(w), x, y): int(k)
+        for w, (x, y), k in zip(which.tolist(), flat.tolist(), vertex.tolist(), strict=True)
+    }
+    found = np.array(
+        [
+            [lookup.get((int(w), x, y), -1) for x, y in c]
+            for w, c in zip(part_of.tolist(), corners.tolist(), strict=True)
+        ],
+        dtype=np.intp,
+    ).reshape(-1, 3)
+    ccw = shapely.is_ccw(shapely.get_exterior_ring(parts))
+    found = np.where(ccw[:, None], found, found[:, ::-1])
+    failed = np.zeros(len(faces), dtype=bool)
+    failed[part_of[(found < 0).any(axis=1)]] = True
+    counts = np.bincount(part_of, minlength=len(faces))
+    failed |= counts != sizes - 2
+    good = ~failed[part_of]
+    out_face, out = [faces[part_of[good]]], [found[good]]
+    for k in np.flatnonzero(failed).tolist():
+        out.append(_fan(mesh.face(int(faces[k]))))
+        out_face.append(np.full(sizes[k] - 2, faces[k], dtype=np.intp))
+    return np.concatenate(out_face), np.concatenate(out)
 
 
 def _fan(face: NDArray[np.intp]) -> NDArray[np.intp]:
