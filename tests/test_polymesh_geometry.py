@@ -326,3 +326,21 @@ def test_mesh_does_not_depend_on_the_thread_count() -> None:
         "boundary_element",
     ):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+@needs_data
+def test_faces_with_holes_are_keyholes() -> None:
+    # With 20 sites in cheese.off (genus 133) some bisector faces have tunnels through
+    # them: each such face is one loop, its hole joined to its rim by a bridge edge walked
+    # both ways, and every interior face faces from its owner to its neighbour.
+    domain = hcvt.load_domain(DATA_3D / "cheese.off")
+    d = hcvt.voronoi(domain, random_inside(domain, 20, seed=3))
+    mesh = check_3d(d, "cheese 20")
+    keyholes = [
+        k for k in range(mesh.n_faces) if len(set(mesh.face(k).tolist())) < len(mesh.face(k))
+    ]
+    assert keyholes and all(mesh.interior[keyholes])
+    for k in np.flatnonzero(mesh.interior):
+        p = mesh.points[mesh.face(k)]
+        area = np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
+        assert area @ (d.sites[mesh.neighbour[k]] - d.sites[mesh.owner[k]]) > 0, k

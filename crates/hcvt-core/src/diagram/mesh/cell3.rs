@@ -4,7 +4,7 @@
 //! nearby triangles cross that plane.
 
 use super::key::{Gen, Key};
-use super::planar::{clip_ring, Node, PlanarScratch, Segment};
+use super::planar::{bridge_holes, clip_ring, Node, PlanarScratch, Segment};
 use super::{bisector_side, gen_of, CellFaces, CellGeometry, Side};
 use crate::diagram::clip::boundary_candidates;
 use crate::diagram::convex_cell::{ConvexCell, Face};
@@ -200,6 +200,7 @@ impl PolyhedronCell {
             &mut s.loops,
             &mut s.ends,
         );
+        bridge_holes(&mut s.loops, &mut s.ends);
         let mut begin = 0;
         for &end in &s.ends {
             out.push_face(

@@ -285,6 +285,163 @@ fn trace<const D: usize>(
     open
 }
 
+/// Twice the signed area of a loop in the projection.
+fn loop_area<const D: usize>(nodes: &[(Node<D>, EdgeOf)]) -> f64 {
+    let m = nodes.len();
+    (0..m)
+        .map(|k| {
+            let (a, b) = (nodes[k].0.p, nodes[(k + 1) % m].0.p);
+            a[0] * b[1] - a[1] * b[0]
+        })
+        .sum()
+}
+
+/// Whether `q` lies inside the loop (even-odd rule, in the projection).
+fn loop_contains<const D: usize>(nodes: &[(Node<D>, EdgeOf)], q: [f64; 2]) -> bool {
+    let m = nodes.len();
+    let mut inside = false;
+    for k in 0..m {
+        let (a, b) = (nodes[k].0.p, nodes[(k + 1) % m].0.p);
+        if (a[1] > q[1]) != (b[1] > q[1]) {
+            let x = a[0] + (q[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+            if q[0] < x {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+/// Join each hole (a clockwise loop) to the counter-clockwise loop around it by a bridge
+/// edge walked both ways (a keyhole), so that every face is one loop of vertices: the
+/// layout of a mesh face. No vertex is added, so no other face is touched. `out` and
+/// `ends` are rewritten in place.
+pub(crate) fn bridge_holes<const D: usize>(
+    out: &mut Vec<(Node<D>, EdgeOf)>,
+    ends: &mut Vec<usize>,
+) {
+    let mut loops: Vec<Vec<(Node<D>, EdgeOf)>> = Vec::with_capacity(ends.len());
+    let mut begin = 0;
+    for &end in ends.iter() {
+        loops.push(out[begin..end].to_vec());
+        begin = end;
+    }
+    let area: Vec<f64> = loops.iter().map(|l| loop_area(l)).collect();
+    if area.iter().all(|&a| a >= 0.0) {
+        return;
+    }
+    let outers: Vec<usize> = (0..loops.len()).filter(|&k| area[k] >= 0.0).collect();
+    // Holes right to left: each bridge then runs right into polygon already made.
+    let max_x = |l: &[(Node<D>, EdgeOf)]| l.iter().map(|n| n.0.p[0]).fold(f64::MIN, f64::max);
+    let mut holes: Vec<usize> = (0..loops.len()).filter(|&k| area[k] < 0.0).collect();
+    holes.sort_by(|&a, &b| max_x(&loops[b]).total_cmp(&max_x(&loops[a])));
+    for h in holes {
+        let probe = loops[h][0].0.p;
+        let around = outers
+            .iter()
+            .copied()
+            .filter(|&o| loop_contains(&loops[o], probe))
+            .min_by(|&a, &b| area[a].total_cmp(&area[b]));
+        let Some(o) = around else {
+            continue; // no loop around it: round-off; leave it a loop of its own
+        };
+        let hole = std::mem::take(&mut loops[h]);
+        let merged = keyhole(&loops[o], &hole);
+        loops[o] = merged;
+    }
+    out.clear();
+    ends.clear();
+    for l in loops.iter().filter(|l| !l.is_empty()) {
+        out.extend_from_slice(l);
+        ends.push(out.len());
+    }
+}
+
+/// The outer loop with the hole spliced in through a bridge from the hole's rightmost
+/// vertex to a vertex of the outer loop it sees (Eberly, "Triangulation by ear clipping",
+/// 2002, §3): the ray to the right meets an edge; its right end, or the reflex vertex in
+/// the triangle between, that makes the smallest angle with the ray.
+fn keyhole<const D: usize>(
+    outer: &[(Node<D>, EdgeOf)],
+    hole: &[(Node<D>, EdgeOf)],
+) -> Vec<(Node<D>, EdgeOf)> {
+    let m = outer.len();
+    let (hm, mp) = hole
+        .iter()
+        .enumerate()
+        .map(|(k, n)| (k, n.0.p))
+        .max_by(|a, b| a.1[0].total_cmp(&b.1[0]))
+        .unwrap_or((0, [0.0; 2]));
+    let mut best: Option<(f64, usize)> = None; // (x of the crossing, edge)
+    for k in 0..m {
+        let (a, b) = (outer[k].0.p, outer[(k + 1) % m].0.p);
+        if (a[1] > mp[1]) == (b[1] > mp[1]) {
+            continue;
+        }
+        let x = a[0] + (mp[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+        if x >= mp[0] && best.is_none_or(|(bx, _)| x < bx) {
+            best = Some((x, k));
+        }
+    }
+    let target = match best {
+        None => (0..m)
+            .min_by(|&a, &b| {
+                let d = |k: usize| {
+                    let p = outer[k].0.p;
+                    (p[0] - mp[0]).powi(2) + (p[1] - mp[1]).powi(2)
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap_or(0),
+        Some((x, k)) => {
+            let (a, b) = (k, (k + 1) % m);
+            let p = if outer[a].0.p[0] > outer[b].0.p[0] {
+                a
+            } else {
+                b
+            };
+            let i = [x, mp[1]];
+            let pp = outer[p].0.p;
+            // Reflex vertices of the outer loop inside the triangle (M, I, P) hide P.
+            let inside = |q: [f64; 2]| {
+                let s1 = orient(mp, i, q);
+                let s2 = orient(i, pp, q);
+                let s3 = orient(pp, mp, q);
+                (s1 >= 0.0 && s2 >= 0.0 && s3 >= 0.0) || (s1 <= 0.0 && s2 <= 0.0 && s3 <= 0.0)
+            };
+            let mut choice = p;
+            let mut best_angle = f64::MAX;
+            for r in 0..m {
+                if r == p {
+                    continue;
+                }
+                let (prev, q, next) = (
+                    outer[(r + m - 1) % m].0.p,
+                    outer[r].0.p,
+                    outer[(r + 1) % m].0.p,
+                );
+                if orient(prev, q, next) >= 0.0 || !inside(q) {
+                    continue;
+                }
+                let d = [q[0] - mp[0], q[1] - mp[1]];
+                let angle = d[1].abs().atan2(d[0]);
+                if angle < best_angle {
+                    best_angle = angle;
+                    choice = r;
+                }
+            }
+            choice
+        }
+    };
+    let mut merged = Vec::with_capacity(m + hole.len() + 2);
+    merged.extend_from_slice(&outer[..=target]);
+    let h = hole.len();
+    merged.extend((0..=h).map(|k| hole[(hm + k) % h]));
+    merged.push(outer[target]);
+    merged.extend_from_slice(&outer[target + 1..]);
+    merged
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
