@@ -29,6 +29,7 @@ pub(crate) struct Scratch3 {
     ends: Vec<usize>,
     polygon: Vec<BoundaryNode>,
     clipped: Vec<BoundaryNode>,
+    sides: Vec<(f64, bool)>,
 }
 
 /// A vertex of a boundary triangle being clipped: position relative to the site, name,
@@ -252,7 +253,9 @@ impl PolyhedronCell {
                 _ => (dot(h.normal, n.x) - h.offset, false),
             };
             let m = s.polygon.len();
-            let sides: Vec<(f64, bool)> = s.polygon.iter().map(side).collect();
+            s.sides.clear();
+            s.sides.extend(s.polygon.iter().map(side));
+            let sides = &s.sides;
             if sides.iter().all(|&(d, _)| d <= 0.0) {
                 continue;
             }

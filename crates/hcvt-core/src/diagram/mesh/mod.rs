@@ -24,6 +24,7 @@ mod key;
 mod planar;
 
 use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
 
 use rayon::prelude::*;
 
@@ -225,6 +226,50 @@ where
     Ok(assemble(&cells, sites, boundary.vertices()))
 }
 
+/// A multiplicative hash (FxHash's step) for vertex names: the assembly hashes every
+/// vertex of every face, and std's SipHash, made to resist adversarial keys, cost more
+/// than the rest of it. Ids are given in insertion order, never in the map's order, so the
+/// hash does not affect the result.
+#[derive(Default, Clone, Copy)]
+struct NameHasher(u64);
+
+impl NameHasher {
+    #[inline]
+    fn add(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+}
+
+impl Hasher for NameHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.add(u64::from_le_bytes(word));
+        }
+    }
+
+    fn write_u8(&mut self, i: u8) {
+        self.add(u64::from(i));
+    }
+
+    fn write_u32(&mut self, i: u32) {
+        self.add(u64::from(i));
+    }
+
+    fn write_u64(&mut self, i: u64) {
+        self.add(i);
+    }
+
+    fn write_usize(&mut self, i: usize) {
+        self.add(i as u64);
+    }
+}
+
 /// Union-find over vertex ids; the root of a class is its smallest id.
 struct Classes(Vec<u32>);
 
@@ -257,7 +302,8 @@ fn assemble<const D: usize>(
     boundary_vertices: &[[f64; D]],
 ) -> PolyMesh<D> {
     let total: usize = cells.iter().map(|c| c.nodes.len()).sum();
-    let mut ids: HashMap<Key, u32> = HashMap::with_capacity(total / 3);
+    let mut ids: HashMap<Key, u32, BuildHasherDefault<NameHasher>> =
+        HashMap::with_capacity_and_hasher(total / 3, BuildHasherDefault::default());
     let mut positions: Vec<[f64; D]> = Vec::with_capacity(total / 3);
     let mut is_exact: Vec<bool> = Vec::with_capacity(total / 3);
     let node_ids: Vec<Vec<u32>> = cells
