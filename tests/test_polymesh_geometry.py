@@ -67,7 +67,7 @@ def cell_moments_3d(mesh: PolyMesh, sites: np.ndarray) -> tuple[np.ndarray, np.n
         [np.bincount(c, vol * (a + b + d)[:, k] / 4, minlength=mesh.n_cells) for k in range(3)],
         axis=1,
     )
-    return volume, sites + first_moment / volume[:, None]
+    return volume, sites + first_moment / np.where(volume == 0, 1, volume)[:, None]
 
 
 def oriented_edges(mesh: PolyMesh) -> tuple[np.ndarray, np.ndarray]:
@@ -87,7 +87,7 @@ def cell_moments_2d(mesh: PolyMesh, sites: np.ndarray) -> tuple[np.ndarray, np.n
         [np.bincount(cells, area * (a + b)[:, k] / 3, minlength=mesh.n_cells) for k in range(2)],
         axis=1,
     )
-    return volume, sites + first / volume[:, None]
+    return volume, sites + first / np.where(volume == 0, 1, volume)[:, None]
 
 
 def assert_closed_3d(mesh: PolyMesh) -> None:
@@ -344,3 +344,20 @@ def test_faces_with_holes_are_keyholes() -> None:
         p = mesh.points[mesh.face(k)]
         area = np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
         assert area @ (d.sites[mesh.neighbour[k]] - d.sites[mesh.owner[k]]) > 0, k
+
+
+@needs_data
+def test_sites_outside_the_domain_get_their_part() -> None:
+    # allow_outside: a site just outside owns a sliver of the domain, and its cell is
+    # meshed like any other (closed, exact); one far outside owns nothing and no face.
+    square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
+    sites = np.vstack([random_inside(square, 50, seed=1), [[1.01, 0.5], [-0.01, 0.3], [3, 3]]])
+    d = hcvt.voronoi(square, sites, allow_outside=True)
+    mesh = check_2d(d, "square, sites outside")
+    assert (d.volume[-3:-1] > 0).all() and d.volume[-1] == 0
+    assert mesh.n_cells - 1 not in set(mesh.owner) | set(mesh.neighbour)
+    bunny = hcvt.load_domain(DATA_3D / "bunny.off")
+    sites = np.vstack([random_inside(bunny, 200, seed=1), bunny.vertices[::500] * 1.01])
+    d = hcvt.voronoi(bunny, sites, allow_outside=True)
+    check_3d(d, "bunny, sites outside")
+    assert (d.volume[200:] > 0).any()
