@@ -237,7 +237,6 @@ def test_cells_are_closed_outward_and_export(
 
     import trimesh
 
-    pytest.importorskip("manifold3d")
     domain = domains["bunny.off"]
     sites = interior_sites(domain, 150, seed=9)
     d = hcvt.voronoi(domain, sites)

@@ -18,6 +18,8 @@ __all__ = [
     "cvt_2d",
     "cvt_3d",
     "get_num_threads",
+    "mesh_2d",
+    "mesh_3d",
     "set_num_threads",
     "voronoi_2d",
     "voronoi_3d",
@@ -73,6 +75,13 @@ def voronoi_2d(
 def voronoi_3d(
     domain: SolidDomain, sites: _Float2, allow_outside: bool = False, keep_cells: bool = False
 ) -> dict[str, Any]: ...
+
+# Conforming mesh dicts (hcvt.polymesh.PolyMesh): points (p, d), face_offsets (f+1,),
+# face_vertices, owner, neighbour, boundary_element (intp), open_chains (int).
+def mesh_2d(
+    domain: PolygonDomain, sites: _Float2, allow_outside: bool = False
+) -> dict[str, Any]: ...
+def mesh_3d(domain: SolidDomain, sites: _Float2, allow_outside: bool = False) -> dict[str, Any]: ...
 
 # CVT dicts: sites, diagram (a diagram dict), history (arrays per field), stop_reason,
 # iterations, evaluations (see hcvt.optimise).

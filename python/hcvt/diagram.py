@@ -6,13 +6,14 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
-import shapely
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
 from hcvt import _core
+from hcvt.cells import polygons, triangulated
 from hcvt.domain import Domain
 from hcvt.errors import InvalidSitesError
+from hcvt.polymesh import PolyMesh
 
 # Faces shorter (2D) or smaller (3D) than this fraction of h^(d-1), h = (V/n)^(1/d), are
 # not restricted Delaunay edges: lattices produce faces of zero measure up to round-off.
@@ -67,8 +68,8 @@ class Diagram:
     adjacency : scipy.sparse.csr_array of float64, shape (n, n)
         ``neighbors`` as a symmetric sparse matrix whose entries are ``face_measures``.
 
-    Methods ``cell_neighbors(i)`` and ``cells()`` give one cell's faces and every cell's
-    geometry.
+    Methods ``cell_neighbors(i)``, ``mesh()`` and ``cells()`` give one cell's faces, all
+    cells as one conforming mesh, and every cell's geometry.
     """
 
     def __init__(self, domain: Domain, sites: NDArray[np.float64], arrays: dict[str, Any]):
@@ -86,6 +87,7 @@ class Diagram:
         self.neighbor_sites: NDArray[np.intp] = arrays["neighbor_sites"]
         self.neighbor_measures: NDArray[np.float64] = arrays["neighbor_measures"]
         self._allow_outside = bool(arrays.get("_allow_outside", False))
+        self._mesh: PolyMesh | None = None
 
     @property
     def n(self) -> int:
@@ -150,58 +152,48 @@ class Diagram:
         s, e = int(self.neighbor_offsets[i]), int(self.neighbor_offsets[i + 1])
         return self.neighbor_sites[s:e], self.neighbor_measures[s:e]
 
-    def cells(self) -> list[Any]:
-        """Geometry of every clipped cell.
+    def mesh(self) -> PolyMesh:
+        """The cells as one conforming mesh, made on first call and kept.
 
-        2D: a list of shapely Polygons or MultiPolygons (empty for an empty cell): the
-        convex Voronoi cell intersected with the domain by GEOS, for pictures and export.
+        Every vertex once, every face once with the cell on each side (OpenFOAM's layout):
+        neighbouring cells share exactly the same face and vertices. Made from the core's
+        own clipped pieces (DESIGN §9): bisector faces restricted to the domain and the
+        boundary triangles (segments) inside each cell, vertices named by the bisectors and
+        boundary elements that make them. Each cell's volume and centroid recomputed from
+        its faces agree with ``volume`` and ``centroid`` to round-off.
 
-        3D: a list of ``(vertices (k, 3), faces (f, 3))`` pairs, the closed, outward boundary
-        triangulation of each clipped cell (both empty for an empty cell). A cell that meets
-        no boundary triangle is the core's convex cell as is; a cell that does is
-        intersected with the domain by manifold3d in double precision.
-
-        The moments above do not come from these shapes but from the exact core.
+        Returns
+        -------
+        PolyMesh
+            ``points`` (p, d), faces with ``owner``, ``neighbour`` (``-1`` on the boundary)
+            and ``boundary_element``; interior faces first, sorted by (owner, neighbour).
         """
-        if self.domain.dim == 3:
-            return self._cells_3d()
-        arrays = _core.voronoi_2d(
-            self.domain._core, self.sites, allow_outside=self._allow_outside, keep_cells=True
-        )
-        vertices = arrays["cell_vertices"]
-        counts = np.diff(arrays["cell_offsets"])
-        convex = shapely.polygons(
-            shapely.linearrings(vertices, indices=np.repeat(np.arange(self.n), counts))
-        )
-        clipped = convex.copy()
-        touching = self.boundary_measure > 0
-        if touching.any() or self._allow_outside:
-            mask = touching | self._allow_outside
-            clipped[mask] = shapely.intersection(convex[mask], self.domain.geometry)
-        return list(clipped)
+        if self._mesh is None:
+            compute = getattr(_core, f"mesh_{self.domain.dim}d")
+            arrays = compute(self.domain._core, self.sites, allow_outside=self._allow_outside)
+            self._mesh = PolyMesh(
+                points=arrays["points"],
+                face_offsets=arrays["face_offsets"],
+                face_vertices=arrays["face_vertices"],
+                owner=arrays["owner"],
+                neighbour=arrays["neighbour"],
+                boundary_element=arrays["boundary_element"],
+                n_cells=self.n,
+            )
+        return self._mesh
 
-    def _cells_3d(self) -> list[tuple[NDArray[np.float64], NDArray[np.intp]]]:
-        arrays = _core.voronoi_3d(
-            self.domain._core, self.sites, allow_outside=self._allow_outside, keep_cells=True
-        )
-        vo, vertices = arrays["cell_vertex_offsets"], arrays["cell_vertices"]
-        fo, faces = arrays["cell_face_offsets"], arrays["cell_faces"]
-        solid = None
-        out = []
-        empty = (np.zeros((0, 3)), np.zeros((0, 3), dtype=np.intp))
-        for i in range(self.n):
-            v, f = vertices[vo[i] : vo[i + 1]], faces[fo[i] : fo[i + 1]]
-            if self.volume[i] <= 0:
-                out.append(empty)
-            elif self.boundary_measure[i] == 0:
-                out.append((v, f))  # inside the domain: the convex cell itself
-            else:
-                if solid is None:
-                    solid = _manifold(self.domain.vertices, self.domain.faces)
-                mesh = (_manifold_module().Manifold.hull_points(v) ^ solid).to_mesh64()
-                points = np.asarray(mesh.vert_properties)[:, :3]
-                out.append((points, mesh.tri_verts.astype(np.intp)))
-        return out
+    def cells(self) -> list[Any]:
+        """Geometry of every clipped cell, read off :meth:`mesh`.
+
+        2D: a list of shapely Polygons (with holes where a cell has them), MultiPolygons
+        for cells in several pieces, or empty Polygons.
+
+        3D: a list of ``(vertices (k, 3), faces (f, 3))`` pairs, the closed, outward
+        triangulation of each clipped cell's boundary (its mesh faces fanned from their
+        first vertex; both arrays empty for an empty cell).
+        """
+        mesh = self.mesh()
+        return triangulated(mesh) if self.domain.dim == 3 else polygons(mesh)
 
     def to_pyvista(self) -> Any:
         """The conforming mesh of the cells as a ``pyvista.UnstructuredGrid``.
@@ -284,23 +276,3 @@ def as_sites(sites: ArrayLike, dim: int) -> NDArray[np.float64]:
     if arr.shape[0] == 0:
         raise InvalidSitesError("no sites given: a diagram needs n >= 1 sites")
     return np.array(arr, dtype=np.float64, order="C", copy=True)
-
-
-def _manifold_module() -> Any:
-    try:
-        import manifold3d
-    except ImportError as err:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "3D cells that meet the boundary are cut by manifold3d: pip install manifold3d"
-        ) from err
-    return manifold3d
-
-
-def _manifold(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> Any:
-    """Build the domain as a manifold3d solid, in double precision."""
-    m3 = _manifold_module()
-    mesh = m3.Mesh64(
-        vert_properties=np.ascontiguousarray(vertices, dtype=np.float64),
-        tri_verts=np.ascontiguousarray(faces, dtype=np.uint32),
-    )
-    return m3.Manifold(mesh)

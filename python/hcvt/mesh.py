@@ -11,7 +11,7 @@ Arrays: ``vertices`` (V, 3) float64, ``faces`` (F, 3) intp indices into ``vertic
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import NoReturn
+from typing import Any, NoReturn
 
 import numpy as np
 from numpy.typing import NDArray
@@ -586,8 +586,6 @@ def unite_shells(
     as a solid on its own, facing outward, and the solids are united. A shell that crosses
     itself is left as it is, and the action says so.
     """
-    from hcvt.diagram import _manifold_module
-
     count, label = shells(f)
     crossing = np.array(pairs, dtype=np.intp).reshape(-1, 2)
     same = label[crossing[:, 0]] == label[crossing[:, 1]]
@@ -622,3 +620,13 @@ def unite_shells(
         f"{len(f)} -> {len(f_out)} faces"
     )
     return v_out, f_out
+
+
+def _manifold_module() -> Any:
+    try:
+        import manifold3d
+    except ImportError as err:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "uniting crossing shells needs manifold3d: pip install manifold3d"
+        ) from err
+    return manifold3d

@@ -5,6 +5,7 @@ mod arrays;
 mod diagram;
 mod domain;
 mod errors;
+mod mesh;
 mod optimise;
 mod threads;
 
@@ -24,6 +25,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::SolidDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi_2d, m)?)?;
     m.add_function(wrap_pyfunction!(diagram::voronoi_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh::mesh_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh::mesh_3d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_2d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_3d, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;

@@ -20,11 +20,13 @@
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | [`convex_cell`], [`polygon_cell`], [`polyhedron_cell`] | the convex cell in 2D and 3D |
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
+//! | [`mesh`] | cell geometry and the conforming mesh of all cells ([`mesh::PolyMesh`], DESIGN §9) |
 
 mod clip;
 pub mod convex_cell;
 mod faces;
 mod knn;
+pub mod mesh;
 mod order;
 pub mod polygon_cell;
 pub mod polyhedron_cell;
@@ -162,44 +164,7 @@ pub fn clipped_diagram_with<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    if sites.is_empty() {
-        return Err(CoreError::NoSites);
-    }
-    for (index, s) in sites.iter().enumerate() {
-        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
-            return Err(CoreError::NonFiniteSite { index, value });
-        }
-    }
-    if options.allow_outside {
-        let b = boundary.bounds();
-        let size = (0..D).fold(f64::INFINITY, |m, k| m.min(b.hi[k] - b.lo[k]));
-        for (index, s) in sites.iter().enumerate() {
-            let distance = norm2::<D>(std::array::from_fn(|k| {
-                (b.lo[k] - s[k]).max(s[k] - b.hi[k]).max(0.0)
-            }))
-            .sqrt();
-            if distance > FAR_OUTSIDE * size {
-                return Err(CoreError::SiteFarOutside {
-                    index,
-                    point: s.to_vec(),
-                    distance,
-                    limit: FAR_OUTSIDE,
-                });
-            }
-        }
-    }
-    let windings: Vec<Option<i32>> = sites
-        .par_iter()
-        .map(|s| Euclid::winding_number(boundary, s))
-        .collect();
-    if !options.allow_outside {
-        if let Some(index) = windings.iter().position(|w| *w == Some(0)) {
-            return Err(CoreError::SiteOutsideDomain {
-                index,
-                point: sites[index].to_vec(),
-            });
-        }
-    }
+    let windings = checked_windings(boundary, sites, options)?;
     let index = SiteIndex::new(sites)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
@@ -261,6 +226,58 @@ where
         integrand.is_some(),
         keep_cells,
     ))
+}
+
+/// Check `sites` against `boundary` (finite, inside unless allowed, not too far outside)
+/// and return the winding number of each (`None` on the boundary). Errors name the first
+/// offending site in index order.
+pub(crate) fn checked_windings<const D: usize>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    options: Options,
+) -> Result<Vec<Option<i32>>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    if sites.is_empty() {
+        return Err(CoreError::NoSites);
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    if options.allow_outside {
+        let b = boundary.bounds();
+        let size = (0..D).fold(f64::INFINITY, |m, k| m.min(b.hi[k] - b.lo[k]));
+        for (index, s) in sites.iter().enumerate() {
+            let distance = norm2::<D>(std::array::from_fn(|k| {
+                (b.lo[k] - s[k]).max(s[k] - b.hi[k]).max(0.0)
+            }))
+            .sqrt();
+            if distance > FAR_OUTSIDE * size {
+                return Err(CoreError::SiteFarOutside {
+                    index,
+                    point: s.to_vec(),
+                    distance,
+                    limit: FAR_OUTSIDE,
+                });
+            }
+        }
+    }
+    let windings: Vec<Option<i32>> = sites
+        .par_iter()
+        .map(|s| Euclid::winding_number(boundary, s))
+        .collect();
+    if !options.allow_outside {
+        if let Some(index) = windings.iter().position(|w| *w == Some(0)) {
+            return Err(CoreError::SiteOutsideDomain {
+                index,
+                point: sites[index].to_vec(),
+            });
+        }
+    }
+    Ok(windings)
 }
 
 /// The diagram in index order from the batches (visiting order), the kept cells and the

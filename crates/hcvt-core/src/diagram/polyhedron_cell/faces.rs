@@ -36,6 +36,33 @@ impl PolyhedronCell {
         });
     }
 
+    /// The planes meeting at vertex `t` (counter-clockwise seen from outside), for the
+    /// combinatorial vertex keys of the conforming mesh (`diagram::mesh`).
+    pub(crate) fn vertex_planes(&self, t: u32) -> [u16; 3] {
+        self.triangles[t as usize]
+    }
+
+    /// What made plane `p`, and its half-space `normal · x <= offset` (relative to the site).
+    pub(crate) fn plane(&self, p: u16) -> (Face, crate::geometry::HalfSpace<3>) {
+        let plane = &self.planes[p as usize];
+        let h = crate::geometry::HalfSpace {
+            normal: plane.normal,
+            offset: plane.offset,
+        };
+        (plane.face, h)
+    }
+
+    /// Every face as its plane and its ring of vertices (triangle indices, counter-clockwise
+    /// seen from outside), appended to `out` as `(plane, ring start, ring end)` into `rings`.
+    pub(crate) fn face_rings(&self, out: &mut Vec<(u16, u32, u32)>, rings: &mut Vec<u32>) {
+        let (mut first, mut ring) = (Vec::new(), Vec::new());
+        self.walk_faces(&mut first, &mut ring, |plane, ring| {
+            let start = rings.len() as u32;
+            rings.extend_from_slice(ring);
+            out.push((plane, start, rings.len() as u32));
+        });
+    }
+
     /// [`PolyhedronCell::walk_faces`] with per-thread buffers: every cell of every diagram
     /// is walked. A nested walk (from inside `f`) finds them taken and uses fresh ones.
     pub(super) fn for_each_ring(&self, mut f: impl FnMut(Face, &[u32])) {

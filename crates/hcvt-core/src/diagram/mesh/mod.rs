@@ -1,0 +1,586 @@
+//! Cell geometry and the conforming mesh (DESIGN §9): every clipped cell as faces made
+//! from the core's own convex cells and boundary elements, each vertex named by what
+//! makes it ([`key`]), and all cells assembled into one mesh whose neighbouring cells share
+//! exactly the same vertices and faces ([`PolyMesh`]).
+//!
+//! | file | owns |
+//! |------|------|
+//! | `mod.rs` | [`PolyMesh`], the drivers [`conforming_mesh_2d`] / [`conforming_mesh_3d`] and the global assembly: names to one vertex index, degenerate names merged, each interior face once |
+//! | `key.rs` | the combinatorial vertex names |
+//! | `planar.rs` | a convex polygon restricted to the domain in its plane (2D cells, 3D bisector faces) |
+//! | `cell2.rs` | one 2D cell's edges |
+//! | `cell3.rs` | one 3D cell's faces: boundary triangles clipped by the cell, bisector faces restricted to the domain |
+//!
+//! Degenerate configurations (cocircular or cospherical sites, lattices, boundary vertices
+//! on bisectors) give several names to one point, or faces of no area. Two names are
+//! merged when one cell has both at one point (to `MERGE_REL` of the cell's size), or when a face's vertex seen from one of its cells
+//! finds no vertex of that name in the other cell's view of the face but one at its
+//! position. Merging is a union of names, so every cell sees the same result; faces left
+//! with fewer than `d` vertices are dropped.
+
+mod cell2;
+mod cell3;
+mod key;
+mod planar;
+
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+use rayon::prelude::*;
+
+use super::convex_cell::{ConvexCell, Face};
+use super::{checked_windings, morton_order, voronoi_cell, CellScratch, Options, SiteIndex};
+use super::{PolygonCell, PolyhedronCell};
+use crate::domain::{Boundary, Polygon, Solid, WindingNumber};
+use crate::error::CoreError;
+use crate::geometry::{add, dot, norm2, scale, sub, Euclid, Space};
+use key::{Gen, Key};
+
+/// Cells of a diagram as one mesh with shared vertices and faces (the layout of
+/// `hcvt.polymesh.PolyMesh`, OpenFOAM's): interior faces first, sorted by
+/// `(owner, neighbour)`, then boundary faces by owner.
+#[derive(Debug, Clone, Default)]
+pub struct PolyMesh<const D: usize> {
+    /// Every vertex once, absolute, `L`.
+    pub points: Vec<[f64; D]>,
+    /// Face `k` is `face_vertices[face_offsets[k]..face_offsets[k + 1]]`.
+    pub face_offsets: Vec<usize>,
+    /// 3D: a vertex loop counter-clockwise seen from outside the owner. 2D: an edge with
+    /// its owner on the left.
+    pub face_vertices: Vec<u32>,
+    /// The cell each face belongs to (the smaller site index of an interior face).
+    pub owner: Vec<u32>,
+    /// The cell on the other side, `-1` on the domain boundary.
+    pub neighbour: Vec<i64>,
+    /// The boundary triangle (3D) or segment (2D) of a boundary face, `-1` inside.
+    pub boundary_element: Vec<i64>,
+    /// Chains of a cell's boundary that did not close (round-off in a degenerate
+    /// configuration): zero on a sound mesh.
+    pub open_chains: u32,
+}
+
+/// What a face of a cell lies on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Side {
+    /// The bisector with site `j`.
+    Neighbor(u32),
+    /// Boundary element `t`.
+    Boundary(u32),
+}
+
+/// One cell's faces, each a loop of named absolute points: face `k` is
+/// `nodes[starts[k]..starts[k + 1]]`.
+#[derive(Debug, Default)]
+pub(crate) struct CellFaces<const D: usize> {
+    sides: Vec<Side>,
+    starts: Vec<u32>,
+    nodes: Vec<(Key, [f64; D])>,
+    open: u32,
+}
+
+impl<const D: usize> CellFaces<D> {
+    pub(crate) fn push_face(&mut self, side: Side, nodes: impl Iterator<Item = (Key, [f64; D])>) {
+        if self.starts.is_empty() {
+            self.starts.push(0);
+        }
+        self.nodes.extend(nodes);
+        self.sides.push(side);
+        self.starts.push(self.nodes.len() as u32);
+    }
+}
+
+/// A convex cell that can give the faces of its part inside the domain.
+pub(crate) trait CellGeometry<const D: usize>: ConvexCell<D> {
+    type Scratch: Default + Send;
+
+    /// The faces of this cell (of site `i`, relative to it) restricted to the domain,
+    /// appended to `out`; `winding` is the site's winding number.
+    fn clipped_faces(
+        &self,
+        boundary: &Boundary<D>,
+        sites: &[[f64; D]],
+        i: usize,
+        winding: Option<i32>,
+        out: &mut CellFaces<D>,
+        scratch: &mut Self::Scratch,
+    );
+}
+
+/// The generator of a cell's plane (or 2D line) `p` made by `face`.
+pub(crate) fn gen_of(face: Face, p: u16) -> Gen {
+    match face {
+        Face::Neighbor(j) => Gen::Site(j),
+        Face::Boundary(t) => Gen::Elem(t),
+        Face::Box | Face::Cone => Gen::Other(u32::from(p)),
+    }
+}
+
+/// Which side of the bisector of sites `i` and `j` the point `x` (absolute) is on, seen
+/// from `i`: positive beyond it (nearer `j`), and whether it lies exactly on it.
+///
+/// Computed from the pair in index order, so that both cells get the same number (with
+/// opposite signs); a point exactly on the bisector counts as nearer the larger index.
+/// The boundary's vertices are put on one side once and for all this way, and the two
+/// cells of a face slice and clip the boundary alike.
+pub(crate) fn bisector_side<const D: usize>(
+    sites: &[[f64; D]],
+    i: usize,
+    j: usize,
+    x: [f64; D],
+) -> (f64, bool) {
+    let (lo, hi) = (i.min(j), i.max(j));
+    let mid = scale(add(sites[lo], sites[hi]), 0.5);
+    let d = dot(sub(x, mid), sub(sites[hi], sites[lo]));
+    let zero = d == 0.0;
+    let d = if zero { f64::MIN_POSITIVE } else { d };
+    (if i == lo { d } else { -d }, zero)
+}
+
+/// Vertices of a cell closer than this fraction of the cell's size are one point of
+/// several names. Degenerate vertices of lattices coincide to about 1e-15 of the
+/// cell; distinct vertices of a CVT are farther apart than 1e-6 of it.
+pub(crate) const MERGE_REL: f64 = 1e-10;
+
+/// Cells per parallel task.
+const BATCH: usize = 256;
+
+/// The conforming polygon mesh of the clipped diagram of `sites` in `boundary`.
+///
+/// Errors as [`super::clipped_diagram`]: the first offending site in index order.
+pub fn conforming_mesh_2d(
+    boundary: &Polygon,
+    sites: &[[f64; 2]],
+    options: Options,
+) -> Result<PolyMesh<2>, CoreError> {
+    conforming_mesh::<2, PolygonCell>(boundary, sites, options)
+}
+
+/// The conforming polyhedral mesh of the clipped diagram of `sites` in `boundary`.
+///
+/// Errors as [`super::clipped_diagram`]: the first offending site in index order.
+pub fn conforming_mesh_3d(
+    boundary: &Solid,
+    sites: &[[f64; 3]],
+    options: Options,
+) -> Result<PolyMesh<3>, CoreError> {
+    conforming_mesh::<3, PolyhedronCell>(boundary, sites, options)
+}
+
+fn conforming_mesh<const D: usize, C: CellGeometry<D>>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    options: Options,
+) -> Result<PolyMesh<D>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let windings = checked_windings(boundary, sites, options)?;
+    let index = SiteIndex::new(sites)?;
+    let order = morton_order(sites);
+    type Made<const D: usize> = Vec<(u32, Result<CellFaces<D>, CoreError>)>;
+    let batches: Vec<Made<D>> = order
+        .par_chunks(BATCH)
+        .map_init(
+            || (CellScratch::<C>::default(), C::Scratch::default()),
+            |(cells, geometry), chunk| {
+                chunk
+                    .iter()
+                    .map(|&i| {
+                        let i = i as usize;
+                        // Without the early cut of a convex domain's boundary cells: the
+                        // faces are made here, from the bisectors and triangles alone.
+                        let made = voronoi_cell::<D, C>(boundary, &index, sites, i, false, cells)
+                            .map(|(cell, _)| {
+                                let mut faces = CellFaces::default();
+                                cell.clipped_faces(
+                                    boundary,
+                                    sites,
+                                    i,
+                                    windings[i],
+                                    &mut faces,
+                                    geometry,
+                                );
+                                faces
+                            });
+                        (i as u32, made)
+                    })
+                    .collect()
+            },
+        )
+        .collect();
+    let mut cells: Vec<CellFaces<D>> = (0..sites.len()).map(|_| CellFaces::default()).collect();
+    let mut first_error: Option<(u32, CoreError)> = None;
+    for (i, made) in batches.into_iter().flatten() {
+        match made {
+            Ok(faces) => cells[i as usize] = faces,
+            Err(e) => {
+                if first_error.as_ref().is_none_or(|(j, _)| i < *j) {
+                    first_error = Some((i, e));
+                }
+            }
+        }
+    }
+    if let Some((_, e)) = first_error {
+        return Err(e);
+    }
+    Ok(assemble(&cells, sites, boundary.vertices()))
+}
+
+/// A multiplicative hash (FxHash's step) for vertex names: the assembly hashes every
+/// vertex of every face, and std's SipHash, made to resist adversarial keys, cost more
+/// than the rest of it. Ids are given in insertion order, never in the map's order, so the
+/// hash does not affect the result.
+#[derive(Default, Clone, Copy)]
+struct NameHasher(u64);
+
+impl NameHasher {
+    #[inline]
+    fn add(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+}
+
+impl Hasher for NameHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.add(u64::from_le_bytes(word));
+        }
+    }
+
+    fn write_u8(&mut self, i: u8) {
+        self.add(u64::from(i));
+    }
+
+    fn write_u32(&mut self, i: u32) {
+        self.add(u64::from(i));
+    }
+
+    fn write_u64(&mut self, i: u64) {
+        self.add(i);
+    }
+
+    fn write_usize(&mut self, i: usize) {
+        self.add(i as u64);
+    }
+}
+
+/// Union-find over vertex ids; the root of a class is its smallest id.
+struct Classes(Vec<u32>);
+
+impl Classes {
+    fn find(&mut self, mut a: u32) -> u32 {
+        while self.0[a as usize] != a {
+            let up = self.0[self.0[a as usize] as usize];
+            self.0[a as usize] = up;
+            a = up;
+        }
+        a
+    }
+
+    fn union(&mut self, a: u32, b: u32) {
+        let (a, b) = (self.find(a), self.find(b));
+        if a != b {
+            let (lo, hi) = (a.min(b), a.max(b));
+            self.0[hi as usize] = lo;
+        }
+    }
+}
+
+/// One mesh from the cells' faces (in index order, so the result does not depend on the
+/// thread count): names to ids in order of first appearance, degenerate names merged
+/// (module doc), each interior face taken once from its owner (the smaller site), or from
+/// the other cell, reversed, when the owner has no such face.
+fn assemble<const D: usize>(
+    cells: &[CellFaces<D>],
+    sites: &[[f64; D]],
+    boundary_vertices: &[[f64; D]],
+) -> PolyMesh<D> {
+    let total: usize = cells.iter().map(|c| c.nodes.len()).sum();
+    let mut ids: HashMap<Key, u32, BuildHasherDefault<NameHasher>> =
+        HashMap::with_capacity_and_hasher(total / 3, BuildHasherDefault::default());
+    let mut positions: Vec<[f64; D]> = Vec::with_capacity(total / 3);
+    let mut is_exact: Vec<bool> = Vec::with_capacity(total / 3);
+    let node_ids: Vec<Vec<u32>> = cells
+        .iter()
+        .map(|c| {
+            c.nodes
+                .iter()
+                .map(|(key, x)| {
+                    *ids.entry(*key).or_insert_with(|| {
+                        // A boundary vertex keeps its input coordinates exactly.
+                        let exact = key.mesh_vertex().map(|v| boundary_vertices[v as usize]);
+                        is_exact.push(exact.is_some());
+                        positions.push(exact.unwrap_or(*x));
+                        (positions.len() - 1) as u32
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    drop(ids);
+    let mut classes = Classes((0..positions.len() as u32).collect());
+    // Each cell's faces toward each neighbour, sorted by neighbour.
+    let toward: Vec<Vec<(u32, u32)>> = cells
+        .iter()
+        .map(|c| {
+            let mut v: Vec<(u32, u32)> = (c.sides.iter().enumerate())
+                .filter_map(|(k, s)| match s {
+                    Side::Neighbor(j) => Some((*j, k as u32)),
+                    Side::Boundary(_) => None,
+                })
+                .collect();
+            v.sort_unstable();
+            v
+        })
+        .collect();
+    let tol2: Vec<f64> = cells
+        .iter()
+        .zip(sites)
+        .map(|(c, &s)| {
+            let r2 = c
+                .nodes
+                .iter()
+                .map(|(_, x)| norm2(sub(*x, s)))
+                .fold(0.0, f64::max);
+            MERGE_REL * MERGE_REL * r2
+        })
+        .collect();
+    let mut seen = Vec::new();
+    for (i, c) in cells.iter().enumerate() {
+        merge_coinciding(c, &node_ids[i], tol2[i], &mut seen, &mut classes);
+    }
+    for i in 0..cells.len() {
+        for &(j, _) in dedup_neighbors(&toward[i])
+            .iter()
+            .filter(|(j, _)| *j as usize > i)
+        {
+            let mine = view(&cells[i], &node_ids[i], &toward[i], j);
+            let theirs = view(
+                &cells[j as usize],
+                &node_ids[j as usize],
+                &toward[j as usize],
+                i as u32,
+            );
+            let tol = tol2[i].max(tol2[j as usize]);
+            match_views(&mine, &theirs, tol, &mut classes);
+            match_views(&theirs, &mine, tol, &mut classes);
+        }
+    }
+    // Final indices in order of each class's first id; its position is that id's, or a
+    // boundary vertex's exact one when the class holds one.
+    let mut index = vec![u32::MAX; positions.len()];
+    let mut points = Vec::new();
+    let mut exact = Vec::new();
+    for id in 0..positions.len() as u32 {
+        let root = classes.find(id) as usize;
+        if index[root] == u32::MAX {
+            index[root] = points.len() as u32;
+            points.push(positions[root]);
+            exact.push(is_exact[root]);
+        }
+        let at = index[root] as usize;
+        index[id as usize] = index[root];
+        if is_exact[id as usize] && !exact[at] {
+            points[at] = positions[id as usize];
+            exact[at] = true;
+        }
+    }
+    let mut mesh = PolyMesh {
+        points,
+        face_offsets: vec![0],
+        open_chains: cells.iter().map(|c| c.open).sum(),
+        ..PolyMesh::default()
+    };
+    let mut interior: Vec<(u32, u32, Vec<u32>)> = Vec::new();
+    let mut loop_ids = Vec::new();
+    for (i, c) in cells.iter().enumerate() {
+        for (k, side) in c.sides.iter().enumerate() {
+            let (a, b) = (c.starts[k] as usize, c.starts[k + 1] as usize);
+            loop_ids.clear();
+            loop_ids.extend(node_ids[i][a..b].iter().map(|&id| index[id as usize]));
+            match *side {
+                Side::Neighbor(j) => {
+                    let theirs = &toward[j as usize];
+                    let other_has = theirs
+                        .binary_search_by_key(&(i as u32), |&(n, _)| n)
+                        .is_ok();
+                    if (j as usize) < i && other_has {
+                        continue; // the owner, cell j, gives this face
+                    }
+                    let Some(face) = collapse(&loop_ids, D) else {
+                        continue;
+                    };
+                    if (j as usize) > i {
+                        interior.push((i as u32, j, face));
+                    } else {
+                        interior.push((j, i as u32, face.into_iter().rev().collect()));
+                    }
+                }
+                Side::Boundary(t) => {
+                    let Some(face) = collapse(&loop_ids, D) else {
+                        continue;
+                    };
+                    mesh.push(i as u32, -1, i64::from(t), &face);
+                }
+            }
+        }
+    }
+    // Interior faces first (OpenFOAM's upper-triangular order), boundary faces after.
+    let boundary_faces = std::mem::take(&mut mesh);
+    let mut mesh = PolyMesh {
+        points: boundary_faces.points.clone(),
+        face_offsets: vec![0],
+        open_chains: boundary_faces.open_chains,
+        ..PolyMesh::default()
+    };
+    interior.sort_by_key(|&(o, n, _)| (o, n));
+    for (o, n, face) in &interior {
+        mesh.push(*o, i64::from(*n), -1, face);
+    }
+    for k in 0..boundary_faces.owner.len() {
+        let f = &boundary_faces.face_vertices
+            [boundary_faces.face_offsets[k]..boundary_faces.face_offsets[k + 1]];
+        mesh.push(
+            boundary_faces.owner[k],
+            -1,
+            boundary_faces.boundary_element[k],
+            f,
+        );
+    }
+    mesh.drop_unused_points();
+    mesh
+}
+
+impl<const D: usize> PolyMesh<D> {
+    /// Keep only the points some face uses (those of collapsed faces and of the faces
+    /// taken from the other cell are not), in their order.
+    fn drop_unused_points(&mut self) {
+        let mut index = vec![u32::MAX; self.points.len()];
+        for &v in &self.face_vertices {
+            index[v as usize] = 0;
+        }
+        let mut kept = 0;
+        for (k, slot) in index.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = kept;
+                self.points[kept as usize] = self.points[k];
+                kept += 1;
+            }
+        }
+        self.points.truncate(kept as usize);
+        for v in &mut self.face_vertices {
+            *v = index[*v as usize];
+        }
+    }
+
+    fn push(&mut self, owner: u32, neighbour: i64, element: i64, face: &[u32]) {
+        self.face_vertices.extend_from_slice(face);
+        self.face_offsets.push(self.face_vertices.len());
+        self.owner.push(owner);
+        self.neighbour.push(neighbour);
+        self.boundary_element.push(element);
+    }
+}
+
+/// Merge the names of a cell's vertices that lie at one point (within `tol2`, squared):
+/// sorted along the first axis, so that only near neighbours are compared.
+fn merge_coinciding<const D: usize>(
+    cell: &CellFaces<D>,
+    ids: &[u32],
+    tol2: f64,
+    seen: &mut Vec<(f64, u32, [f64; D])>,
+    classes: &mut Classes,
+) {
+    seen.clear();
+    seen.extend(
+        ids.iter()
+            .zip(&cell.nodes)
+            .map(|(&id, (_, x))| (x[0], id, *x)),
+    );
+    seen.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    seen.dedup_by_key(|e| e.1);
+    let tol = tol2.sqrt();
+    for a in 0..seen.len() {
+        for b in a + 1..seen.len() {
+            if seen[b].0 - seen[a].0 > tol {
+                break;
+            }
+            if seen[a].1 != seen[b].1 && norm2(sub(seen[a].2, seen[b].2)) <= tol2 {
+                classes.union(seen[a].1, seen[b].1);
+            }
+        }
+    }
+}
+
+/// The distinct neighbours of a sorted `(neighbour, face)` list.
+fn dedup_neighbors(toward: &[(u32, u32)]) -> Vec<(u32, u32)> {
+    let mut v = toward.to_vec();
+    v.dedup_by_key(|x| x.0);
+    v
+}
+
+/// The vertices (id, position) of every face of `cell` toward neighbour `j`.
+fn view<const D: usize>(
+    cell: &CellFaces<D>,
+    ids: &[u32],
+    toward: &[(u32, u32)],
+    j: u32,
+) -> Vec<(u32, [f64; D])> {
+    let from = toward.partition_point(|&(n, _)| n < j);
+    toward[from..]
+        .iter()
+        .take_while(|&&(n, _)| n == j)
+        .flat_map(|&(_, k)| {
+            let (a, b) = (
+                cell.starts[k as usize] as usize,
+                cell.starts[k as usize + 1] as usize,
+            );
+            (a..b).map(move |q| (ids[q], cell.nodes[q].1))
+        })
+        .collect()
+}
+
+/// Merge each vertex of `mine` whose id `theirs` lacks with the nearest vertex of
+/// `theirs`, if that lies within `tol2` (squared).
+fn match_views<const D: usize>(
+    mine: &[(u32, [f64; D])],
+    theirs: &[(u32, [f64; D])],
+    tol2: f64,
+    classes: &mut Classes,
+) {
+    for &(id, x) in mine {
+        if theirs.iter().any(|&(other, _)| other == id) {
+            continue;
+        }
+        let nearest = theirs
+            .iter()
+            .map(|&(other, y)| (norm2(sub(x, y)), other))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((d2, other)) = nearest {
+            if d2 <= tol2 {
+                classes.union(id, other);
+            }
+        }
+    }
+}
+
+/// A face loop without repeated consecutive vertices (cyclically), or `None` when fewer
+/// than `min` remain.
+fn collapse(ids: &[u32], min: usize) -> Option<Vec<u32>> {
+    let mut out: Vec<u32> = Vec::with_capacity(ids.len());
+    for &id in ids {
+        if out.last() != Some(&id) {
+            out.push(id);
+        }
+    }
+    while out.len() > 1 && out.first() == out.last() {
+        out.pop();
+    }
+    (out.len() >= min).then_some(out)
+}
