@@ -6,6 +6,7 @@ mod diagram;
 mod domain;
 mod errors;
 mod optimise;
+mod partition;
 mod threads;
 
 use pyo3::prelude::*;
@@ -24,6 +25,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::SolidDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi_2d, m)?)?;
     m.add_function(wrap_pyfunction!(diagram::voronoi_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(partition::partition_cells_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(partition::partition_cells_3d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_2d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_3d, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;
