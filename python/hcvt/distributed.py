@@ -64,9 +64,11 @@ from hcvt.errors import InvalidDomainError, InvalidSitesError
 
 #: Parts hold at most this many sites unless told otherwise.
 DEFAULT_SITES_PER_PARTITION = 200_000
-#: First halo width, in mean spacings ``h = (V/n)^(1/d)``: a cell of a CVT reaches about
-#: 2.5 h (twice its radius), so most cells are certified in the first round.
-HALO_SPACINGS = 3.0
+#: First halo width by dimension, in mean spacings ``h = (V/n)^(1/d)``. Measured reach of
+#: 5,000 random sites: in 2D median 1.9 h, 95% below 3 h (polygon with a hole, square);
+#: in the bunny median 2.3 h, interior cells below 3.5 h, boundary cells median 4.2 h.
+#: The few cells beyond go again among a ball past their own reach.
+HALO_SPACINGS = {2: 3.0, 3: 4.0}
 #: Energy tolerance of the line search relative to ``|E|`` (as the core's ENERGY_NOISE).
 ENERGY_NOISE = 1e-12
 #: Armijo's sufficient-decrease constant and the number of trials of one line search.
@@ -113,7 +115,7 @@ class _Cluster:
         """The certified cells of every part (futures of :class:`PartCells`)."""
         boxes, counts = self.boxes(parts)
         nonempty = [p for p in range(len(parts)) if counts[p] > 0]
-        rho = {p: HALO_SPACINGS * self.h for p in nonempty}
+        rho = {p: HALO_SPACINGS[self.domain.dim] * self.h for p in nonempty}
         cells: list[Any] = [self.submit(pt.empty_cells, self.domain.dim)] * len(parts)
         previous: dict[int, Any] = {}
         pending = list(nonempty)
@@ -332,6 +334,7 @@ class _Cvt:
         self.memory = memory
         self.checkpoint = checkpoint
         self.evaluations = 0
+        self.migrated = 0
         self.start = time.perf_counter()
 
     def evaluate(self, parts: list[Any]) -> tuple[list[Any], dict[str, float], list[Any], Rounds]:
@@ -356,6 +359,7 @@ class _Cvt:
             "seconds": time.perf_counter() - self.start,
             "evaluations": self.evaluations,
             "step": step,
+            "migrated": 0,
             "_empty": int(sums["empty"]),
         }
 
@@ -363,6 +367,7 @@ class _Cvt:
         """Sites that crossed a plane move, with their rows' state, to their new part."""
         c = self.cluster
         moving = c.gather([c.submit(pt.leaving, p, self.split) for p in parts])
+        self.migrated += sum(moving)
         if not sum(moving):
             return parts
         pieces = [c.submit(pt.split_out, p, self.split) for p in parts]
@@ -381,14 +386,18 @@ class _Cvt:
 
     def step(self, it: _Iterate) -> _Iterate:
         """One iteration from ``it``: L-BFGS with its line search, or Lloyd."""
+        self.migrated = 0
+        found = self.lbfgs(it) if self.method == "lbfgs" else None
+        if found is None:
+            found = self.lloyd_step(it)
+        found.record["migrated"] = self.migrated
+        return found
+
+    def lloyd_step(self, it: _Iterate) -> _Iterate:
         c = self.cluster
+        parts = it.parts
         if self.method == "lbfgs":
-            found = self.lbfgs(it)
-            if found is not None:
-                return found
-            parts = [c.submit(pt.clear_pairs, p) for p in it.parts]
-        else:
-            parts = it.parts
+            parts = [c.submit(pt.clear_pairs, p) for p in parts]
         moved = self.rebalance(self.lloyd(parts))
         new_parts, sums, cells, rounds = self.evaluate(moved)
         return _Iterate(new_parts, self.record(sums, "lloyd"), new_parts, cells, rounds)
