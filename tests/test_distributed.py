@@ -147,7 +147,9 @@ def test_lloyd_is_bitwise_the_single_process_lloyd(client, holes):
     domain, sites = holes
     sites = sites[:1500]
     expected = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=4)
-    got = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=4, client=client, sites_per_partition=400)
+    got = hcvt.cvt(
+        domain, sites, "lloyd", tol=0, max_iter=4, client=client, sites_per_partition=400
+    )
     assert np.array_equal(got.sites, expected.sites)
     assert_bitwise(got.diagram, expected.diagram)
     np.testing.assert_allclose(got.history["energy"], expected.history["energy"], rtol=1e-13)

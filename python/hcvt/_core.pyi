@@ -18,6 +18,8 @@ __all__ = [
     "cvt_2d",
     "cvt_3d",
     "get_num_threads",
+    "partition_cells_2d",
+    "partition_cells_3d",
     "set_num_threads",
     "voronoi_2d",
     "voronoi_3d",

@@ -342,7 +342,9 @@ class _Cvt:
         c = self.cluster
         cells, rounds = c.cells(parts)
         self.evaluations += 1
-        absorbed = [c.submit(pt.absorb, c.domain_future, p, k) for p, k in zip(parts, cells, strict=True)]
+        absorbed = [
+            c.submit(pt.absorb, c.domain_future, p, k) for p, k in zip(parts, cells, strict=True)
+        ]
         new_parts = [c.item(a, 0) for a in absorbed]
         partials = c.gather([c.item(a, 1) for a in absorbed])
         return new_parts, _reduce(partials), cells, rounds
@@ -454,8 +456,12 @@ class _Cvt:
         if self.checkpoint is None:
             return None
         c = self.cluster
-        paths = [str(Path(self.checkpoint) / f"it{k:06d}-part{p:05d}.npz") for p in range(len(it.parts))]
-        return c.gather([c.submit(pt.save_part, part, path) for part, path in zip(it.parts, paths, strict=True)])
+        paths = [
+            str(Path(self.checkpoint) / f"it{k:06d}-part{p:05d}.npz") for p in range(len(it.parts))
+        ]
+        return c.gather(
+            [c.submit(pt.save_part, part, path) for part, path in zip(it.parts, paths, strict=True)]
+        )
 
     def load(self, paths: list[str]) -> list[Any]:
         return [self.cluster.submit(pt.load_part, path) for path in paths]
@@ -524,6 +530,7 @@ class PartitionedCVTResult:
 
     @property
     def converged(self) -> bool:
+        """Whether the rule's value fell below ``tol``."""
         return self.stop_reason == "converged"
 
     def gather(self) -> Any:

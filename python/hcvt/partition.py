@@ -296,11 +296,7 @@ def part_cells(
     order = np.argsort(rows, kind="stable")
     rows, sites = np.ascontiguousarray(rows[order]), np.ascontiguousarray(sites[order])
     own = np.searchsorted(rows, part.rows)
-    todo = (
-        np.arange(len(part.rows))
-        if previous is None
-        else np.flatnonzero(~previous.certified)
-    )
+    todo = np.arange(len(part.rows)) if previous is None else np.flatnonzero(~previous.certified)
     compute = getattr(_core, f"partition_cells_{domain.dim}d")
     out = compute(
         domain._core,
@@ -397,9 +393,7 @@ def centroid_shift(cells: PartCells) -> NDArray[np.float64]:
     return shift
 
 
-def absorb(
-    domain: Domain, part: Part, cells: PartCells
-) -> tuple[Part, dict[str, float]]:
+def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str, float]]:
     """``part`` with what the next step needs from its cells, and its partial measures.
 
     Fields set: ``gradient`` (k, d), ``precond`` (k,) = ``1/(2 m_i)``, ``shift`` (k, d)
@@ -521,9 +515,11 @@ def slope_at(part: Part, cells: PartCells) -> float:
 
 
 def accept(old: Part, new: Part, memory: int) -> tuple[Part, dict[str, float]]:
-    """``new`` (a trial after :func:`absorb`) with the pair ``s = x' - x``, ``y = g' - g``
-    appended to ``old``'s (the oldest dropped past ``memory``); partial ``s·y``, ``s·s``,
-    ``y·y`` for the client's curvature test."""
+    """``new`` (a trial after :func:`absorb`) with ``old``'s pairs and the pair it makes.
+
+    The pair is ``s = x' - x``, ``y = g' - g``; the oldest is dropped past ``memory``.
+    Also returns the partial ``s·y``, ``s·s``, ``y·y`` for the client's curvature test.
+    """
     s = new.sites - old.sites
     y = new.fields["gradient"] - old.fields["gradient"]
     shape = (0, *old.sites.shape)
@@ -558,24 +554,22 @@ def split_out(part: Part, split: KdSplit) -> dict[int, Part]:
     out = {}
     for q in np.unique(where):
         take = where == q
-        fields = {
-            k: (v[:, take] if k in ("s", "y") else v[take]) for k, v in part.fields.items()
-        }
+        fields = {k: (v[:, take] if k in ("s", "y") else v[take]) for k, v in part.fields.items()}
         out[int(q)] = Part(int(q), part.rows[take], part.sites[take], fields)
     return out
 
 
 def empty_like(part: Part) -> Part:
     """A part of no rows with ``part``'s fields (their shapes but the row axis)."""
-    fields = {
-        k: (v[:, :0] if k in ("s", "y") else v[:0]) for k, v in part.fields.items()
-    }
+    fields = {k: (v[:, :0] if k in ("s", "y") else v[:0]) for k, v in part.fields.items()}
     return Part(part.index, part.rows[:0], part.sites[:0], fields)
 
 
 def merge(index: int, template: Part, *pieces: Part) -> Part:
-    """One part from the ``pieces`` that now lie in it, rows increasing again; a part of
-    no rows shaped as ``template`` when none does."""
+    """One part from the ``pieces`` that now lie in it, rows increasing again.
+
+    A part of no rows shaped as ``template`` when no piece has rows.
+    """
     pieces = tuple(p for p in pieces if len(p.rows))
     if not pieces:
         return Part(index, template.rows, template.sites, dict(template.fields))
@@ -598,7 +592,7 @@ def save_part(part: Part, path: str) -> str:
     tmp = target.with_suffix(".tmp.npz")
     arrays = {"index": np.asarray(part.index), "rows": part.rows, "sites": part.sites}
     arrays.update({f"field_{k}": v for k, v in part.fields.items()})
-    np.savez(tmp, **arrays)
+    np.savez(tmp, **arrays)  # type: ignore[arg-type]
     tmp.replace(target)
     return path
 

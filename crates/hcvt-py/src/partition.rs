@@ -1,6 +1,8 @@
 //! One partition's cells among its own sites and a halo (`hcvt.distributed`).
 
-use hcvt_core::diagram::{clipped_cells, ConvexCell, Options, PartCells, PolygonCell, PolyhedronCell};
+use hcvt_core::diagram::{
+    clipped_cells, ConvexCell, Options, PartCells, PolygonCell, PolyhedronCell,
+};
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
@@ -64,7 +66,12 @@ where
         .iter()
         .map(|&r| usize::try_from(r).map_err(|_| PyValueError::new_err("negative row")))
         .collect::<PyResult<_>>()?;
-    if global.len() != points.len() || global.windows(2).any(|w| w[0] >= w[1]) {
+    if global.len() != points.len()
+        || global
+            .iter()
+            .zip(global.iter().skip(1))
+            .any(|(a, b)| a >= b)
+    {
         return Err(PyValueError::new_err(
             "rows must hold one increasing row number per site",
         ));

@@ -585,7 +585,16 @@ mod tests {
                 [0.6, 0.6],
                 [0.6, 0.3],
             ],
-            vec![[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4]],
+            vec![
+                [0, 1],
+                [1, 2],
+                [2, 3],
+                [3, 0],
+                [4, 5],
+                [5, 6],
+                [6, 7],
+                [7, 4],
+            ],
         )
         .unwrap();
         let sites = interior_sites(&holed, 2000, 11);
@@ -604,7 +613,9 @@ mod tests {
             });
             // The part's sites in the whole numbering's order: own and halo together.
             let rows: Vec<usize> = (0..sites.len())
-                .filter(|&i| (0..2).all(|k| sites[i][k] >= lo[k] - rho && sites[i][k] <= hi[k] + rho))
+                .filter(|&i| {
+                    (0..2).all(|k| sites[i][k] >= lo[k] - rho && sites[i][k] <= hi[k] + rho)
+                })
                 .collect();
             let local: Vec<[f64; 2]> = rows.iter().map(|&i| sites[i]).collect();
             let own: Vec<u32> = own_rows
@@ -630,17 +641,27 @@ mod tests {
                     part.diagram.boundary_measure[k].to_bits(),
                     whole.boundary_measure[i].to_bits()
                 );
-                let (a, b) = (part.diagram.neighbor_offsets[k], part.diagram.neighbor_offsets[k + 1]);
+                let (a, b) = (
+                    part.diagram.neighbor_offsets[k],
+                    part.diagram.neighbor_offsets[k + 1],
+                );
                 let (c, d) = (whole.neighbor_offsets[i], whole.neighbor_offsets[i + 1]);
                 let mapped: Vec<u32> = part.diagram.neighbor_sites[a..b]
                     .iter()
                     .map(|&j| rows[j as usize] as u32)
                     .collect();
                 assert_eq!(mapped, whole.neighbor_sites[c..d], "cell {i}");
-                assert_eq!(part.diagram.neighbor_measures[a..b], whole.neighbor_measures[c..d]);
+                assert_eq!(
+                    part.diagram.neighbor_measures[a..b],
+                    whole.neighbor_measures[c..d]
+                );
             }
             // A halo of a few spacings certifies most cells; the whole set certifies all.
-            assert!(here > own_rows.len() * 3 / 4, "{here} of {}", own_rows.len());
+            assert!(
+                here > own_rows.len() * 3 / 4,
+                "{here} of {}",
+                own_rows.len()
+            );
             if rho > 1.0 {
                 assert_eq!(here, own_rows.len());
             }
