@@ -53,16 +53,16 @@ def client(request):
 
 @pytest.fixture(scope="module")
 def holes():
-    """A polygon with a hole from ../shared/data, and 4,000 random sites."""
+    """A polygon with a hole from ../shared/data, and 3,000 random sites."""
     domain = hcvt.load_domain(os.path.join(DATA, "2d", "triangle_square_circle_hole.geojson"))
-    return domain, hcvt.initialise(domain, n=4000, method="random", seed=3)
+    return domain, hcvt.initialise(domain, n=3000, method="random", seed=3)
 
 
 @pytest.fixture(scope="module")
 def bunny():
-    """The Stanford bunny from ../shared/data, and 2,000 random sites."""
+    """The Stanford bunny from ../shared/data, and 1,500 random sites."""
     domain = hcvt.load_domain(os.path.join(DATA, "3d", "bunny.off"))
-    return domain, hcvt.initialise(domain, n=2000, method="random", seed=5)
+    return domain, hcvt.initialise(domain, n=1500, method="random", seed=5)
 
 
 def assert_bitwise(got: hcvt.Diagram, expected: hcvt.Diagram) -> None:
@@ -75,7 +75,7 @@ def assert_bitwise(got: hcvt.Diagram, expected: hcvt.Diagram) -> None:
     assert got.energy == pytest.approx(expected.energy, rel=1e-13, abs=0)
 
 
-@pytest.mark.parametrize("per_part", [300, 1000, 100_000])
+@pytest.mark.parametrize("per_part", [400, 1000, 100_000])
 def test_partitioned_diagram_is_bitwise_the_single_process_one(client, holes, bunny, per_part):
     for domain, sites in (holes, bunny):
         expected = hcvt.voronoi(domain, sites)
@@ -145,10 +145,10 @@ def test_kd_split_depends_on_the_data_only_and_locates_every_site():
 
 def test_lloyd_is_bitwise_the_single_process_lloyd(client, holes):
     domain, sites = holes
-    sites = sites[:1500]
-    expected = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=4)
+    sites = sites[:1000]
+    expected = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=3)
     got = hcvt.cvt(
-        domain, sites, "lloyd", tol=0, max_iter=4, client=client, sites_per_partition=400
+        domain, sites, "lloyd", tol=0, max_iter=3, client=client, sites_per_partition=300
     )
     assert np.array_equal(got.sites, expected.sites)
     assert_bitwise(got.diagram, expected.diagram)
@@ -160,8 +160,8 @@ _LBFGS: dict[str, object] = {}
 
 def test_lbfgs_is_bitwise_the_same_for_any_number_of_workers(client, holes):
     domain, sites = holes
-    sites = sites[:1500]
-    res = partitioned_cvt(domain, sites, "lbfgs", client, max_iter=6, sites_per_partition=300)
+    sites = sites[:1000]
+    res = partitioned_cvt(domain, sites, "lbfgs", client, max_iter=5, sites_per_partition=250)
     energy = res.history["energy"]
     assert np.all(np.diff(energy) < 0)
     assert res.history["rms_gap"][-1] < 0.3 * res.history["rms_gap"][0]
@@ -198,12 +198,12 @@ def test_two_loop_in_coefficients_matches_the_recursion_on_vectors():
 
 def test_a_worker_killed_during_a_cvt_does_not_change_the_result(holes, tmp_path):
     domain, sites = holes
-    sites = sites[:1500]
+    sites = sites[:1000]
     cluster = distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
     )
     with distributed.Client(cluster) as c:
-        plain = partitioned_cvt(domain, sites, "lbfgs", c, max_iter=5, sites_per_partition=300)
+        plain = partitioned_cvt(domain, sites, "lbfgs", c, max_iter=4, sites_per_partition=250)
         a = plain.gather()  # before the kill: results live on the workers
         pids = list(c.run(os.getpid).values())
         killed = []
@@ -220,8 +220,8 @@ def test_a_worker_killed_during_a_cvt_does_not_change_the_result(holes, tmp_path
             sites,
             "lbfgs",
             c,
-            max_iter=5,
-            sites_per_partition=300,
+            max_iter=4,
+            sites_per_partition=250,
             callback=kill_soon,
             checkpoint=str(tmp_path),
         )
@@ -247,3 +247,29 @@ def test_cells_are_written_per_part_without_a_gather(client, holes, tmp_path):
     memory = parted.peak_memory_mb()
     print("peak RSS per process, MB:", memory)
     assert len(memory) == len(client.scheduler_info()["workers"]) + 1
+
+
+def test_cli_run_with_a_scheduler_matches_the_single_process_run(tmp_path):
+    """``hcvt run --scheduler`` alone starts a LocalCluster; the partitioned diagram's
+    mean G and energy are those of one process."""
+    import json
+
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    path = os.path.join(DATA, "2d", "star5.geojson")
+    args = [path, "-n", "1200", "--method", "voronoi", "--seed", "2"]
+    out = tmp_path / "summary.json"
+    result = CliRunner().invoke(
+        main,
+        ["run", *args, "--scheduler", "--sites-per-partition", "300", "--summary", str(out)],
+    )
+    assert result.exit_code == 0, result.output
+    got = json.loads(out.read_text())
+    domain = hcvt.load_domain(path)
+    expected = hcvt.voronoi(domain, hcvt.initialise(domain, 1200, method="random", seed=2))
+    assert got["mean_G"] == pytest.approx(expected.mean_G, rel=1e-13)
+    assert got["energy"] == pytest.approx(expected.energy, rel=1e-13)
+    refused = CliRunner().invoke(main, ["run", *args[:3], "--method", "newton", "--scheduler"])
+    assert refused.exit_code != 0 and "--scheduler runs the methods" in refused.output

@@ -618,7 +618,18 @@ def write_part(cells: PartCells, part: Part, directory: str) -> list[str]:
 
 
 def peak_rss_mb() -> float:
-    """Peak resident memory of this process, MB (Linux ``ru_maxrss`` is in kB)."""
+    """Peak resident memory of this process, MB.
+
+    ``VmHWM`` of /proc/self/status on Linux (a spawned worker's ``ru_maxrss`` can carry
+    its parent's peak), else ``ru_maxrss``.
+    """
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     import resource
 
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
