@@ -61,24 +61,26 @@ def sites(dim: int, n: int, seed: int = 0) -> np.ndarray:
     rng = np.random.default_rng(seed)
     if dim == 2:
         return rng.random((n, 2))
+    # The ball is a triangle mesh: keep the points its exact winding number puts inside.
+    ball = shapes.ball()
     radius = (3 * shapes.BALL_VOLUME / (4 * np.pi)) ** (1 / 3)
     out = np.empty((0, 3))
     while len(out) < n:
         batch = rng.uniform(-radius, radius, (2 * (n - len(out)) + 16, 3))
-        inside = (batch**2).sum(axis=1) < (0.999 * radius) ** 2
-        out = np.concatenate([out, batch[inside]])
+        batch = batch[(batch**2).sum(axis=1) < radius**2]
+        out = np.concatenate([out, batch[ball.contains(batch)]])
     return out[:n]
 
 
 def single_process(dim: int, n: int) -> tuple[float, float]:
     """Seconds and peak MB (VmHWM growth) of one in-process diagram, in a child process."""
     here = os.path.dirname(os.path.abspath(__file__))
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, str(dim), str(n), here],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.split()
+    child = subprocess.run(
+        [sys.executable, "-c", CHILD, str(dim), str(n), here], capture_output=True, text=True
+    )
+    if child.returncode:
+        raise RuntimeError(f"single-process diagram failed:\n{child.stderr}")
+    out = child.stdout.split()
     seconds, before, after = (float(x) for x in out)
     return seconds, after - before
 

@@ -238,7 +238,7 @@ def test_cells_are_written_per_part_without_a_gather(client, holes, tmp_path):
     expected = hcvt.voronoi(domain, sites)
     parted = partitioned_voronoi(domain, sites, client, sites_per_partition=1000)
     paths = parted.write(tmp_path)
-    assert len(paths) == parted.parts * (2 + 11)  # rows, sites, 11 per-cell arrays
+    assert len(paths) == parted.parts * (2 + 10)  # rows, sites, 10 per-cell arrays
     volume = np.full(len(sites), np.nan)
     for p in range(parted.parts):
         rows = np.load(tmp_path / f"part{p:05d}.rows.npy")
@@ -273,3 +273,15 @@ def test_cli_run_with_a_scheduler_matches_the_single_process_run(tmp_path):
     assert got["energy"] == pytest.approx(expected.energy, rel=1e-13)
     refused = CliRunner().invoke(main, ["run", *args[:3], "--method", "newton", "--scheduler"])
     assert refused.exit_code != 0 and "--scheduler runs the methods" in refused.output
+
+
+def test_bad_sites_raise_the_single_process_error_naming_the_row(client, holes):
+    domain, sites = holes
+    bad = sites[:1000].copy()
+    bad[617] = [-50.0, -50.0]  # outside the polygon
+    with pytest.raises(hcvt.InvalidSitesError, match="site 617 "):
+        hcvt.voronoi(domain, bad, client=client, sites_per_partition=300)
+    twin = sites[:1000].copy()
+    twin[812] = twin[3]
+    with pytest.raises(hcvt.InvalidSitesError, match="sites 3 and 812 coincide"):
+        hcvt.voronoi(domain, twin, client=client, sites_per_partition=300)

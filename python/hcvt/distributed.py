@@ -114,6 +114,7 @@ class _Cluster:
     def cells(self, parts: list[Any]) -> tuple[list[Any], Rounds]:
         """The certified cells of every part (futures of :class:`PartCells`)."""
         boxes, counts = self.boxes(parts)
+        reach_boxes = list(boxes)  # boxes stays the box of each part's sites
         nonempty = [p for p in range(len(parts)) if counts[p] > 0]
         rho = {p: HALO_SPACINGS[self.domain.dim] * self.h for p in nonempty}
         cells: list[Any] = [self.submit(pt.empty_cells, self.domain.dim)] * len(parts)
@@ -123,7 +124,9 @@ class _Cluster:
         balls: dict[int, Any] = {}
         while pending:
             for p in pending:
-                lo, hi = boxes[p][0] - rho[p], boxes[p][1] + rho[p]
+                # Where part p's halo must reach: its sites' box widened by rho, or later
+                # the box of the balls of its cells not certified.
+                lo, hi = reach_boxes[p][0] - rho[p], reach_boxes[p][1] + rho[p]
                 neighbours = [
                     q
                     for q in nonempty
@@ -154,10 +157,12 @@ class _Cluster:
             rounds.halo.append(sum(s.halo for s in status))
             still = []
             for p, s in zip(pending, status, strict=True):
+                # The last round's result of p is now in cells[p]: let the worker drop it.
+                previous.pop(p, None)
                 if s.uncertified:
                     previous[p] = cells[p]
                     balls[p] = self.submit(_balls, cells[p])
-                    boxes[p], rho[p] = (s.lo, s.hi), 0.0
+                    reach_boxes[p], rho[p] = (s.lo, s.hi), 0.0
                     still.append(p)
             pending = still
         return cells, rounds
@@ -251,7 +256,7 @@ class PartitionedDiagram:
             take = starts + np.arange(len(starts))
             neighbor_sites[take] = f["neighbor_sites"]
             neighbor_measures[take] = f["neighbor_measures"]
-        arrays.pop("first", None)
+        arrays["gradient"] = arrays.pop("first") * -2.0
         arrays.update(
             energy=self.energy,
             neighbor_offsets=offsets,

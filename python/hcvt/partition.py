@@ -192,8 +192,8 @@ class PartCells:
     Attributes
     ----------
     arrays : dict of str to ndarray
-        ``volume``, ``centroid``, ``second_moment``, ``G``, ``energy_terms``, ``gradient``,
-        ``first`` (moments about the sites), ``boundary_measure``, and the faces in CSR
+        ``volume``, ``centroid``, ``second_moment``, ``G``, ``energy_terms``, ``first``
+        (moments about the sites; the gradient is ``-2 first``, exactly), ``boundary_measure``, and the faces in CSR
         layout ``neighbor_offsets`` (k + 1,), ``neighbor_sites`` (problem rows),
         ``neighbor_measures``.
     reach : ndarray, shape (k,)
@@ -250,8 +250,8 @@ class Status:
 def empty_cells(d: int) -> PartCells:
     """The cells of a part of no sites."""
     arrays = {
-        key: np.zeros((0, d) if key in ("centroid", "gradient", "first") else 0)
-        for key in ("volume", "centroid", "second_moment", "G", "energy_terms", "gradient")
+        key: np.zeros((0, d) if key in ("centroid", "first") else 0)
+        for key in ("volume", "centroid", "second_moment", "G", "energy_terms")
         + ("first", "boundary_measure", "neighbor_measures")
     }
     arrays["neighbor_offsets"] = np.zeros(1, dtype=np.intp)
@@ -307,7 +307,9 @@ def part_cells(
         allow_outside=allow_outside,
     )
     reach = np.sqrt(out.pop("reach2"))
+    # Kept once: the energy is summed by the client, the gradient is -2 first.
     out.pop("energy", None)
+    out.pop("gradient", None)
     complete = len(rows) == total_sites
     certified = np.full(len(todo), True) if complete else reach < COVER_FRACTION * cover
     halo = len(rows) - len(part.rows)
@@ -352,6 +354,11 @@ def _replace_rows(
         out[key] = values
     out["neighbor_offsets"] = offsets
     return out
+
+
+def gradient_of(cells: PartCells) -> NDArray[np.float64]:
+    """``∂E/∂x_i = -2 ∫(x - x_i)`` of each cell, (k, d): the core's, bit for bit."""
+    return cells.arrays["first"] * -2.0
 
 
 def inside_or_on(domain: Domain, points: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -402,7 +409,8 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     ``pinned`` (the core's ``Measures`` and ``pinned_sites``, DESIGN §7).
     """
     a = cells.arrays
-    mass, first, gradient = a["volume"], a["first"], a["gradient"]
+    mass, first = a["volume"], a["first"]
+    gradient = gradient_of(cells)
     shift = centroid_shift(cells)
     d = domain.dim
     pinned = np.zeros(len(mass), dtype=bool)
@@ -511,7 +519,7 @@ def trial_part(domain: Domain, part: Part, t: float) -> tuple[Part, bool]:
 
 def slope_at(part: Part, cells: PartCells) -> float:
     """Partial ``g(x + t d) · d`` of a trial (``part`` the iterate holding ``direction``)."""
-    return _dot(cells.arrays["gradient"], part.fields["direction"])
+    return _dot(gradient_of(cells), part.fields["direction"])
 
 
 def accept(old: Part, new: Part, memory: int) -> tuple[Part, dict[str, float]]:
