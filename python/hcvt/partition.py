@@ -315,12 +315,14 @@ def part_cells(
     halo = len(rows) - len(part.rows)
     if previous is None:
         return PartCells(out, reach, certified, halo, len(todo), part.sites)
-    arrays = _replace_rows(previous.arrays, todo, out)
-    new_reach = previous.reach.copy()
-    new_reach[todo] = reach
-    new_certified = previous.certified.copy()
-    new_certified[todo] = certified
-    return PartCells(arrays, new_reach, new_certified, halo, len(todo), part.sites)
+    # In place: the earlier round is superseded, and a part's cells are held once (twice
+    # for all parts at a time was the peak of a 20M-site run). Running this again on the
+    # updated object finds nothing to do, so a retried task gives the same cells.
+    previous.arrays = _replace_rows(previous.arrays, todo, out)
+    previous.reach[todo] = reach
+    previous.certified[todo] = certified
+    previous.halo, previous.computed = halo, len(todo)
+    return previous
 
 
 _FACES = ("neighbor_sites", "neighbor_measures")
@@ -329,12 +331,14 @@ _FACES = ("neighbor_sites", "neighbor_measures")
 def _replace_rows(
     old: dict[str, NDArray[Any]], todo: NDArray[np.intp], new: dict[str, NDArray[Any]]
 ) -> dict[str, NDArray[Any]]:
-    """``old`` with rows ``todo`` replaced by the rows of ``new`` (faces in CSR too)."""
+    """``old`` with rows ``todo`` replaced by the rows of ``new`` (faces in CSR too).
+
+    Per-cell arrays are written in place; the face arrays are built anew.
+    """
     out = {}
     for key, value in old.items():
         if key == "neighbor_offsets" or key in _FACES:
             continue
-        value = value.copy()
         value[todo] = new[key]
         out[key] = value
     counts = np.diff(old["neighbor_offsets"])
