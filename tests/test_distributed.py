@@ -249,9 +249,10 @@ def test_cells_are_written_per_part_without_a_gather(client, holes, tmp_path):
     assert len(memory) == len(client.scheduler_info()["workers"]) + 1
 
 
-def test_cli_run_with_a_scheduler_matches_the_single_process_run(tmp_path):
-    """``hcvt run --scheduler`` alone starts a LocalCluster; the partitioned diagram's
-    mean G and energy are those of one process."""
+def test_cli_run_with_a_scheduler_matches_the_single_process_run(client, tmp_path):
+    """``hcvt run --scheduler ADDRESS``: the partitioned diagram's mean G and energy are
+    those of one process (``--scheduler`` alone, a LocalCluster, is the same path after
+    the cluster starts)."""
     import json
 
     from click.testing import CliRunner
@@ -263,7 +264,16 @@ def test_cli_run_with_a_scheduler_matches_the_single_process_run(tmp_path):
     out = tmp_path / "summary.json"
     result = CliRunner().invoke(
         main,
-        ["run", *args, "--scheduler", "--sites-per-partition", "300", "--summary", str(out)],
+        [
+            "run",
+            *args,
+            "--scheduler",
+            client.scheduler.address,
+            "--sites-per-partition",
+            "300",
+            "--summary",
+            str(out),
+        ],
     )
     assert result.exit_code == 0, result.output
     got = json.loads(out.read_text())
