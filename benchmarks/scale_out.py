@@ -112,7 +112,8 @@ def diagram_case(dim: int, n: int, args: argparse.Namespace) -> None:
     cl, client = cluster(args.workers, args.memory_limit)
     try:
         t = time.perf_counter()
-        parted = partitioned_voronoi(domain, points, client, sites_per_partition=args.per_part)
+        per_part = args.per_part_3d if dim == 3 and args.per_part_3d else args.per_part
+        parted = partitioned_voronoi(domain, points, client, sites_per_partition=per_part)
         seconds = time.perf_counter() - t
         halo = sum(parted.rounds.halo)
         print(
@@ -171,6 +172,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--memory-limit", default="6GB")
     parser.add_argument("--per-part", type=int, default=1_000_000)
+    parser.add_argument("--per-part-3d", type=int, default=None, help="default: --per-part")
     parser.add_argument("--single", type=int, default=1_000_000)
     parser.add_argument("--cases", nargs="*", default=["single", "2d", "3d", "lbfgs"])
     args = parser.parse_args()
@@ -191,12 +193,17 @@ def main() -> None:
                 f"({per_site:.0f} B/site); one process would need "
                 f"{per_site * big / 2**30:.1f} GiB for n = {big:,}"
             )
-    if "2d" in args.cases:
-        diagram_case(2, args.n2d, args)
-    if "3d" in args.cases:
-        diagram_case(3, args.n3d, args)
-    if "lbfgs" in args.cases:
-        lbfgs_case(args.nlbfgs, args.iters, args)
+    cases = {
+        "2d": lambda: diagram_case(2, args.n2d, args),
+        "3d": lambda: diagram_case(3, args.n3d, args),
+        "lbfgs": lambda: lbfgs_case(args.nlbfgs, args.iters, args),
+    }
+    for name, case in cases.items():
+        if name in args.cases:
+            try:
+                case()
+            except Exception as err:  # a worker over its memory limit: say so, go on
+                print(f"{name}: FAILED ({type(err).__name__}: {str(err)[:200]})")
 
 
 if __name__ == "__main__":

@@ -193,9 +193,9 @@ class PartCells:
     ----------
     arrays : dict of str to ndarray
         ``volume``, ``centroid``, ``second_moment``, ``G``, ``energy_terms``, ``first``
-        (moments about the sites; the gradient is ``-2 first``, exactly), ``boundary_measure``, and the faces in CSR
-        layout ``neighbor_offsets`` (k + 1,), ``neighbor_sites`` (problem rows),
-        ``neighbor_measures``.
+        (moments about the sites; the gradient is ``-2 first``, exactly),
+        ``boundary_measure``, and the faces in CSR layout ``neighbor_offsets`` (k + 1,),
+        ``neighbor_sites`` (problem rows), ``neighbor_measures``.
     reach : ndarray, shape (k,)
         Distance from each site within which its cell read the sites, L.
     certified : ndarray of bool, shape (k,)
@@ -262,14 +262,31 @@ def empty_cells(d: int) -> PartCells:
 def ball_slice(
     part: Part, centres: NDArray[np.float64], radii: NDArray[np.float64]
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Rows and sites of ``part`` within ``radii`` of any of ``centres`` (closed balls)."""
+    """Rows and sites of ``part`` within ``radii`` of any of ``centres``, and maybe more.
+
+    The balls are grouped by radius into powers of two; each group answers one
+    nearest-centre query per site within its largest radius: a superset of the sites in
+    the balls (which is all a halo needs), in memory linear in the sites. (Listing each
+    ball's sites took more than 2 GB on a 10M-site run: the balls overlap.)
+    """
     from scipy.spatial import cKDTree
 
     if len(part.rows) == 0 or len(centres) == 0:
         return part.rows[:0], part.sites[:0]
-    hits = cKDTree(part.sites).query_ball_point(centres, radii)
-    take = np.unique(np.concatenate([np.asarray(h, dtype=np.intp) for h in hits]))
-    return part.rows[take], part.sites[take]
+    lo = (centres - radii[:, None]).min(axis=0)
+    hi = (centres + radii[:, None]).max(axis=0)
+    near = np.flatnonzero(np.all((part.sites >= lo) & (part.sites <= hi), axis=1))
+    take = np.zeros(len(near), dtype=bool)
+    group = np.ceil(np.log2(radii)).astype(int)
+    for g in np.unique(group):
+        members = group == g
+        bound = float(radii[members].max())
+        distance, _ = cKDTree(centres[members]).query(
+            part.sites[near], distance_upper_bound=bound * (1 + 1e-12)
+        )
+        take |= distance <= bound * (1 + 1e-12)
+    near = near[take]
+    return part.rows[near], part.sites[near]
 
 
 def part_cells(
