@@ -20,6 +20,8 @@ __all__ = [
     "get_num_threads",
     "mesh_2d",
     "mesh_3d",
+    "partition_cells_2d",
+    "partition_cells_3d",
     "set_num_threads",
     "voronoi_2d",
     "voronoi_3d",
@@ -82,6 +84,25 @@ def mesh_2d(
     domain: PolygonDomain, sites: _Float2, allow_outside: bool = False
 ) -> dict[str, Any]: ...
 def mesh_3d(domain: SolidDomain, sites: _Float2, allow_outside: bool = False) -> dict[str, Any]: ...
+
+# Partition dicts: a diagram dict with one row per own site, neighbor_sites in the
+# problem's rows, first (k, d) moments about the sites, reach2 (k,) (see hcvt.distributed).
+def partition_cells_2d(
+    domain: PolygonDomain,
+    sites: _Float2,
+    rows: NDArray[np.int64],
+    own: NDArray[np.uint32],
+    total_sites: int,
+    allow_outside: bool = False,
+) -> dict[str, Any]: ...
+def partition_cells_3d(
+    domain: SolidDomain,
+    sites: _Float2,
+    rows: NDArray[np.int64],
+    own: NDArray[np.uint32],
+    total_sites: int,
+    allow_outside: bool = False,
+) -> dict[str, Any]: ...
 
 # CVT dicts: sites, diagram (a diagram dict), history (arrays per field), stop_reason,
 # iterations, evaluations (see hcvt.optimise).

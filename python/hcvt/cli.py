@@ -10,9 +10,12 @@ hcvt reproduce table4 --runs 10 --out results
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -105,6 +108,20 @@ def _load(input_: str, repair: bool):
 )
 @click.option("--summary", type=click.Path(dir_okay=False), help="Summary JSON file.")
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG of the cells by G.")
+@click.option(
+    "--scheduler",
+    is_flag=False,
+    flag_value="local",
+    default=None,
+    help="Partition over dask.distributed: a scheduler ADDRESS, or alone for a LocalCluster "
+    "(voronoi, lbfgs, lloyd).",
+)
+@click.option(
+    "--sites-per-partition",
+    type=int,
+    default=None,
+    help="With --scheduler: most sites per part [default: 200000].",
+)
 def run(
     input_: str,
     n: int,
@@ -123,10 +140,16 @@ def run(
     mesh_dir: str | None,
     summary: str | None,
     plot: str | None,
+    scheduler: str | None,
+    sites_per_partition: int | None,
 ) -> None:
     """CVT of N sites in INPUT: a built-in shape (square, star, ...) or a polygon/mesh file."""
     import hcvt
 
+    if scheduler is not None and method not in PARTITIONED:
+        raise click.UsageError(
+            f"--scheduler runs the methods {', '.join(PARTITIONED)}, not {method!r}"
+        )
     domain = _load(input_, repair)
     if domain.repair_report is not None:
         click.echo(str(domain.repair_report))
@@ -164,7 +187,27 @@ def run(
         iterations = regular.relaxation.moves
     else:
         sites = hcvt.initialise(domain, n, method=init, seed=seed)
-        if method == "voronoi":
+        if scheduler is not None:
+            with _client(scheduler) as client:
+                if method == "voronoi":
+                    diagram = hcvt.voronoi(
+                        domain, sites, client=client, sites_per_partition=sites_per_partition
+                    )
+                else:
+                    run = hcvt.cvt(
+                        domain,
+                        sites,
+                        method=method,
+                        rule=rule,
+                        tol=tol,
+                        max_iter=max_iter,
+                        progress=True,
+                        client=client,
+                        sites_per_partition=sites_per_partition,
+                    )
+                    sites, diagram, iterations = run.sites, run.diagram, run.iterations
+                    history = run.history
+        elif method == "voronoi":
             diagram = hcvt.voronoi(domain, sites)
         elif method == "monte-carlo":
             mc = hcvt.global_monte_carlo(
@@ -272,6 +315,29 @@ def _write_meshes(diagram: Any, cells_path: str | None, mesh_dir: str | None) ->
         f"{quality['inverted_pyramids']} inverted pyramids)"
     )
     return info
+
+
+#: The methods ``run --scheduler`` partitions over dask.distributed workers.
+PARTITIONED = ("voronoi", "lbfgs", "lloyd")
+
+
+@contextlib.contextmanager
+def _client(scheduler: str) -> Iterator[Any]:
+    """A dask client of ``scheduler``, or of a LocalCluster (one worker process per core)."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler == "local":
+        workers = os.cpu_count() or 1
+        with (
+            LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            ) as cluster,
+            Client(cluster) as client,
+        ):
+            yield client
+    else:
+        with Client(scheduler) as client:
+            yield client
 
 
 #: The last iterate's convergence measures, written to the summary (``hcvt.cvt`` docs).

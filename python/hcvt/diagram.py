@@ -213,7 +213,14 @@ class Diagram:
         )
 
 
-def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) -> Diagram:
+def voronoi(
+    domain: Domain,
+    sites: ArrayLike,
+    *,
+    allow_outside: bool = False,
+    client: Any = None,
+    sites_per_partition: int | None = None,
+) -> Diagram:
     """Clipped Voronoi diagram of ``sites`` inside ``domain``, exact to round-off.
 
     Parameters
@@ -229,6 +236,16 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
         not containing the site. Such a site must lie within 64 times the smallest side of
         the domain's bounding box: farther, its cell cannot be cut accurately (the error
         grows as the distance squared).
+    client : dask.distributed.Client, optional
+        Compute the cells on its workers, the sites split into spatial parts of at most
+        ``sites_per_partition`` sites (default 200,000), each with a halo of nearby sites
+        grown until every cell is certified (:mod:`hcvt.distributed`); the cells are then
+        gathered here. Per-cell arrays are bitwise those of one process; ``energy`` is
+        summed per part and agrees to round-off. For cells that stay on the workers use
+        :func:`hcvt.distributed.partitioned_voronoi`.
+    sites_per_partition : int, optional
+        With ``client``: the most sites one part holds (fixed by the data, not by the
+        number of workers).
 
     Returns
     -------
@@ -257,6 +274,13 @@ def voronoi(domain: Domain, sites: ArrayLike, *, allow_outside: bool = False) ->
     >>> diagram.G.round(6)
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
+    if client is not None:
+        from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_voronoi
+
+        per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION
+        return partitioned_voronoi(
+            domain, sites, client, sites_per_partition=per_part, allow_outside=allow_outside
+        ).gather()
     points = as_sites(sites, domain.dim)
     compute = getattr(_core, f"voronoi_{domain.dim}d", None)
     if compute is None:

@@ -128,6 +128,8 @@ def cvt(
     memory: int = 7,
     callback: Callable[[dict[str, Any]], Any] | None = None,
     progress: bool = False,
+    client: Any = None,
+    sites_per_partition: int | None = None,
 ) -> CVTResult:
     """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``.
 
@@ -161,6 +163,14 @@ def cvt(
         (``stop_reason == "interrupted"``).
     progress : bool
         Show a progress bar (rich) of the rule's value towards ``tol``.
+    client : dask.distributed.Client, optional
+        Run on its workers, the sites and their state split into spatial parts of at most
+        ``sites_per_partition`` sites (default 200,000) that stay there between iterations
+        (:mod:`hcvt.distributed`; ``"lbfgs"`` and ``"lloyd"`` only; the callback's info
+        then has no ``sites``). Lloyd is bitwise the single-process run; L-BFGS is bitwise
+        the same for any number of workers, not the single-process iterates.
+    sites_per_partition : int, optional
+        With ``client``: the most sites one part holds.
 
     Returns
     -------
@@ -194,6 +204,22 @@ def cvt(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if client is not None:
+        from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt
+
+        return partitioned_cvt(
+            domain,
+            sites,
+            method,
+            client,
+            rule=rule,
+            tol=tol,
+            max_iter=max_iter,
+            memory=memory,
+            callback=callback,
+            progress=progress,
+            sites_per_partition=sites_per_partition or DEFAULT_SITES_PER_PARTITION,
+        ).gather()
     tol = default_tol(rule) if tol is None else tol
     if not tol >= 0:
         raise ValueError(f"tol must be a number >= 0, got {tol!r}")

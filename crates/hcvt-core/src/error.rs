@@ -103,3 +103,44 @@ pub enum CoreError {
         got: usize,
     },
 }
+
+impl CoreError {
+    /// The same error with every site row `i` it names replaced by `row(i)`: a partition's
+    /// cells are computed on its own rows and reported in the whole problem's.
+    pub fn with_site_rows(self, row: impl Fn(usize) -> usize) -> Self {
+        match self {
+            Self::NonFiniteSite { index, value } => Self::NonFiniteSite {
+                index: row(index),
+                value,
+            },
+            Self::DuplicateSites {
+                first,
+                second,
+                point,
+            } => {
+                let (a, b) = (row(first), row(second));
+                Self::DuplicateSites {
+                    first: a.min(b),
+                    second: a.max(b),
+                    point,
+                }
+            }
+            Self::SiteOutsideDomain { index, point } => Self::SiteOutsideDomain {
+                index: row(index),
+                point,
+            },
+            Self::SiteFarOutside {
+                index,
+                point,
+                distance,
+                limit,
+            } => Self::SiteFarOutside {
+                index: row(index),
+                point,
+                distance,
+                limit,
+            },
+            other => other,
+        }
+    }
+}

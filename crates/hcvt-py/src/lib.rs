@@ -7,6 +7,7 @@ mod domain;
 mod errors;
 mod mesh;
 mod optimise;
+mod partition;
 mod threads;
 
 use pyo3::prelude::*;
@@ -27,6 +28,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(diagram::voronoi_3d, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_2d, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(partition::partition_cells_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(partition::partition_cells_3d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_2d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_3d, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;

@@ -46,7 +46,7 @@ pub use knn::{NearScratch, NearSites, SiteIndex};
 pub use order::morton_order;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
-pub use voronoi_cell::{voronoi_cell, CellScratch};
+pub use voronoi_cell::{voronoi_cell, voronoi_cell_among, CellScratch};
 
 /// How to treat unusual input.
 #[derive(Debug, Clone, Copy, Default)]
@@ -85,6 +85,8 @@ struct Batch<const D: usize, C> {
     face_integrals: Vec<Matrix<D>>,
     /// Each cell's convex cell, when kept.
     cells: Vec<C>,
+    /// Each cell's reach ([`PartCells::reach2`]).
+    reach2: Vec<f64>,
     /// The error of the batch's first offending site in index order.
     error: Option<(usize, CoreError)>,
 }
@@ -105,6 +107,7 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             cell_integrals: Vec::with_capacity(if integrals { cells } else { 0 }),
             face_integrals: Vec::with_capacity(faces),
             cells: Vec::new(),
+            reach2: Vec::with_capacity(cells),
             error: None,
         }
     }
@@ -169,57 +172,14 @@ where
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
     let order = morton_order(sites);
-    let convex = boundary.is_convex();
-    let batches: Vec<Batch<D, C>> = order
-        .par_chunks(BATCH)
-        .map_init(
-            || (CellScratch::default(), MeasureScratch::default()),
-            |(scratch, measuring), chunk| {
-                let mut batch = Batch::new(chunk.len(), integrand.is_some());
-                for &i in chunk {
-                    let i = i as usize;
-                    let convex_inside = convex && windings[i] == Some(1);
-                    let (cell, inside) = match voronoi_cell::<D, C>(
-                        boundary,
-                        &index,
-                        sites,
-                        i,
-                        convex_inside,
-                        scratch,
-                    ) {
-                        Ok(found) => found,
-                        Err(e) => {
-                            batch.fail(i, e);
-                            continue;
-                        }
-                    };
-                    let row = integrand.map(|integrand| FaceRow { integrand, site: i });
-                    let moments = if inside {
-                        measure(cell, row, &mut measuring.faces)
-                    } else {
-                        clip_by_domain(boundary, cell, sites[i], windings[i], row, measuring)
-                    };
-                    batch.push(i, moments, &mut measuring.faces, integrand.is_some());
-                    if keep_cells {
-                        batch.cells.push(cell.clone());
-                    }
-                }
-                batch
-            },
-        )
-        .collect();
-    let first_error = batches
-        .iter()
-        .filter_map(|b| b.error.as_ref().map(|(i, _)| *i))
-        .min();
-    if let Some(first) = first_error {
-        let mut batches = batches;
-        let batch = batches
-            .iter_mut()
-            .find(|b| b.error.as_ref().is_some_and(|(i, _)| *i == first))
-            .expect("the batch of the first error");
-        return Err(batch.error.take().expect("its error").1);
-    }
+    let visit = Visit {
+        sites,
+        index: &index,
+        windings: &windings,
+        total_sites: sites.len(),
+    };
+    let batches = visit.batches::<C>(boundary, &order, integrand, keep_cells);
+    let batches = without_errors(batches)?;
     Ok(assemble(
         sites.len(),
         batches,
@@ -278,6 +238,201 @@ where
         }
     }
     Ok(windings)
+}
+
+/// What every cell of one diagram computation shares: the sites, their index, the winding
+/// numbers of the sites whose cells are computed, and the number of sites of the whole
+/// problem (more than `sites.len()` when `sites` is a partition with its halo).
+struct Visit<'a, const D: usize> {
+    sites: &'a [[f64; D]],
+    index: &'a SiteIndex<D>,
+    /// Indexed like `sites`; only the entries of the sites visited are read.
+    windings: &'a [Option<i32>],
+    total_sites: usize,
+}
+
+impl<const D: usize> Visit<'_, D>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    /// The cells of the sites `visit`, in that order, measured in batches of [`BATCH`] in
+    /// parallel; errors are kept in their batch.
+    fn batches<C: ConvexCell<D>>(
+        &self,
+        boundary: &Boundary<D>,
+        visit: &[u32],
+        integrand: Option<&dyn FaceIntegrand<D>>,
+        keep_cells: bool,
+    ) -> Vec<Batch<D, C>> {
+        let convex = boundary.is_convex();
+        visit
+            .par_chunks(BATCH)
+            .map_init(
+                || (CellScratch::default(), MeasureScratch::default()),
+                |(scratch, measuring), chunk| {
+                    let mut batch = Batch::new(chunk.len(), integrand.is_some());
+                    for &i in chunk {
+                        let i = i as usize;
+                        let winding = self.windings[i];
+                        let convex_inside = convex && winding == Some(1);
+                        let (cell, inside) = match voronoi_cell_among::<D, C>(
+                            boundary,
+                            self.index,
+                            self.sites,
+                            self.total_sites,
+                            i,
+                            convex_inside,
+                            scratch,
+                        ) {
+                            Ok(found) => found,
+                            Err(e) => {
+                                batch.fail(i, e);
+                                continue;
+                            }
+                        };
+                        let row = integrand.map(|integrand| FaceRow { integrand, site: i });
+                        let moments = if inside {
+                            measure(cell, row, &mut measuring.faces)
+                        } else {
+                            clip_by_domain(boundary, cell, self.sites[i], winding, row, measuring)
+                        };
+                        batch.push(i, moments, &mut measuring.faces, integrand.is_some());
+                        if keep_cells {
+                            batch.cells.push(cell.clone());
+                        }
+                        batch.reach2.push(scratch.reach2());
+                    }
+                    batch
+                },
+            )
+            .collect()
+    }
+}
+
+/// The batches, or the error of the first offending site in index order among them.
+fn without_errors<const D: usize, C>(
+    mut batches: Vec<Batch<D, C>>,
+) -> Result<Vec<Batch<D, C>>, CoreError> {
+    let first_error = batches
+        .iter()
+        .filter_map(|b| b.error.as_ref().map(|(i, _)| *i))
+        .min();
+    if let Some(first) = first_error {
+        let batch = batches
+            .iter_mut()
+            .find(|b| b.error.as_ref().is_some_and(|(i, _)| *i == first))
+            .expect("the batch of the first error");
+        return Err(batch.error.take().expect("its error").1);
+    }
+    Ok(batches)
+}
+
+/// The cells of some of the sites, computed among the others: a partition's own sites
+/// among its own and its halo (DESIGN §10).
+#[derive(Debug, Clone, Default)]
+pub struct PartCells<const D: usize> {
+    /// Row `k` is the cell of site `own[k]`; neighbours are indices into the `sites` given.
+    pub diagram: Diagram<D>,
+    /// Per row, the squared distance from its site within which the cell depends on the
+    /// sites present: the cell is the one a run over all the problem's sites would compute,
+    /// bit for bit, whenever `sites` holds every site of the problem within this distance
+    /// (see [`clipped_cells`]), `L²`.
+    pub reach2: Vec<f64>,
+}
+
+/// The cells of the sites `own` (indices into `sites`), as [`clipped_diagram`] computes
+/// them for a problem of `total_sites` sites of which `sites` is a part, with each cell's
+/// reach ([`PartCells::reach2`]).
+///
+/// A cell is the domain's box clipped by the bisectors of the sites streamed in increasing
+/// distance (ties by index) until the next is beyond twice the cell's radius, or, once
+/// localised, by the nearest sites of its vertices. It only reads the sites within its
+/// reach, so it is bitwise the cell of the whole problem when `sites` holds every site of
+/// the problem within that distance **and** lists them in the same relative order as the
+/// problem (so that ties in distance, and the sorted neighbour lists, agree). The caller
+/// grows the halo of the cells whose reach its halo does not cover and computes them again.
+/// (On clustered sites the index falls back to a kd-tree, whose order among sites at
+/// exactly equal distance is its own: bitwise equality then needs no such ties.)
+///
+/// Errors are [`clipped_diagram`]'s, for the own sites (all sites are checked finite),
+/// naming indices into `sites`.
+pub fn clipped_cells<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    own: &[u32],
+    total_sites: usize,
+    options: Options,
+) -> Result<PartCells<D>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    if sites.is_empty() || own.is_empty() {
+        return Ok(PartCells::default());
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    if let Some(&bad) = own.iter().find(|&&i| i as usize >= sites.len()) {
+        return Err(CoreError::SiteIndex {
+            reason: format!("own site {bad} is not one of the {} sites", sites.len()),
+        });
+    }
+    let mut windings = vec![None; sites.len()];
+    let own_windings: Vec<Option<i32>> = own
+        .par_iter()
+        .map(|&i| Euclid::winding_number(boundary, &sites[i as usize]))
+        .collect();
+    for (&i, &w) in own.iter().zip(&own_windings) {
+        windings[i as usize] = w;
+    }
+    if !options.allow_outside {
+        let mut outside: Vec<u32> = own
+            .iter()
+            .zip(&own_windings)
+            .filter(|(_, w)| **w == Some(0))
+            .map(|(&i, _)| i)
+            .collect();
+        outside.sort_unstable();
+        if let Some(&index) = outside.first() {
+            let index = index as usize;
+            return Err(CoreError::SiteOutsideDomain {
+                index,
+                point: sites[index].to_vec(),
+            });
+        }
+    }
+    let index = SiteIndex::new(sites)?;
+    let visit = Visit {
+        sites,
+        index: &index,
+        windings: &windings,
+        total_sites: total_sites.max(sites.len()),
+    };
+    let batches = without_errors(visit.batches::<C>(boundary, own, None, false))?;
+    let rows = own.len();
+    let mut reach2 = Vec::with_capacity(rows);
+    let mut diagram = Diagram {
+        neighbor_offsets: vec![0],
+        ..Diagram::default()
+    };
+    for b in batches {
+        let mut at = 0;
+        for (k, &count) in b.face_counts.iter().enumerate() {
+            let count = count as usize;
+            diagram.moments.push(b.moments[k]);
+            diagram.boundary_measure.push(b.boundary_measure[k]);
+            for &(j, measure) in &b.neighbors[at..at + count] {
+                diagram.neighbor_sites.push(j);
+                diagram.neighbor_measures.push(measure);
+            }
+            at += count;
+            diagram.neighbor_offsets.push(diagram.neighbor_sites.len());
+        }
+        reach2.extend_from_slice(&b.reach2);
+    }
+    Ok(PartCells { diagram, reach2 })
 }
 
 /// The diagram in index order from the batches (visiting order), the kept cells and the
@@ -428,5 +583,107 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
+    }
+
+    /// A square with a square hole, split at x = 0.5 into two parts, each computed among
+    /// its own sites and a halo within `rho` of its box: every cell whose reach the halo
+    /// covers is bitwise the whole diagram's (moments, boundary share, neighbours in the
+    /// whole numbering), and with all sites as halo every cell is certified.
+    #[test]
+    fn a_part_with_a_covering_halo_gives_the_whole_diagrams_cells_bit_for_bit() {
+        let holed = Polygon::new(
+            vec![
+                [0.0, 0.0],
+                [1.0, 0.0],
+                [1.0, 1.0],
+                [0.0, 1.0],
+                [0.3, 0.3],
+                [0.3, 0.6],
+                [0.6, 0.6],
+                [0.6, 0.3],
+            ],
+            vec![
+                [0, 1],
+                [1, 2],
+                [2, 3],
+                [3, 0],
+                [4, 5],
+                [5, 6],
+                [6, 7],
+                [7, 4],
+            ],
+        )
+        .unwrap();
+        let sites = interior_sites(&holed, 2000, 11);
+        let (whole, _) =
+            clipped_diagram::<2, PolygonCell>(&holed, &sites, Options::default(), false).unwrap();
+        let mut certified = 0;
+        for (left, rho) in [(true, 0.05), (false, 0.05), (true, 2.0)] {
+            let own_rows: Vec<usize> = (0..sites.len())
+                .filter(|&i| (sites[i][0] < 0.5) == left)
+                .collect();
+            let lo = own_rows.iter().fold([f64::INFINITY; 2], |m, &i| {
+                [m[0].min(sites[i][0]), m[1].min(sites[i][1])]
+            });
+            let hi = own_rows.iter().fold([f64::NEG_INFINITY; 2], |m, &i| {
+                [m[0].max(sites[i][0]), m[1].max(sites[i][1])]
+            });
+            // The part's sites in the whole numbering's order: own and halo together.
+            let rows: Vec<usize> = (0..sites.len())
+                .filter(|&i| {
+                    (0..2).all(|k| sites[i][k] >= lo[k] - rho && sites[i][k] <= hi[k] + rho)
+                })
+                .collect();
+            let local: Vec<[f64; 2]> = rows.iter().map(|&i| sites[i]).collect();
+            let own: Vec<u32> = own_rows
+                .iter()
+                .map(|i| rows.binary_search(i).unwrap() as u32)
+                .collect();
+            let part = clipped_cells::<2, PolygonCell>(
+                &holed,
+                &local,
+                &own,
+                sites.len(),
+                Options::default(),
+            )
+            .unwrap();
+            let mut here = 0;
+            for (k, &i) in own_rows.iter().enumerate() {
+                if part.reach2[k] >= rho * rho {
+                    continue;
+                }
+                here += 1;
+                assert_eq!(part.diagram.moments[k], whole.moments[i], "cell {i}");
+                assert_eq!(
+                    part.diagram.boundary_measure[k].to_bits(),
+                    whole.boundary_measure[i].to_bits()
+                );
+                let (a, b) = (
+                    part.diagram.neighbor_offsets[k],
+                    part.diagram.neighbor_offsets[k + 1],
+                );
+                let (c, d) = (whole.neighbor_offsets[i], whole.neighbor_offsets[i + 1]);
+                let mapped: Vec<u32> = part.diagram.neighbor_sites[a..b]
+                    .iter()
+                    .map(|&j| rows[j as usize] as u32)
+                    .collect();
+                assert_eq!(mapped, whole.neighbor_sites[c..d], "cell {i}");
+                assert_eq!(
+                    part.diagram.neighbor_measures[a..b],
+                    whole.neighbor_measures[c..d]
+                );
+            }
+            // A halo of a few spacings certifies most cells; the whole set certifies all.
+            assert!(
+                here > own_rows.len() * 3 / 4,
+                "{here} of {}",
+                own_rows.len()
+            );
+            if rho > 1.0 {
+                assert_eq!(here, own_rows.len());
+            }
+            certified += here;
+        }
+        assert!(certified > sites.len());
     }
 }

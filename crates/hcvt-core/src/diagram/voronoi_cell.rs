@@ -55,6 +55,31 @@ pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    let total = sites.len();
+    voronoi_cell_among(boundary, index, sites, total, i, convex_inside, scratch)
+}
+
+/// [`voronoi_cell`] when `sites` is part of a problem of `total_sites` sites (a partition
+/// and its halo), computed as the whole problem would; [`CellScratch::reach2`] then tells
+/// how far from the site the cell depended on the sites present.
+///
+/// The cell reads the sites streamed before the stop (each nearer than the last one), the
+/// stopping distance `2 r` (`r` the final radius: a site within it but missing would have
+/// been clipped), and for a localised cell the nearest site of each vertex `v` it checks,
+/// found at some distance `δ` from `v`: the answer only depends on the sites within
+/// `|v| + δ` of the site. Its reach is the largest of these distances.
+pub fn voronoi_cell_among<'a, const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    total_sites: usize,
+    i: usize,
+    convex_inside: bool,
+    scratch: &'a mut CellScratch<C>,
+) -> Result<(&'a C, bool), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
     let site = sites[i];
     // Start a little outside the domain's box: a cell face lying on the domain boundary
     // would otherwise be a box face, and the boundary pieces that measure it would be flat.
@@ -74,7 +99,9 @@ where
     let mut inside = false;
     let mut near = index.near(site, &mut scratch.near);
     let mut clipped = 0; // sites taken from the stream, the site itself included
-    while let Some((j, _)) = near.next_within(4.0 * radius2) {
+    let mut last2: f64 = 0.0; // squared distance of the last site taken
+    while let Some((j, dist2)) = near.next_within(4.0 * radius2) {
+        last2 = dist2;
         if j as usize != i {
             let q = offset_to(sites, i, j)?;
             if cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j)) {
@@ -82,17 +109,19 @@ where
             }
         }
         clipped += 1;
-        if clipped == preclip_after && clipped < sites.len() {
+        if clipped == preclip_after && clipped < total_sites {
             cut_by_boundary(boundary, cell, site, &mut scratch.candidates);
             radius2 = cell.max_dist2();
             inside = true;
         }
-        if clipped == localise_after && clipped < sites.len() && !inside && !cell.is_empty() {
+        if clipped == localise_after && clipped < total_sites && !inside && !cell.is_empty() {
             localise(boundary, cell, site);
-            validate_vertices(cell, index, sites, i)?;
+            let reach = validate_vertices(cell, index, sites, i)?;
+            scratch.reach2 = last2.max(reach * reach);
             return Ok((cell, false));
         }
     }
+    scratch.reach2 = last2.max(4.0 * radius2);
     Ok((cell, inside))
 }
 
@@ -103,6 +132,14 @@ pub struct CellScratch<C> {
     near: NearScratch,
     cell: Option<C>,
     candidates: Vec<u32>,
+    reach2: f64,
+}
+
+impl<C> CellScratch<C> {
+    /// The reach of the last cell computed ([`voronoi_cell_among`]), `L²`.
+    pub fn reach2(&self) -> f64 {
+        self.reach2
+    }
 }
 
 impl<C> Default for CellScratch<C> {
@@ -111,6 +148,7 @@ impl<C> Default for CellScratch<C> {
             near: NearScratch::default(),
             cell: None,
             candidates: Vec::new(),
+            reach2: 0.0,
         }
     }
 }
@@ -158,15 +196,19 @@ const MAX_VALIDATIONS: usize = 100_000;
 /// asks the index for its own nearest site, so the work follows where the cell is, not
 /// a ball around the site. A vertex within round-off of a bisector already clipped counts
 /// as valid; vertices that survive a clip keep their bits and are not checked again.
+///
+/// Returns the largest `|v| + δ` over the vertices checked, `δ` the distance of the
+/// nearest site found for `v`, with a margin for rounding: the sites read lie within it.
 fn validate_vertices<const D: usize, C: ConvexCell<D>>(
     cell: &mut C,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
     i: usize,
-) -> Result<(), CoreError> {
+) -> Result<f64, CoreError> {
     let site = sites[i];
     let mut valid: Vec<[u64; D]> = Vec::new();
     let mut used: Vec<u32> = Vec::new();
+    let mut reach: f64 = 0.0;
     for _ in 0..MAX_VALIDATIONS {
         let mut cut = None;
         for &v in cell.vertices() {
@@ -175,6 +217,7 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
                 continue;
             }
             let (j, dist2) = index.nearest_one(add(v, site));
+            reach = reach.max((norm2(v).sqrt() + dist2.sqrt()) * (1.0 + 1e-12));
             let closer = dist2 < norm2(v) * (1.0 - 1e-12);
             if j as usize != i && closer && !used.contains(&j) {
                 cut = Some(j);
@@ -183,16 +226,16 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
             valid.push(key);
         }
         let Some(j) = cut else {
-            return Ok(());
+            return Ok(reach);
         };
         let q = offset_to(sites, i, j)?;
         cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
         used.push(j);
         if cell.is_empty() {
-            return Ok(());
+            return Ok(reach);
         }
     }
-    Ok(())
+    Ok(reach)
 }
 
 /// An upper bound on `|x|²` over the part of `cell` (relative to `site`) inside the domain.

@@ -1,0 +1,105 @@
+//! One partition's cells among its own sites and a halo (`hcvt.distributed`).
+
+use hcvt_core::diagram::{
+    clipped_cells, ConvexCell, Options, PartCells, PolygonCell, PolyhedronCell,
+};
+use hcvt_core::domain::{Boundary, WindingNumber};
+use hcvt_core::geometry::{Euclid, Space};
+use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{rows, to_array2, to_intp};
+use crate::diagram::diagram_dict;
+use crate::domain::{PolygonDomain, SolidDomain};
+use crate::errors::to_py_err;
+
+/// Cells of `sites[own]` among `sites` (n, 2), a part of a problem of `total_sites` sites
+/// whose row numbers are `rows` (n,), increasing: a diagram dict with one row per own site
+/// and neighbours in the problem's rows, plus `first` (k, 2), each cell's first moment
+/// about its site, and `reach2` (k,) (see `hcvt.distributed`).
+#[pyfunction]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
+pub fn partition_cells_2d<'py>(
+    py: Python<'py>,
+    domain: &PolygonDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    rows: PyReadonlyArray1<'py, i64>,
+    own: PyReadonlyArray1<'py, u32>,
+    total_sites: usize,
+    allow_outside: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    cells_dict::<2, PolygonCell>(py, &domain.0, sites, rows, own, total_sites, allow_outside)
+}
+
+/// [`partition_cells_2d`] for sites (n, 3) in a solid.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
+pub fn partition_cells_3d<'py>(
+    py: Python<'py>,
+    domain: &SolidDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    rows: PyReadonlyArray1<'py, i64>,
+    own: PyReadonlyArray1<'py, u32>,
+    total_sites: usize,
+    allow_outside: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    cells_dict::<3, PolyhedronCell>(py, &domain.0, sites, rows, own, total_sites, allow_outside)
+}
+
+fn cells_dict<'py, const D: usize, C: ConvexCell<D>>(
+    py: Python<'py>,
+    boundary: &Boundary<D>,
+    sites: PyReadonlyArray2<'py, f64>,
+    rows_in: PyReadonlyArray1<'py, i64>,
+    own: PyReadonlyArray1<'py, u32>,
+    total_sites: usize,
+    allow_outside: bool,
+) -> PyResult<Bound<'py, PyDict>>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let points = rows::<f64, D>(&sites, "sites")?;
+    let global: Vec<usize> = rows_in
+        .as_slice()?
+        .iter()
+        .map(|&r| usize::try_from(r).map_err(|_| PyValueError::new_err("negative row")))
+        .collect::<PyResult<_>>()?;
+    if global.len() != points.len()
+        || global
+            .iter()
+            .zip(global.iter().skip(1))
+            .any(|(a, b)| a >= b)
+    {
+        return Err(PyValueError::new_err(
+            "rows must hold one increasing row number per site",
+        ));
+    }
+    let own: Vec<u32> = own.as_slice()?.to_vec();
+    let options = Options { allow_outside };
+    let part: PartCells<D> = py
+        .detach(|| {
+            crate::threads::run(|| {
+                clipped_cells::<D, C>(boundary, &points, &own, total_sites, options)
+            })
+        })
+        .map_err(|e| to_py_err(e.with_site_rows(|i| global.get(i).copied().unwrap_or(i))))?;
+    let own_sites: Vec<[f64; D]> = own
+        .iter()
+        .filter_map(|&i| points.get(i as usize).copied())
+        .collect();
+    let mut diagram = part.diagram;
+    let firsts: Vec<[f64; D]> = diagram.moments.iter().map(|m| m.first).collect();
+    let neighbors: Vec<usize> = diagram
+        .neighbor_sites
+        .iter()
+        .map(|&j| global.get(j as usize).copied().unwrap_or(usize::MAX))
+        .collect();
+    diagram.neighbor_sites.clear();
+    let out = diagram_dict(py, &diagram, &own_sites)?;
+    out.set_item("neighbor_sites", to_intp(py, &neighbors)?)?;
+    out.set_item("first", to_array2(py, &firsts)?)?;
+    out.set_item("reach2", PyArray1::from_vec(py, part.reach2))?;
+    Ok(out)
+}

@@ -1,0 +1,664 @@
+"""Sites in spatial partitions with halos: the work of one partition, on any process.
+
+Everything here is a plain function of numpy arrays (and a :class:`~hcvt.domain.Domain`),
+run by :mod:`hcvt.distributed` as dask tasks; nothing imports dask. DESIGN §10:
+
+- :func:`kd_split` cuts space by median planes until every part holds at most a target
+  number of sites. The planes depend on the sites and the target only, never on the
+  number of workers, and :meth:`KdSplit.locate` assigns any point to a part by position.
+- A :class:`Part` holds its sites with their rows in the whole problem, in increasing row
+  order, and per-row arrays (gradient, L-BFGS pairs, ...) that travel with the sites.
+- :func:`part_cells` computes a part's cells among its own sites and a halo of other
+  parts' sites (:func:`halo_slice`) within a distance ``rho`` of its sites' box. The core
+  reports each cell's *reach*: the cell is the single-process cell, bit for bit, whenever
+  every site within that distance of its site is present (``clipped_cells`` in
+  ``hcvt-core/src/diagram/mod.rs``). Cells whose reach the halo does not cover are
+  computed again with a wider halo; none is assumed right.
+- Sums are taken per part with :func:`math.fsum` over the rows in row order, then over the
+  parts in part order (:mod:`hcvt.distributed`), so they do not depend on which worker did
+  what.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hcvt import _core
+from hcvt.domain import Domain
+
+#: A halo covers a cell when the cell's reach is below this fraction of the halo width:
+#: the halo is selected by comparing coordinates with the part's box widened by ``rho``,
+#: and this margin absorbs the rounding of that comparison.
+COVER_FRACTION = 1.0 - 1e-9
+#: A cell not certified is computed again among the sites within this multiple of its
+#: reach: a missing site usually leaves a cell larger, and its reach with it, so the
+#: second try rarely needs a third.
+BALL_FACTOR = 1.5
+#: Halvings of a move that leaves the domain before the site stays (as the core's Lloyd).
+MAX_HALVINGS = 30
+#: Fraction of the way towards its centroid that a pinned site cannot move (as the core).
+PIN_FRACTION = 1.0 / 1_048_576.0
+
+
+@dataclass(frozen=True)
+class KdSplit:
+    """Median planes cutting space into ``parts`` boxes; part numbers follow the tree.
+
+    Attributes
+    ----------
+    axis : ndarray of intp, shape (m,)
+        Axis of each inner node's plane.
+    value : ndarray of float64, shape (m,)
+        Its position: points with ``x[axis] < value`` go left, the others right.
+    children : ndarray of intp, shape (m, 2)
+        Left and right child: an inner node ``>= 0``, or part ``p`` as ``-1 - p``.
+    parts : int
+        Number of parts (leaves), numbered left to right.
+    """
+
+    axis: NDArray[np.intp]
+    value: NDArray[np.float64]
+    children: NDArray[np.intp]
+    parts: int
+
+    def locate(self, points: NDArray[np.float64]) -> NDArray[np.intp]:
+        """The part of each point (m, d), shape (m,), by position alone."""
+        out = np.zeros(len(points), dtype=np.intp)
+        if len(self.axis) == 0:
+            return out
+        active = np.arange(len(points))
+        node = np.zeros(len(points), dtype=np.intp)
+        while active.size:
+            right = points[active, self.axis[node]] >= self.value[node]
+            nxt = self.children[node, right.astype(np.intp)]
+            leaf = nxt < 0
+            out[active[leaf]] = -1 - nxt[leaf]
+            active, node = active[~leaf], nxt[~leaf]
+        return out
+
+
+def kd_split(sites: NDArray[np.float64], target: int) -> KdSplit:
+    """Median planes along the longest side until each part holds at most ``target`` sites.
+
+    The plane of a node is the median coordinate of its sites along the longest side of
+    their box (the next longer side when all share one coordinate there); the sites below
+    it go left. Depends on the sites and ``target`` only.
+    """
+    if target < 1:
+        raise ValueError(f"sites_per_partition must be >= 1, got {target}")
+    axes: list[int] = []
+    values: list[float] = []
+    children: list[list[int]] = []
+    parts = 0
+
+    def build(rows: NDArray[np.intp]) -> int:
+        nonlocal parts
+        plane = _median_plane(sites[rows]) if len(rows) > target else None
+        if plane is None:
+            parts += 1
+            return -parts  # part parts - 1, as -1 - p
+        axis, value = plane
+        node = len(axes)
+        axes.append(axis)
+        values.append(value)
+        children.append([0, 0])
+        below = sites[rows, axis] < value
+        children[node][0] = build(rows[below])
+        children[node][1] = build(rows[~below])
+        return node
+
+    build(np.arange(len(sites), dtype=np.intp))
+    return KdSplit(
+        axis=np.asarray(axes, dtype=np.intp),
+        value=np.asarray(values, dtype=np.float64),
+        children=np.asarray(children, dtype=np.intp).reshape(-1, 2),
+        parts=parts,
+    )
+
+
+def _median_plane(points: NDArray[np.float64]) -> tuple[int, float] | None:
+    """``(axis, value)`` splitting ``points`` in two non-empty halves, or None."""
+    extent = points.max(axis=0) - points.min(axis=0)
+    for axis in np.argsort(-extent, kind="stable"):
+        coords = np.sort(points[:, axis])
+        value = coords[len(coords) // 2]
+        if value == coords[0]:
+            above = coords[coords > value]
+            if above.size == 0:
+                continue
+            value = above[0]
+        return int(axis), float(value)
+    return None
+
+
+@dataclass
+class Part:
+    """One partition's sites and the per-row arrays that travel with them.
+
+    Attributes
+    ----------
+    index : int
+        Part number in the :class:`KdSplit`.
+    rows : ndarray of int64, shape (k,)
+        Row of each site in the whole problem, increasing.
+    sites : ndarray of float64, shape (k, d)
+        The sites, L.
+    fields : dict of str to ndarray
+        Per-row arrays, first axis ``k`` (or, for L-BFGS pairs, shape (m, k, d)).
+    """
+
+    index: int
+    rows: NDArray[np.int64]
+    sites: NDArray[np.float64]
+    fields: dict[str, NDArray[Any]] = field(default_factory=dict)
+
+    def box(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(lo, hi)`` of the sites, each shape (d,); empty part: an inverted box."""
+        if len(self.sites) == 0:
+            d = self.sites.shape[1]
+            return np.full(d, np.inf), np.full(d, -np.inf)
+        return self.sites.min(axis=0), self.sites.max(axis=0)
+
+
+def make_parts(sites: NDArray[np.float64], split: KdSplit) -> list[Part]:
+    """The parts of ``sites`` (n, d) under ``split``, rows in increasing order."""
+    where = split.locate(sites)
+    order = np.argsort(where, kind="stable")
+    bounds = np.searchsorted(where[order], np.arange(split.parts + 1))
+    return [
+        Part(p, order[a:b].astype(np.int64), sites[order[a:b]])
+        for p, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True))
+    ]
+
+
+def halo_slice(
+    part: Part, lo: NDArray[np.float64], hi: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Rows and sites of ``part`` inside the closed box ``[lo, hi]``."""
+    inside = np.all((part.sites >= lo) & (part.sites <= hi), axis=1)
+    return part.rows[inside], part.sites[inside]
+
+
+@dataclass
+class PartCells:
+    """A part's cells, one row per own site (row order of :attr:`Part.rows`).
+
+    Attributes
+    ----------
+    arrays : dict of str to ndarray
+        ``volume``, ``centroid``, ``second_moment``, ``G``, ``energy_terms``, ``first``
+        (moments about the sites; the gradient is ``-2 first``, exactly),
+        ``boundary_measure``, and the faces in CSR layout ``neighbor_offsets`` (k + 1,),
+        ``neighbor_sites`` (problem rows), ``neighbor_measures``.
+    reach : ndarray, shape (k,)
+        Distance from each site within which its cell read the sites, L.
+    certified : ndarray of bool, shape (k,)
+        Whether the halo held every site within the reach (the cell is then exact).
+    halo : int
+        Sites of other parts in the last halo.
+    computed : int
+        Cells computed in the last round.
+    sites : ndarray, shape (k, d)
+        The own sites (for the box of the cells not certified).
+    """
+
+    arrays: dict[str, NDArray[Any]]
+    reach: NDArray[np.float64]
+    certified: NDArray[np.bool_]
+    halo: int = 0
+    computed: int = 0
+    sites: NDArray[np.float64] | None = None
+
+    def balls(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Centre (k, d) and radius (k,) of the next halo of each cell not certified."""
+        bad = ~self.certified
+        assert self.sites is not None
+        return self.sites[bad], BALL_FACTOR * self.reach[bad]
+
+    def status(self) -> Status:
+        """What the client needs to grow the halo of the cells not certified."""
+        bad = ~self.certified
+        if not bad.any() or self.sites is None:
+            return Status(0, self.computed, self.halo, None, None)
+        centres, radii = self.balls()
+        return Status(
+            int(bad.sum()),
+            self.computed,
+            self.halo,
+            (centres - radii[:, None]).min(axis=0),
+            (centres + radii[:, None]).max(axis=0),
+        )
+
+
+@dataclass
+class Status:
+    """A part's round: cells not certified and the box of their next halo; work done."""
+
+    uncertified: int
+    computed: int
+    halo: int
+    lo: NDArray[np.float64] | None
+    hi: NDArray[np.float64] | None
+
+
+def empty_cells(d: int) -> PartCells:
+    """The cells of a part of no sites."""
+    arrays = {
+        key: np.zeros((0, d) if key in ("centroid", "first") else 0)
+        for key in ("volume", "centroid", "second_moment", "G", "energy_terms")
+        + ("first", "boundary_measure", "neighbor_measures")
+    }
+    arrays["neighbor_offsets"] = np.zeros(1, dtype=np.intp)
+    arrays["neighbor_sites"] = np.zeros(0, dtype=np.intp)
+    return PartCells(arrays, np.zeros(0), np.zeros(0, dtype=bool))
+
+
+def ball_slice(
+    part: Part, centres: NDArray[np.float64], radii: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Rows and sites of ``part`` within ``radii`` of any of ``centres``, and maybe more.
+
+    The balls are grouped by radius into powers of two; each group answers one
+    nearest-centre query per site within its largest radius: a superset of the sites in
+    the balls (which is all a halo needs), in memory linear in the sites. (Listing each
+    ball's sites took more than 2 GB on a 10M-site run: the balls overlap.)
+    """
+    from scipy.spatial import cKDTree
+
+    if len(part.rows) == 0 or len(centres) == 0:
+        return part.rows[:0], part.sites[:0]
+    lo = (centres - radii[:, None]).min(axis=0)
+    hi = (centres + radii[:, None]).max(axis=0)
+    near = np.flatnonzero(np.all((part.sites >= lo) & (part.sites <= hi), axis=1))
+    take = np.zeros(len(near), dtype=bool)
+    group = np.ceil(np.log2(radii)).astype(int)
+    for g in np.unique(group):
+        members = group == g
+        bound = float(radii[members].max())
+        distance, _ = cKDTree(centres[members]).query(
+            part.sites[near], distance_upper_bound=bound * (1 + 1e-12)
+        )
+        take |= distance <= bound * (1 + 1e-12)
+    near = near[take]
+    return part.rows[near], part.sites[near]
+
+
+def part_cells(
+    domain: Domain,
+    part: Part,
+    cover: float | NDArray[np.float64],
+    total_sites: int,
+    previous: PartCells | None,
+    allow_outside: bool,
+    *slices: tuple[NDArray[np.int64], NDArray[np.float64]],
+) -> PartCells:
+    """The cells of ``part`` among its sites and ``slices`` of its neighbours' sites.
+
+    Only the cells not yet certified in ``previous`` are computed (all without it).
+    ``slices`` hold every site of the problem within ``cover`` of each of these cells'
+    sites: a float (the slices are then the sites within ``cover`` of ``part``'s box), or
+    one radius per cell computed. A cell is certified when its reach is below its
+    ``cover``, or when every site of the problem is present.
+    """
+    if len(part.rows) == 0:
+        return empty_cells(part.sites.shape[1])
+    rows = np.concatenate([part.rows] + [r for r, _ in slices])
+    sites = np.concatenate([part.sites] + [s for _, s in slices])
+    order = np.argsort(rows, kind="stable")
+    rows, sites = np.ascontiguousarray(rows[order]), np.ascontiguousarray(sites[order])
+    own = np.searchsorted(rows, part.rows)
+    todo = np.arange(len(part.rows)) if previous is None else np.flatnonzero(~previous.certified)
+    compute = getattr(_core, f"partition_cells_{domain.dim}d")
+    out = compute(
+        domain._core,
+        sites,
+        rows,
+        own[todo].astype(np.uint32),
+        int(total_sites),
+        allow_outside=allow_outside,
+    )
+    reach = np.sqrt(out.pop("reach2"))
+    # Kept once: the energy is summed by the client, the gradient is -2 first.
+    out.pop("energy", None)
+    out.pop("gradient", None)
+    complete = len(rows) == total_sites
+    certified = np.full(len(todo), True) if complete else reach < COVER_FRACTION * cover
+    halo = len(rows) - len(part.rows)
+    if previous is None:
+        return PartCells(out, reach, certified, halo, len(todo), part.sites)
+    # In place: the earlier round is superseded, and a part's cells are held once (twice
+    # for all parts at a time was the peak of a 20M-site run). Running this again on the
+    # updated object finds nothing to do, so a retried task gives the same cells.
+    previous.arrays = _replace_rows(previous.arrays, todo, out)
+    previous.reach[todo] = reach
+    previous.certified[todo] = certified
+    previous.halo, previous.computed = halo, len(todo)
+    return previous
+
+
+_FACES = ("neighbor_sites", "neighbor_measures")
+
+
+def _replace_rows(
+    old: dict[str, NDArray[Any]], todo: NDArray[np.intp], new: dict[str, NDArray[Any]]
+) -> dict[str, NDArray[Any]]:
+    """``old`` with rows ``todo`` replaced by the rows of ``new`` (faces in CSR too).
+
+    Per-cell arrays are written in place; the face arrays are built anew.
+    """
+    out = {}
+    for key, value in old.items():
+        if key == "neighbor_offsets" or key in _FACES:
+            continue
+        value[todo] = new[key]
+        out[key] = value
+    counts = np.diff(old["neighbor_offsets"])
+    new_counts = np.diff(new["neighbor_offsets"])
+    counts[todo] = new_counts
+    offsets = np.zeros(len(counts) + 1, dtype=np.intp)
+    np.cumsum(counts, out=offsets[1:])
+    replaced = np.zeros(len(counts), dtype=bool)
+    replaced[todo] = True
+    for key in _FACES:
+        values = np.empty(offsets[-1], dtype=old[key].dtype)
+        keep = np.repeat(~replaced, counts)
+        old_keep = np.repeat(~replaced, np.diff(old["neighbor_offsets"]))
+        values[keep] = old[key][old_keep]
+        # The new rows' faces, in row order of todo (todo is increasing).
+        values[~keep] = new[key]
+        out[key] = values
+    out["neighbor_offsets"] = offsets
+    return out
+
+
+def gradient_of(cells: PartCells) -> NDArray[np.float64]:
+    """``∂E/∂x_i = -2 ∫(x - x_i)`` of each cell, (k, d): the core's, bit for bit."""
+    return cells.arrays["first"] * -2.0
+
+
+def inside_or_on(domain: Domain, points: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Not strictly outside: the test the diagram applies to its sites, shape (m,)."""
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
+    winding, on_boundary = domain.winding_numbers(points)
+    return np.asarray((winding != 0) | on_boundary)
+
+
+def hold_inside(
+    domain: Domain, sites: NDArray[np.float64], moves: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Each move shortened to the largest of ``m, m/2, m/4, ...`` ending inside, or 0.
+
+    The core's ``lloyd::hold_inside`` with the same floating-point operations
+    (``site + m·t``), so a partitioned Lloyd step moves every site as the core's does.
+    """
+    held = np.zeros_like(moves)
+    pending = np.arange(len(sites))
+    t = 1.0
+    for _ in range(MAX_HALVINGS):
+        if pending.size == 0:
+            break
+        scaled = moves[pending] * t
+        ok = inside_or_on(domain, sites[pending] + scaled)
+        held[pending[ok]] = scaled[ok]
+        pending = pending[~ok]
+        t *= 0.5
+    return held
+
+
+def centroid_shift(cells: PartCells) -> NDArray[np.float64]:
+    """``c_i - x_i`` of each cell as the core computes it (``first · (1/mass)``; 0 if empty)."""
+    first, mass = cells.arrays["first"], cells.arrays["volume"]
+    nonzero = mass != 0
+    shift = np.zeros_like(first)
+    shift[nonzero] = first[nonzero] * (1.0 / mass[nonzero])[:, None]
+    return shift
+
+
+def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str, float]]:
+    """``part`` with what the next step needs from its cells, and its partial measures.
+
+    Fields set: ``gradient`` (k, d), ``precond`` (k,) = ``1/(2 m_i)``, ``shift`` (k, d)
+    the move to the centroid. Partials (summed by the client in part order): ``energy``,
+    ``sum_G``, ``cells`` (non-empty), ``sum_r2``, ``max_r``, ``counted``, ``g2``, ``x2``,
+    ``pinned`` (the core's ``Measures`` and ``pinned_sites``, DESIGN §7).
+    """
+    a = cells.arrays
+    mass, first = a["volume"], a["first"]
+    gradient = gradient_of(cells)
+    shift = centroid_shift(cells)
+    d = domain.dim
+    pinned = np.zeros(len(mass), dtype=bool)
+    touching = np.flatnonzero((a["boundary_measure"] > 0) & (mass != 0))
+    if touching.size:
+        x = part.sites[touching]
+        winding, on_boundary = domain.winding_numbers(x + shift[touching])
+        outside = (winding == 0) & ~on_boundary
+        cand = touching[outside]
+        if cand.size:
+            pinned[cand] = ~inside_or_on(domain, part.sites[cand] + shift[cand] * PIN_FRACTION)
+    counted = ~pinned & (mass > 0)
+    m = mass[counted]
+    r = np.sqrt((first[counted] ** 2).sum(axis=1)) / m / m ** (1.0 / d)
+    g = a["G"][~np.isnan(a["G"])]
+    partials = {
+        "energy": math.fsum(a["energy_terms"]),
+        "sum_G": math.fsum(g),
+        "cells": float(len(g)),
+        "sum_r2": math.fsum(r * r),
+        "max_r": float(r.max()) if r.size else 0.0,
+        "counted": float(counted.sum()),
+        "g2": math.fsum((gradient[counted] ** 2).ravel()),
+        "x2": math.fsum((part.sites**2).ravel()),
+        "pinned": float(pinned.sum()),
+        "empty": float((mass <= 0).sum()),
+    }
+    fields = dict(part.fields)
+    fields["gradient"] = gradient
+    fields["precond"] = 0.5 / np.maximum(mass, np.finfo(np.float64).tiny)
+    fields["shift"] = shift
+    return Part(part.index, part.rows, part.sites, fields), partials
+
+
+def lloyd_part(domain: Domain, part: Part) -> Part:
+    """Sites moved to their centroids, held inside (the core's ``lloyd_sites``)."""
+    moves = hold_inside(domain, part.sites, part.fields["shift"])
+    fields = {k: v for k, v in part.fields.items() if k in ("s", "y")}
+    return Part(part.index, part.rows, part.sites + moves, fields)
+
+
+def clear_pairs(part: Part) -> Part:
+    """``part`` without L-BFGS pairs."""
+    fields = {k: v for k, v in part.fields.items() if k not in ("s", "y")}
+    return Part(part.index, part.rows, part.sites, fields)
+
+
+def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """``Σ a·b`` by numpy's pairwise sum: fixed for given arrays, no BLAS threads."""
+    return float(np.add.reduce((a * b).ravel()))
+
+
+def lbfgs_gram(part: Part) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Partial Gram matrices of ``[s_0..s_{m-1}, y_0..y_{m-1}, g]`` on this part.
+
+    ``plain[a, b] = Σ_i v_a,i · v_b,i``; ``weighted`` the same with the preconditioner
+    ``1/(2 m_i)`` on row ``i``. From these sums alone the client runs the two-loop
+    recursion in coefficient space (vector-free L-BFGS, Chen et al. 2014), one reduction
+    per iteration instead of one per pair.
+    """
+    s = part.fields.get("s", np.zeros((0, *part.sites.shape)))
+    y = part.fields.get("y", np.zeros((0, *part.sites.shape)))
+    basis = [*s, *y, part.fields["gradient"]]
+    w = part.fields["precond"][:, None]
+    size = len(basis)
+    plain = np.zeros((size, size))
+    weighted = np.zeros((size, size))
+    for a in range(size):
+        for b in range(a, size):
+            plain[a, b] = plain[b, a] = _dot(basis[a], basis[b])
+            weighted[a, b] = weighted[b, a] = _dot(basis[a] * w, basis[b])
+    return plain, weighted
+
+
+def lbfgs_direction(
+    domain: Domain,
+    part: Part,
+    weighted_coefficients: NDArray[np.float64],
+    s_coefficients: NDArray[np.float64],
+) -> tuple[Part, float]:
+    """Set field ``direction`` to ``-(P Σ c_j v_j + Σ e_k s_k)``, held inside the domain.
+
+    ``v = [y_0..y_{m-1}, g]``, ``P = diag(1/(2 m_i))``. Returns the part and its partial
+    slope ``g · direction``.
+    """
+    g = part.fields["gradient"]
+    y = part.fields.get("y", np.zeros((0, *g.shape)))
+    s = part.fields.get("s", np.zeros((0, *g.shape)))
+    combo = weighted_coefficients[-1] * g
+    for c, v in zip(weighted_coefficients[:-1], y, strict=True):
+        combo = combo + c * v
+    r = part.fields["precond"][:, None] * combo
+    for e, v in zip(s_coefficients, s, strict=True):
+        r = r + e * v
+    direction = hold_inside(domain, part.sites, -r)
+    fields = dict(part.fields)
+    fields["direction"] = direction
+    return Part(part.index, part.rows, part.sites, fields), _dot(g, direction)
+
+
+def trial_part(domain: Domain, part: Part, t: float) -> tuple[Part, bool]:
+    """The sites ``x + t·direction`` (no fields) and whether all are inside or on."""
+    sites = part.sites + t * part.fields["direction"]
+    return Part(part.index, part.rows, sites), bool(inside_or_on(domain, sites).all())
+
+
+def slope_at(part: Part, cells: PartCells) -> float:
+    """Partial ``g(x + t d) · d`` of a trial (``part`` the iterate holding ``direction``)."""
+    return _dot(gradient_of(cells), part.fields["direction"])
+
+
+def accept(old: Part, new: Part, memory: int) -> tuple[Part, dict[str, float]]:
+    """``new`` (a trial after :func:`absorb`) with ``old``'s pairs and the pair it makes.
+
+    The pair is ``s = x' - x``, ``y = g' - g``; the oldest is dropped past ``memory``.
+    Also returns the partial ``s·y``, ``s·s``, ``y·y`` for the client's curvature test.
+    """
+    s = new.sites - old.sites
+    y = new.fields["gradient"] - old.fields["gradient"]
+    shape = (0, *old.sites.shape)
+    pairs_s = np.concatenate([old.fields.get("s", np.zeros(shape)), s[None]])[-memory:]
+    pairs_y = np.concatenate([old.fields.get("y", np.zeros(shape)), y[None]])[-memory:]
+    fields = dict(new.fields)
+    fields["s"], fields["y"] = pairs_s, pairs_y
+    return Part(new.index, new.rows, new.sites, fields), {
+        "sy": _dot(s, y),
+        "ss": _dot(s, s),
+        "yy": _dot(y, y),
+    }
+
+
+def drop_newest_pair(part: Part) -> Part:
+    """``part`` without its newest L-BFGS pair (one of no positive curvature)."""
+    fields = dict(part.fields)
+    for key in ("s", "y"):
+        if key in fields:
+            fields[key] = fields[key][:-1]
+    return Part(part.index, part.rows, part.sites, fields)
+
+
+def leaving(part: Part, split: KdSplit) -> int:
+    """How many of ``part``'s sites now lie in another part's box."""
+    return int((split.locate(part.sites) != part.index).sum())
+
+
+def split_out(part: Part, split: KdSplit) -> dict[int, Part]:
+    """``part``'s rows grouped by the part their site now lies in (non-empty groups)."""
+    where = split.locate(part.sites)
+    out = {}
+    for q in np.unique(where):
+        take = where == q
+        fields = {k: (v[:, take] if k in ("s", "y") else v[take]) for k, v in part.fields.items()}
+        out[int(q)] = Part(int(q), part.rows[take], part.sites[take], fields)
+    return out
+
+
+def empty_like(part: Part) -> Part:
+    """A part of no rows with ``part``'s fields (their shapes but the row axis)."""
+    fields = {k: (v[:, :0] if k in ("s", "y") else v[:0]) for k, v in part.fields.items()}
+    return Part(part.index, part.rows[:0], part.sites[:0], fields)
+
+
+def merge(index: int, template: Part, *pieces: Part) -> Part:
+    """One part from the ``pieces`` that now lie in it, rows increasing again.
+
+    A part of no rows shaped as ``template`` when no piece has rows.
+    """
+    pieces = tuple(p for p in pieces if len(p.rows))
+    if not pieces:
+        return Part(index, template.rows, template.sites, dict(template.fields))
+    rows = np.concatenate([p.rows for p in pieces])
+    order = np.argsort(rows, kind="stable")
+    sites = np.concatenate([p.sites for p in pieces])[order]
+    keys = set.intersection(*(set(p.fields) for p in pieces))
+    fields = {}
+    for k in sorted(keys):
+        if k in ("s", "y"):
+            fields[k] = np.concatenate([p.fields[k] for p in pieces], axis=1)[:, order]
+        else:
+            fields[k] = np.concatenate([p.fields[k] for p in pieces])[order]
+    return Part(index, rows[order], sites, fields)
+
+
+def save_part(part: Part, path: str) -> str:
+    """Write ``part`` to ``path`` (.npz, written whole then renamed); returns the path."""
+    target = Path(path)
+    tmp = target.with_suffix(".tmp.npz")
+    arrays = {"index": np.asarray(part.index), "rows": part.rows, "sites": part.sites}
+    arrays.update({f"field_{k}": v for k, v in part.fields.items()})
+    np.savez(tmp, **arrays)  # type: ignore[arg-type]
+    tmp.replace(target)
+    return path
+
+
+def load_part(path: str) -> Part:
+    """The part :func:`save_part` wrote."""
+    with np.load(path) as data:
+        fields = {k[6:]: data[k] for k in data.files if k.startswith("field_")}
+        return Part(int(data["index"]), data["rows"], data["sites"], fields)
+
+
+def write_part(cells: PartCells, part: Part, directory: str) -> list[str]:
+    """Write ``part``'s rows, sites and per-cell arrays as .npy files named by part."""
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    arrays = {"rows": part.rows, "sites": part.sites, **cells.arrays}
+    for key, value in arrays.items():
+        path = out / f"part{part.index:05d}.{key}.npy"
+        np.save(path, value)
+        written.append(str(path))
+    return written
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process, MB.
+
+    ``VmHWM`` of /proc/self/status on Linux (a spawned worker's ``ru_maxrss`` can carry
+    its parent's peak), else ``ru_maxrss``.
+    """
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

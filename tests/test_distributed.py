@@ -1,0 +1,297 @@
+"""One diagram and one CVT partitioned over dask.distributed workers (hcvt.distributed).
+
+Clusters are LocalClusters of worker *processes* (``processes=True``, one thread each), so
+parts, halos and the domain really travel pickled between processes. One cluster per
+worker count, started once for the module.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+import hcvt
+from hcvt import partition as pt
+from hcvt.distributed import partitioned_cvt, partitioned_voronoi, two_loop
+
+distributed = pytest.importorskip("dask.distributed")
+
+DATA = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data")
+if not os.path.isdir(DATA):
+    DATA = "/work/shared/data"
+
+PER_CELL = (
+    "volume",
+    "centroid",
+    "second_moment",
+    "G",
+    "energy_terms",
+    "gradient",
+    "boundary_measure",
+    "neighbor_offsets",
+    "neighbor_sites",
+    "neighbor_measures",
+)
+
+
+@pytest.fixture(scope="module", params=[1, 2, 3], ids=lambda w: f"{w}workers")
+def client(request):
+    cluster = distributed.LocalCluster(
+        n_workers=request.param,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+    )
+    with distributed.Client(cluster) as c:
+        yield c
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def holes():
+    """A polygon with a hole from ../shared/data, and 3,000 random sites."""
+    domain = hcvt.load_domain(os.path.join(DATA, "2d", "triangle_square_circle_hole.geojson"))
+    return domain, hcvt.initialise(domain, n=3000, method="random", seed=3)
+
+
+@pytest.fixture(scope="module")
+def bunny():
+    """The Stanford bunny from ../shared/data, and 1,500 random sites."""
+    domain = hcvt.load_domain(os.path.join(DATA, "3d", "bunny.off"))
+    return domain, hcvt.initialise(domain, n=1500, method="random", seed=5)
+
+
+def assert_bitwise(got: hcvt.Diagram, expected: hcvt.Diagram) -> None:
+    for key in PER_CELL:
+        a, b = getattr(got, key), getattr(expected, key)
+        assert a.shape == b.shape and a.dtype == b.dtype, key
+        # Bits, not values: NaN G of empty cells and -0.0 included.
+        assert np.array_equal(a.view(np.uint8), b.view(np.uint8)), key
+    assert np.array_equal(got.neighbors, expected.neighbors)
+    assert got.energy == pytest.approx(expected.energy, rel=1e-13, abs=0)
+
+
+@pytest.mark.parametrize("per_part", [400, 1000, 100_000])
+def test_partitioned_diagram_is_bitwise_the_single_process_one(client, holes, bunny, per_part):
+    for domain, sites in (holes, bunny):
+        expected = hcvt.voronoi(domain, sites)
+        parted = partitioned_voronoi(domain, sites, client, sites_per_partition=per_part)
+        assert parted.parts >= len(sites) / per_part
+        got = parted.gather()
+        assert_bitwise(got, expected)
+        assert parted.energy == got.energy
+        assert parted.rounds.cells[0] == len(sites)
+        if parted.parts > 1:
+            # The first halo certifies most cells at once; only the rest go again.
+            assert sum(parted.rounds.cells[1:]) < 0.3 * len(sites)
+
+
+def test_voronoi_with_a_client_returns_a_diagram(client, holes):
+    domain, sites = holes
+    got = hcvt.voronoi(domain, sites, client=client, sites_per_partition=800)
+    assert isinstance(got, hcvt.Diagram)
+    assert_bitwise(got, hcvt.voronoi(domain, sites))
+
+
+def test_halo_too_thin_for_some_cells_is_grown_for_them_only(holes):
+    """A part computed among a halo of 1 spacing: the cells it cannot certify are the
+    ones whose reach it misses, and every certified cell is already exact."""
+    domain, sites = holes
+    expected = hcvt.voronoi(domain, sites)
+    split = pt.kd_split(sites, 1000)
+    parts = pt.make_parts(sites, split)
+    h = (domain.volume / len(sites)) ** 0.5
+    part = parts[1]
+    lo, hi = part.box()
+    slices = [pt.halo_slice(q, lo - h, hi + h) for q in parts if q.index != part.index]
+    cells = pt.part_cells(domain, part, h, len(sites), None, False, *slices)
+    certified = cells.certified
+    assert 0 < certified.sum() < len(certified)  # some certified, some not
+    rows = part.rows[certified]
+    assert np.array_equal(cells.arrays["volume"][certified], expected.volume[rows])
+    # The uncovered ones, computed again among balls past their reach, now agree.
+    centres, radii = cells.balls()
+    more = [pt.ball_slice(q, centres, radii) for q in parts if q.index != part.index]
+    again = pt.part_cells(domain, part, radii, len(sites), cells, False, *more)
+    assert again.certified.all()
+    assert np.array_equal(
+        again.arrays["volume"].view(np.uint8), expected.volume[part.rows].view(np.uint8)
+    )
+    assert np.array_equal(again.arrays["neighbor_offsets"], _local_offsets(expected, part.rows))
+
+
+def _local_offsets(diagram: hcvt.Diagram, rows: np.ndarray) -> np.ndarray:
+    counts = np.diff(diagram.neighbor_offsets)[rows]
+    return np.concatenate([[0], np.cumsum(counts)])
+
+
+def test_kd_split_depends_on_the_data_only_and_locates_every_site():
+    rng = np.random.default_rng(0)
+    sites = rng.random((5000, 2))
+    split = pt.kd_split(sites, 700)
+    assert split.parts == 8
+    parts = pt.make_parts(sites, split)
+    assert [len(p.rows) for p in parts] == [625] * 8
+    for p in parts:
+        assert np.all(np.diff(p.rows) > 0)
+        assert np.all(split.locate(p.sites) == p.index)
+    again = pt.kd_split(sites.copy(), 700)
+    assert np.array_equal(again.value, split.value)
+
+
+def test_lloyd_is_bitwise_the_single_process_lloyd(client, holes):
+    domain, sites = holes
+    sites = sites[:1000]
+    expected = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=3)
+    got = hcvt.cvt(
+        domain, sites, "lloyd", tol=0, max_iter=3, client=client, sites_per_partition=300
+    )
+    assert np.array_equal(got.sites, expected.sites)
+    assert_bitwise(got.diagram, expected.diagram)
+    np.testing.assert_allclose(got.history["energy"], expected.history["energy"], rtol=1e-13)
+
+
+_LBFGS: dict[str, object] = {}
+
+
+def test_lbfgs_is_bitwise_the_same_for_any_number_of_workers(client, holes):
+    domain, sites = holes
+    sites = sites[:1000]
+    res = partitioned_cvt(domain, sites, "lbfgs", client, max_iter=5, sites_per_partition=250)
+    energy = res.history["energy"]
+    assert np.all(np.diff(energy) < 0)
+    assert res.history["rms_gap"][-1] < 0.3 * res.history["rms_gap"][0]
+    assert res.history["migrated"].sum() > 0  # sites crossed the planes and moved parts
+    got = res.gather()
+    first = _LBFGS.setdefault("run", got)
+    assert np.array_equal(got.sites, first.sites)
+    assert np.array_equal(got.history["energy"], first.history["energy"])
+    assert_bitwise(got.diagram, hcvt.voronoi(domain, got.sites))
+
+
+def test_two_loop_in_coefficients_matches_the_recursion_on_vectors():
+    rng = np.random.default_rng(1)
+    n, m = 40, 3
+    s = rng.normal(size=(m, n))
+    y = s * 2 + 0.1 * rng.normal(size=(m, n))
+    g = rng.normal(size=n)
+    w = rng.random(n) + 0.5
+    basis = np.vstack([s, y, g])
+    c, e = two_loop(basis @ basis.T, (basis * w) @ basis.T)
+    got = w * (np.vstack([y, g]).T @ c) + s.T @ e
+    # The textbook two-loop recursion with H0 = γ diag(w).
+    q, alphas = g.copy(), []
+    rho = [1 / (s[k] @ y[k]) for k in range(m)]
+    for k in reversed(range(m)):
+        a = rho[k] * (s[k] @ q)
+        q -= a * y[k]
+        alphas.append(a)
+    r = q * w / (rho[-1] * (y[-1] * w) @ y[-1])
+    for k, a in zip(range(m), reversed(alphas), strict=True):
+        r += (a - rho[k] * (y[k] @ r)) * s[k]
+    np.testing.assert_allclose(got, r, rtol=0, atol=1e-12 * np.abs(r).max())
+
+
+def test_a_worker_killed_during_a_cvt_does_not_change_the_result(holes, tmp_path):
+    domain, sites = holes
+    sites = sites[:1000]
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    )
+    with distributed.Client(cluster) as c:
+        plain = partitioned_cvt(domain, sites, "lbfgs", c, max_iter=4, sites_per_partition=250)
+        a = plain.gather()  # before the kill: results live on the workers
+        pids = list(c.run(os.getpid).values())
+        killed = []
+
+        def kill_soon(info):
+            if info["evaluations"] == 2 and not killed:
+                # During the next step, not between two: the step's tasks are in flight.
+                timer = threading.Timer(0.3, os.kill, (pids[1], signal.SIGKILL))
+                timer.start()
+                killed.append(timer)
+
+        hit = partitioned_cvt(
+            domain,
+            sites,
+            "lbfgs",
+            c,
+            max_iter=4,
+            sites_per_partition=250,
+            callback=kill_soon,
+            checkpoint=str(tmp_path),
+        )
+        killed[0].join()
+        print(f"restarts from the checkpoint: {hit.restarts}")
+        b = hit.gather()
+    cluster.close()
+    assert np.array_equal(a.sites, b.sites)
+    assert np.array_equal(a.history["energy"], b.history["energy"])
+
+
+def test_cells_are_written_per_part_without_a_gather(client, holes, tmp_path):
+    domain, sites = holes
+    expected = hcvt.voronoi(domain, sites)
+    parted = partitioned_voronoi(domain, sites, client, sites_per_partition=1000)
+    paths = parted.write(tmp_path)
+    assert len(paths) == parted.parts * (2 + 10)  # rows, sites, 10 per-cell arrays
+    volume = np.full(len(sites), np.nan)
+    for p in range(parted.parts):
+        rows = np.load(tmp_path / f"part{p:05d}.rows.npy")
+        volume[rows] = np.load(tmp_path / f"part{p:05d}.volume.npy")
+    assert np.array_equal(volume, expected.volume)
+    memory = parted.peak_memory_mb()
+    print("peak RSS per process, MB:", memory)
+    assert len(memory) == len(client.scheduler_info()["workers"]) + 1
+
+
+def test_cli_run_with_a_scheduler_matches_the_single_process_run(client, tmp_path):
+    """``hcvt run --scheduler ADDRESS``: the partitioned diagram's mean G and energy are
+    those of one process (``--scheduler`` alone, a LocalCluster, is the same path after
+    the cluster starts)."""
+    import json
+
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    path = os.path.join(DATA, "2d", "star5.geojson")
+    args = [path, "-n", "1200", "--method", "voronoi", "--seed", "2"]
+    out = tmp_path / "summary.json"
+    result = CliRunner().invoke(
+        main,
+        [
+            "run",
+            *args,
+            "--scheduler",
+            client.scheduler.address,
+            "--sites-per-partition",
+            "300",
+            "--summary",
+            str(out),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    got = json.loads(out.read_text())
+    domain = hcvt.load_domain(path)
+    expected = hcvt.voronoi(domain, hcvt.initialise(domain, 1200, method="random", seed=2))
+    assert got["mean_G"] == pytest.approx(expected.mean_G, rel=1e-13)
+    assert got["energy"] == pytest.approx(expected.energy, rel=1e-13)
+    refused = CliRunner().invoke(main, ["run", *args[:3], "--method", "newton", "--scheduler"])
+    assert refused.exit_code != 0 and "--scheduler runs the methods" in refused.output
+
+
+def test_bad_sites_raise_the_single_process_error_naming_the_row(client, holes):
+    domain, sites = holes
+    bad = sites[:1000].copy()
+    bad[617] = [-50.0, -50.0]  # outside the polygon
+    with pytest.raises(hcvt.InvalidSitesError, match="site 617 "):
+        hcvt.voronoi(domain, bad, client=client, sites_per_partition=300)
+    twin = sites[:1000].copy()
+    twin[812] = twin[3]
+    with pytest.raises(hcvt.InvalidSitesError, match="sites 3 and 812 coincide"):
+        hcvt.voronoi(domain, twin, client=client, sites_per_partition=300)
