@@ -7,12 +7,13 @@ centroidal Voronoi tessellation.
 
 from typing import TYPE_CHECKING, Any
 
-from hcvt import io
+from hcvt import density, io
 from hcvt._core import get_num_threads, set_num_threads
 from hcvt.baselines import MonteCarloResult, global_monte_carlo
+from hcvt.density import Polynomial, SizingField
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
-from hcvt.errors import InvalidDomainError, InvalidSitesError
+from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesError
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.initialisation import LatticeResult, initialise
 from hcvt.io import load_domain, write_cells
@@ -23,12 +24,16 @@ __all__ = [
     "Diagram",
     "Domain",
     "HierarchicalResult",
+    "InvalidDensityError",
     "InvalidDomainError",
     "InvalidSitesError",
     "LatticeResult",
     "RepairReport",
     "MonteCarloResult",
+    "Polynomial",
+    "SizingField",
     "cvt",
+    "density",
     "get_num_threads",
     "global_monte_carlo",
     "hierarchical_cvt",

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt import _core
+from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
 from hcvt.domain import Domain
 
@@ -128,6 +129,8 @@ def cvt(
     memory: int = 7,
     callback: Callable[[dict[str, Any]], Any] | None = None,
     progress: bool = False,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> CVTResult:
     """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``.
 
@@ -161,6 +164,14 @@ def cvt(
         (``stop_reason == "interrupted"``).
     progress : bool
         Show a progress bar (rich) of the rule's value towards ``tol``.
+    density : Polynomial, SizingField or callable, optional
+        A density ρ > 0 (:mod:`hcvt.density`): the energy becomes ``Σ ∫ ρ |x - x_i|²``,
+        Lloyd moves each site to its ρ-weighted centroid and L-BFGS follows the ρ-weighted
+        gradient; both rules apply unchanged (``h_i`` stays the geometric ``V_i^(1/d)``).
+        Newton is not offered with a density (its Hessian's face terms are unweighted):
+        InvalidDensityError. A callable is called once per diagram, with the GIL.
+    quadrature_degree : int, default 4
+        Degree (1 to 5) of the simplex rule that samples a callable density.
 
     Returns
     -------
@@ -200,6 +211,7 @@ def cvt(
     if max_iter < 0 or memory < 1:
         raise ValueError(f"need max_iter >= 0 and memory >= 1, got {max_iter}, {memory}")
     points = as_sites(sites, domain.dim)
+    weighted = core_arguments(density, domain.dim, quadrature_degree)
     run = getattr(_core, f"cvt_{domain.dim}d", None)
     if run is None:
         raise NotImplementedError(f"no CVT for dimension {domain.dim} in this build")
@@ -215,6 +227,7 @@ def cvt(
             max_iter=int(max_iter),
             memory=int(memory),
             callback=observe,
+            **weighted,
         )
     finally:
         if bar is not None:
@@ -223,7 +236,7 @@ def cvt(
     sites_out = out["sites"]
     return CVTResult(
         sites=sites_out,
-        diagram=Diagram(domain, sites_out, out["diagram"]),
+        diagram=Diagram(domain, sites_out, out["diagram"], density),
         history=history,
         rule=rule,
         tol=float(tol),

@@ -68,6 +68,12 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// Mass, first and second moments about the site.
     fn moments(&self) -> Moments<D>;
 
+    /// Call `f(simplex, measure)` for every simplex of the cell's cone decomposition from
+    /// the site: the `D` vertices besides the site (relative to it) and the signed measure
+    /// (area in 2D, volume in 3D) that the moments sum. What a density is integrated over
+    /// (`density`).
+    fn for_each_cone(&self, f: impl FnMut(&[[f64; D]; D], f64));
+
     /// Call `f(face, measure)` for every face (length in 2D, area in 3D).
     fn for_each_face(&self, f: impl FnMut(Face, f64));
 

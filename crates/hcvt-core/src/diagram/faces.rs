@@ -5,6 +5,7 @@
 //! a layer above) is one. The diagram hands it each piece's face moments and keeps the sums
 //! in [`FaceIntegrals`], knowing nothing of what they mean.
 
+use crate::density::WeightedSums;
 use crate::moments::{FaceMoments, Moments};
 
 use super::convex_cell::{ConvexCell, Face};
@@ -56,6 +57,8 @@ pub(super) struct FaceSums<const D: usize> {
     /// With a [`FaceRow`]: the cell's sum of the integrals.
     pub(super) cell_integral: Matrix<D>,
     pub(super) boundary: f64,
+    /// With a density: the cell's ρ-weighted moments (or nodes), over the same pieces.
+    pub(super) weighted: WeightedSums<D>,
 }
 
 impl<const D: usize> Default for FaceSums<D> {
@@ -65,6 +68,7 @@ impl<const D: usize> Default for FaceSums<D> {
             integrals: Vec::new(),
             cell_integral: [[0.0; D]; D],
             boundary: 0.0,
+            weighted: WeightedSums::default(),
         }
     }
 }
@@ -76,16 +80,18 @@ impl<const D: usize> FaceSums<D> {
         self.integrals.clear();
         self.cell_integral = [[0.0; D]; D];
         self.boundary = 0.0;
+        self.weighted.clear();
     }
 
-    /// Add the faces of `piece` with `sign` (and their integrals, for a `row`), and return
-    /// its moments (not signed).
+    /// Add the faces of `piece` with `sign` (and their integrals, for a `row`; its weighted
+    /// moments, with a density), and return its moments (not signed).
     pub(super) fn integrate<C: ConvexCell<D>>(
         &mut self,
         piece: &C,
         sign: f64,
         row: Option<FaceRow<'_, D>>,
     ) -> Moments<D> {
+        self.weighted.add_piece(piece, sign);
         match row {
             Some(row) => piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m, row)),
             None => piece.moments_and_faces(|f, m| {

@@ -14,6 +14,7 @@
 //! | file | owns |
 //! |------|------|
 //! | `mod.rs` | [`Options`], the result [`Diagram`] and the driver [`clipped_diagram`]: validation, batches of cells in Morton order, assembly in index order |
+//! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
 //! | `faces.rs` | each cell's face measures (neighbours, boundary share) and a caller's [`FaceIntegrand`] over them |
@@ -29,9 +30,11 @@ mod order;
 pub mod polygon_cell;
 pub mod polyhedron_cell;
 mod voronoi_cell;
+mod weighted;
 
 use rayon::prelude::*;
 
+use crate::density::Density;
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{add, norm2, scale, Euclid, Space};
@@ -67,6 +70,9 @@ pub struct Diagram<const D: usize> {
     pub neighbor_sites: Vec<u32>,
     /// Measure of each shared face inside the domain (length in 2D, area in 3D).
     pub neighbor_measures: Vec<f64>,
+    /// With a density ρ (DESIGN §8): each cell's `∫ρ`, `∫ρ (x − x_i)`, `∫ρ |x − x_i|²`
+    /// about its site; empty without one (then the weighted moments are `moments`).
+    pub weighted: Vec<Moments<D>>,
 }
 
 /// Cells visited one after the other, measured into flat arrays in visiting order: one
@@ -83,6 +89,13 @@ struct Batch<const D: usize, C> {
     face_integrals: Vec<Matrix<D>>,
     /// Each cell's convex cell, when kept.
     cells: Vec<C>,
+    /// With a polynomial density: each cell's weighted moments.
+    weighted: Vec<Moments<D>>,
+    /// With a sampled density: each cell's number of nodes, and the nodes (relative to
+    /// the site) with their weights, cell after cell.
+    node_counts: Vec<u32>,
+    nodes: Vec<[f64; D]>,
+    node_weights: Vec<f64>,
     /// The error of the batch's first offending site in index order.
     error: Option<(usize, CoreError)>,
 }
@@ -103,6 +116,10 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             cell_integrals: Vec::with_capacity(if integrals { cells } else { 0 }),
             face_integrals: Vec::with_capacity(faces),
             cells: Vec::new(),
+            weighted: Vec::new(),
+            node_counts: Vec::new(),
+            nodes: Vec::new(),
+            node_weights: Vec::new(),
             error: None,
         }
     }
@@ -118,6 +135,14 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
         if integrals {
             self.cell_integrals.push(faces.cell_integral);
             self.face_integrals.extend_from_slice(&faces.integrals);
+        }
+        let w = &faces.weighted;
+        if w.is_sampled() {
+            self.node_counts.push(w.nodes.len() as u32);
+            self.nodes.extend_from_slice(&w.nodes);
+            self.node_weights.extend_from_slice(&w.weights);
+        } else if w.is_on() {
+            self.weighted.push(w.moments);
         }
     }
 
@@ -162,6 +187,27 @@ pub fn clipped_diagram_with<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    clipped_diagram_weighted(boundary, sites, options, keep_cells, integrand, None)
+}
+
+/// [`clipped_diagram_with`], and with a `density` each cell's ρ-weighted moments in
+/// [`Diagram::weighted`], integrated over the same signed pieces (DESIGN §8). A sampled
+/// density is asked for its values once, at every node of the diagram.
+///
+/// Errors also name a point where the density is not finite and positive: a site or a
+/// boundary vertex (a polynomial; also a cell whose mean density is not positive), or a
+/// node (a field).
+pub fn clipped_diagram_weighted<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    options: Options,
+    keep_cells: bool,
+    integrand: Option<&dyn FaceIntegrand<D>>,
+    density: Option<&Density<'_, D>>,
+) -> Result<(Diagram<D>, Vec<C>, FaceIntegrals<D>), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
     if sites.is_empty() {
         return Err(CoreError::NoSites);
     }
@@ -188,6 +234,24 @@ where
             }
         }
     }
+    if let Some(Density::Polynomial(q)) = density {
+        weighted::check_polynomial(q, boundary, sites)?;
+        if q.is_constant() {
+            // ρ = c weighs every moment by c: exact, and for ρ = 1 the uniform diagram
+            // bit for bit, at the uniform cost.
+            let (mut diagram, cells, sums) =
+                clipped_diagram_weighted(boundary, sites, options, keep_cells, integrand, None)?;
+            diagram.weighted = (diagram.moments.iter())
+                .map(|m| Moments {
+                    mass: q.constant * m.mass,
+                    first: scale(m.first, q.constant),
+                    second: q.constant * m.second,
+                })
+                .collect();
+            return Ok((diagram, cells, sums));
+        }
+    }
+    let weighted_sums = crate::density::WeightedSums::new(density)?;
     let windings: Vec<Option<i32>> = sites
         .par_iter()
         .map(|s| Euclid::winding_number(boundary, s))
@@ -208,7 +272,11 @@ where
     let batches: Vec<Batch<D, C>> = order
         .par_chunks(BATCH)
         .map_init(
-            || (CellScratch::default(), MeasureScratch::default()),
+            || {
+                let mut measuring = MeasureScratch::default();
+                measuring.faces.weighted = weighted_sums.clone();
+                (CellScratch::default(), measuring)
+            },
             |(scratch, measuring), chunk| {
                 let mut batch = Batch::new(chunk.len(), integrand.is_some());
                 for &i in chunk {
@@ -229,6 +297,7 @@ where
                         }
                     };
                     let row = integrand.map(|integrand| FaceRow { integrand, site: i });
+                    measuring.faces.weighted.start_cell(sites[i]);
                     let moments = if inside {
                         measure(cell, row, &mut measuring.faces)
                     } else {
@@ -255,12 +324,15 @@ where
             .expect("the batch of the first error");
         return Err(batch.error.take().expect("its error").1);
     }
-    Ok(assemble(
-        sites.len(),
-        batches,
-        integrand.is_some(),
-        keep_cells,
-    ))
+    let mut batches = batches;
+    if let Some(Density::Sampled { field, .. }) = density {
+        weighted::sample(*field, sites, &mut batches)?;
+    }
+    let out = assemble(sites.len(), batches, integrand.is_some(), keep_cells);
+    if density.is_some() {
+        weighted::check_masses(&out.0, sites)?;
+    }
+    Ok(out)
 }
 
 /// The diagram in index order from the batches (visiting order), the kept cells and the
@@ -293,6 +365,10 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
         sums.cells = vec![[[0.0; D]; D]; n];
         sums.faces = vec![[[0.0; D]; D]; faces];
     }
+    let weighted = batches.iter().any(|b| !b.weighted.is_empty());
+    if weighted {
+        diagram.weighted = vec![Moments::zero(); n];
+    }
     let mut cells: Vec<Option<C>> = Vec::new();
     if keep_cells {
         cells.resize_with(n, || None);
@@ -302,6 +378,9 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
         for (k, &i) in b.sites.iter().enumerate() {
             let i = i as usize;
             diagram.moments[i] = b.moments[k];
+            if weighted {
+                diagram.weighted[i] = b.weighted[k];
+            }
             diagram.boundary_measure[i] = b.boundary_measure[k];
             let from = diagram.neighbor_offsets[i];
             let count = b.face_counts[k] as usize;
@@ -346,9 +425,25 @@ impl<const D: usize> Diagram<D> {
         self.moments.iter().map(|m| m.mass).collect()
     }
 
-    /// Cell centroids in absolute coordinates, `L`; the site itself for an empty cell.
+    /// The moments that the CVT weighs (DESIGN §8): the ρ-weighted ones with a density,
+    /// else the geometric ones.
+    pub fn mass_moments(&self) -> &[Moments<D>] {
+        if self.weighted.is_empty() {
+            &self.moments
+        } else {
+            &self.weighted
+        }
+    }
+
+    /// Cell masses `∫ρ` (the volumes without a density), `ρ·L^d`.
+    pub fn masses(&self) -> Vec<f64> {
+        self.mass_moments().iter().map(|m| m.mass).collect()
+    }
+
+    /// Cell centroids in absolute coordinates, `L`, ρ-weighted with a density (where the
+    /// CVT drives the sites); the site itself for an empty cell.
     pub fn centroids(&self, sites: &[[f64; D]]) -> Vec<[f64; D]> {
-        self.moments
+        self.mass_moments()
             .iter()
             .zip(sites)
             .map(|(m, &s)| m.centroid().map_or(s, |c| add(s, c)))
@@ -369,19 +464,24 @@ impl<const D: usize> Diagram<D> {
             .collect()
     }
 
-    /// Each cell's energy term `∫ |x - x_i|²` about its site, `L^(d+2)`.
+    /// Each cell's energy term `∫ ρ |x - x_i|²` about its site (ρ = 1 without a density),
+    /// `ρ·L^(d+2)`.
     pub fn energy_terms(&self) -> Vec<f64> {
-        self.moments.iter().map(|m| m.second).collect()
+        self.mass_moments().iter().map(|m| m.second).collect()
     }
 
-    /// CVT energy `E = Σ_i ∫ |x - x_i|²`, summed in index order.
+    /// CVT energy `E = Σ_i ∫ ρ |x - x_i|²`, summed in index order.
     pub fn energy(&self) -> f64 {
-        self.moments.iter().map(|m| m.second).sum()
+        self.mass_moments().iter().map(|m| m.second).sum()
     }
 
-    /// Energy gradient `∂E/∂x_i = 2 m_i (x_i - c_i) = -2 ∫(x - x_i)` (DESIGN §4), `L^(d+1)`.
+    /// Energy gradient `∂E/∂x_i = 2 m_i (x_i - c_i) = -2 ∫ρ (x - x_i)` (DESIGN §4, §8),
+    /// `ρ·L^(d+1)`.
     pub fn gradient(&self) -> Vec<[f64; D]> {
-        self.moments.iter().map(|m| scale(m.first, -2.0)).collect()
+        self.mass_moments()
+            .iter()
+            .map(|m| scale(m.first, -2.0))
+            .collect()
     }
 }
 
