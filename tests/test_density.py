@@ -284,6 +284,23 @@ def test_the_weighted_gradient_matches_finite_differences(dim: int) -> None:
     )
 
 
+def test_newton_with_a_polynomial_density_converges_with_fewer_diagrams() -> None:
+    # The Hessian's face terms are weighted by ρ (checked against finite differences in
+    # crates/hcvt-core/tests/density.rs): Newton converges in fewer diagrams, and near a
+    # CVT it converges quadratically (measured: RMS gap 1e-7, 3e-11, 6e-16).
+    domain = hcvt.load_domain(DATA / "2d" / "triangle_double_hex.geojson")
+    sites = hcvt.initialise(domain, 200, seed=2)
+    newton = hcvt.cvt(domain, sites, method="newton", density=RHO_2D, tol=1e-9)
+    lbfgs = hcvt.cvt(domain, sites, density=RHO_2D, tol=1e-9)
+    assert newton.converged and lbfgs.converged
+    assert newton.evaluations < lbfgs.evaluations, (newton.evaluations, lbfgs.evaluations)
+    near = hcvt.cvt(domain, sites, density=RHO_2D, tol=1e-6)
+    again = hcvt.cvt(domain, near.sites, method="newton", density=RHO_2D, tol=1e-13)
+    gaps = again.history["rms_gap"]
+    assert again.converged and again.iterations <= 10, gaps
+    assert gaps[-1] < 1e-13 and gaps[-2] < 1e-9, gaps
+
+
 # ------------------------------------------------------------------ grading
 def _slope(result: hcvt.CVTResult, rho) -> float:
     d = result.diagram
@@ -357,7 +374,7 @@ def test_bad_densities_are_named() -> None:
     with pytest.raises(InvalidDensityError, match="quadrature_degree"):
         hcvt.voronoi(square, sites, density=lambda p: np.ones(len(p)), quadrature_degree=7)
     with pytest.raises(InvalidDensityError, match="Newton"):
-        hcvt.cvt(square, sites, method="newton", density=RHO_2D)
+        hcvt.cvt(square, sites, method="newton", density=lambda p: np.ones(len(p)))
     with pytest.raises(InvalidDensityError, match="3 dimensions"):
         hcvt.voronoi(square, sites, density=RHO_3D)
     with pytest.raises(TypeError, match="density must be"):

@@ -165,7 +165,7 @@ class Polynomial:
         if self.linear is not None:
             out += x @ self.linear
         if self.quadratic is not None:
-            out += np.einsum("mi,ij,mj->m", x, self.quadratic, x)
+            out += np.sum((x @ self.quadratic) * x, axis=1)
         return out
 
     def __eq__(self, other: object) -> bool:

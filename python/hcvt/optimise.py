@@ -168,8 +168,9 @@ def cvt(
         A density ρ > 0 (:mod:`hcvt.density`): the energy becomes ``Σ ∫ ρ |x - x_i|²``,
         Lloyd moves each site to its ρ-weighted centroid and L-BFGS follows the ρ-weighted
         gradient; both rules apply unchanged (``h_i`` stays the geometric ``V_i^(1/d)``).
-        Newton is not offered with a density (its Hessian's face terms are unweighted):
-        InvalidDensityError. A callable is called once per diagram, with the GIL.
+        Newton's Hessian weighs its face terms by ρ on each face, exactly for a
+        :class:`~hcvt.density.Polynomial`; with a callable Newton is not offered
+        (InvalidDensityError). A callable is called once per diagram, with the GIL.
     quadrature_degree : int, default 4
         Degree (1 to 5) of the simplex rule that samples a callable density.
 

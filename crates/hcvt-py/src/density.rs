@@ -10,7 +10,6 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use crate::arrays::to_array2;
 use crate::errors::InvalidDensityError;
 
 /// Polynomial coefficients as Python passes them: `(constant, linear (d,), quadratic (d, d))`.
@@ -56,24 +55,22 @@ impl PyField {
         self.raised.lock().ok().and_then(|mut slot| slot.take())
     }
 
-    fn call<const D: usize>(&self, py: Python<'_>, points: &[[f64; D]]) -> PyResult<Vec<f64>> {
-        let array = to_array2(py, points)?;
+    fn call<const D: usize>(&self, py: Python<'_>, points: Vec<[f64; D]>) -> PyResult<Vec<f64>> {
+        let count = points.len();
+        // The buffer becomes the array's: no copy of tens of millions of points.
+        let array = PyArray1::from_vec(py, points.into_flattened()).reshape([count, D])?;
         let result = self.function.bind(py).call1((array,))?;
         let numpy = py.import("numpy")?;
-        let values = numpy
-            .call_method1("asarray", (result,))?
-            .call_method1("astype", ("float64",))?;
+        let values = numpy.call_method1("ascontiguousarray", (result, "float64"))?;
         let values: Bound<'_, PyArray1<f64>> = values.cast_into().map_err(|_| {
             InvalidDensityError::new_err(format!(
-                "the density function must return an array of shape ({},)",
-                points.len()
+                "the density function must return an array of shape ({count},)"
             ))
         })?;
         let values: PyReadonlyArray1<'_, f64> = values.readonly();
-        if values.shape() != [points.len()] {
+        if values.shape() != [count] {
             return Err(InvalidDensityError::new_err(format!(
-                "the density function must return shape ({},), got {:?}",
-                points.len(),
+                "the density function must return shape ({count},), got {:?}",
                 values.shape()
             )));
         }
@@ -82,7 +79,7 @@ impl PyField {
 }
 
 impl<const D: usize> Field<D> for PyField {
-    fn values(&self, points: &[[f64; D]]) -> Result<Vec<f64>, CoreError> {
+    fn values(&self, points: Vec<[f64; D]>) -> Result<Vec<f64>, CoreError> {
         Python::attach(|py| self.call(py, points)).map_err(|err| {
             let reason = format!("the density function failed: {err}");
             if let Ok(mut slot) = self.raised.lock() {

@@ -22,7 +22,7 @@
 pub mod quadrature;
 mod sums;
 
-pub use sums::{sum_nodes, WeightedSums};
+pub use sums::{cone_node, sum_sampled, Cone, WeightedSums};
 
 use crate::error::CoreError;
 use crate::geometry::{add, dot};
@@ -106,8 +106,10 @@ impl<const D: usize> Quadratic<D> {
 /// A density given as a function: the values at many points in one call.
 pub trait Field<const D: usize>: Sync {
     /// `ρ` at each of `points` (absolute coordinates), in order: one value per point.
-    /// An error here (the caller's function failed) ends the diagram with it.
-    fn values(&self, points: &[[f64; D]]) -> Result<Vec<f64>, CoreError>;
+    /// The points are handed over (a binding can pass their buffer on without a copy:
+    /// a diagram has tens of millions). An error here (the caller's function failed) ends
+    /// the diagram with it.
+    fn values(&self, points: Vec<[f64; D]>) -> Result<Vec<f64>, CoreError>;
 }
 
 /// The density of a diagram or a CVT.

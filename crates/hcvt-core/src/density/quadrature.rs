@@ -8,6 +8,7 @@
 //!
 //! | rule | points | degree | source |
 //! |------|--------|--------|--------|
+//! | `SEGMENT_5` | 3 | 5 | Gauss–Legendre |
 //! | `TRIANGLE_1`, `TETRA_1` | 1 | 1 | the centroid |
 //! | `TRIANGLE_2` | 3 | 2 | Strang and Fix 1973, table 4.1 |
 //! | `TRIANGLE_4` | 6 | 4 | Dunavant 1985, "High degree efficient symmetrical Gaussian quadrature rules for the triangle", degree 4 |
@@ -51,6 +52,17 @@ const T5A: f64 = 0.470_142_064_105_115_089_77;
 const T5B: f64 = 0.101_286_507_323_456_338_8;
 const T5WA: f64 = 0.132_394_152_788_506_180_74;
 const T5WB: f64 = 0.125_939_180_544_827_152_6;
+
+/// `√(3/5)/2`: the outer Gauss–Legendre points sit this far from the middle of [0, 1].
+const G3: f64 = 0.387_298_334_620_741_688_52;
+
+/// Degree 5 on the segment: 3-point Gauss–Legendre.
+pub const SEGMENT_5: Rule = Rule {
+    dim: 1,
+    points: &[0.5 - G3, 0.5, 0.5 + G3],
+    weights: &[5.0 / 18.0, 8.0 / 18.0, 5.0 / 18.0],
+    degree: 5,
+};
 
 /// Degree 1 on the triangle.
 pub const TRIANGLE_1: Rule = Rule {
@@ -170,9 +182,12 @@ pub const TETRA_5: Rule = Rule {
     degree: 5,
 };
 
-/// The rule of fewest points on the `dim`-simplex (2 or 3) that is exact to at least
+/// The rule of fewest points on the `dim`-simplex (1, 2 or 3) that is exact to at least
 /// `degree` (`1..=MAX_DEGREE`); `None` otherwise.
 pub fn rule(dim: usize, degree: usize) -> Option<Rule> {
+    if dim == 1 && degree <= 5 {
+        return Some(SEGMENT_5);
+    }
     match (dim, degree) {
         (2, 1) => Some(TRIANGLE_1),
         (2, 2) => Some(TRIANGLE_2),
@@ -265,6 +280,7 @@ mod tests {
 
     #[test]
     fn every_rule_has_its_stated_degree() {
+        check::<1>(&SEGMENT_5);
         for rule in [TRIANGLE_1, TRIANGLE_2, TRIANGLE_4, TRIANGLE_5] {
             check::<2>(&rule);
         }

@@ -1,12 +1,25 @@
 //! One cell's ρ-weighted moments, summed over its signed pieces as the diagram measures
 //! them (DESIGN §3, §8).
+//!
+//! **A polynomial** is integrated over each cone simplex `S = (site, v_1 … v_d)` through
+//! its face `F = (v_1 … v_d)`: for `f` homogeneous of degree `k` in `y = x − site`,
+//! `∫_S f = d |S| / (d + k) · avg_F f` (the cone from the origin over a planar face scales
+//! `F` by `t ∈ [0, 1]`, and `∫_0^1 t^(d−1+k) dt = 1/(d+k)`). `ρ = c + b·y + yᵀAy` about the
+//! site splits into homogeneous parts, so each moment is a face average of a polynomial of
+//! degree ≤ 4: a rule on the `(d−1)`-simplex of degree 4 or more (3 Gauss points on a
+//! segment, Dunavant's 6 on a triangle) is exact, with fewer points than a degree-4 rule
+//! on `S` itself (6 or 14).
+//!
+//! **A field** cannot be split so: each cone simplex gets the volume rule asked for. The
+//! cell keeps its simplices (not the nodes, several per simplex); the diagram makes the
+//! nodes when it evaluates the field, and sums them here again ([`sum_sampled`]).
 
 use crate::diagram::ConvexCell;
 use crate::error::CoreError;
-use crate::geometry::norm2;
-use crate::moments::Moments;
+use crate::geometry::{dot, norm2};
+use crate::moments::{FaceMoments, Moments};
 
-use super::quadrature::Rule;
+use super::quadrature::{self, Rule};
 use super::{Density, Quadratic};
 
 /// What is summed.
@@ -14,28 +27,30 @@ use super::{Density, Quadratic};
 enum Kind<const D: usize> {
     /// No density: nothing.
     Off,
-    /// A polynomial, in absolute coordinates and about the current cell's site.
+    /// A polynomial, in absolute coordinates and about the current cell's site, with the
+    /// face rule.
     Polynomial {
         global: Quadratic<D>,
         local: Quadratic<D>,
-        rule: Rule,
+        face_rule: Rule,
     },
-    /// A field: the rule's nodes are kept for one evaluation of the whole diagram.
-    Sampled { rule: Rule },
+    /// A field: the cone simplices are kept for one evaluation of the whole diagram.
+    Sampled,
 }
 
-/// The weighted moments of one cell about its site (a [`Quadratic`]), or the quadrature
-/// nodes that give them (a [`super::Field`]); buffers reused from cell to cell.
+/// A cone simplex of a cell: its `D` vertices besides the site (relative to the site),
+/// and its signed measure times the sign of its piece.
+pub type Cone<const D: usize> = ([[f64; D]; D], f64);
+
+/// The weighted moments of one cell about its site (a [`Quadratic`]), or the cone
+/// simplices that give them (a [`super::Field`]); buffers reused from cell to cell.
 #[derive(Debug, Clone)]
 pub struct WeightedSums<const D: usize> {
     kind: Kind<D>,
     /// With a polynomial: `∫ρ`, `∫ρ y`, `∫ρ |y|²` so far, `y = x − site`.
     pub moments: Moments<D>,
-    /// With a field: the nodes relative to the site, and their signed weights (rule
-    /// weight × signed simplex measure, L^d).
-    pub nodes: Vec<[f64; D]>,
-    /// See `nodes`.
-    pub weights: Vec<f64>,
+    /// With a field: the cell's cone simplices.
+    pub cones: Vec<Cone<D>>,
 }
 
 impl<const D: usize> Default for WeightedSums<D> {
@@ -43,32 +58,37 @@ impl<const D: usize> Default for WeightedSums<D> {
         Self {
             kind: Kind::Off,
             moments: Moments::zero(),
-            nodes: Vec::new(),
-            weights: Vec::new(),
+            cones: Vec::new(),
         }
     }
 }
 
 impl<const D: usize> WeightedSums<D> {
-    /// Sums for `density`; off without one.
+    /// Sums for `density`; off without one. Checks the degree of a field's rule.
     pub fn new(density: Option<&Density<'_, D>>) -> Result<Self, CoreError> {
         let kind = match density {
             None => Kind::Off,
-            Some(d @ Density::Polynomial(q)) => Kind::Polynomial {
+            Some(Density::Polynomial(q)) => Kind::Polynomial {
                 global: *q,
                 local: *q,
-                rule: d.rule()?,
+                // Face averages of degree ≤ 4 on (D − 1)-simplices.
+                face_rule: quadrature::rule(D - 1, super::POLYNOMIAL_DEGREE).ok_or(
+                    CoreError::InvalidDensity {
+                        reason: format!("no face rule in {D} dimensions"),
+                    },
+                )?,
             },
-            Some(d @ Density::Sampled { .. }) => Kind::Sampled { rule: d.rule()? },
+            Some(d @ Density::Sampled { .. }) => {
+                d.rule()?;
+                Kind::Sampled
+            }
         };
         Ok(Self {
             kind,
             ..Self::default()
         })
     }
-}
 
-impl<const D: usize> WeightedSums<D> {
     /// Whether there is a density.
     pub fn is_on(&self) -> bool {
         !matches!(self.kind, Kind::Off)
@@ -76,7 +96,37 @@ impl<const D: usize> WeightedSums<D> {
 
     /// Whether the density is a field, sampled at nodes.
     pub fn is_sampled(&self) -> bool {
-        matches!(self.kind, Kind::Sampled { .. })
+        matches!(self.kind, Kind::Sampled)
+    }
+
+    /// Whether face moments can be weighted ([`WeightedSums::face_moments`]): a polynomial.
+    pub fn weighs_faces(&self) -> bool {
+        matches!(self.kind, Kind::Polynomial { .. })
+    }
+
+    /// The ρ-weighted moments `∫ρ`, `∫ρ y`, `∫ρ y yᵀ` of the face simplex `simplex`
+    /// (relative to the site) of `measure`, exact for a polynomial (degree ≤ 4 on the
+    /// face); the geometric ones without a polynomial.
+    pub fn face_moments(&self, simplex: &[[f64; D]; D], measure: f64) -> FaceMoments<D> {
+        let Kind::Polynomial {
+            local, face_rule, ..
+        } = self.kind
+        else {
+            return FaceMoments::simplex(simplex, measure);
+        };
+        let mut m = FaceMoments::zero();
+        for (lambda, w) in face_rule.nodes() {
+            let y = on_face(simplex, lambda);
+            let f = w * measure * local.value(y);
+            m.measure += f;
+            for r in 0..D {
+                m.first[r] += f * y[r];
+                for c in 0..D {
+                    m.second[r][c] += f * y[r] * y[c];
+                }
+            }
+        }
+        m
     }
 
     /// Begin the cell of the site at `site`: nothing summed yet.
@@ -90,65 +140,141 @@ impl<const D: usize> WeightedSums<D> {
     /// Forget what this cell has summed (an empty cell).
     pub fn clear(&mut self) {
         self.moments = Moments::zero();
-        self.nodes.clear();
-        self.weights.clear();
+        self.cones.clear();
     }
 
     /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex.
     pub fn add_piece<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) {
         match self.kind {
             Kind::Off => {}
-            Kind::Polynomial { local, rule, .. } => {
+            Kind::Polynomial {
+                local, face_rule, ..
+            } => {
                 let m = &mut self.moments;
-                piece.for_each_cone(|simplex, measure| {
-                    let mut cone = Moments::zero();
-                    for (lambda, w) in rule.nodes() {
-                        let y = at(simplex, lambda);
-                        let f = w * local.value(y);
-                        cone.mass += f;
-                        for (sum, &yk) in cone.first.iter_mut().zip(&y) {
-                            *sum += f * yk;
-                        }
-                        cone.second += f * norm2(y);
-                    }
-                    m.add_scaled(&cone, sign * measure);
+                piece.for_each_cone(|face, measure| {
+                    let cone = polynomial_cone(&local, &face_rule, face, measure);
+                    m.add_scaled(&cone, sign);
                 });
             }
-            Kind::Sampled { rule } => {
-                let (nodes, weights) = (&mut self.nodes, &mut self.weights);
-                piece.for_each_cone(|simplex, measure| {
-                    for (lambda, w) in rule.nodes() {
-                        nodes.push(at(simplex, lambda));
-                        weights.push(sign * measure * w);
-                    }
-                });
+            Kind::Sampled => {
+                let cones = &mut self.cones;
+                piece.for_each_cone(|face, measure| cones.push((*face, sign * measure)));
             }
         }
     }
 }
 
-/// The point of barycentric coordinates `lambda` (on vertices `1..=D`; vertex 0, the
-/// site, is the origin) of the cone simplex `simplex`.
+/// The moments of `ρ = local` (about the site) over the cone simplex from the site over
+/// `face`, of signed measure `measure`, by the face averages of the module docs.
 #[inline]
-fn at<const D: usize>(simplex: &[[f64; D]; D], lambda: &[f64]) -> [f64; D] {
-    std::array::from_fn(|k| (0..D).map(|v| lambda[v] * simplex[v][k]).sum())
-}
-
-/// The weighted moments of a cell from its nodes (relative to its site), their weights
-/// and `values` of the density there, summed in node order.
-pub fn sum_nodes<const D: usize>(
-    nodes: &[[f64; D]],
-    weights: &[f64],
-    values: &[f64],
+fn polynomial_cone<const D: usize>(
+    local: &Quadratic<D>,
+    face_rule: &Rule,
+    face: &[[f64; D]; D],
+    measure: f64,
 ) -> Moments<D> {
-    let mut m = Moments::zero();
-    for ((y, &w), &rho) in nodes.iter().zip(weights).zip(values) {
-        let f = w * rho;
-        m.mass += f;
-        for (sum, &yk) in m.first.iter_mut().zip(y) {
+    let d = D as f64;
+    let c = local.constant;
+    // Σ_q w_q of each homogeneous part, already divided by d + k.
+    let (mut mass, mut first, mut second) = (0.0, [0.0; D], 0.0);
+    for (lambda, w) in face_rule.nodes() {
+        let y = on_face(face, lambda);
+        let linear = dot(local.linear, y);
+        let quadratic = dot(std::array::from_fn(|r| dot(local.quadratic[r], y)), y);
+        mass += w * (linear / (d + 1.0) + quadratic / (d + 2.0));
+        let f = w * (c / (d + 1.0) + linear / (d + 2.0) + quadratic / (d + 3.0));
+        for (sum, &yk) in first.iter_mut().zip(&y) {
             *sum += f * yk;
         }
-        m.second += f * norm2(*y);
+        second += w * norm2(y) * (c / (d + 2.0) + linear / (d + 3.0) + quadratic / (d + 4.0));
+    }
+    let scale = d * measure;
+    Moments {
+        mass: c * measure + scale * mass,
+        first: first.map(|x| scale * x),
+        second: scale * second,
+    }
+}
+
+/// The point of `face` (the `D` vertices) with barycentric coordinates `lambda` on its
+/// vertices `1..D` (vertex 0 takes the rest).
+#[inline]
+fn on_face<const D: usize>(face: &[[f64; D]; D], lambda: &[f64]) -> [f64; D] {
+    let rest = 1.0 - lambda.iter().sum::<f64>();
+    std::array::from_fn(|k| {
+        rest * face[0][k] + (1..D).map(|v| lambda[v - 1] * face[v][k]).sum::<f64>()
+    })
+}
+
+/// The node of barycentric coordinates `lambda` (on vertices `1..=D`; vertex 0, the
+/// site, is the origin) of the cone simplex over `face`.
+#[inline]
+pub fn cone_node<const D: usize>(face: &[[f64; D]; D], lambda: &[f64]) -> [f64; D] {
+    std::array::from_fn(|k| (0..D).map(|v| lambda[v] * face[v][k]).sum())
+}
+
+/// The weighted moments of a cell about its site from its `cones`, the volume `rule`
+/// and the field's `values` at their nodes (cone after cone, node after node), summed in
+/// that order.
+pub fn sum_sampled<const D: usize>(cones: &[Cone<D>], rule: &Rule, values: &[f64]) -> Moments<D> {
+    let mut m = Moments::zero();
+    let mut value = values.iter();
+    for (face, measure) in cones {
+        for ((lambda, w), &rho) in rule.nodes().zip(&mut value) {
+            let y = cone_node(face, lambda);
+            let f = measure * w * rho;
+            m.mass += f;
+            for (sum, &yk) in m.first.iter_mut().zip(&y) {
+                *sum += f * yk;
+            }
+            m.second += f * norm2(y);
+        }
     }
     m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::density::quadrature::{TETRA_5, TRIANGLE_4};
+
+    /// The face-average form of a polynomial over a cone equals the volume rule of
+    /// degree ≥ 4 applied to the cone simplex itself.
+    #[test]
+    fn face_averages_equal_the_volume_rule() {
+        let q2 = Quadratic::new(1.3, [0.4, -0.7], [[0.9, 0.2], [0.2, -0.3]]).unwrap();
+        let face2 = [[0.3, -0.2], [0.5, 0.6]];
+        let measure2 = 0.5 * (face2[0][0] * face2[1][1] - face2[0][1] * face2[1][0]);
+        let by_face = polynomial_cone(&q2, &quadrature::SEGMENT_5, &face2, measure2);
+        let by_volume = sum_sampled(
+            &[(face2, measure2)],
+            &TRIANGLE_4,
+            &TRIANGLE_4
+                .nodes()
+                .map(|(l, _)| q2.value(cone_node(&face2, l)))
+                .collect::<Vec<_>>(),
+        );
+        close(&by_face, &by_volume);
+        let q3 = Quadratic::new(
+            0.8,
+            [0.1, 0.5, -0.2],
+            [[0.7, 0.1, 0.0], [0.1, 0.4, -0.2], [0.0, -0.2, 1.1]],
+        )
+        .unwrap();
+        let face3 = [[0.4, 0.1, -0.2], [-0.1, 0.5, 0.3], [0.2, -0.3, 0.6]];
+        let det = crate::moments::tetra_moments(face3[0], face3[1], face3[2]).mass;
+        let by_face = polynomial_cone(&q3, &TRIANGLE_4, &face3, det);
+        let values: Vec<f64> = (TETRA_5.nodes())
+            .map(|(l, _)| q3.value(cone_node(&face3, l)))
+            .collect();
+        close(&by_face, &sum_sampled(&[(face3, det)], &TETRA_5, &values));
+    }
+
+    fn close<const D: usize>(a: &Moments<D>, b: &Moments<D>) {
+        assert!((a.mass - b.mass).abs() < 1e-15, "{a:?} {b:?}");
+        assert!((a.second - b.second).abs() < 1e-15, "{a:?} {b:?}");
+        for k in 0..D {
+            assert!((a.first[k] - b.first[k]).abs() < 1e-15, "{a:?} {b:?}");
+        }
+    }
 }

@@ -93,6 +93,16 @@ impl<const D: usize> FaceSums<D> {
     ) -> Moments<D> {
         self.weighted.add_piece(piece, sign);
         match row {
+            Some(row) if self.weighted.weighs_faces() => {
+                // The integrand sees ρ-weighted face moments; the neighbours their measure.
+                let weighted = std::mem::take(&mut self.weighted);
+                piece.for_each_face_simplex(|f, simplex, measure| {
+                    let m = weighted.face_moments(simplex, measure);
+                    self.add_weighted_moments(f, sign, measure, &m, row);
+                });
+                self.weighted = weighted;
+                piece.moments()
+            }
             Some(row) => piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m, row)),
             None => piece.moments_and_faces(|f, m| {
                 self.add(f, sign * m);
@@ -125,7 +135,20 @@ impl<const D: usize> FaceSums<D> {
     /// Add a face with its moments `m` about the site, and its terms of the integrand of
     /// `row`.
     fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>, row: FaceRow<'_, D>) {
-        let Some(at) = self.add(face, sign * m.measure) else {
+        self.add_weighted_moments(face, sign, m.measure, m, row);
+    }
+
+    /// [`FaceSums::add_moments`] with the face's `measure` apart from its moments `m`
+    /// (weighted by a density, DESIGN §8).
+    fn add_weighted_moments(
+        &mut self,
+        face: Face,
+        sign: f64,
+        measure: f64,
+        m: &FaceMoments<D>,
+        row: FaceRow<'_, D>,
+    ) {
+        let Some(at) = self.add(face, sign * measure) else {
             return;
         };
         let j = self.neighbors[at].0 as usize;

@@ -34,7 +34,7 @@ mod weighted;
 
 use rayon::prelude::*;
 
-use crate::density::Density;
+use crate::density::{Cone, Density};
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{add, norm2, scale, Euclid, Space};
@@ -91,11 +91,10 @@ struct Batch<const D: usize, C> {
     cells: Vec<C>,
     /// With a polynomial density: each cell's weighted moments.
     weighted: Vec<Moments<D>>,
-    /// With a sampled density: each cell's number of nodes, and the nodes (relative to
-    /// the site) with their weights, cell after cell.
-    node_counts: Vec<u32>,
-    nodes: Vec<[f64; D]>,
-    node_weights: Vec<f64>,
+    /// With a sampled density: each cell's number of cone simplices, and the simplices,
+    /// cell after cell.
+    cone_counts: Vec<u32>,
+    cones: Vec<Cone<D>>,
     /// The error of the batch's first offending site in index order.
     error: Option<(usize, CoreError)>,
 }
@@ -117,9 +116,8 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             face_integrals: Vec::with_capacity(faces),
             cells: Vec::new(),
             weighted: Vec::new(),
-            node_counts: Vec::new(),
-            nodes: Vec::new(),
-            node_weights: Vec::new(),
+            cone_counts: Vec::new(),
+            cones: Vec::new(),
             error: None,
         }
     }
@@ -138,9 +136,8 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
         }
         let w = &faces.weighted;
         if w.is_sampled() {
-            self.node_counts.push(w.nodes.len() as u32);
-            self.nodes.extend_from_slice(&w.nodes);
-            self.node_weights.extend_from_slice(&w.weights);
+            self.cone_counts.push(w.cones.len() as u32);
+            self.cones.extend_from_slice(&w.cones);
         } else if w.is_on() {
             self.weighted.push(w.moments);
         }
@@ -239,8 +236,11 @@ where
         if q.is_constant() {
             // ρ = c weighs every moment by c: exact, and for ρ = 1 the uniform diagram
             // bit for bit, at the uniform cost.
-            let (mut diagram, cells, sums) =
+            let (mut diagram, cells, mut sums) =
                 clipped_diagram_weighted(boundary, sites, options, keep_cells, integrand, None)?;
+            for m in sums.cells.iter_mut().chain(sums.faces.iter_mut()) {
+                *m = m.map(|row| scale(row, q.constant));
+            }
             diagram.weighted = (diagram.moments.iter())
                 .map(|m| Moments {
                     mass: q.constant * m.mass,
@@ -325,8 +325,8 @@ where
         return Err(batch.error.take().expect("its error").1);
     }
     let mut batches = batches;
-    if let Some(Density::Sampled { field, .. }) = density {
-        weighted::sample(*field, sites, &mut batches)?;
+    if let Some(d @ Density::Sampled { field, .. }) = density {
+        weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
     }
     let out = assemble(sites.len(), batches, integrand.is_some(), keep_cells);
     if density.is_some() {

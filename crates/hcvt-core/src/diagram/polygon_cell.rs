@@ -221,6 +221,15 @@ impl ConvexCell<2> for PolygonCell {
         }
     }
 
+    fn for_each_face_simplex(&self, mut f: impl FnMut(Face, &[[f64; 2]; 2], f64)) {
+        let n = self.vertices.len();
+        for i in 0..n {
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            let (a, b) = (self.vertices[i], self.vertices[j]);
+            f(self.faces[i], &[a, b], norm2(sub(b, a)).sqrt());
+        }
+    }
+
     fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
         let n = self.vertices.len();
         for i in 0..n {

@@ -259,8 +259,9 @@ where
 }
 
 /// [`evaluate_with`] under a `density` ρ (DESIGN §8): energy and gradient from the
-/// ρ-weighted moments. The Hessian's face terms are not weighted: Newton refuses a density
-/// ([`cvt_with_density`]).
+/// ρ-weighted moments, and the Hessian with `2 m_i` the ρ-weighted mass and its face terms
+/// weighted by ρ on each face (exact for a polynomial; a sampled field has no Hessian,
+/// [`cvt_with_density`] refuses Newton with one).
 pub fn evaluate_weighted<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
@@ -392,7 +393,9 @@ where
 /// [`cvt`] of the energy `Σ_i ∫ ρ |x − x_i|²` under a `density` ρ (DESIGN §8): Lloyd
 /// moves each site to its ρ-weighted centroid, L-BFGS follows the ρ-weighted gradient
 /// `2 m_i (x_i − c_i)`, and both stopping rules apply unchanged (the gap's `V_i` stays
-/// geometric). Newton is refused with a density: its Hessian's face terms are not weighted.
+/// geometric). Newton's Hessian weighs its face terms by ρ on each face, exactly for a
+/// polynomial; with a sampled field Newton is refused (its face terms would need the field
+/// on every face too).
 pub fn cvt_with_density<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
@@ -403,10 +406,10 @@ pub fn cvt_with_density<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    if density.is_some() && settings.method == Method::Newton {
+    if matches!(density, Some(Density::Sampled { .. })) && settings.method == Method::Newton {
         return Err(CoreError::InvalidDensity {
-            reason: "Newton's Hessian is not weighted by a density: use method 'lbfgs' or \
-                     'lloyd'"
+            reason: "Newton needs the Hessian, which is weighted exactly only by a polynomial \
+                     density: use method 'lbfgs' or 'lloyd' with a function"
                 .into(),
         });
     }
