@@ -414,3 +414,48 @@ def test_hierarchical_cvt_with_a_density_keeps_exact_counts() -> None:
     interior = d.boundary_measure == 0
     slope = np.polyfit(np.log(rho(d.centroid[interior])), np.log(d.volume[interior]) / 2, 1)[0]
     assert -0.3 < slope < -0.2, slope
+
+
+# ------------------------------------------------------------------ CLI and picture
+def test_the_cli_takes_a_polynomial_or_a_function_from_a_file(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    def invoke(*args: object):
+        return CliRunner().invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+    summary = tmp_path / "s.json"
+    result = invoke(
+        "run", "unit-square", "-n", 400, "--method", "lbfgs", "--tol", 1e-4,
+        "--density", "1 + 99*x^2", "--summary", summary, "--out", tmp_path / "a.npy",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    import json
+
+    assert json.loads(summary.read_text())["density"] == "Polynomial(1 + 99*x**2)"
+    graded = np.load(tmp_path / "a.npy")
+    # More sites where ρ is large: about ∫ρ^(1/2) over x > 1/2 against x < 1/2.
+    assert np.mean(graded[:, 0] > 0.5) > 0.6
+    module = tmp_path / "rho.py"
+    module.write_text("def rho(p):\n    return 1 + 99 * p[:, 0] ** 2\n")
+    result = invoke(
+        "run", "unit-square", "-n", 400, "--method", "lbfgs", "--tol", 1e-4,
+        "--density", f"{module}:rho", "--out", tmp_path / "b.npy",
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    # The same ρ as a function: the same CVT to the sampling's round-off.
+    assert np.max(np.abs(np.load(tmp_path / "b.npy") - graded)) < 1e-6
+    bad = CliRunner().invoke(main, ["run", "unit-square", "-n", "10", "--density", "__import__"])
+    assert bad.exit_code == 2 and "cannot read" in bad.output
+
+
+def test_the_grading_figure_measures_gershos_slope(tmp_path) -> None:
+    from hcvt.plot import grading_figure
+
+    square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
+    rho = Polynomial.parse("1 + 99*x^2")
+    res = hcvt.cvt(square, hcvt.initialise(square, 800, density=rho), density=rho, tol=1e-4)
+    slope = grading_figure(res.diagram, tmp_path / "g.png")
+    assert abs(slope / -0.25 - 1) < 0.05, slope
+    assert (tmp_path / "g.png").stat().st_size > 20_000

@@ -285,6 +285,26 @@ def evaluate(density: DensityLike, points: NDArray[np.float64]) -> NDArray[np.fl
     return values
 
 
+def grading_slope(
+    diagram: Any,
+) -> tuple[float, NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """How a diagram's cell size follows its density (Gersho: slope ``-1/(d+2)``).
+
+    Returns the slope of the least-squares line of ``log V_i^(1/d)`` against
+    ``log ρ(c_i)`` over the cells off the boundary (``boundary_measure == 0``), with
+    ``ρ(c_i)`` (n,), ``V_i^(1/d)`` (n,) and the interior mask (n,).
+    """
+    if diagram.density is None:
+        raise ValueError("the diagram has no density")
+    rho = evaluate(diagram.density, diagram.centroid)
+    size = diagram.volume ** (1.0 / diagram.domain.dim)
+    interior = diagram.boundary_measure == 0
+    if interior.sum() < 2:
+        raise ValueError("fewer than two interior cells: no slope")
+    slope = float(np.polyfit(np.log(rho[interior]), np.log(size[interior]), 1)[0])
+    return slope, rho, size, interior
+
+
 __all__ = [
     "DEFAULT_QUADRATURE_DEGREE",
     "DensityLike",
@@ -292,4 +312,5 @@ __all__ = [
     "SizingField",
     "core_arguments",
     "evaluate",
+    "grading_slope",
 ]
