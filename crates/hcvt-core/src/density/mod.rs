@@ -17,12 +17,12 @@
 //! |------|------|
 //! | `mod.rs` | [`Density`], [`Quadratic`], [`Field`] and the checks of their values |
 //! | `quadrature.rs` | the simplex rules and their sources |
-//! | `sums.rs` | [`WeightedSums`]: one cell's weighted moments (or its nodes), piece by piece |
+//! | `sums.rs` | the moments over one cone simplex: a polynomial by face averages, a field from its nodes; weighted face moments |
 
 pub mod quadrature;
 mod sums;
 
-pub use sums::{cone_node, sum_sampled, Cone, WeightedSums};
+pub use sums::{cone_node, polynomial_cone, polynomial_face_moments, sum_sampled, Cone};
 
 use crate::error::CoreError;
 use crate::geometry::{add, dot};

@@ -11,163 +11,23 @@
 //! on `S` itself (6 or 14).
 //!
 //! **A field** cannot be split so: each cone simplex gets the volume rule asked for. The
-//! cell keeps its simplices (not the nodes, several per simplex); the diagram makes the
-//! nodes when it evaluates the field, and sums them here again ([`sum_sampled`]).
+//! diagram keeps each cell's simplices (not the nodes, several per simplex), makes the
+//! nodes ([`cone_node`]) when it evaluates the field, and sums them ([`sum_sampled`]).
 
-use crate::diagram::ConvexCell;
-use crate::error::CoreError;
 use crate::geometry::{dot, norm2};
 use crate::moments::{FaceMoments, Moments};
 
-use super::quadrature::{self, Rule};
-use super::{Density, Quadratic};
-
-/// What is summed.
-#[derive(Debug, Clone, Copy)]
-enum Kind<const D: usize> {
-    /// No density: nothing.
-    Off,
-    /// A polynomial, in absolute coordinates and about the current cell's site, with the
-    /// face rule.
-    Polynomial {
-        global: Quadratic<D>,
-        local: Quadratic<D>,
-        face_rule: Rule,
-    },
-    /// A field: the cone simplices are kept for one evaluation of the whole diagram.
-    Sampled,
-}
+use super::quadrature::Rule;
+use super::Quadratic;
 
 /// A cone simplex of a cell: its `D` vertices besides the site (relative to the site),
 /// and its signed measure times the sign of its piece.
 pub type Cone<const D: usize> = ([[f64; D]; D], f64);
 
-/// The weighted moments of one cell about its site (a [`Quadratic`]), or the cone
-/// simplices that give them (a [`super::Field`]); buffers reused from cell to cell.
-#[derive(Debug, Clone)]
-pub struct WeightedSums<const D: usize> {
-    kind: Kind<D>,
-    /// With a polynomial: `∫ρ`, `∫ρ y`, `∫ρ |y|²` so far, `y = x − site`.
-    pub moments: Moments<D>,
-    /// With a field: the cell's cone simplices.
-    pub cones: Vec<Cone<D>>,
-}
-
-impl<const D: usize> Default for WeightedSums<D> {
-    fn default() -> Self {
-        Self {
-            kind: Kind::Off,
-            moments: Moments::zero(),
-            cones: Vec::new(),
-        }
-    }
-}
-
-impl<const D: usize> WeightedSums<D> {
-    /// Sums for `density`; off without one. Checks the degree of a field's rule.
-    pub fn new(density: Option<&Density<'_, D>>) -> Result<Self, CoreError> {
-        let kind = match density {
-            None => Kind::Off,
-            Some(Density::Polynomial(q)) => Kind::Polynomial {
-                global: *q,
-                local: *q,
-                // Face averages of degree ≤ 4 on (D − 1)-simplices.
-                face_rule: quadrature::rule(D - 1, super::POLYNOMIAL_DEGREE).ok_or(
-                    CoreError::InvalidDensity {
-                        reason: format!("no face rule in {D} dimensions"),
-                    },
-                )?,
-            },
-            Some(d @ Density::Sampled { .. }) => {
-                d.rule()?;
-                Kind::Sampled
-            }
-        };
-        Ok(Self {
-            kind,
-            ..Self::default()
-        })
-    }
-
-    /// Whether there is a density.
-    pub fn is_on(&self) -> bool {
-        !matches!(self.kind, Kind::Off)
-    }
-
-    /// Whether the density is a field, sampled at nodes.
-    pub fn is_sampled(&self) -> bool {
-        matches!(self.kind, Kind::Sampled)
-    }
-
-    /// Whether face moments can be weighted ([`WeightedSums::face_moments`]): a polynomial.
-    pub fn weighs_faces(&self) -> bool {
-        matches!(self.kind, Kind::Polynomial { .. })
-    }
-
-    /// The ρ-weighted moments `∫ρ`, `∫ρ y`, `∫ρ y yᵀ` of the face simplex `simplex`
-    /// (relative to the site) of `measure`, exact for a polynomial (degree ≤ 4 on the
-    /// face); the geometric ones without a polynomial.
-    pub fn face_moments(&self, simplex: &[[f64; D]; D], measure: f64) -> FaceMoments<D> {
-        let Kind::Polynomial {
-            local, face_rule, ..
-        } = self.kind
-        else {
-            return FaceMoments::simplex(simplex, measure);
-        };
-        let mut m = FaceMoments::zero();
-        for (lambda, w) in face_rule.nodes() {
-            let y = on_face(simplex, lambda);
-            let f = w * measure * local.value(y);
-            m.measure += f;
-            for r in 0..D {
-                m.first[r] += f * y[r];
-                for c in 0..D {
-                    m.second[r][c] += f * y[r] * y[c];
-                }
-            }
-        }
-        m
-    }
-
-    /// Begin the cell of the site at `site`: nothing summed yet.
-    pub fn start_cell(&mut self, site: [f64; D]) {
-        if let Kind::Polynomial { global, local, .. } = &mut self.kind {
-            *local = global.about(site);
-        }
-        self.clear();
-    }
-
-    /// Forget what this cell has summed (an empty cell).
-    pub fn clear(&mut self) {
-        self.moments = Moments::zero();
-        self.cones.clear();
-    }
-
-    /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex.
-    pub fn add_piece<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) {
-        match self.kind {
-            Kind::Off => {}
-            Kind::Polynomial {
-                local, face_rule, ..
-            } => {
-                let m = &mut self.moments;
-                piece.for_each_cone(|face, measure| {
-                    let cone = polynomial_cone(&local, &face_rule, face, measure);
-                    m.add_scaled(&cone, sign);
-                });
-            }
-            Kind::Sampled => {
-                let cones = &mut self.cones;
-                piece.for_each_cone(|face, measure| cones.push((*face, sign * measure)));
-            }
-        }
-    }
-}
-
 /// The moments of `ρ = local` (about the site) over the cone simplex from the site over
 /// `face`, of signed measure `measure`, by the face averages of the module docs.
 #[inline]
-fn polynomial_cone<const D: usize>(
+pub fn polynomial_cone<const D: usize>(
     local: &Quadratic<D>,
     face_rule: &Rule,
     face: &[[f64; D]; D],
@@ -194,6 +54,30 @@ fn polynomial_cone<const D: usize>(
         first: first.map(|x| scale * x),
         second: scale * second,
     }
+}
+
+/// The ρ-weighted moments `∫ρ`, `∫ρ y`, `∫ρ y yᵀ` of the face simplex `simplex`
+/// (relative to the site) of `measure`, for `ρ = local` about the site: exact with a
+/// face rule of degree ≥ 4.
+pub fn polynomial_face_moments<const D: usize>(
+    local: &Quadratic<D>,
+    face_rule: &Rule,
+    simplex: &[[f64; D]; D],
+    measure: f64,
+) -> FaceMoments<D> {
+    let mut m = FaceMoments::zero();
+    for (lambda, w) in face_rule.nodes() {
+        let y = on_face(simplex, lambda);
+        let f = w * measure * local.value(y);
+        m.measure += f;
+        for r in 0..D {
+            m.first[r] += f * y[r];
+            for c in 0..D {
+                m.second[r][c] += f * y[r] * y[c];
+            }
+        }
+    }
+    m
 }
 
 /// The point of `face` (the `D` vertices) with barycentric coordinates `lambda` on its
@@ -236,7 +120,7 @@ pub fn sum_sampled<const D: usize>(cones: &[Cone<D>], rule: &Rule, values: &[f64
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::density::quadrature::{TETRA_5, TRIANGLE_4};
+    use crate::density::quadrature::{self, TETRA_5, TRIANGLE_4};
 
     /// The face-average form of a polynomial over a cone equals the volume rule of
     /// degree ≥ 4 applied to the cone simplex itself.

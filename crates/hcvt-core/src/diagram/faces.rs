@@ -5,10 +5,10 @@
 //! a layer above) is one. The diagram hands it each piece's face moments and keeps the sums
 //! in [`FaceIntegrals`], knowing nothing of what they mean.
 
-use crate::density::WeightedSums;
 use crate::moments::{FaceMoments, Moments};
 
 use super::convex_cell::{ConvexCell, Face};
+use super::weighted::WeightedSums;
 
 /// A `D × D` matrix, row-major: what a [`FaceIntegrand`] sums per face and per cell.
 pub type Matrix<const D: usize> = [[f64; D]; D];

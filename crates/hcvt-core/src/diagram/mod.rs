@@ -251,7 +251,7 @@ where
             return Ok((diagram, cells, sums));
         }
     }
-    let weighted_sums = crate::density::WeightedSums::new(density)?;
+    let weighted_sums = weighted::WeightedSums::new(density)?;
     let windings: Vec<Option<i32>> = sites
         .par_iter()
         .map(|s| Euclid::winding_number(boundary, s))

@@ -1,15 +1,145 @@
-//! The diagram's side of a density (DESIGN §8): a sampled field's one evaluation over the
-//! nodes of every cell, and the checks that name where a density is unusable.
+//! The diagram's side of a density (DESIGN §8): each cell's weighted sums over its signed
+//! pieces ([`WeightedSums`]), a sampled field's one evaluation over the nodes of every
+//! cell, and the checks that name where a density is unusable.
 
 use rayon::prelude::*;
 
-use crate::density::quadrature::Rule;
-use crate::density::{check_value, cone_node, sum_sampled, Field, Quadratic};
+use crate::density::quadrature::{self, Rule};
+use crate::density::{
+    check_value, cone_node, polynomial_cone, polynomial_face_moments, sum_sampled, Cone, Density,
+    Field, Quadratic, POLYNOMIAL_DEGREE,
+};
 use crate::domain::Boundary;
 use crate::error::CoreError;
 use crate::geometry::{add, Euclid, Space};
+use crate::moments::{FaceMoments, Moments};
 
 use super::{Batch, ConvexCell, Diagram};
+
+/// What is summed.
+#[derive(Debug, Clone, Copy)]
+enum Kind<const D: usize> {
+    /// No density: nothing.
+    Off,
+    /// A polynomial, in absolute coordinates and about the current cell's site, with the
+    /// face rule.
+    Polynomial {
+        global: Quadratic<D>,
+        local: Quadratic<D>,
+        face_rule: Rule,
+    },
+    /// A field: the cone simplices are kept for one evaluation of the whole diagram.
+    Sampled,
+}
+
+/// The weighted moments of one cell about its site (a [`Quadratic`]), or the cone
+/// simplices that give them (a [`Field`]); buffers reused from cell to cell.
+#[derive(Debug, Clone)]
+pub struct WeightedSums<const D: usize> {
+    kind: Kind<D>,
+    /// With a polynomial: `∫ρ`, `∫ρ y`, `∫ρ |y|²` so far, `y = x − site`.
+    pub moments: Moments<D>,
+    /// With a field: the cell's cone simplices.
+    pub cones: Vec<Cone<D>>,
+}
+
+impl<const D: usize> Default for WeightedSums<D> {
+    fn default() -> Self {
+        Self {
+            kind: Kind::Off,
+            moments: Moments::zero(),
+            cones: Vec::new(),
+        }
+    }
+}
+
+impl<const D: usize> WeightedSums<D> {
+    /// Sums for `density`; off without one. Checks the degree of a field's rule.
+    pub fn new(density: Option<&Density<'_, D>>) -> Result<Self, CoreError> {
+        let kind = match density {
+            None => Kind::Off,
+            Some(Density::Polynomial(q)) => Kind::Polynomial {
+                global: *q,
+                local: *q,
+                // Face averages of degree ≤ 4 on (D − 1)-simplices.
+                face_rule: quadrature::rule(D - 1, POLYNOMIAL_DEGREE).ok_or(
+                    CoreError::InvalidDensity {
+                        reason: format!("no face rule in {D} dimensions"),
+                    },
+                )?,
+            },
+            Some(d @ Density::Sampled { .. }) => {
+                d.rule()?;
+                Kind::Sampled
+            }
+        };
+        Ok(Self {
+            kind,
+            ..Self::default()
+        })
+    }
+
+    /// Whether there is a density.
+    pub fn is_on(&self) -> bool {
+        !matches!(self.kind, Kind::Off)
+    }
+
+    /// Whether the density is a field, sampled at nodes.
+    pub fn is_sampled(&self) -> bool {
+        matches!(self.kind, Kind::Sampled)
+    }
+
+    /// Whether face moments can be weighted ([`WeightedSums::face_moments`]): a polynomial.
+    pub fn weighs_faces(&self) -> bool {
+        matches!(self.kind, Kind::Polynomial { .. })
+    }
+
+    /// The ρ-weighted moments `∫ρ`, `∫ρ y`, `∫ρ y yᵀ` of the face simplex `simplex`
+    /// (relative to the site) of `measure`, exact for a polynomial (degree ≤ 4 on the
+    /// face); the geometric ones without a polynomial.
+    pub fn face_moments(&self, simplex: &[[f64; D]; D], measure: f64) -> FaceMoments<D> {
+        match &self.kind {
+            Kind::Polynomial {
+                local, face_rule, ..
+            } => polynomial_face_moments(local, face_rule, simplex, measure),
+            _ => FaceMoments::simplex(simplex, measure),
+        }
+    }
+
+    /// Begin the cell of the site at `site`: nothing summed yet.
+    pub fn start_cell(&mut self, site: [f64; D]) {
+        if let Kind::Polynomial { global, local, .. } = &mut self.kind {
+            *local = global.about(site);
+        }
+        self.clear();
+    }
+
+    /// Forget what this cell has summed (an empty cell).
+    pub fn clear(&mut self) {
+        self.moments = Moments::zero();
+        self.cones.clear();
+    }
+
+    /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex.
+    pub fn add_piece<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) {
+        match self.kind {
+            Kind::Off => {}
+            Kind::Polynomial {
+                local, face_rule, ..
+            } => {
+                let m = &mut self.moments;
+                piece.for_each_cone(|face, measure| {
+                    let cone = polynomial_cone(&local, &face_rule, face, measure);
+                    m.add_scaled(&cone, sign);
+                });
+            }
+            Kind::Sampled => {
+                let cones = &mut self.cones;
+                piece.for_each_cone(|face, measure| cones.push((*face, sign * measure)));
+            }
+        }
+    }
+}
 
 /// Evaluate `field` once at the nodes of `rule` in every cone simplex of every cell of
 /// `batches` (in batch order, then cell order: fixed by the sites, not by the threads),
