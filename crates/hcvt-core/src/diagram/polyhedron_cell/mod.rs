@@ -392,7 +392,7 @@ impl ConvexCell<3> for PolyhedronCell {
         self.moments_and_faces(|_, _| {})
     }
 
-    /// The tetrahedra of [`PolyhedronCell::fan`]: every face fanned from its first vertex.
+    /// The tetrahedra of the moments (`fan`): every face fanned from its first vertex.
     fn for_each_cone(&self, mut f: impl FnMut(&[[f64; 3]; 3], f64)) {
         self.for_each_ring(|_, ring| {
             let v = |k: usize| self.vertices[ring[k] as usize];
