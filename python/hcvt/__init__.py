@@ -7,12 +7,18 @@ centroidal Voronoi tessellation.
 
 from typing import TYPE_CHECKING, Any
 
-from hcvt import io
+from hcvt import density, io
 from hcvt._core import get_num_threads, set_num_threads
 from hcvt.baselines import MonteCarloResult, global_monte_carlo
+from hcvt.density import Polynomial, SizingField
 from hcvt.diagram import Diagram, voronoi
 from hcvt.domain import Domain, RepairReport
-from hcvt.errors import InvalidDomainError, InvalidMeshError, InvalidSitesError
+from hcvt.errors import (
+    InvalidDensityError,
+    InvalidDomainError,
+    InvalidMeshError,
+    InvalidSitesError,
+)
 from hcvt.export import write_mesh
 from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
 from hcvt.initialisation import LatticeResult, initialise
@@ -25,6 +31,7 @@ __all__ = [
     "Diagram",
     "Domain",
     "HierarchicalResult",
+    "InvalidDensityError",
     "InvalidDomainError",
     "InvalidMeshError",
     "InvalidSitesError",
@@ -32,8 +39,11 @@ __all__ = [
     "RegularResult",
     "RepairReport",
     "MonteCarloResult",
+    "Polynomial",
+    "SizingField",
     "cvt",
     "defects",
+    "density",
     "get_num_threads",
     "global_monte_carlo",
     "hierarchical_cvt",

@@ -6,11 +6,11 @@ and ``python -m mypy.stubtest hcvt._core`` (scripts/test.sh) check the package a
 these and these against the module.
 """
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, final
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     "PolygonDomain",
@@ -68,14 +68,31 @@ class SolidDomain:
     def crossing_triangles(self, max: int = 10) -> tuple[int, list[tuple[int, int]]]: ...
     def generalized_winding_numbers(self, points: _Float2) -> _Float1: ...
 
-# Diagram dicts: volume, centroid, second_moment, G, energy_terms, energy, gradient,
+# A density is either `polynomial=(constant, linear (d,), quadratic (d, d))` or
+# `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`.
+_Coefficients = tuple[float, Sequence[float], Sequence[Sequence[float]]]
+_Function = Callable[[NDArray[np.float64]], ArrayLike]
+
+# Diagram dicts: volume, mass, centroid, second_moment, G, energy_terms, energy, gradient,
 # boundary_measure, neighbor_offsets, neighbor_sites, neighbor_measures; with keep_cells the
 # cells too (see hcvt.diagram).
 def voronoi_2d(
-    domain: PolygonDomain, sites: _Float2, allow_outside: bool = False, keep_cells: bool = False
+    domain: PolygonDomain,
+    sites: _Float2,
+    allow_outside: bool = False,
+    keep_cells: bool = False,
+    polynomial: _Coefficients | None = None,
+    function: _Function | None = None,
+    quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 def voronoi_3d(
-    domain: SolidDomain, sites: _Float2, allow_outside: bool = False, keep_cells: bool = False
+    domain: SolidDomain,
+    sites: _Float2,
+    allow_outside: bool = False,
+    keep_cells: bool = False,
+    polynomial: _Coefficients | None = None,
+    function: _Function | None = None,
+    quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 
 # Conforming mesh dicts (hcvt.polymesh.PolyMesh): points (p, d), face_offsets (f+1,),
@@ -115,6 +132,9 @@ def cvt_2d(
     max_iter: int = 10_000,
     memory: int = 7,
     callback: Callable[[dict[str, Any]], Any] | None = None,
+    polynomial: _Coefficients | None = None,
+    function: _Function | None = None,
+    quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 def cvt_3d(
     domain: SolidDomain,
@@ -125,6 +145,9 @@ def cvt_3d(
     max_iter: int = 10_000,
     memory: int = 7,
     callback: Callable[[dict[str, Any]], Any] | None = None,
+    polynomial: _Coefficients | None = None,
+    function: _Function | None = None,
+    quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 def set_num_threads(n: int) -> None: ...
 def get_num_threads() -> int: ...

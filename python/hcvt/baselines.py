@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike
 from hcvt.diagram import Diagram
 from hcvt.domain import Domain
 from hcvt.initialisation import RandomState, random_state
@@ -65,6 +66,8 @@ def global_monte_carlo(
     tol: float | None = None,
     max_iter: int = 2000,
     progress: bool = False,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> MonteCarloResult:
     """Global Monte-Carlo CVT (Lu et al. 2012, reconstructed; see the module doc).
 
@@ -88,6 +91,11 @@ def global_monte_carlo(
         (see :func:`hcvt.cvt`).
     progress : bool
         Show a rich progress bar over the updates.
+    density : Polynomial, SizingField or callable, optional
+        A density ρ (:mod:`hcvt.density`): every minimisation and energy comparison is
+        ρ-weighted. The perturbation radius stays in units of the mean spacing.
+    quadrature_degree : int, default 4
+        Degree of the simplex rule that samples a callable density.
 
     Returns
     -------
@@ -100,7 +108,15 @@ def global_monte_carlo(
         raise ValueError(f"updates must be a non-negative integer, got {updates!r}")
     generator = np.random.default_rng(random_state(seed, rng))
     start = time.perf_counter()
-    minimise = partial(cvt, method="lbfgs", rule=rule, tol=tol, max_iter=max_iter)
+    minimise = partial(
+        cvt,
+        method="lbfgs",
+        rule=rule,
+        tol=tol,
+        max_iter=max_iter,
+        density=density,
+        quadrature_degree=quadrature_degree,
+    )
     best = minimise(domain, sites)
     n, dim = best.sites.shape
     h = (domain.volume / n) ** (1.0 / dim)

@@ -4,6 +4,7 @@ hcvt run star -n 2000 --plot star.png
 hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
 hcvt run bunny.off -n 50000 --mesh case/ --cells cells.vtu
 hcvt run square -n 1033 --method regular --moves 60 --plot square.png
+hcvt run unit-square -n 5000 --density "1 + 99*x^2" --plot graded.png
 hcvt show result.json --plot cells.png
 hcvt reproduce table4 --runs 10 --out results
 """
@@ -122,6 +123,27 @@ def _load(input_: str, repair: bool):
     default=None,
     help="With --scheduler: most sites per part [default: 200000].",
 )
+@click.option(
+    "--density",
+    "density_spec",
+    default=None,
+    help="Density rho: a polynomial of degree <= 2 such as '1 + 99*x^2 - 3*x*y' (read by "
+    "a parser, never evaluated as Python), or FILE.py:NAME, a vectorised function "
+    "rho(points) in your own Python file (the file is run to import it).",
+)
+@click.option(
+    "--sizing",
+    "sizing_spec",
+    default=None,
+    help="Target spacing h(x) as FILE.py:NAME (rho = h^-(d+2)); instead of --density.",
+)
+@click.option(
+    "--quadrature-degree",
+    type=click.IntRange(1, 5),
+    default=4,
+    show_default=True,
+    help="Degree of the simplex rule that samples a function density.",
+)
 def run(
     input_: str,
     n: int,
@@ -142,6 +164,9 @@ def run(
     plot: str | None,
     scheduler: str | None,
     sites_per_partition: int | None,
+    density_spec: str | None,
+    sizing_spec: str | None,
+    quadrature_degree: int,
 ) -> None:
     """CVT of N sites in INPUT: a built-in shape (square, star, ...) or a polygon/mesh file."""
     import hcvt
@@ -151,6 +176,10 @@ def run(
             f"--scheduler runs the methods {', '.join(PARTITIONED)}, not {method!r}"
         )
     domain = _load(input_, repair)
+    density = _density(density_spec, sizing_spec, domain.dim)
+    weighted: dict[str, Any] = (
+        {} if density is None else {"density": density, "quadrature_degree": quadrature_degree}
+    )
     if domain.repair_report is not None:
         click.echo(str(domain.repair_report))
     optimiser = optimiser or ("newton" if method == "regular" else "lbfgs")
@@ -168,11 +197,14 @@ def run(
             tol=tol,
             max_iter=max_iter,
             method=optimiser,
+            **weighted,
         )
         sites, diagram = result.sites, result.diagram
         iterations = sum(level.iterations for level in result.levels)
         history = result.levels[-1].history
     elif method == "regular":
+        if density is not None:
+            raise click.UsageError("--density/--sizing with --method regular is not offered yet")
         regular = hcvt.regular_cvt(
             domain,
             n,
@@ -186,8 +218,11 @@ def run(
         sites, diagram = regular.sites, regular.diagram
         iterations = regular.relaxation.moves
     else:
-        sites = hcvt.initialise(domain, n, method=init, seed=seed)
+        graded = {"density": density} if density is not None and init != "lattice" else {}
+        sites = hcvt.initialise(domain, n, method=init, seed=seed, **graded)
         if scheduler is not None:
+            if density is not None:
+                raise click.UsageError("--density/--sizing with --scheduler is not offered yet")
             with _client(scheduler) as client:
                 if method == "voronoi":
                     diagram = hcvt.voronoi(
@@ -208,10 +243,10 @@ def run(
                     sites, diagram, iterations = run.sites, run.diagram, run.iterations
                     history = run.history
         elif method == "voronoi":
-            diagram = hcvt.voronoi(domain, sites)
+            diagram = hcvt.voronoi(domain, sites, **weighted)
         elif method == "monte-carlo":
             mc = hcvt.global_monte_carlo(
-                domain, sites, seed=seed, rule=rule, tol=tol, progress=True
+                domain, sites, seed=seed, rule=rule, tol=tol, progress=True, **weighted
             )
             sites, diagram, iterations = mc.sites, mc.diagram, mc.iterations
         else:
@@ -223,6 +258,7 @@ def run(
                 tol=tol,
                 max_iter=max_iter,
                 progress=True,
+                **weighted,
             )
             sites, diagram, iterations = run.sites, run.diagram, run.iterations
             history = run.history
@@ -238,6 +274,7 @@ def run(
         "iterations": iterations,
         "seconds": seconds,
         "seed": seed,
+        "density": None if density is None else repr(density),
     }
     found = hcvt.defects(diagram)
     info.update(found.summary())
@@ -338,6 +375,39 @@ def _client(scheduler: str) -> Iterator[Any]:
     else:
         with Client(scheduler) as client:
             yield client
+
+
+def _density(spec: str | None, sizing: str | None, dim: int) -> Any:
+    """The density of ``--density`` or ``--sizing``, or None."""
+    from hcvt.density import Polynomial, SizingField
+
+    if spec is not None and sizing is not None:
+        raise ValueError("give --density or --sizing, not both")
+    if sizing is not None:
+        return SizingField(_function(sizing))
+    if spec is None:
+        return None
+    if ".py:" in spec:
+        return _function(spec)
+    return Polynomial.parse(spec, dim)
+
+
+def _function(spec: str) -> Any:
+    """The function NAME of ``FILE.py:NAME``, imported from the user's file."""
+    import importlib.util
+
+    path, _, name = spec.rpartition(":")
+    if not path.endswith(".py") or not name:
+        raise ValueError(f"expected FILE.py:NAME, got {spec!r}")
+    module_spec = importlib.util.spec_from_file_location("hcvt_user_density", path)
+    if module_spec is None or module_spec.loader is None or not Path(path).exists():
+        raise FileNotFoundError(f"no Python file {path!r}")
+    module = importlib.util.module_from_spec(module_spec)
+    module_spec.loader.exec_module(module)
+    function = getattr(module, name, None)
+    if not callable(function):
+        raise ValueError(f"{path} has no function {name!r}")
+    return function
 
 
 #: The last iterate's convergence measures, written to the summary (``hcvt.cvt`` docs).

@@ -11,6 +11,7 @@ from scipy import sparse
 
 from hcvt import _core
 from hcvt.cells import polygons, triangulated
+from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.domain import Domain
 from hcvt.errors import InvalidSitesError
 from hcvt.polymesh import PolyMesh
@@ -33,23 +34,31 @@ class Diagram:
         The generators, L (a private C-contiguous copy).
     n : int
         Number of sites.
+    density : Polynomial, SizingField, callable or None
+        The density ρ the weighted quantities carry (:mod:`hcvt.density`); None for ρ = 1.
     volume : ndarray, shape (n,)
-        Cell areas (2D) or volumes (3D), L^d.
+        Cell areas (2D) or volumes (3D), L^d. Geometric, whatever the density.
+    mass : ndarray, shape (n,)
+        ``∫_cell ρ dx``; equal to ``volume`` without a density.
     centroid : ndarray, shape (n, d)
-        Cell centroids, L; the site itself for an empty cell.
+        Cell centroids, ρ-weighted with a density (where a CVT drives the sites), L; the
+        site itself for an empty cell.
     second_moment : ndarray, shape (n,)
-        ``∫ |x - centroid|² dx`` over each cell, L^(d+2).
+        ``∫ |x - c|² dx`` over each cell about its geometric centroid ``c``, L^(d+2).
+        Geometric, whatever the density.
     G : ndarray, shape (n,)
-        Dimensionless second moment of each cell (paper eq. 2); NaN only for the empty
-        cell of a site outside the domain.
+        Dimensionless second moment of each cell (paper eq. 2): the geometric regularity
+        of its shape, whatever the density; NaN only for the empty cell of a site
+        outside the domain.
     mean_G : float
         Average of ``G`` over the non-empty cells (paper eq. 3).
     energy : float
-        CVT energy ``Σ_i ∫_cell_i |x - x_i|² dx`` about the sites, L^(d+2).
+        CVT energy ``Σ_i ∫_cell_i ρ |x - x_i|² dx`` about the sites (ρ = 1 without a
+        density), ρ·L^(d+2).
     energy_terms : ndarray, shape (n,)
-        Each cell's term of ``energy``, L^(d+2).
+        Each cell's term of ``energy``: its ρ-weighted energy, ρ·L^(d+2).
     gradient : ndarray, shape (n, d)
-        ``∂E/∂x_i = 2 m_i (x_i - c_i)``, L^(d+1).
+        ``∂E/∂x_i = 2 m_i (x_i - c_i)`` with ρ-weighted ``m_i`` and ``c_i``, ρ·L^(d+1).
     boundary_measure : ndarray, shape (n,)
         Length (2D) or area (3D) of each cell's part of the domain boundary.
     neighbor_offsets : ndarray of intp, shape (n + 1,)
@@ -72,10 +81,18 @@ class Diagram:
     cells as one conforming mesh, and every cell's geometry.
     """
 
-    def __init__(self, domain: Domain, sites: NDArray[np.float64], arrays: dict[str, Any]):
+    def __init__(
+        self,
+        domain: Domain,
+        sites: NDArray[np.float64],
+        arrays: dict[str, Any],
+        density: DensityLike = None,
+    ):
         self.domain = domain
         self.sites = sites
+        self.density = density
         self.volume: NDArray[np.float64] = arrays["volume"]
+        self.mass: NDArray[np.float64] = arrays.get("mass", self.volume)
         self.centroid: NDArray[np.float64] = arrays["centroid"]
         self.second_moment: NDArray[np.float64] = arrays["second_moment"]
         self.G: NDArray[np.float64] = arrays["G"]
@@ -220,6 +237,8 @@ def voronoi(
     allow_outside: bool = False,
     client: Any = None,
     sites_per_partition: int | None = None,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> Diagram:
     """Clipped Voronoi diagram of ``sites`` inside ``domain``, exact to round-off.
 
@@ -246,6 +265,13 @@ def voronoi(
     sites_per_partition : int, optional
         With ``client``: the most sites one part holds (fixed by the data, not by the
         number of workers).
+    density : Polynomial, SizingField or callable, optional
+        A density ρ > 0 (:mod:`hcvt.density`): ``mass``, ``centroid``, ``energy_terms``,
+        ``energy`` and ``gradient`` are then ρ-weighted, exactly for a polynomial of degree
+        ≤ 2; ``volume``, ``second_moment`` and ``G`` stay geometric. A constant density
+        gives the uniform diagram (``Polynomial(1.0)`` bitwise).
+    quadrature_degree : int, default 4
+        Degree (1 to 5) of the simplex rule that samples a callable density.
 
     Returns
     -------
@@ -257,6 +283,8 @@ def voronoi(
     ------
     ValueError
         Bad shape or dtype, or n = 0.
+    InvalidDensityError
+        The density is not finite and positive where evaluated; the message names the point.
     InvalidSitesError
         Non-finite coordinates, coinciding sites, a site outside the domain (or, with
         ``allow_outside``, too far outside it); the message names the first offending row.
@@ -275,6 +303,8 @@ def voronoi(
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
     if client is not None:
+        if density is not None:
+            raise NotImplementedError("a density with client= is not offered yet")
         from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_voronoi
 
         per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION
@@ -285,9 +315,10 @@ def voronoi(
     compute = getattr(_core, f"voronoi_{domain.dim}d", None)
     if compute is None:
         raise NotImplementedError(f"no diagram for dimension {domain.dim} in this build")
-    arrays = compute(domain._core, points, allow_outside=allow_outside)
+    weighted = core_arguments(density, domain.dim, quadrature_degree)
+    arrays = compute(domain._core, points, allow_outside=allow_outside, **weighted)
     arrays["_allow_outside"] = allow_outside
-    return Diagram(domain, points, arrays)
+    return Diagram(domain, points, arrays, density)
 
 
 def as_sites(sites: ArrayLike, dim: int) -> NDArray[np.float64]:

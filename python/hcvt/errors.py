@@ -20,3 +20,11 @@ class InvalidMeshError(ValueError):
 
     The message names the first offending cell or face.
     """
+
+
+class InvalidDensityError(ValueError):
+    """The density cannot be used (not finite and positive where evaluated, a bad option).
+
+    Non-positive or non-finite values, bad coefficients, a bad quadrature degree. The
+    message names the point (absolute coordinates) and the value found there.
+    """

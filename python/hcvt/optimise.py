@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt import _core
+from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
 from hcvt.domain import Domain
 
@@ -130,6 +131,8 @@ def cvt(
     progress: bool = False,
     client: Any = None,
     sites_per_partition: int | None = None,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> CVTResult:
     """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``.
 
@@ -171,6 +174,15 @@ def cvt(
         the same for any number of workers, not the single-process iterates.
     sites_per_partition : int, optional
         With ``client``: the most sites one part holds.
+    density : Polynomial, SizingField or callable, optional
+        A density ρ > 0 (:mod:`hcvt.density`): the energy becomes ``Σ ∫ ρ |x - x_i|²``,
+        Lloyd moves each site to its ρ-weighted centroid and L-BFGS follows the ρ-weighted
+        gradient; both rules apply unchanged (``h_i`` stays the geometric ``V_i^(1/d)``).
+        Newton's Hessian weighs its face terms by ρ on each face, exactly for a
+        :class:`~hcvt.density.Polynomial`; with a callable Newton is not offered
+        (InvalidDensityError). A callable is called once per diagram, with the GIL.
+    quadrature_degree : int, default 4
+        Degree (1 to 5) of the simplex rule that samples a callable density.
 
     Returns
     -------
@@ -205,6 +217,8 @@ def cvt(
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if client is not None:
+        if density is not None:
+            raise NotImplementedError("a density with client= is not offered yet")
         from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt
 
         return partitioned_cvt(
@@ -226,6 +240,7 @@ def cvt(
     if max_iter < 0 or memory < 1:
         raise ValueError(f"need max_iter >= 0 and memory >= 1, got {max_iter}, {memory}")
     points = as_sites(sites, domain.dim)
+    weighted = core_arguments(density, domain.dim, quadrature_degree)
     run = getattr(_core, f"cvt_{domain.dim}d", None)
     if run is None:
         raise NotImplementedError(f"no CVT for dimension {domain.dim} in this build")
@@ -241,6 +256,7 @@ def cvt(
             max_iter=int(max_iter),
             memory=int(memory),
             callback=observe,
+            **weighted,
         )
     finally:
         if bar is not None:
@@ -249,7 +265,7 @@ def cvt(
     sites_out = out["sites"]
     return CVTResult(
         sites=sites_out,
-        diagram=Diagram(domain, sites_out, out["diagram"]),
+        diagram=Diagram(domain, sites_out, out["diagram"], density),
         history=history,
         rule=rule,
         tol=float(tol),

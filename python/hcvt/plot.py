@@ -63,36 +63,47 @@ def plot_cells(
     """
     if diagram.domain.dim != 2:
         raise ValueError("plot_cells draws 2D diagrams; use a cut view for 3D")
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 7))
     low, high = g_colour_range(diagram.G, 2)
     vmin = low if vmin is None else vmin
     vmax = high if vmax is None else vmax
-    polygons, values = [], []
-    for cell, g in zip(diagram.cells(), diagram.G, strict=True):
+    ax = _draw_cells(diagram, diagram.G, ax, (vmin, vmax), CMAP, "G" if colorbar else None)
+    if show_sites:
+        ax.plot(diagram.sites[:, 0], diagram.sites[:, 1], "k.", markersize=1)
+    suffix = _mark_defects(ax, diagram) if show_defects else ""
+    ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}{suffix}")
+    return ax
+
+
+def _draw_cells(
+    diagram: Diagram,
+    values: ArrayLike,
+    ax: Any,
+    clim: tuple[float, float],
+    cmap: str,
+    label: str | None,
+) -> Any:
+    """The clipped cells of a 2D diagram filled by ``values`` (n,), a colour bar if labelled."""
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 7))
+    polygons, colours = [], []
+    for cell, value in zip(diagram.cells(), np.asarray(values), strict=True):
         for part in shapely.get_parts(cell):
             if part.is_empty or part.geom_type != "Polygon":
                 continue
             polygons.append(np.asarray(part.exterior.coords))
-            values.append(g)
+            colours.append(value)
     collection = PolyCollection(
-        polygons, array=np.asarray(values), cmap=CMAP, edgecolors="k", linewidths=0.2
+        polygons, array=np.asarray(colours), cmap=cmap, edgecolors="k", linewidths=0.2
     )
-    collection.set_clim(vmin, vmax)
+    collection.set_clim(*clim)
     ax.add_collection(collection)
-    if show_sites:
-        ax.plot(diagram.sites[:, 0], diagram.sites[:, 1], "k.", markersize=1)
-    suffix = ""
-    if show_defects:
-        suffix = _mark_defects(ax, diagram)
     lo, hi = diagram.domain.bounds
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
     ax.set_axis_off()
-    if colorbar:
-        plt.colorbar(collection, ax=ax, shrink=0.7, label="G")
-    ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}{suffix}")
+    if label is not None:
+        plt.colorbar(collection, ax=ax, shrink=0.7, label=label)
     return ax
 
 
@@ -285,3 +296,42 @@ def _shared_colorbar(fig: Any, vmin: float, vmax: float, kind: str) -> None:
         return
     mappable = plt.cm.ScalarMappable(cmap=CMAP, norm=matplotlib.colors.Normalize(vmin, vmax))
     fig.colorbar(mappable, ax=fig.axes, shrink=0.6, label="G")
+
+
+def grading_figure(diagram: Diagram, path: Any) -> float:
+    """A graded CVT (DESIGN §8): cells coloured by size (2D), and size against ρ.
+
+    Left (2D only): each cell filled by its size ``V_i^(1/d)``. Right: ``V_i^(1/d)``
+    against ``ρ(c_i)`` on log axes for the cells off the boundary, with the fitted line
+    and Gersho's slope ``-1/(d+2)``. Writes ``path``; returns the fitted slope.
+    """
+    from hcvt.density import grading_slope
+
+    if diagram.density is None:
+        raise ValueError("grading_figure needs a diagram computed with a density")
+    dim = diagram.domain.dim
+    slope, rho, size, interior = grading_slope(diagram)
+    panels = 2 if dim == 2 else 1
+    fig, axes = plt.subplots(1, panels, figsize=(6.5 * panels, 6), layout="constrained")
+    axes = np.atleast_1d(axes)
+    if dim == 2:
+        sizes = diagram.volume**0.5
+        _draw_cells(diagram, sizes, axes[0], (sizes.min(), sizes.max()), "viridis", "V^(1/2)")
+        axes[0].set_title(f"n = {diagram.n}, cells by size")
+    ax = axes[-1]
+    ax.loglog(rho[interior], size[interior], ".", markersize=2, alpha=0.5, label="cells")
+    grid = np.geomspace(rho[interior].min(), rho[interior].max(), 50)
+    fit = np.exp(np.polyfit(np.log(rho[interior]), np.log(size[interior]), 1)[1])
+    ax.loglog(grid, fit * grid**slope, "r-", label=f"fit: slope {slope:.4f}")
+    ax.loglog(
+        grid,
+        fit * grid ** (-1.0 / (dim + 2)) * (grid[0] ** (slope + 1.0 / (dim + 2))),
+        "k--",
+        label=f"Gersho: slope {-1.0 / (dim + 2):.4f}",
+    )
+    ax.set_xlabel("ρ at the cell's centroid")
+    ax.set_ylabel(f"cell size V^(1/{dim})")
+    ax.legend()
+    fig.savefig(path, dpi=150, bbox_inches="tight")
+    plt.close(fig)
+    return slope

@@ -102,6 +102,23 @@ pub enum CoreError {
         /// Actual length.
         got: usize,
     },
+    /// The density cannot be used as given (a bad coefficient, degree or option).
+    #[error("invalid density: {reason}")]
+    InvalidDensity {
+        /// What is wrong.
+        reason: String,
+    },
+    /// The density is zero, negative or not finite at a point where it is evaluated.
+    #[error(
+        "the density is {value} at {point:?}: it must be finite and positive on the domain \
+         (a function is sampled at points of the domain's bounding box)"
+    )]
+    DensityValue {
+        /// Where, in absolute coordinates.
+        point: Vec<f64>,
+        /// The value found there.
+        value: f64,
+    },
 }
 
 impl CoreError {

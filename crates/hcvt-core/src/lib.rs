@@ -6,6 +6,7 @@
 //! |-------------|----------------------------------------------------------------------|
 //! | [`geometry`]| small vector helpers and the per-dimension primitives ([`geometry::Space`]) |
 //! | [`moments`] | closed-form mass, first and second moments of simplices; `G`          |
+//! | [`density`] | a density ρ: polynomials of degree ≤ 2 (exact) and sampled functions; simplex quadrature rules |
 //! | [`domain`]  | the oriented boundary of a 2D polygon or 3D solid, its BVH and winding number |
 //! | [`diagram`] | convex Voronoi cells by kNN + half-space clipping, clipped exactly by the domain |
 //! | [`optimise`]| CVT energy, gradient and Hessian from the diagram; Lloyd, L-BFGS and Newton to the stopping rule |
@@ -23,6 +24,7 @@
 //! cells runs in index order, so the output does not depend on the number of threads.
 #![forbid(unsafe_code)]
 
+pub mod density;
 pub mod diagram;
 pub mod domain;
 pub mod error;

@@ -1,35 +1,48 @@
 //! The clipped Voronoi diagram as numpy arrays.
 
-use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolygonCell, PolyhedronCell};
+use hcvt_core::diagram::{clipped_diagram_weighted, Diagram, Options, PolygonCell, PolyhedronCell};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{rows, to_array2, to_intp, to_intp2};
+use crate::density::{Coefficients, Given};
 use crate::domain::{PolygonDomain, SolidDomain};
-use crate::errors::to_py_err;
 
 /// Clipped diagram of `sites` (n, 2) in `domain`: a dict of arrays, row i = site i
 /// (see `hcvt.voronoi`). With `keep_cells`, also `cell_offsets` (n+1,) and
 /// `cell_vertices` (m, 2): each site's unclipped convex cell, counter-clockwise, absolute.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false))]
+#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false, polynomial=None, function=None, quadrature_degree=4))]
+#[allow(clippy::too_many_arguments)]
 pub fn voronoi_2d<'py>(
     py: Python<'py>,
     domain: &PolygonDomain,
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
     keep_cells: bool,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 2>(&sites, "sites")?;
     let options = Options { allow_outside };
-    let (diagram, cells) = py
+    let given = Given::new(polynomial, function, quadrature_degree)?;
+    let density = given.density::<2>()?;
+    let (diagram, cells, _) = py
         .detach(|| {
             crate::threads::run(|| {
-                clipped_diagram::<2, PolygonCell>(&domain.0, &points, options, keep_cells)
+                clipped_diagram_weighted::<2, PolygonCell>(
+                    &domain.0,
+                    &points,
+                    options,
+                    keep_cells,
+                    None,
+                    density.as_ref(),
+                )
             })
         })
-        .map_err(to_py_err)?;
+        .map_err(|e| given.error(e))?;
     let out = diagram_dict(py, &diagram, &points)?;
     if keep_cells {
         let mut offsets = vec![0usize];
@@ -50,23 +63,36 @@ pub fn voronoi_2d<'py>(
 /// cells of a convex domain, see `clipped_diagram`) as a closed outward triangle mesh: `cell_vertex_offsets` (n+1,), `cell_vertices` (m, 3)
 /// absolute, `cell_face_offsets` (n+1,), `cell_faces` (f, 3) indices local to the cell.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false))]
+#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false, polynomial=None, function=None, quadrature_degree=4))]
+#[allow(clippy::too_many_arguments)]
 pub fn voronoi_3d<'py>(
     py: Python<'py>,
     domain: &SolidDomain,
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
     keep_cells: bool,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 3>(&sites, "sites")?;
     let options = Options { allow_outside };
-    let (diagram, cells) = py
+    let given = Given::new(polynomial, function, quadrature_degree)?;
+    let density = given.density::<3>()?;
+    let (diagram, cells, _) = py
         .detach(|| {
             crate::threads::run(|| {
-                clipped_diagram::<3, PolyhedronCell>(&domain.0, &points, options, keep_cells)
+                clipped_diagram_weighted::<3, PolyhedronCell>(
+                    &domain.0,
+                    &points,
+                    options,
+                    keep_cells,
+                    None,
+                    density.as_ref(),
+                )
             })
         })
-        .map_err(to_py_err)?;
+        .map_err(|e| given.error(e))?;
     let out = diagram_dict(py, &diagram, &points)?;
     if keep_cells {
         let (mut vertex_offsets, mut face_offsets) = (vec![0usize], vec![0usize]);
@@ -98,6 +124,7 @@ pub(crate) fn diagram_dict<'py, const D: usize>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
     out.set_item("volume", PyArray1::from_vec(py, diagram.volumes()))?;
+    out.set_item("mass", PyArray1::from_vec(py, diagram.masses()))?;
     out.set_item("centroid", to_array2(py, &diagram.centroids(sites))?)?;
     out.set_item(
         "second_moment",

@@ -5,6 +5,7 @@ use pyo3::prelude::*;
 
 pyo3::import_exception!(hcvt.errors, InvalidSitesError);
 pyo3::import_exception!(hcvt.errors, InvalidDomainError);
+pyo3::import_exception!(hcvt.errors, InvalidDensityError);
 
 /// No wildcard arm: a new `CoreError` variant does not compile until it is given a class.
 pub fn to_py_err(err: CoreError) -> PyErr {
@@ -22,5 +23,8 @@ pub fn to_py_err(err: CoreError) -> PyErr {
         | CoreError::OpenBoundary { .. }
         | CoreError::NonPositiveVolume { .. }
         | CoreError::EmptyBoundary => InvalidDomainError::new_err(message),
+        CoreError::InvalidDensity { .. } | CoreError::DensityValue { .. } => {
+            InvalidDensityError::new_err(message)
+        }
     }
 }

@@ -2,6 +2,7 @@
 //! nothing else; every algorithm lives in the core, every user-facing check in `hcvt`.
 
 mod arrays;
+mod density;
 mod diagram;
 mod domain;
 mod errors;

@@ -11,22 +11,22 @@ use std::time::Duration;
 use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::{cvt, Method, Outcome, Record, Rule, Settings};
+use hcvt_core::optimise::{cvt_with_density, Method, Outcome, Record, Rule, Settings};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{rows, to_array2};
+use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
 use crate::domain::{PolygonDomain, SolidDomain};
-use crate::errors::to_py_err;
 
 /// CVT of `sites` (n, 2) in `domain` (see `hcvt.cvt`): a dict with `sites`, `diagram` (the
 /// arrays of `voronoi_2d`), `history` (a dict of per-iterate arrays), `stop_reason`.
 /// `callback(record)`, if given, gets a dict per iterate; a true return value stops.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt_2d<'py>(
     py: Python<'py>,
@@ -38,15 +38,19 @@ pub fn cvt_2d<'py>(
     max_iter: usize,
     memory: usize,
     callback: Option<Py<PyAny>>,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let settings = settings(method, rule, tol, max_iter, memory)?;
     let points = rows::<f64, 2>(&sites, "sites")?;
-    run::<2, PolygonCell>(py, &domain.0, points, &settings, callback)
+    let given = Given::new(polynomial, function, quadrature_degree)?;
+    run::<2, PolygonCell>(py, &domain.0, points, &settings, callback, &given)
 }
 
 /// CVT of `sites` (n, 3) in the solid `domain`; as `cvt_2d`.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt_3d<'py>(
     py: Python<'py>,
@@ -58,10 +62,14 @@ pub fn cvt_3d<'py>(
     max_iter: usize,
     memory: usize,
     callback: Option<Py<PyAny>>,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let settings = settings(method, rule, tol, max_iter, memory)?;
     let points = rows::<f64, 3>(&sites, "sites")?;
-    run::<3, PolyhedronCell>(py, &domain.0, points, &settings, callback)
+    let given = Given::new(polynomial, function, quadrature_degree)?;
+    run::<3, PolyhedronCell>(py, &domain.0, points, &settings, callback, &given)
 }
 
 fn settings(
@@ -120,10 +128,13 @@ fn run<'py, const D: usize, C: ConvexCell<D>>(
     sites: Vec<[f64; D]>,
     settings: &Settings,
     callback: Option<Py<PyAny>>,
+    given: &Given,
 ) -> PyResult<Bound<'py, PyDict>>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    let density = given.density::<D>()?;
+    let density = density.as_ref();
     let stop = AtomicBool::new(false);
     let raised: Mutex<Option<PyErr>> = Mutex::new(None);
     let raise = |err: PyErr| {
@@ -151,8 +162,9 @@ where
             let (done, finished) = mpsc::channel();
             let observer = &mut observer;
             let worker = scope.spawn(move || {
-                let outcome =
-                    crate::threads::run(|| cvt::<D, C>(boundary, sites, settings, observer));
+                let outcome = crate::threads::run(|| {
+                    cvt_with_density::<D, C>(boundary, sites, settings, density, observer)
+                });
                 // The receiver lives until the worker is joined; a send cannot fail.
                 let _ = done.send(outcome);
             });
@@ -177,7 +189,7 @@ where
     if let Some(err) = raised.into_inner().ok().flatten() {
         return Err(err);
     }
-    outcome_dict(py, &outcome.map_err(to_py_err)?)
+    outcome_dict(py, &outcome.map_err(|e| given.error(e))?)
 }
 
 /// Call the callback with a dict of the iterate; `true` (a true return value) asks to stop.

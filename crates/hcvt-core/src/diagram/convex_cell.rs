@@ -68,6 +68,17 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// Mass, first and second moments about the site.
     fn moments(&self) -> Moments<D>;
 
+    /// Call `f(simplex, measure)` for every simplex of the cell's cone decomposition from
+    /// the site: the `D` vertices besides the site (relative to it) and the signed measure
+    /// (area in 2D, volume in 3D) that the moments sum. What a density is integrated over
+    /// (`density`).
+    fn for_each_cone(&self, f: impl FnMut(&[[f64; D]; D], f64));
+
+    /// Call `f(face, simplex, measure)` for every `(D − 1)`-simplex of the faces (edges in
+    /// 2D; the fan triangles of [`ConvexCell::for_each_cone`] in 3D), relative to the site,
+    /// with its measure: what a density weighs the Hessian's face terms over.
+    fn for_each_face_simplex(&self, f: impl FnMut(Face, &[[f64; D]; D], f64));
+
     /// Call `f(face, measure)` for every face (length in 2D, area in 3D).
     fn for_each_face(&self, f: impl FnMut(Face, f64));
 

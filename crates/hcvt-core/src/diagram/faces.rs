@@ -8,6 +8,7 @@
 use crate::moments::{FaceMoments, Moments};
 
 use super::convex_cell::{ConvexCell, Face};
+use super::weighted::WeightedSums;
 
 /// A `D × D` matrix, row-major: what a [`FaceIntegrand`] sums per face and per cell.
 pub type Matrix<const D: usize> = [[f64; D]; D];
@@ -56,6 +57,8 @@ pub(super) struct FaceSums<const D: usize> {
     /// With a [`FaceRow`]: the cell's sum of the integrals.
     pub(super) cell_integral: Matrix<D>,
     pub(super) boundary: f64,
+    /// With a density: the cell's ρ-weighted moments (or nodes), over the same pieces.
+    pub(super) weighted: WeightedSums<D>,
 }
 
 impl<const D: usize> Default for FaceSums<D> {
@@ -65,6 +68,7 @@ impl<const D: usize> Default for FaceSums<D> {
             integrals: Vec::new(),
             cell_integral: [[0.0; D]; D],
             boundary: 0.0,
+            weighted: WeightedSums::default(),
         }
     }
 }
@@ -76,17 +80,29 @@ impl<const D: usize> FaceSums<D> {
         self.integrals.clear();
         self.cell_integral = [[0.0; D]; D];
         self.boundary = 0.0;
+        self.weighted.clear();
     }
 
-    /// Add the faces of `piece` with `sign` (and their integrals, for a `row`), and return
-    /// its moments (not signed).
+    /// Add the faces of `piece` with `sign` (and their integrals, for a `row`; its weighted
+    /// moments, with a density), and return its moments (not signed).
     pub(super) fn integrate<C: ConvexCell<D>>(
         &mut self,
         piece: &C,
         sign: f64,
         row: Option<FaceRow<'_, D>>,
     ) -> Moments<D> {
+        self.weighted.add_piece(piece, sign);
         match row {
+            Some(row) if self.weighted.weighs_faces() => {
+                // The integrand sees ρ-weighted face moments; the neighbours their measure.
+                let weighted = std::mem::take(&mut self.weighted);
+                piece.for_each_face_simplex(|f, simplex, measure| {
+                    let m = weighted.face_moments(simplex, measure);
+                    self.add_weighted_moments(f, sign, measure, &m, row);
+                });
+                self.weighted = weighted;
+                piece.moments()
+            }
             Some(row) => piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m, row)),
             None => piece.moments_and_faces(|f, m| {
                 self.add(f, sign * m);
@@ -119,7 +135,20 @@ impl<const D: usize> FaceSums<D> {
     /// Add a face with its moments `m` about the site, and its terms of the integrand of
     /// `row`.
     fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>, row: FaceRow<'_, D>) {
-        let Some(at) = self.add(face, sign * m.measure) else {
+        self.add_weighted_moments(face, sign, m.measure, m, row);
+    }
+
+    /// [`FaceSums::add_moments`] with the face's `measure` apart from its moments `m`
+    /// (weighted by a density, DESIGN §8).
+    fn add_weighted_moments(
+        &mut self,
+        face: Face,
+        sign: f64,
+        measure: f64,
+        m: &FaceMoments<D>,
+        row: FaceRow<'_, D>,
+    ) {
+        let Some(at) = self.add(face, sign * measure) else {
             return;
         };
         let j = self.neighbors[at].0 as usize;

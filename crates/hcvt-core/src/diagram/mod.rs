@@ -20,6 +20,7 @@
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | [`convex_cell`], [`polygon_cell`], [`polyhedron_cell`] | the convex cell in 2D and 3D |
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
+//! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
 //! | [`mesh`] | cell geometry and the conforming mesh of all cells ([`mesh::PolyMesh`], DESIGN §9) |
 
 mod clip;
@@ -31,9 +32,11 @@ mod order;
 pub mod polygon_cell;
 pub mod polyhedron_cell;
 mod voronoi_cell;
+mod weighted;
 
 use rayon::prelude::*;
 
+use crate::density::{Cone, Density};
 use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{add, norm2, scale, Euclid, Space};
@@ -69,6 +72,9 @@ pub struct Diagram<const D: usize> {
     pub neighbor_sites: Vec<u32>,
     /// Measure of each shared face inside the domain (length in 2D, area in 3D).
     pub neighbor_measures: Vec<f64>,
+    /// With a density ρ (DESIGN §8): each cell's `∫ρ`, `∫ρ (x − x_i)`, `∫ρ |x − x_i|²`
+    /// about its site; empty without one (then the weighted moments are `moments`).
+    pub weighted: Vec<Moments<D>>,
 }
 
 /// Cells visited one after the other, measured into flat arrays in visiting order: one
@@ -87,6 +93,12 @@ struct Batch<const D: usize, C> {
     cells: Vec<C>,
     /// Each cell's reach ([`PartCells::reach2`]).
     reach2: Vec<f64>,
+    /// With a polynomial density: each cell's weighted moments.
+    weighted: Vec<Moments<D>>,
+    /// With a sampled density: each cell's number of cone simplices, and the simplices,
+    /// cell after cell.
+    cone_counts: Vec<u32>,
+    cones: Vec<Cone<D>>,
     /// The error of the batch's first offending site in index order.
     error: Option<(usize, CoreError)>,
 }
@@ -108,6 +120,9 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             face_integrals: Vec::with_capacity(faces),
             cells: Vec::new(),
             reach2: Vec::with_capacity(cells),
+            weighted: Vec::new(),
+            cone_counts: Vec::new(),
+            cones: Vec::new(),
             error: None,
         }
     }
@@ -123,6 +138,13 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
         if integrals {
             self.cell_integrals.push(faces.cell_integral);
             self.face_integrals.extend_from_slice(&faces.integrals);
+        }
+        let w = &faces.weighted;
+        if w.is_sampled() {
+            self.cone_counts.push(w.cones.len() as u32);
+            self.cones.extend_from_slice(&w.cones);
+        } else if w.is_on() {
+            self.weighted.push(w.moments);
         }
     }
 
@@ -167,6 +189,48 @@ pub fn clipped_diagram_with<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    clipped_diagram_weighted(boundary, sites, options, keep_cells, integrand, None)
+}
+
+/// [`clipped_diagram_with`], and with a `density` each cell's ρ-weighted moments in
+/// [`Diagram::weighted`], integrated over the same signed pieces (DESIGN §8). A sampled
+/// density is asked for its values once, at every node of the diagram.
+///
+/// Errors also name a point where the density is not finite and positive: a site or a
+/// boundary vertex (a polynomial; also a cell whose mean density is not positive), or a
+/// node (a field).
+pub fn clipped_diagram_weighted<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    options: Options,
+    keep_cells: bool,
+    integrand: Option<&dyn FaceIntegrand<D>>,
+    density: Option<&Density<'_, D>>,
+) -> Result<(Diagram<D>, Vec<C>, FaceIntegrals<D>), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    if let Some(Density::Polynomial(q)) = density {
+        weighted::check_polynomial(q, boundary, sites)?;
+        if q.is_constant() {
+            // ρ = c weighs every moment by c: exact, and for ρ = 1 the uniform diagram
+            // bit for bit, at the uniform cost.
+            let (mut diagram, cells, mut sums) =
+                clipped_diagram_weighted(boundary, sites, options, keep_cells, integrand, None)?;
+            for m in sums.cells.iter_mut().chain(sums.faces.iter_mut()) {
+                *m = m.map(|row| scale(row, q.constant));
+            }
+            diagram.weighted = (diagram.moments.iter())
+                .map(|m| Moments {
+                    mass: q.constant * m.mass,
+                    first: scale(m.first, q.constant),
+                    second: q.constant * m.second,
+                })
+                .collect();
+            return Ok((diagram, cells, sums));
+        }
+    }
+    let weighted_sums = weighted::WeightedSums::new(density)?;
     let windings = checked_windings(boundary, sites, options)?;
     let index = SiteIndex::new(sites)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
@@ -178,14 +242,16 @@ where
         windings: &windings,
         total_sites: sites.len(),
     };
-    let batches = visit.batches::<C>(boundary, &order, integrand, keep_cells);
-    let batches = without_errors(batches)?;
-    Ok(assemble(
-        sites.len(),
-        batches,
-        integrand.is_some(),
-        keep_cells,
-    ))
+    let batches = visit.batches::<C>(boundary, &order, integrand, keep_cells, &weighted_sums);
+    let mut batches = without_errors(batches)?;
+    if let Some(d @ Density::Sampled { field, .. }) = density {
+        weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
+    }
+    let out = assemble(sites.len(), batches, integrand.is_some(), keep_cells);
+    if density.is_some() {
+        weighted::check_masses(&out.0, sites)?;
+    }
+    Ok(out)
 }
 
 /// Check `sites` against `boundary` (finite, inside unless allowed, not too far outside)
@@ -263,12 +329,17 @@ where
         visit: &[u32],
         integrand: Option<&dyn FaceIntegrand<D>>,
         keep_cells: bool,
+        weighted: &weighted::WeightedSums<D>,
     ) -> Vec<Batch<D, C>> {
         let convex = boundary.is_convex();
         visit
             .par_chunks(BATCH)
             .map_init(
-                || (CellScratch::default(), MeasureScratch::default()),
+                || {
+                    let mut measuring = MeasureScratch::default();
+                    measuring.faces.weighted = weighted.clone();
+                    (CellScratch::default(), measuring)
+                },
                 |(scratch, measuring), chunk| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
                     for &i in chunk {
@@ -291,6 +362,7 @@ where
                             }
                         };
                         let row = integrand.map(|integrand| FaceRow { integrand, site: i });
+                        measuring.faces.weighted.start_cell(self.sites[i]);
                         let moments = if inside {
                             measure(cell, row, &mut measuring.faces)
                         } else {
@@ -410,7 +482,13 @@ where
         windings: &windings,
         total_sites: total_sites.max(sites.len()),
     };
-    let batches = without_errors(visit.batches::<C>(boundary, own, None, false))?;
+    let batches = without_errors(visit.batches::<C>(
+        boundary,
+        own,
+        None,
+        false,
+        &weighted::WeightedSums::default(),
+    ))?;
     let rows = own.len();
     let mut reach2 = Vec::with_capacity(rows);
     let mut diagram = Diagram {
@@ -465,6 +543,10 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
         sums.cells = vec![[[0.0; D]; D]; n];
         sums.faces = vec![[[0.0; D]; D]; faces];
     }
+    let weighted = batches.iter().any(|b| !b.weighted.is_empty());
+    if weighted {
+        diagram.weighted = vec![Moments::zero(); n];
+    }
     let mut cells: Vec<Option<C>> = Vec::new();
     if keep_cells {
         cells.resize_with(n, || None);
@@ -474,6 +556,9 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
         for (k, &i) in b.sites.iter().enumerate() {
             let i = i as usize;
             diagram.moments[i] = b.moments[k];
+            if weighted {
+                diagram.weighted[i] = b.weighted[k];
+            }
             diagram.boundary_measure[i] = b.boundary_measure[k];
             let from = diagram.neighbor_offsets[i];
             let count = b.face_counts[k] as usize;
@@ -518,9 +603,25 @@ impl<const D: usize> Diagram<D> {
         self.moments.iter().map(|m| m.mass).collect()
     }
 
-    /// Cell centroids in absolute coordinates, `L`; the site itself for an empty cell.
+    /// The moments that the CVT weighs (DESIGN §8): the ρ-weighted ones with a density,
+    /// else the geometric ones.
+    pub fn mass_moments(&self) -> &[Moments<D>] {
+        if self.weighted.is_empty() {
+            &self.moments
+        } else {
+            &self.weighted
+        }
+    }
+
+    /// Cell masses `∫ρ` (the volumes without a density), `ρ·L^d`.
+    pub fn masses(&self) -> Vec<f64> {
+        self.mass_moments().iter().map(|m| m.mass).collect()
+    }
+
+    /// Cell centroids in absolute coordinates, `L`, ρ-weighted with a density (where the
+    /// CVT drives the sites); the site itself for an empty cell.
     pub fn centroids(&self, sites: &[[f64; D]]) -> Vec<[f64; D]> {
-        self.moments
+        self.mass_moments()
             .iter()
             .zip(sites)
             .map(|(m, &s)| m.centroid().map_or(s, |c| add(s, c)))
@@ -541,19 +642,24 @@ impl<const D: usize> Diagram<D> {
             .collect()
     }
 
-    /// Each cell's energy term `∫ |x - x_i|²` about its site, `L^(d+2)`.
+    /// Each cell's energy term `∫ ρ |x - x_i|²` about its site (ρ = 1 without a density),
+    /// `ρ·L^(d+2)`.
     pub fn energy_terms(&self) -> Vec<f64> {
-        self.moments.iter().map(|m| m.second).collect()
+        self.mass_moments().iter().map(|m| m.second).collect()
     }
 
-    /// CVT energy `E = Σ_i ∫ |x - x_i|²`, summed in index order.
+    /// CVT energy `E = Σ_i ∫ ρ |x - x_i|²`, summed in index order.
     pub fn energy(&self) -> f64 {
-        self.moments.iter().map(|m| m.second).sum()
+        self.mass_moments().iter().map(|m| m.second).sum()
     }
 
-    /// Energy gradient `∂E/∂x_i = 2 m_i (x_i - c_i) = -2 ∫(x - x_i)` (DESIGN §4), `L^(d+1)`.
+    /// Energy gradient `∂E/∂x_i = 2 m_i (x_i - c_i) = -2 ∫ρ (x - x_i)` (DESIGN §4, §8),
+    /// `ρ·L^(d+1)`.
     pub fn gradient(&self) -> Vec<[f64; D]> {
-        self.moments.iter().map(|m| scale(m.first, -2.0)).collect()
+        self.mass_moments()
+            .iter()
+            .map(|m| scale(m.first, -2.0))
+            .collect()
     }
 }
 

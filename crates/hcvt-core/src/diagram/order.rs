@@ -56,11 +56,15 @@ impl<const D: usize> Diagram<D> {
             neighbor_offsets: vec![0; n + 1],
             neighbor_sites: vec![0; self.neighbor_sites.len()],
             neighbor_measures: vec![0.0; self.neighbor_measures.len()],
+            weighted: vec![Moments::zero(); self.weighted.len()],
         };
         let mut faces = vec![0; self.neighbor_sites.len()];
         for (k, &i) in order.iter().enumerate() {
             let i = i as usize;
             out.moments[i] = self.moments[k];
+            if let Some(&w) = self.weighted.get(k) {
+                out.weighted[i] = w;
+            }
             out.boundary_measure[i] = self.boundary_measure[k];
             out.neighbor_offsets[i + 1] = self.neighbor_offsets[k + 1] - self.neighbor_offsets[k];
         }

@@ -212,6 +212,24 @@ impl ConvexCell<2> for PolygonCell {
         m
     }
 
+    fn for_each_cone(&self, mut f: impl FnMut(&[[f64; 2]; 2], f64)) {
+        let n = self.vertices.len();
+        for i in 0..n {
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            let (a, b) = (self.vertices[i], self.vertices[j]);
+            f(&[a, b], 0.5 * (a[0] * b[1] - a[1] * b[0]));
+        }
+    }
+
+    fn for_each_face_simplex(&self, mut f: impl FnMut(Face, &[[f64; 2]; 2], f64)) {
+        let n = self.vertices.len();
+        for i in 0..n {
+            let j = if i + 1 == n { 0 } else { i + 1 };
+            let (a, b) = (self.vertices[i], self.vertices[j]);
+            f(self.faces[i], &[a, b], norm2(sub(b, a)).sqrt());
+        }
+    }
+
     fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
         let n = self.vertices.len();
         for i in 0..n {

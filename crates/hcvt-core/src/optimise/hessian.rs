@@ -65,7 +65,7 @@ impl<const D: usize> Hessian<D> {
     /// `H_ii = 2 m_i I − Σ_j (2/d_ij) ∫_{F_ij} y yᵀ`, and the face terms as they are.
     pub fn new(diagram: &Diagram<D>, terms: FaceIntegrals<D>) -> Self {
         let diagonal = diagram
-            .moments
+            .mass_moments()
             .iter()
             .zip(&terms.cells)
             .map(|(m, face_second)| {

@@ -142,13 +142,13 @@ pub fn moved<const D: usize>(x: &[[f64; D]], t: f64, p: &[[f64; D]]) -> Vec<[f64
     out
 }
 
-/// The preconditioner `1/(2 m_i)` of site `i`: the inverse of the energy's Hessian without
-/// its neighbour terms. A cell of zero mass is reseeded before we get here; the floor only
-/// keeps it finite.
+/// The preconditioner `1/(2 m_i)` of site `i` (`m_i = ∫ρ` with a density): the inverse of
+/// the energy's Hessian without its neighbour terms. A cell of zero mass is reseeded before
+/// we get here; the floor only keeps it finite.
 pub fn mass_preconditioner<const D: usize>(point: &Point<D>) -> Vec<f64> {
     point
         .diagram
-        .moments
+        .mass_moments()
         .iter()
         .map(|m| 0.5 / m.mass.max(f64::MIN_POSITIVE))
         .collect()

@@ -19,7 +19,7 @@ where
 {
     let mut moves: Vec<[f64; D]> = point
         .diagram
-        .moments
+        .mass_moments()
         .iter()
         .map(|m| m.centroid().unwrap_or([0.0; D]))
         .collect();
@@ -76,7 +76,7 @@ where
     (0..point.sites.len())
         .into_par_iter()
         .map(|i| {
-            let Some(shift) = diagram.moments[i].centroid() else {
+            let Some(shift) = diagram.mass_moments()[i].centroid() else {
                 return false;
             };
             let site = point.sites[i];

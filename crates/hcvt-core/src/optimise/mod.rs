@@ -44,8 +44,9 @@ pub mod stopping;
 use std::ops::ControlFlow;
 use std::time::Instant;
 
+use crate::density::Density;
 use crate::diagram::{
-    clipped_diagram, clipped_diagram_with, morton_order, ConvexCell, Diagram, FaceIntegrand,
+    clipped_diagram, clipped_diagram_weighted, morton_order, ConvexCell, Diagram, FaceIntegrand,
     Options,
 };
 use crate::domain::{Boundary, WindingNumber};
@@ -254,10 +255,32 @@ pub fn evaluate_with<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    evaluate_weighted::<D, C>(boundary, sites, hessian, None)
+}
+
+/// [`evaluate_with`] under a `density` ρ (DESIGN §8): energy and gradient from the
+/// ρ-weighted moments, and the Hessian with `2 m_i` the ρ-weighted mass and its face terms
+/// weighted by ρ on each face (exact for a polynomial; a sampled field has no Hessian,
+/// [`cvt_with_density`] refuses Newton with one).
+pub fn evaluate_weighted<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+    hessian: bool,
+    density: Option<&Density<'_, D>>,
+) -> Result<Point<D>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
     let terms = HessianTerms { sites: &sites };
     let integrand = hessian.then_some(&terms as &dyn FaceIntegrand<D>);
-    let (diagram, _, sums) =
-        clipped_diagram_with::<D, C>(boundary, &sites, Options::default(), false, integrand)?;
+    let (diagram, _, sums) = clipped_diagram_weighted::<D, C>(
+        boundary,
+        &sites,
+        Options::default(),
+        false,
+        integrand,
+        density,
+    )?;
     Ok(Point {
         energy: diagram.energy(),
         gradient: diagram.gradient(),
@@ -290,7 +313,9 @@ fn mean_g<const D: usize>(diagram: &Diagram<D>) -> f64 {
 pub type Observer<'a, const D: usize> = dyn FnMut(&Record, &[[f64; D]]) -> ControlFlow<()> + 'a;
 
 /// Counts diagram computations and tells how far the run has come.
-struct Tracker<const D: usize> {
+struct Tracker<'a, const D: usize> {
+    /// The density the energy is weighted by, if any.
+    density: Option<&'a Density<'a, D>>,
     /// Mean spacing `h`, `L`.
     h: f64,
     start: Instant,
@@ -300,7 +325,7 @@ struct Tracker<const D: usize> {
     history: Vec<Record>,
 }
 
-impl<const D: usize> Tracker<D> {
+impl<const D: usize> Tracker<'_, D> {
     fn evaluate<C: ConvexCell<D>>(
         &mut self,
         boundary: &Boundary<D>,
@@ -310,7 +335,7 @@ impl<const D: usize> Tracker<D> {
         Euclid: Space<D> + WindingNumber<D>,
     {
         self.evaluations += 1;
-        evaluate_with::<D, C>(boundary, sites, self.hessian)
+        evaluate_weighted::<D, C>(boundary, sites, self.hessian, self.density)
     }
 
     /// Record `point` in the history; also returns which sites are pinned
@@ -362,6 +387,32 @@ pub fn cvt<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    cvt_with_density::<D, C>(boundary, sites, settings, None, observer)
+}
+
+/// [`cvt`] of the energy `Σ_i ∫ ρ |x − x_i|²` under a `density` ρ (DESIGN §8): Lloyd
+/// moves each site to its ρ-weighted centroid, L-BFGS follows the ρ-weighted gradient
+/// `2 m_i (x_i − c_i)`, and both stopping rules apply unchanged (the gap's `V_i` stays
+/// geometric). Newton's Hessian weighs its face terms by ρ on each face, exactly for a
+/// polynomial; with a sampled field Newton is refused (its face terms would need the field
+/// on every face too).
+pub fn cvt_with_density<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+    settings: &Settings,
+    density: Option<&Density<'_, D>>,
+    observer: &mut Observer<'_, D>,
+) -> Result<Outcome<D>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    if matches!(density, Some(Density::Sampled { .. })) && settings.method == Method::Newton {
+        return Err(CoreError::InvalidDensity {
+            reason: "Newton needs the Hessian, which is weighted exactly only by a polynomial \
+                     density: use method 'lbfgs' or 'lloyd' with a function"
+                .into(),
+        });
+    }
     let order = morton_order(&sites);
     let along_curve: Vec<[f64; D]> = order.iter().map(|&i| sites[i as usize]).collect();
     let mut caller_order = vec![[0.0; D]; sites.len()];
@@ -371,7 +422,7 @@ where
         }
         observer(record, &caller_order)
     };
-    match cvt_in_order::<D, C>(boundary, along_curve, settings, &mut observe) {
+    match cvt_in_order::<D, C>(boundary, along_curve, settings, density, &mut observe) {
         Ok(out) => {
             let mut sites = vec![[0.0; D]; out.sites.len()];
             for (&i, &x) in order.iter().zip(&out.sites) {
@@ -399,12 +450,14 @@ fn cvt_in_order<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
     settings: &Settings,
+    density: Option<&Density<'_, D>>,
     observer: &mut Observer<'_, D>,
 ) -> Result<Outcome<D>, CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let mut tracker = Tracker {
+        density,
         h: mean_spacing(boundary, sites.len()),
         start: Instant::now(),
         evaluations: 0,
@@ -473,7 +526,7 @@ fn iterate<const D: usize, C: ConvexCell<D>>(
     solver: &mut Solver<D>,
     measures: &Measures,
     pinned: &[bool],
-    tracker: &mut Tracker<D>,
+    tracker: &mut Tracker<'_, D>,
 ) -> Result<(Point<D>, Step), CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,

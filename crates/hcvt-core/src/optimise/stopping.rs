@@ -88,18 +88,18 @@ impl Measures {
     /// (an empty cell has no centroid; it is reseeded before the next step).
     pub fn of<const D: usize>(point: &Point<D>, pinned: &[bool]) -> Self {
         let (mut sum_r2, mut max_r, mut counted, mut g2) = (0.0, 0.0_f64, 0usize, 0.0);
-        for ((m, &g), &p) in point
-            .diagram
-            .moments
-            .iter()
+        let diagram = &point.diagram;
+        for (((m, w), &g), &p) in (diagram.moments.iter())
+            .zip(diagram.mass_moments())
             .zip(&point.gradient)
             .zip(pinned)
         {
-            if p || m.mass <= 0.0 {
+            if p || m.mass <= 0.0 || w.mass <= 0.0 {
                 continue;
             }
-            // |x − c| = |m1| / m with m1 the first moment about the site.
-            let r = norm2(m.first).sqrt() / m.mass / m.mass.powf(1.0 / D as f64);
+            // |x − c| = |m1| / m with m1 the (ρ-weighted) first moment about the site, over
+            // the geometric size V^(1/d) of the cell.
+            let r = norm2(w.first).sqrt() / w.mass / m.mass.powf(1.0 / D as f64);
             sum_r2 += r * r;
             max_r = max_r.max(r);
             counted += 1;

@@ -392,6 +392,34 @@ impl ConvexCell<3> for PolyhedronCell {
         self.moments_and_faces(|_, _| {})
     }
 
+    /// The tetrahedra of the moments (`fan`): every face fanned from its first vertex.
+    fn for_each_cone(&self, mut f: impl FnMut(&[[f64; 3]; 3], f64)) {
+        self.for_each_ring(|_, ring| {
+            let v = |k: usize| self.vertices[ring[k] as usize];
+            let v0 = v(0);
+            for k in 2..ring.len() {
+                let (a, b) = (v(k - 1), v(k));
+                let det = dot(v0, cross(sub(a, v0), sub(b, v0)));
+                f(&[v0, a, b], det / 6.0);
+            }
+        });
+    }
+
+    fn for_each_face_simplex(&self, mut f: impl FnMut(Face, &[[f64; 3]; 3], f64)) {
+        self.for_each_ring(|face, ring| {
+            let v = |k: usize| self.vertices[ring[k] as usize];
+            let v0 = v(0);
+            for k in 2..ring.len() {
+                let (a, b) = (v(k - 1), v(k));
+                f(
+                    face,
+                    &[v0, a, b],
+                    0.5 * norm2(cross(sub(a, v0), sub(b, v0))).sqrt(),
+                );
+            }
+        });
+    }
+
     fn for_each_face(&self, mut f: impl FnMut(Face, f64)) {
         self.for_each_ring(|face, ring| f(face, self.fan(ring).1));
     }

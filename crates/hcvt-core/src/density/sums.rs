@@ -1,0 +1,164 @@
+//! One cell's ρ-weighted moments, summed over its signed pieces as the diagram measures
+//! them (DESIGN §3, §8).
+//!
+//! **A polynomial** is integrated over each cone simplex `S = (site, v_1 … v_d)` through
+//! its face `F = (v_1 … v_d)`: for `f` homogeneous of degree `k` in `y = x − site`,
+//! `∫_S f = d |S| / (d + k) · avg_F f` (the cone from the origin over a planar face scales
+//! `F` by `t ∈ [0, 1]`, and `∫_0^1 t^(d−1+k) dt = 1/(d+k)`). `ρ = c + b·y + yᵀAy` about the
+//! site splits into homogeneous parts, so each moment is a face average of a polynomial of
+//! degree ≤ 4: a rule on the `(d−1)`-simplex of degree 4 or more (3 Gauss points on a
+//! segment, Dunavant's 6 on a triangle) is exact, with fewer points than a degree-4 rule
+//! on `S` itself (6 or 14).
+//!
+//! **A field** cannot be split so: each cone simplex gets the volume rule asked for. The
+//! diagram keeps each cell's simplices (not the nodes, several per simplex), makes the
+//! nodes ([`cone_node`]) when it evaluates the field, and sums them ([`sum_sampled`]).
+
+use crate::geometry::{dot, norm2};
+use crate::moments::{FaceMoments, Moments};
+
+use super::quadrature::Rule;
+use super::Quadratic;
+
+/// A cone simplex of a cell: its `D` vertices besides the site (relative to the site),
+/// and its signed measure times the sign of its piece.
+pub type Cone<const D: usize> = ([[f64; D]; D], f64);
+
+/// The moments of `ρ = local` (about the site) over the cone simplex from the site over
+/// `face`, of signed measure `measure`, by the face averages of the module docs.
+#[inline]
+pub fn polynomial_cone<const D: usize>(
+    local: &Quadratic<D>,
+    face_rule: &Rule,
+    face: &[[f64; D]; D],
+    measure: f64,
+) -> Moments<D> {
+    let d = D as f64;
+    let c = local.constant;
+    // Σ_q w_q of each homogeneous part, already divided by d + k.
+    let (mut mass, mut first, mut second) = (0.0, [0.0; D], 0.0);
+    for (lambda, w) in face_rule.nodes() {
+        let y = on_face(face, lambda);
+        let linear = dot(local.linear, y);
+        let quadratic = dot(std::array::from_fn(|r| dot(local.quadratic[r], y)), y);
+        mass += w * (linear / (d + 1.0) + quadratic / (d + 2.0));
+        let f = w * (c / (d + 1.0) + linear / (d + 2.0) + quadratic / (d + 3.0));
+        for (sum, &yk) in first.iter_mut().zip(&y) {
+            *sum += f * yk;
+        }
+        second += w * norm2(y) * (c / (d + 2.0) + linear / (d + 3.0) + quadratic / (d + 4.0));
+    }
+    let scale = d * measure;
+    Moments {
+        mass: c * measure + scale * mass,
+        first: first.map(|x| scale * x),
+        second: scale * second,
+    }
+}
+
+/// The ρ-weighted moments `∫ρ`, `∫ρ y`, `∫ρ y yᵀ` of the face simplex `simplex`
+/// (relative to the site) of `measure`, for `ρ = local` about the site: exact with a
+/// face rule of degree ≥ 4.
+pub fn polynomial_face_moments<const D: usize>(
+    local: &Quadratic<D>,
+    face_rule: &Rule,
+    simplex: &[[f64; D]; D],
+    measure: f64,
+) -> FaceMoments<D> {
+    let mut m = FaceMoments::zero();
+    for (lambda, w) in face_rule.nodes() {
+        let y = on_face(simplex, lambda);
+        let f = w * measure * local.value(y);
+        m.measure += f;
+        for r in 0..D {
+            m.first[r] += f * y[r];
+            for c in 0..D {
+                m.second[r][c] += f * y[r] * y[c];
+            }
+        }
+    }
+    m
+}
+
+/// The point of `face` (the `D` vertices) with barycentric coordinates `lambda` on its
+/// vertices `1..D` (vertex 0 takes the rest).
+#[inline]
+fn on_face<const D: usize>(face: &[[f64; D]; D], lambda: &[f64]) -> [f64; D] {
+    let rest = 1.0 - lambda.iter().sum::<f64>();
+    std::array::from_fn(|k| {
+        rest * face[0][k] + (1..D).map(|v| lambda[v - 1] * face[v][k]).sum::<f64>()
+    })
+}
+
+/// The node of barycentric coordinates `lambda` (on vertices `1..=D`; vertex 0, the
+/// site, is the origin) of the cone simplex over `face`.
+#[inline]
+pub fn cone_node<const D: usize>(face: &[[f64; D]; D], lambda: &[f64]) -> [f64; D] {
+    std::array::from_fn(|k| (0..D).map(|v| lambda[v] * face[v][k]).sum())
+}
+
+/// The weighted moments of a cell about its site from its `cones`, the volume `rule`
+/// and the field's `values` at their nodes (cone after cone, node after node), summed in
+/// that order.
+pub fn sum_sampled<const D: usize>(cones: &[Cone<D>], rule: &Rule, values: &[f64]) -> Moments<D> {
+    let mut m = Moments::zero();
+    let mut value = values.iter();
+    for (face, measure) in cones {
+        for ((lambda, w), &rho) in rule.nodes().zip(&mut value) {
+            let y = cone_node(face, lambda);
+            let f = measure * w * rho;
+            m.mass += f;
+            for (sum, &yk) in m.first.iter_mut().zip(&y) {
+                *sum += f * yk;
+            }
+            m.second += f * norm2(y);
+        }
+    }
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::density::quadrature::{self, TETRA_5, TRIANGLE_4};
+
+    /// The face-average form of a polynomial over a cone equals the volume rule of
+    /// degree ≥ 4 applied to the cone simplex itself.
+    #[test]
+    fn face_averages_equal_the_volume_rule() {
+        let q2 = Quadratic::new(1.3, [0.4, -0.7], [[0.9, 0.2], [0.2, -0.3]]).unwrap();
+        let face2 = [[0.3, -0.2], [0.5, 0.6]];
+        let measure2 = 0.5 * (face2[0][0] * face2[1][1] - face2[0][1] * face2[1][0]);
+        let by_face = polynomial_cone(&q2, &quadrature::SEGMENT_5, &face2, measure2);
+        let by_volume = sum_sampled(
+            &[(face2, measure2)],
+            &TRIANGLE_4,
+            &TRIANGLE_4
+                .nodes()
+                .map(|(l, _)| q2.value(cone_node(&face2, l)))
+                .collect::<Vec<_>>(),
+        );
+        close(&by_face, &by_volume);
+        let q3 = Quadratic::new(
+            0.8,
+            [0.1, 0.5, -0.2],
+            [[0.7, 0.1, 0.0], [0.1, 0.4, -0.2], [0.0, -0.2, 1.1]],
+        )
+        .unwrap();
+        let face3 = [[0.4, 0.1, -0.2], [-0.1, 0.5, 0.3], [0.2, -0.3, 0.6]];
+        let det = crate::moments::tetra_moments(face3[0], face3[1], face3[2]).mass;
+        let by_face = polynomial_cone(&q3, &TRIANGLE_4, &face3, det);
+        let values: Vec<f64> = (TETRA_5.nodes())
+            .map(|(l, _)| q3.value(cone_node(&face3, l)))
+            .collect();
+        close(&by_face, &sum_sampled(&[(face3, det)], &TETRA_5, &values));
+    }
+
+    fn close<const D: usize>(a: &Moments<D>, b: &Moments<D>) {
+        assert!((a.mass - b.mass).abs() < 1e-15, "{a:?} {b:?}");
+        assert!((a.second - b.second).abs() < 1e-15, "{a:?} {b:?}");
+        for k in 0..D {
+            assert!((a.first[k] - b.first[k]).abs() < 1e-15, "{a:?} {b:?}");
+        }
+    }
+}

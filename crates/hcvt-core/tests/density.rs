@@ -1,0 +1,137 @@
+//! A density ρ in the optimiser (DESIGN §8): the ρ-weighted gradient and Hessian against
+//! central differences, in a non-convex polygon with a hole and in a dented cube; a field
+//! that happens to be the polynomial gives the polynomial's moments.
+
+mod common;
+use common::{dented_cube, interior_sites, polygon};
+
+use hcvt_core::density::{Density, Field, Quadratic};
+use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
+use hcvt_core::domain::{Boundary, WindingNumber};
+use hcvt_core::geometry::{Euclid, Space};
+use hcvt_core::optimise::evaluate_weighted;
+use hcvt_core::CoreError;
+
+fn rho_2d() -> Quadratic<2> {
+    Quadratic::new(2.0, [0.3, -0.2], [[0.4, 0.1], [0.1, 0.6]]).unwrap()
+}
+
+fn rho_3d() -> Quadratic<3> {
+    let a = [[0.5, 0.1, -0.1], [0.1, 0.3, 0.05], [-0.1, 0.05, 0.7]];
+    Quadratic::new(1.5, [0.2, -0.1, 0.3], a).unwrap()
+}
+
+/// Relative errors of central differences of the weighted energy against the gradient
+/// (every third site) and of the gradient along a direction against the Hessian product.
+fn errors<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: Vec<[f64; D]>,
+    rho: Quadratic<D>,
+) -> (f64, f64)
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let density = Density::Polynomial(rho);
+    let eval = |s: Vec<[f64; D]>, hessian: bool| {
+        evaluate_weighted::<D, C>(boundary, s, hessian, Some(&density)).unwrap()
+    };
+    let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
+    let point = eval(sites.clone(), true);
+    let step = 1e-6 * h;
+    let (mut err2, mut norm2) = (0.0, 0.0);
+    for i in (0..sites.len()).step_by(3) {
+        for k in 0..D {
+            let energy_at = |delta: f64| {
+                let mut moved = sites.clone();
+                moved[i][k] += delta;
+                eval(moved, false).energy
+            };
+            let fd = (energy_at(step) - energy_at(-step)) / (2.0 * step);
+            err2 += (fd - point.gradient[i][k]).powi(2);
+            norm2 += point.gradient[i][k].powi(2);
+        }
+    }
+    let gradient_error = (err2 / norm2).sqrt();
+    let v: Vec<[f64; D]> = (sites.iter())
+        .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
+        .collect();
+    let gradient_at = |t: f64| {
+        let moved = (sites.iter().zip(&v))
+            .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
+            .collect();
+        eval(moved, false).gradient
+    };
+    let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
+    let exact = point.hessian_product(&v).unwrap();
+    let (mut err2, mut norm2) = (0.0, 0.0);
+    for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
+        for k in 0..D {
+            err2 += ((p[k] - m[k]) / 2.0 - e[k]).powi(2);
+            norm2 += e[k].powi(2);
+        }
+    }
+    (gradient_error, (err2 / norm2).sqrt())
+}
+
+#[test]
+fn weighted_gradient_and_hessian_match_central_differences() {
+    let l = polygon(&[
+        &[[0., 0.], [4., 0.], [4., 2.], [2., 2.], [2., 4.], [0., 4.]],
+        &[[0.5, 0.5], [0.5, 1.0], [1.0, 1.0], [1.0, 0.5]],
+    ]);
+    let (g, h) = errors::<2, PolygonCell>(&l, interior_sites(&l, 60, 1), rho_2d());
+    assert!(g < 1e-6 && h < 1e-6, "2D: gradient {g:e}, Hessian {h:e}");
+    let dented = dented_cube();
+    let (g, h) = errors::<3, PolyhedronCell>(&dented, interior_sites(&dented, 60, 2), rho_3d());
+    assert!(g < 1e-6 && h < 1e-6, "3D: gradient {g:e}, Hessian {h:e}");
+    // A constant ρ = c weighs the Hessian by c too (the uniform path, scaled).
+    let c = Quadratic::constant(2.5);
+    let (g, h) = errors::<2, PolygonCell>(&l, interior_sites(&l, 30, 3), c);
+    assert!(
+        g < 1e-6 && h < 1e-6,
+        "constant: gradient {g:e}, Hessian {h:e}"
+    );
+}
+
+/// The polynomial as a field.
+struct Sampled(Quadratic<3>);
+
+impl Field<3> for Sampled {
+    fn values(&self, points: Vec<[f64; 3]>) -> Result<Vec<f64>, CoreError> {
+        Ok(points.iter().map(|&x| self.0.value(x)).collect())
+    }
+}
+
+#[test]
+fn a_field_sampled_by_a_rule_of_degree_4_equals_the_polynomial() {
+    let dented = dented_cube();
+    let sites = interior_sites(&dented, 80, 4);
+    let rho = rho_3d();
+    let field = Sampled(rho);
+    let exact = Density::Polynomial(rho);
+    let sampled = Density::Sampled {
+        field: &field,
+        degree: 4,
+    };
+    let a = evaluate_weighted::<3, PolyhedronCell>(&dented, sites.clone(), false, Some(&exact))
+        .unwrap();
+    let b = evaluate_weighted::<3, PolyhedronCell>(&dented, sites, false, Some(&sampled)).unwrap();
+    for (x, y) in a.diagram.weighted.iter().zip(&b.diagram.weighted) {
+        assert!((x.mass - y.mass).abs() <= 1e-12 * x.mass, "{x:?} {y:?}");
+        assert!(
+            (x.second - y.second).abs() <= 1e-12 * x.second,
+            "{x:?} {y:?}"
+        );
+    }
+    assert!((a.energy - b.energy).abs() <= 1e-12 * a.energy);
+    let too_high = Density::Sampled {
+        field: &field,
+        degree: 6,
+    };
+    let err =
+        evaluate_weighted::<3, PolyhedronCell>(&dented, vec![[0.5; 3]], false, Some(&too_high));
+    assert!(
+        matches!(err, Err(CoreError::InvalidDensity { .. })),
+        "{err:?}"
+    );
+}
