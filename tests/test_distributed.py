@@ -238,7 +238,7 @@ def test_cells_are_written_per_part_without_a_gather(client, holes, tmp_path):
     expected = hcvt.voronoi(domain, sites)
     parted = partitioned_voronoi(domain, sites, client, sites_per_partition=1000)
     paths = parted.write(tmp_path)
-    assert len(paths) == parted.parts * (2 + 10)  # rows, sites, 10 per-cell arrays
+    assert len(paths) == parted.parts * (2 + 11)  # rows, sites, 11 per-cell arrays (mass too)
     volume = np.full(len(sites), np.nan)
     for p in range(parted.parts):
         rows = np.load(tmp_path / f"part{p:05d}.rows.npy")
