@@ -220,48 +220,33 @@ def run(
     else:
         graded = {"density": density} if density is not None and init != "lattice" else {}
         sites = hcvt.initialise(domain, n, method=init, seed=seed, **graded)
-        if scheduler is not None:
-            if density is not None:
-                raise click.UsageError("--density/--sizing with --scheduler is not offered yet")
-            with _client(scheduler) as client:
-                if method == "voronoi":
-                    diagram = hcvt.voronoi(
-                        domain, sites, client=client, sites_per_partition=sites_per_partition
-                    )
-                else:
-                    run = hcvt.cvt(
-                        domain,
-                        sites,
-                        method=method,
-                        rule=rule,
-                        tol=tol,
-                        max_iter=max_iter,
-                        progress=True,
-                        client=client,
-                        sites_per_partition=sites_per_partition,
-                    )
-                    sites, diagram, iterations = run.sites, run.diagram, run.iterations
-                    history = run.history
-        elif method == "voronoi":
-            diagram = hcvt.voronoi(domain, sites, **weighted)
-        elif method == "monte-carlo":
-            mc = hcvt.global_monte_carlo(
-                domain, sites, seed=seed, rule=rule, tol=tol, progress=True, **weighted
-            )
-            sites, diagram, iterations = mc.sites, mc.diagram, mc.iterations
-        else:
-            run = hcvt.cvt(
-                domain,
-                sites,
-                method=method,
-                rule=rule,
-                tol=tol,
-                max_iter=max_iter,
-                progress=True,
-                **weighted,
-            )
-            sites, diagram, iterations = run.sites, run.diagram, run.iterations
-            history = run.history
+        if scheduler is not None and density is not None:
+            raise click.UsageError("--density/--sizing with --scheduler is not offered yet")
+        partitioned = _client(scheduler) if scheduler is not None else contextlib.nullcontext()
+        with partitioned as client:
+            extra = weighted
+            if client is not None:
+                extra = {"client": client, "sites_per_partition": sites_per_partition}
+            if method == "voronoi":
+                diagram = hcvt.voronoi(domain, sites, **extra)
+            elif method == "monte-carlo":
+                mc = hcvt.global_monte_carlo(
+                    domain, sites, seed=seed, rule=rule, tol=tol, progress=True, **weighted
+                )
+                sites, diagram, iterations = mc.sites, mc.diagram, mc.iterations
+            else:
+                run = hcvt.cvt(
+                    domain,
+                    sites,
+                    method=method,
+                    rule=rule,
+                    tol=tol,
+                    max_iter=max_iter,
+                    progress=True,
+                    **extra,
+                )
+                sites, diagram, iterations = run.sites, run.diagram, run.iterations
+                history = run.history
     seconds = time.perf_counter() - start
     info = {
         "input": input_,
