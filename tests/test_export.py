@@ -1,10 +1,9 @@
 """Meshes out (issue 19): PolyMesh geometry, OpenFOAM cases checked by OpenFOAM's own
 checkMesh, VTU read back by VTK (pyvista) and meshio, GeoJSON, mesh quality.
 
-Until ``Diagram.mesh()`` exists, the meshes come from tests/meshes.py: grids and the
+The exporters are also checked on meshes from tests/meshes.py: grids and the
 Voronoi diagram of CVT sites in the convex real ``sphere.ply`` and ``unit_square.geojson``,
-built with scipy. The tests at the end take ``Diagram.mesh()`` of the bunny and the cheese
-and run as soon as it exists.
+built with scipy; the tests at the end take ``Diagram.mesh()`` of the bunny and the cheese.
 """
 
 from __future__ import annotations
@@ -32,7 +31,6 @@ from helpers import DATA, random_inside
 pv = pytest.importorskip("pyvista")
 meshio = pytest.importorskip("meshio")
 
-HAS_MESH = hasattr(hcvt.Diagram, "mesh")
 NUM = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"  # a number as checkMesh prints it
 
 
@@ -423,18 +421,13 @@ def test_write_mesh_picks_the_format(square_cvt, tmp_path):
     assert abs(sum(c.area for c in cells) - 1) < 1e-14
     with pytest.raises(ValueError, match="meshes are written as"):
         hcvt.write_mesh(mesh, tmp_path / "x.stl")
-    if not HAS_MESH:
-        with pytest.raises(NotImplementedError, match="no conforming mesh"):
-            hcvt.write_mesh(diagram, tmp_path / "d.vtu")
 
 
-def test_to_pyvista(sphere_cvt, monkeypatch):
+def test_to_pyvista(sphere_cvt):
     diagram, mesh = sphere_cvt
     grid = to_pyvista(mesh)
     assert grid.n_cells == mesh.n_cells
     assert np.array_equal(np.sort(grid.cell_data["site"]), np.arange(mesh.n_cells))
-    if not HAS_MESH:  # the scipy mesh stands in for the core's (see the CLI test)
-        monkeypatch.setattr(hcvt.Diagram, "mesh", lambda self: mesh, raising=False)
     grid = diagram.to_pyvista()
     assert np.array_equal(grid.cell_data["G"], diagram.G[grid.cell_data["site"]])
     surfaces = grid.separate_cells().extract_surface(algorithm="dataset_surface")
@@ -442,16 +435,8 @@ def test_to_pyvista(sphere_cvt, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["3d/sphere.ply", "2d/unit_square.geojson"])
-def test_cli_writes_case_and_cells_through_diagram_mesh(name, tmp_path, monkeypatch):
-    # The whole path `hcvt run --mesh --cells` on real data, with the scipy mesh of the
-    # convex domain standing in for Diagram.mesh() until the core provides it.
-    if not HAS_MESH:
-        monkeypatch.setattr(
-            hcvt.Diagram,
-            "mesh",
-            lambda self: meshes.convex_voronoi(self.domain, self.sites),
-            raising=False,
-        )
+def test_cli_writes_case_and_cells_through_diagram_mesh(name, tmp_path):
+    # The whole path `hcvt run --mesh --cells` on real data.
     case, vtu, summary = tmp_path / "case", tmp_path / "cells.vtu", tmp_path / "s.json"
     args = ["run", str(DATA / name), "-n", "80", "--method", "lbfgs", "--tol", "1e-3"]
     args += ["--mesh", str(case), "--cells", str(vtu), "--summary", str(summary)]
@@ -471,18 +456,6 @@ def test_cli_writes_case_and_cells_through_diagram_mesh(name, tmp_path, monkeypa
     assert sorted(grid.cell_data.keys()) == ["G", "site", "volume"]
 
 
-def test_cli_refuses_mesh_without_diagram_mesh(tmp_path):
-    if HAS_MESH:
-        pytest.skip("Diagram.mesh() exists: the CLI writes the case (tests below)")
-    result = CliRunner().invoke(main, ["run", "square", "-n", "20", "--mesh", str(tmp_path / "c")])
-    assert result.exit_code == 2 and "--mesh needs Diagram.mesh()" in result.output
-
-
-# ----------------------------------------------------------------------------- after merge
-needs_mesh = pytest.mark.skipif(not HAS_MESH, reason="Diagram.mesh() is not in this build yet")
-
-
-@needs_mesh
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "n", "iterations"),

@@ -295,20 +295,15 @@ def run(
 def _write_meshes(diagram: Any, cells_path: str | None, mesh_dir: str | None) -> dict[str, Any]:
     """Write --cells and --mesh, print the mesh's quality; the summary's entries.
 
-    With ``Diagram.mesh()`` (the conforming mesh), --cells .vtu and .geojson and the
-    OpenFOAM case of --mesh are written from it; otherwise --cells goes through
-    :func:`hcvt.io.write_cells` (GeoJSON, VTU of each cell's triangulated boundary, PLY)
-    and --mesh is refused. PLY always goes through ``write_cells``.
+    --cells .vtu and .geojson and the OpenFOAM case of --mesh are written from the
+    conforming mesh (``Diagram.mesh()``); a .ply goes through :func:`hcvt.io.write_cells`.
     """
     import hcvt
     from hcvt.export import mesh_quality
 
     info: dict[str, Any] = {}
-    has_mesh = hasattr(diagram, "mesh")
-    if mesh_dir and not has_mesh:
-        raise NotImplementedError("--mesh needs Diagram.mesh(), missing from this build")
     suffix = Path(cells_path).suffix.lower() if cells_path else ""
-    cells_from_mesh = has_mesh and suffix in (".vtu", ".geojson", ".json")
+    cells_from_mesh = suffix in (".vtu", ".geojson", ".json")
     if cells_path and not cells_from_mesh:
         hcvt.io.write_cells(diagram, cells_path)
         info["cells"] = str(cells_path)
