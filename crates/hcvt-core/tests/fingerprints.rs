@@ -158,15 +158,15 @@ fn check(found: &[(String, u64)], recorded: &[(&str, u64)]) {
 const DIAGRAMS: &[(&str, u64)] = &[
     ("square seed 0", 0x8e940470000f20a4),
     ("square seed 1", 0xd164c3fa013a8ac4),
-    ("square seed 2", 0xd20dc46ce6135bd9),
+    ("square seed 2", 0x070a72f0186c4ae3),
     ("star seed 0", 0x33f5b7c2b78c1352),
-    ("star seed 1", 0xa7f5ed511aa9c084),
+    ("star seed 1", 0x69b4ff353c439528),
     ("star seed 2", 0x30a9d3d7062fdc30),
-    ("holes seed 0", 0xf504be5672f9f200),
+    ("holes seed 0", 0xc5ca9f80f171c0c6),
     ("holes seed 1", 0x05a3bf2e57aafab4),
     ("holes seed 2", 0x68db7d851fc4900c),
     ("square lattice", 0xc45e7bc8a818dc94),
-    ("square outside", 0x6149b7cd420fc02f),
+    ("square outside", 0xcd81f25f164892ee),
     ("ball seed 0", 0x7745a15f750d6bb6),
     ("ball seed 1", 0x317c6a4cbe038da5),
     ("fandisk seed 0", 0xab3e96a715fad13a),
@@ -225,7 +225,7 @@ fn diagrams_match_their_recorded_hashes() {
 const RUNS: &[(&str, u64)] = &[
     (
         "Lloyd Gap star: 60 iterations, 61 diagrams",
-        0xa26bcc000d21c3aa,
+        0xaf001891c19a5bd7,
     ),
     (
         "Lloyd Gap holes: 60 iterations, 61 diagrams",
@@ -237,7 +237,7 @@ const RUNS: &[(&str, u64)] = &[
     ),
     (
         "Lbfgs Gap star: 162 iterations, 174 diagrams",
-        0xf5ea29129e2f145e,
+        0x5a6a46e48504f895,
     ),
     (
         "Lbfgs Gap holes: 113 iterations, 120 diagrams",
@@ -249,7 +249,7 @@ const RUNS: &[(&str, u64)] = &[
     ),
     (
         "Newton Gap star: 43 iterations, 58 diagrams",
-        0x04a657ee7ee1a002,
+        0x44757dedadf3697d,
     ),
     (
         "Newton Gap holes: 44 iterations, 58 diagrams",
@@ -261,7 +261,7 @@ const RUNS: &[(&str, u64)] = &[
     ),
     (
         "Lbfgs Paper star: 165 iterations, 177 diagrams",
-        0x561e1cea75d0360f,
+        0x8d768ad1f86e31cb,
     ),
     (
         "Lbfgs Paper holes: 129 iterations, 137 diagrams",
