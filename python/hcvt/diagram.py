@@ -303,13 +303,17 @@ def voronoi(
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
     if client is not None:
-        if density is not None:
-            raise NotImplementedError("a density with client= is not offered yet")
         from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_voronoi
 
         per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION
         return partitioned_voronoi(
-            domain, sites, client, sites_per_partition=per_part, allow_outside=allow_outside
+            domain,
+            sites,
+            client,
+            sites_per_partition=per_part,
+            allow_outside=allow_outside,
+            density=density,
+            quadrature_degree=quadrature_degree,
         ).gather()
     points = as_sites(sites, domain.dim)
     compute = getattr(_core, f"voronoi_{domain.dim}d", None)

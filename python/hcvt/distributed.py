@@ -58,6 +58,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt import partition as pt
+from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
 from hcvt.domain import Domain
 from hcvt.errors import InvalidDomainError, InvalidSitesError
@@ -89,7 +90,15 @@ class Rounds:
 class _Cluster:
     """The client, the domain on every worker, and the parts' diagram rounds."""
 
-    def __init__(self, client: Any, domain: Domain, n: int, allow_outside: bool = False):
+    def __init__(
+        self,
+        client: Any,
+        domain: Domain,
+        n: int,
+        allow_outside: bool = False,
+        density: DensityLike = None,
+        quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    ):
         self.client = client
         self.domain = domain
         self.n = n
@@ -97,9 +106,19 @@ class _Cluster:
         # The domain goes to every worker once; tasks receive the worker's copy.
         self.domain_future = client.scatter(domain, broadcast=True, hash=False)
         self.h = (domain.volume / n) ** (1.0 / domain.dim)
+        self.density = density
+        # The density too (a callable may hold a large table); checked here first, so a
+        # bad density or degree is named before any task runs.
+        self.weighting: dict[str, Any] = {}
+        if density is not None:
+            core_arguments(density, domain.dim, quadrature_degree)
+            self.weighting = {
+                "density": client.scatter(density, broadcast=True, hash=False),
+                "quadrature_degree": quadrature_degree,
+            }
 
-    def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
-        return self.client.submit(fn, *args, pure=False)
+    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        return self.client.submit(fn, *args, pure=False, **kwargs)
 
     def gather(self, futures: list[Any]) -> list[Any]:
         return list(self.client.gather(futures))
@@ -151,6 +170,7 @@ class _Cluster:
                     previous.get(p),
                     self.allow_outside,
                     *slices,
+                    **self.weighting,
                 )
             status = self.gather([self.submit(_status, cells[p]) for p in pending])
             rounds.cells.append(sum(s.computed for s in status))
@@ -264,7 +284,7 @@ class PartitionedDiagram:
             neighbor_measures=neighbor_measures,
             _allow_outside=self._cluster.allow_outside,
         )
-        return Diagram(domain, sites, arrays)
+        return Diagram(domain, sites, arrays, self._cluster.density)
 
     def write(self, directory: str | Path) -> list[str]:
         """Write every part's rows, sites and per-cell arrays as .npy files, on its worker.
@@ -293,16 +313,19 @@ def partitioned_voronoi(
     *,
     sites_per_partition: int = DEFAULT_SITES_PER_PARTITION,
     allow_outside: bool = False,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> PartitionedDiagram:
     """The clipped diagram of ``sites`` with its cells computed and kept on dask workers.
 
     Parameters as :func:`hcvt.voronoi`; ``client`` a ``dask.distributed.Client``;
     ``sites_per_partition`` the most sites one part holds (module docs). Per-cell arrays
     are bitwise those of :func:`hcvt.voronoi` for any number of workers and any
-    ``sites_per_partition``.
+    ``sites_per_partition``, with a ``density`` too (a callable must give each point's
+    value whatever the other points of the call: module docs).
     """
     points = as_sites(sites, domain.dim)
-    cluster = _Cluster(client, domain, len(points), allow_outside)
+    cluster = _Cluster(client, domain, len(points), allow_outside, density, quadrature_degree)
     split = pt.kd_split(points, sites_per_partition)
     parts = client.scatter(pt.make_parts(points, split), hash=False)
     cells, rounds = cluster.cells(parts)
@@ -571,6 +594,8 @@ def partitioned_cvt(
     progress: bool = False,
     sites_per_partition: int = DEFAULT_SITES_PER_PARTITION,
     checkpoint: str | bool = True,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> PartitionedCVTResult:
     """A CVT whose sites and per-site state stay on dask workers (module docs).
 
@@ -578,7 +603,9 @@ def partitioned_cvt(
     ``client`` a ``dask.distributed.Client``; ``sites_per_partition`` the most sites one
     part holds; ``checkpoint`` a directory every worker can write (or True for a temporary
     one on this machine, False for none) where each iteration's parts are written, from
-    which an iteration is restarted after a worker loss.
+    which an iteration is restarted after a worker loss; ``density`` and
+    ``quadrature_degree`` as for :func:`hcvt.cvt` (the preconditioner is then ``1/(2 m_i)``
+    with ``m_i = ∫ρ``, as the core's).
     """
     from hcvt.optimise import _chain, _Progress, default_tol
 
@@ -593,7 +620,7 @@ def partitioned_cvt(
     if max_iter < 0 or memory < 1:
         raise ValueError(f"need max_iter >= 0 and memory >= 1, got {max_iter}, {memory}")
     points = as_sites(sites, domain.dim)
-    cluster = _Cluster(client, domain, len(points))
+    cluster = _Cluster(client, domain, len(points), False, density, quadrature_degree)
     split = pt.kd_split(points, sites_per_partition)
     temporary = None
     if checkpoint is True:

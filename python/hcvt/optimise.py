@@ -217,8 +217,6 @@ def cvt(
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if client is not None:
-        if density is not None:
-            raise NotImplementedError("a density with client= is not offered yet")
         from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt
 
         return partitioned_cvt(
@@ -233,6 +231,8 @@ def cvt(
             callback=callback,
             progress=progress,
             sites_per_partition=sites_per_partition or DEFAULT_SITES_PER_PARTITION,
+            density=density,
+            quadrature_degree=quadrature_degree,
         ).gather()
     tol = default_tol(rule) if tol is None else tol
     if not tol >= 0:
