@@ -103,18 +103,28 @@ class _Cluster:
         self.domain = domain
         self.n = n
         self.allow_outside = allow_outside
-        # The domain goes to every worker once; tasks receive the worker's copy.
-        self.domain_future = client.scatter(domain, broadcast=True, hash=False)
         self.h = (domain.volume / n) ** (1.0 / domain.dim)
         self.density = density
-        # The density too (a callable may hold a large table); checked here first, so a
-        # bad density or degree is named before any task runs.
-        self.weighting: dict[str, Any] = {}
+        self.quadrature_degree = quadrature_degree
         if density is not None:
+            # Checked here, so a bad density or degree is named before any task runs.
             core_arguments(density, domain.dim, quadrature_degree)
+        self.scatter()
+
+    def scatter(self) -> None:
+        """Send the domain and the density (a callable may hold a large table) to every worker.
+
+        Tasks receive the worker's copy. Sent again after a worker loss: dask's active
+        memory manager drops the replicas of scattered data that no task is waiting for,
+        so between tasks the only copy may have been on the worker lost, and scattered
+        data cannot be recomputed.
+        """
+        self.domain_future = self.client.scatter(self.domain, broadcast=True, hash=False)
+        self.weighting: dict[str, Any] = {}
+        if self.density is not None:
             self.weighting = {
-                "density": client.scatter(density, broadcast=True, hash=False),
-                "quadrature_degree": quadrature_degree,
+                "density": self.client.scatter(self.density, broadcast=True, hash=False),
+                "quadrature_degree": self.quadrature_degree,
             }
 
     def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
@@ -658,19 +668,24 @@ def partitioned_cvt(
                 )
             while True:
                 try:
-                    it = run.step(it)
+                    done = run.step(it)
+                    # Saved within the try: a worker lost while writing loses the step's
+                    # parts, and the step is redone from the previous files.
+                    done_saved = run.save(done, len(history))
                     break
                 except (InvalidSitesError, InvalidDomainError, ValueError, KeyboardInterrupt):
                     raise
                 except Exception:
                     # A worker died or its data was lost: redo the iteration from the files
-                    # of the last one completed (every step is deterministic).
+                    # of the last one completed (every step is deterministic), with the
+                    # domain sent again (its only copy may have gone with the worker).
                     if saved is None or restarts >= MAX_RESTARTS:
                         raise
                     restarts += 1
+                    cluster.scatter()
                     it = _Iterate(run.load(saved), it.record, None, None, it.rounds)
+            it, saved = done, done_saved
             history.append(it.record)
-            saved = run.save(it, len(history) - 1)
         if it.point_cells is None or it.point_parts is None:
             cells, rounds = cluster.cells(it.parts)
             diagram = PartitionedDiagram(cluster, it.parts, cells, rounds)
