@@ -36,10 +36,22 @@ client sees only scalars and the small Gram matrices of the pairs:
 - After every step, sites that crossed a plane of the split move, with their per-row
   state, to the part that now holds their position (the split stays fixed).
 
+**Density.** With ``density=`` (DESIGN §8) each part's cells carry their ρ-weighted
+moments, integrated by the core exactly as in one process (``clipped_cells_weighted``), so
+``mass``, the weighted ``centroid``, ``energy_terms`` and the gradient are bitwise the
+single-process ones; Lloyd moves to the weighted centroids and L-BFGS is preconditioned by
+``1/(2 m_i)`` with ``m_i = ∫ρ``, as the core. The density is scattered to every worker
+with the domain. A callable is called once per part and round, on the quadrature nodes of
+the cells computed there: bitwise equality then needs each value to depend on its point
+alone (numpy's elementwise functions do; a function that normalises by its whole input
+does not). The halo is unchanged: a cell's reach is where its geometry read sites.
+
 **Worker loss.** With ``checkpoint`` (a temporary directory by default), every part is
 written at the end of every iteration; if a task fails because a worker died (or its data
-was lost), the iteration is run again from the files of the last completed one. The
-result is the same, since every step is deterministic.
+was lost), the domain and density are scattered again (the only copy may have gone with
+the worker, since dask's active memory manager drops unused replicas) and the iteration is
+run again from the files of the last completed one. The result is the same, since every
+step is deterministic.
 """
 
 from __future__ import annotations
