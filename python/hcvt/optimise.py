@@ -171,7 +171,8 @@ def cvt(
         ``sites_per_partition`` sites (default 200,000) that stay there between iterations
         (:mod:`hcvt.distributed`; ``"lbfgs"`` and ``"lloyd"`` only; the callback's info
         then has no ``sites``). Lloyd is bitwise the single-process run; L-BFGS is bitwise
-        the same for any number of workers, not the single-process iterates.
+        the same for any number of workers, not the single-process iterates; with a
+        ``density`` too.
     sites_per_partition : int, optional
         With ``client``: the most sites one part holds.
     density : Polynomial, SizingField or callable, optional
