@@ -254,6 +254,51 @@ def test_a_worker_killed_during_a_cvt_does_not_change_the_result(holes, tmp_path
     assert np.array_equal(a.history["energy"], b.history["energy"])
 
 
+def test_restarts_resume_after_a_loss_and_never_after_bad_input():
+    """What a run does with a failed attempt (``_Restarts``, no cluster needed): after a
+    loss, the domain is scattered again and the attempt resumes from the saved state, at
+    most MAX_RESTARTS times in a run; bad input and a run without a checkpoint raise at
+    once."""
+    from hcvt.distributed import MAX_RESTARTS, _Restarts
+
+    class Cluster:
+        scattered = 0
+
+        def scatter(self):
+            self.scattered += 1
+
+    def failing(error):
+        def attempt(state):
+            raise error
+
+        return attempt
+
+    cluster = Cluster()
+    restarts = _Restarts(cluster)  # type: ignore[arg-type]
+    seen = []
+
+    def flaky(state):
+        seen.append(state)
+        if len(seen) < 3:
+            raise OSError("worker lost")
+        return state * 10
+
+    assert restarts.run(flaky, 1, lambda s: s + 1) == 30
+    assert seen == [1, 2, 3] and restarts.count == 2 and cluster.scattered == 2
+    with pytest.raises(OSError):
+        restarts.run(failing(OSError("lost again")), 0, lambda s: s)
+    assert restarts.count == MAX_RESTARTS  # the budget is the whole run's
+    for error in (hcvt.InvalidSitesError("bad"), hcvt.InvalidDensityError("bad")):
+        fresh = _Restarts(cluster)  # type: ignore[arg-type]
+        with pytest.raises(type(error)):
+            fresh.run(failing(error), 0, lambda s: s)
+        assert fresh.count == 0
+    no_checkpoint = _Restarts(cluster)  # type: ignore[arg-type]
+    with pytest.raises(OSError):
+        no_checkpoint.run(failing(OSError("lost")), 0, lambda s: None)
+    assert no_checkpoint.count == 0
+
+
 def test_cells_are_written_per_part_without_a_gather(client, holes, tmp_path):
     domain, sites = holes
     expected = hcvt.voronoi(domain, sites)

@@ -260,8 +260,8 @@ def voronoi(
         ``sites_per_partition`` sites (default 200,000), each with a halo of nearby sites
         grown until every cell is certified (:mod:`hcvt.distributed`); the cells are then
         gathered here. Per-cell arrays are bitwise those of one process (with a
-        ``density`` too); ``energy`` is summed per part and agrees to round-off. For cells that stay on the workers use
-        :func:`hcvt.distributed.partitioned_voronoi`.
+        ``density`` too); ``energy`` is summed per part and agrees to round-off. For cells
+        that stay on the workers use :func:`hcvt.distributed.partitioned_voronoi`.
     sites_per_partition : int, optional
         With ``client``: the most sites one part holds (fixed by the data, not by the
         number of workers).

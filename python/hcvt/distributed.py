@@ -64,7 +64,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -89,6 +89,9 @@ ARMIJO = 1e-4
 LINE_TRIALS = 20
 #: Times an iteration is restarted from its checkpoint after a worker loss.
 MAX_RESTARTS = 3
+
+_S = TypeVar("_S")
+_T = TypeVar("_T")
 
 
 @dataclass
@@ -517,6 +520,36 @@ class _Cvt:
         return [self.cluster.submit(pt.load_part, path) for path in paths]
 
 
+class _Restarts:
+    """Attempts run again after a worker loss, at most :data:`MAX_RESTARTS` in a run."""
+
+    def __init__(self, cluster: _Cluster):
+        self.cluster = cluster
+        self.count = 0
+
+    def run(self, attempt: Callable[[_S], _T], state: _S, resume: Callable[[_S], _S | None]) -> _T:
+        """``attempt(state)``; after a failure but bad input, again from ``resume(state)``.
+
+        A worker died or its data was lost: every step is deterministic, so running it
+        again from what ``resume`` restores (the files of the last iteration completed)
+        gives the same result. The domain and density are scattered again first (their
+        only copy may have gone with the worker). ``resume`` returning None (no
+        checkpoint) re-raises.
+        """
+        while True:
+            try:
+                return attempt(state)
+            except (InvalidSitesError, InvalidDomainError, ValueError, KeyboardInterrupt):
+                raise
+            except Exception:
+                resumed = None if self.count >= MAX_RESTARTS else resume(state)
+                if resumed is None:
+                    raise
+                self.count += 1
+                self.cluster.scatter()
+                state = resumed
+
+
 def _keys(pieces: dict[int, pt.Part]) -> list[int]:
     return sorted(pieces)
 
@@ -657,13 +690,29 @@ def partitioned_cvt(
     field_name = {"gap": "rms_gap", "paper": "grad_norm"}[rule]
     bar = _Progress(rule, tol) if progress else None
     observe = _chain(callback, bar)
-    restarts = 0
-    try:
-        parts = client.scatter(pt.make_parts(points, split), hash=False)
+    restarts = _Restarts(cluster)
+
+    def start(sites: NDArray[np.float64]) -> tuple[_Iterate, list[str] | None]:
+        # The first parts are scattered from the sites held here: after a loss, again.
+        parts = client.scatter(pt.make_parts(sites, split), hash=False)
         new_parts, sums, cells, rounds = run.evaluate(parts)
-        it = _Iterate(new_parts, run.record(sums, "start"), new_parts, cells, rounds)
+        first = _Iterate(new_parts, run.record(sums, "start"), new_parts, cells, rounds)
+        return first, run.save(first, 0)
+
+    def step(current: _Iterate) -> tuple[_Iterate, list[str] | None]:
+        # Saved within the attempt: a worker lost while writing loses the step's parts,
+        # and the step is redone from the previous files.
+        done = run.step(current)
+        return done, run.save(done, len(history))
+
+    def reload(current: _Iterate) -> _Iterate | None:
+        if saved is None:
+            return None
+        return _Iterate(run.load(saved), current.record, None, None, current.rounds)
+
+    try:
+        it, saved = restarts.run(start, points, lambda sites: sites)
         history = [it.record]
-        saved = run.save(it, 0)
         while True:
             if observe is not None and observe(_info(it.record)):
                 stop = "interrupted"
@@ -678,25 +727,7 @@ def partitioned_cvt(
                 raise InvalidSitesError(
                     f"{it.record['_empty']} empty cells: a partitioned CVT does not reseed"
                 )
-            while True:
-                try:
-                    done = run.step(it)
-                    # Saved within the try: a worker lost while writing loses the step's
-                    # parts, and the step is redone from the previous files.
-                    done_saved = run.save(done, len(history))
-                    break
-                except (InvalidSitesError, InvalidDomainError, ValueError, KeyboardInterrupt):
-                    raise
-                except Exception:
-                    # A worker died or its data was lost: redo the iteration from the files
-                    # of the last one completed (every step is deterministic), with the
-                    # domain sent again (its only copy may have gone with the worker).
-                    if saved is None or restarts >= MAX_RESTARTS:
-                        raise
-                    restarts += 1
-                    cluster.scatter()
-                    it = _Iterate(run.load(saved), it.record, None, None, it.rounds)
-            it, saved = done, done_saved
+            it, saved = restarts.run(step, it, reload)
             history.append(it.record)
         if it.point_cells is None or it.point_parts is None:
             cells, rounds = cluster.cells(it.parts)
@@ -710,7 +741,7 @@ def partitioned_cvt(
             shutil.rmtree(temporary, ignore_errors=True)
     fields = [k for k in history[0] if not k.startswith("_")]
     out = {k: np.asarray([r[k] for r in history]) for k in fields}
-    return PartitionedCVTResult(diagram, out, rule, float(tol), stop, restarts)
+    return PartitionedCVTResult(diagram, out, rule, float(tol), stop, restarts.count)
 
 
 def _info(record: dict[str, Any]) -> dict[str, Any]:
