@@ -111,6 +111,9 @@ def partition_cells_2d(
     own: NDArray[np.uint32],
     total_sites: int,
     allow_outside: bool = False,
+    polynomial: _Coefficients | None = None,
+    function: _Function | None = None,
+    quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 def partition_cells_3d(
     domain: SolidDomain,
@@ -119,6 +122,9 @@ def partition_cells_3d(
     own: NDArray[np.uint32],
     total_sites: int,
     allow_outside: bool = False,
+    polynomial: _Coefficients | None = None,
+    function: _Function | None = None,
+    quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 
 # CVT dicts: sites, diagram (a diagram dict), history (arrays per field), stop_reason,

@@ -220,13 +220,11 @@ def run(
     else:
         graded = {"density": density} if density is not None and init != "lattice" else {}
         sites = hcvt.initialise(domain, n, method=init, seed=seed, **graded)
-        if scheduler is not None and density is not None:
-            raise click.UsageError("--density/--sizing with --scheduler is not offered yet")
         partitioned = _client(scheduler) if scheduler is not None else contextlib.nullcontext()
         with partitioned as client:
             extra = weighted
             if client is not None:
-                extra = {"client": client, "sites_per_partition": sites_per_partition}
+                extra = {**weighted, "client": client, "sites_per_partition": sites_per_partition}
             if method == "voronoi":
                 diagram = hcvt.voronoi(domain, sites, **extra)
             elif method == "monte-carlo":

@@ -259,9 +259,9 @@ def voronoi(
         Compute the cells on its workers, the sites split into spatial parts of at most
         ``sites_per_partition`` sites (default 200,000), each with a halo of nearby sites
         grown until every cell is certified (:mod:`hcvt.distributed`); the cells are then
-        gathered here. Per-cell arrays are bitwise those of one process; ``energy`` is
-        summed per part and agrees to round-off. For cells that stay on the workers use
-        :func:`hcvt.distributed.partitioned_voronoi`.
+        gathered here. Per-cell arrays are bitwise those of one process (with a
+        ``density`` too); ``energy`` is summed per part and agrees to round-off. For cells
+        that stay on the workers use :func:`hcvt.distributed.partitioned_voronoi`.
     sites_per_partition : int, optional
         With ``client``: the most sites one part holds (fixed by the data, not by the
         number of workers).
@@ -303,13 +303,17 @@ def voronoi(
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
     if client is not None:
-        if density is not None:
-            raise NotImplementedError("a density with client= is not offered yet")
         from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_voronoi
 
         per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION
         return partitioned_voronoi(
-            domain, sites, client, sites_per_partition=per_part, allow_outside=allow_outside
+            domain,
+            sites,
+            client,
+            sites_per_partition=per_part,
+            allow_outside=allow_outside,
+            density=density,
+            quadrature_degree=quadrature_degree,
         ).gather()
     points = as_sites(sites, domain.dim)
     compute = getattr(_core, f"voronoi_{domain.dim}d", None)

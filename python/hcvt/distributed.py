@@ -36,10 +36,22 @@ client sees only scalars and the small Gram matrices of the pairs:
 - After every step, sites that crossed a plane of the split move, with their per-row
   state, to the part that now holds their position (the split stays fixed).
 
+**Density.** With ``density=`` (DESIGN §8) each part's cells carry their ρ-weighted
+moments, integrated by the core exactly as in one process (``clipped_cells_weighted``), so
+``mass``, the weighted ``centroid``, ``energy_terms`` and the gradient are bitwise the
+single-process ones; Lloyd moves to the weighted centroids and L-BFGS is preconditioned by
+``1/(2 m_i)`` with ``m_i = ∫ρ``, as the core. The density is scattered to every worker
+with the domain. A callable is called once per part and round, on the quadrature nodes of
+the cells computed there: bitwise equality then needs each value to depend on its point
+alone (numpy's elementwise functions do; a function that normalises by its whole input
+does not). The halo is unchanged: a cell's reach is where its geometry read sites.
+
 **Worker loss.** With ``checkpoint`` (a temporary directory by default), every part is
 written at the end of every iteration; if a task fails because a worker died (or its data
-was lost), the iteration is run again from the files of the last completed one. The
-result is the same, since every step is deterministic.
+was lost), the domain and density are scattered again (the only copy may have gone with
+the worker, since dask's active memory manager drops unused replicas) and the iteration is
+run again from the files of the last completed one. The result is the same, since every
+step is deterministic.
 """
 
 from __future__ import annotations
@@ -52,12 +64,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt import partition as pt
+from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
 from hcvt.domain import Domain
 from hcvt.errors import InvalidDomainError, InvalidSitesError
@@ -77,6 +90,9 @@ LINE_TRIALS = 20
 #: Times an iteration is restarted from its checkpoint after a worker loss.
 MAX_RESTARTS = 3
 
+_S = TypeVar("_S")
+_T = TypeVar("_T")
+
 
 @dataclass
 class Rounds:
@@ -89,17 +105,45 @@ class Rounds:
 class _Cluster:
     """The client, the domain on every worker, and the parts' diagram rounds."""
 
-    def __init__(self, client: Any, domain: Domain, n: int, allow_outside: bool = False):
+    def __init__(
+        self,
+        client: Any,
+        domain: Domain,
+        n: int,
+        allow_outside: bool = False,
+        density: DensityLike = None,
+        quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    ):
         self.client = client
         self.domain = domain
         self.n = n
         self.allow_outside = allow_outside
-        # The domain goes to every worker once; tasks receive the worker's copy.
-        self.domain_future = client.scatter(domain, broadcast=True, hash=False)
         self.h = (domain.volume / n) ** (1.0 / domain.dim)
+        self.density = density
+        self.quadrature_degree = quadrature_degree
+        if density is not None:
+            # Checked here, so a bad density or degree is named before any task runs.
+            core_arguments(density, domain.dim, quadrature_degree)
+        self.scatter()
 
-    def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
-        return self.client.submit(fn, *args, pure=False)
+    def scatter(self) -> None:
+        """Send the domain and the density (a callable may hold a large table) to every worker.
+
+        Tasks receive the worker's copy. Sent again after a worker loss: dask's active
+        memory manager drops the replicas of scattered data that no task is waiting for,
+        so between tasks the only copy may have been on the worker lost, and scattered
+        data cannot be recomputed.
+        """
+        self.domain_future = self.client.scatter(self.domain, broadcast=True, hash=False)
+        self.weighting: dict[str, Any] = {}
+        if self.density is not None:
+            self.weighting = {
+                "density": self.client.scatter(self.density, broadcast=True, hash=False),
+                "quadrature_degree": self.quadrature_degree,
+            }
+
+    def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        return self.client.submit(fn, *args, pure=False, **kwargs)
 
     def gather(self, futures: list[Any]) -> list[Any]:
         return list(self.client.gather(futures))
@@ -151,6 +195,7 @@ class _Cluster:
                     previous.get(p),
                     self.allow_outside,
                     *slices,
+                    **self.weighting,
                 )
             status = self.gather([self.submit(_status, cells[p]) for p in pending])
             rounds.cells.append(sum(s.computed for s in status))
@@ -264,7 +309,7 @@ class PartitionedDiagram:
             neighbor_measures=neighbor_measures,
             _allow_outside=self._cluster.allow_outside,
         )
-        return Diagram(domain, sites, arrays)
+        return Diagram(domain, sites, arrays, self._cluster.density)
 
     def write(self, directory: str | Path) -> list[str]:
         """Write every part's rows, sites and per-cell arrays as .npy files, on its worker.
@@ -293,16 +338,19 @@ def partitioned_voronoi(
     *,
     sites_per_partition: int = DEFAULT_SITES_PER_PARTITION,
     allow_outside: bool = False,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> PartitionedDiagram:
     """The clipped diagram of ``sites`` with its cells computed and kept on dask workers.
 
     Parameters as :func:`hcvt.voronoi`; ``client`` a ``dask.distributed.Client``;
     ``sites_per_partition`` the most sites one part holds (module docs). Per-cell arrays
     are bitwise those of :func:`hcvt.voronoi` for any number of workers and any
-    ``sites_per_partition``.
+    ``sites_per_partition``, with a ``density`` too (a callable must give each point's
+    value whatever the other points of the call: module docs).
     """
     points = as_sites(sites, domain.dim)
-    cluster = _Cluster(client, domain, len(points), allow_outside)
+    cluster = _Cluster(client, domain, len(points), allow_outside, density, quadrature_degree)
     split = pt.kd_split(points, sites_per_partition)
     parts = client.scatter(pt.make_parts(points, split), hash=False)
     cells, rounds = cluster.cells(parts)
@@ -472,6 +520,36 @@ class _Cvt:
         return [self.cluster.submit(pt.load_part, path) for path in paths]
 
 
+class _Restarts:
+    """Attempts run again after a worker loss, at most :data:`MAX_RESTARTS` in a run."""
+
+    def __init__(self, cluster: _Cluster):
+        self.cluster = cluster
+        self.count = 0
+
+    def run(self, attempt: Callable[[_S], _T], state: _S, resume: Callable[[_S], _S | None]) -> _T:
+        """``attempt(state)``; after a failure but bad input, again from ``resume(state)``.
+
+        A worker died or its data was lost: every step is deterministic, so running it
+        again from what ``resume`` restores (the files of the last iteration completed)
+        gives the same result. The domain and density are scattered again first (their
+        only copy may have gone with the worker). ``resume`` returning None (no
+        checkpoint) re-raises.
+        """
+        while True:
+            try:
+                return attempt(state)
+            except (InvalidSitesError, InvalidDomainError, ValueError, KeyboardInterrupt):
+                raise
+            except Exception:
+                resumed = None if self.count >= MAX_RESTARTS else resume(state)
+                if resumed is None:
+                    raise
+                self.count += 1
+                self.cluster.scatter()
+                state = resumed
+
+
 def _keys(pieces: dict[int, pt.Part]) -> list[int]:
     return sorted(pieces)
 
@@ -571,6 +649,8 @@ def partitioned_cvt(
     progress: bool = False,
     sites_per_partition: int = DEFAULT_SITES_PER_PARTITION,
     checkpoint: str | bool = True,
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> PartitionedCVTResult:
     """A CVT whose sites and per-site state stay on dask workers (module docs).
 
@@ -578,7 +658,9 @@ def partitioned_cvt(
     ``client`` a ``dask.distributed.Client``; ``sites_per_partition`` the most sites one
     part holds; ``checkpoint`` a directory every worker can write (or True for a temporary
     one on this machine, False for none) where each iteration's parts are written, from
-    which an iteration is restarted after a worker loss.
+    which an iteration is restarted after a worker loss; ``density`` and
+    ``quadrature_degree`` as for :func:`hcvt.cvt` (the preconditioner is then ``1/(2 m_i)``
+    with ``m_i = ∫ρ``, as the core's).
     """
     from hcvt.optimise import _chain, _Progress, default_tol
 
@@ -593,7 +675,7 @@ def partitioned_cvt(
     if max_iter < 0 or memory < 1:
         raise ValueError(f"need max_iter >= 0 and memory >= 1, got {max_iter}, {memory}")
     points = as_sites(sites, domain.dim)
-    cluster = _Cluster(client, domain, len(points))
+    cluster = _Cluster(client, domain, len(points), False, density, quadrature_degree)
     split = pt.kd_split(points, sites_per_partition)
     temporary = None
     if checkpoint is True:
@@ -608,13 +690,29 @@ def partitioned_cvt(
     field_name = {"gap": "rms_gap", "paper": "grad_norm"}[rule]
     bar = _Progress(rule, tol) if progress else None
     observe = _chain(callback, bar)
-    restarts = 0
-    try:
-        parts = client.scatter(pt.make_parts(points, split), hash=False)
+    restarts = _Restarts(cluster)
+
+    def start(sites: NDArray[np.float64]) -> tuple[_Iterate, list[str] | None]:
+        # The first parts are scattered from the sites held here: after a loss, again.
+        parts = client.scatter(pt.make_parts(sites, split), hash=False)
         new_parts, sums, cells, rounds = run.evaluate(parts)
-        it = _Iterate(new_parts, run.record(sums, "start"), new_parts, cells, rounds)
+        first = _Iterate(new_parts, run.record(sums, "start"), new_parts, cells, rounds)
+        return first, run.save(first, 0)
+
+    def step(current: _Iterate) -> tuple[_Iterate, list[str] | None]:
+        # Saved within the attempt: a worker lost while writing loses the step's parts,
+        # and the step is redone from the previous files.
+        done = run.step(current)
+        return done, run.save(done, len(history))
+
+    def reload(current: _Iterate) -> _Iterate | None:
+        if saved is None:
+            return None
+        return _Iterate(run.load(saved), current.record, None, None, current.rounds)
+
+    try:
+        it, saved = restarts.run(start, points, lambda sites: sites)
         history = [it.record]
-        saved = run.save(it, 0)
         while True:
             if observe is not None and observe(_info(it.record)):
                 stop = "interrupted"
@@ -629,21 +727,8 @@ def partitioned_cvt(
                 raise InvalidSitesError(
                     f"{it.record['_empty']} empty cells: a partitioned CVT does not reseed"
                 )
-            while True:
-                try:
-                    it = run.step(it)
-                    break
-                except (InvalidSitesError, InvalidDomainError, ValueError, KeyboardInterrupt):
-                    raise
-                except Exception:
-                    # A worker died or its data was lost: redo the iteration from the files
-                    # of the last one completed (every step is deterministic).
-                    if saved is None or restarts >= MAX_RESTARTS:
-                        raise
-                    restarts += 1
-                    it = _Iterate(run.load(saved), it.record, None, None, it.rounds)
+            it, saved = restarts.run(step, it, reload)
             history.append(it.record)
-            saved = run.save(it, len(history) - 1)
         if it.point_cells is None or it.point_parts is None:
             cells, rounds = cluster.cells(it.parts)
             diagram = PartitionedDiagram(cluster, it.parts, cells, rounds)
@@ -656,7 +741,7 @@ def partitioned_cvt(
             shutil.rmtree(temporary, ignore_errors=True)
     fields = [k for k in history[0] if not k.startswith("_")]
     out = {k: np.asarray([r[k] for r in history]) for k in fields}
-    return PartitionedCVTResult(diagram, out, rule, float(tol), stop, restarts)
+    return PartitionedCVTResult(diagram, out, rule, float(tol), stop, restarts.count)
 
 
 def _info(record: dict[str, Any]) -> dict[str, Any]:

@@ -171,7 +171,8 @@ def cvt(
         ``sites_per_partition`` sites (default 200,000) that stay there between iterations
         (:mod:`hcvt.distributed`; ``"lbfgs"`` and ``"lloyd"`` only; the callback's info
         then has no ``sites``). Lloyd is bitwise the single-process run; L-BFGS is bitwise
-        the same for any number of workers, not the single-process iterates.
+        the same for any number of workers, not the single-process iterates; with a
+        ``density`` too.
     sites_per_partition : int, optional
         With ``client``: the most sites one part holds.
     density : Polynomial, SizingField or callable, optional
@@ -217,8 +218,6 @@ def cvt(
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if client is not None:
-        if density is not None:
-            raise NotImplementedError("a density with client= is not offered yet")
         from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt
 
         return partitioned_cvt(
@@ -233,6 +232,8 @@ def cvt(
             callback=callback,
             progress=progress,
             sites_per_partition=sites_per_partition or DEFAULT_SITES_PER_PARTITION,
+            density=density,
+            quadrature_degree=quadrature_degree,
         ).gather()
     tol = default_tol(rule) if tol is None else tol
     if not tol >= 0:

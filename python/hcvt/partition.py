@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hcvt import _core
+from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.domain import Domain
 
 #: A halo covers a cell when the cell's reach is below this fraction of the halo width:
@@ -192,8 +193,9 @@ class PartCells:
     Attributes
     ----------
     arrays : dict of str to ndarray
-        ``volume``, ``centroid``, ``second_moment``, ``G``, ``energy_terms``, ``first``
-        (moments about the sites; the gradient is ``-2 first``, exactly),
+        ``volume``, ``mass``, ``centroid``, ``second_moment``, ``G``, ``energy_terms``,
+        ``first`` (moments about the sites, ρ-weighted with a density as ``mass``,
+        ``centroid`` and ``energy_terms``; the gradient is ``-2 first``, exactly),
         ``boundary_measure``, and the faces in CSR layout ``neighbor_offsets`` (k + 1,),
         ``neighbor_sites`` (problem rows), ``neighbor_measures``.
     reach : ndarray, shape (k,)
@@ -251,7 +253,7 @@ def empty_cells(d: int) -> PartCells:
     """The cells of a part of no sites."""
     arrays = {
         key: np.zeros((0, d) if key in ("centroid", "first") else 0)
-        for key in ("volume", "centroid", "second_moment", "G", "energy_terms")
+        for key in ("volume", "mass", "centroid", "second_moment", "G", "energy_terms")
         + ("first", "boundary_measure", "neighbor_measures")
     }
     arrays["neighbor_offsets"] = np.zeros(1, dtype=np.intp)
@@ -297,6 +299,8 @@ def part_cells(
     previous: PartCells | None,
     allow_outside: bool,
     *slices: tuple[NDArray[np.int64], NDArray[np.float64]],
+    density: DensityLike = None,
+    quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> PartCells:
     """The cells of ``part`` among its sites and ``slices`` of its neighbours' sites.
 
@@ -305,6 +309,11 @@ def part_cells(
     sites: a float (the slices are then the sites within ``cover`` of ``part``'s box), or
     one radius per cell computed. A cell is certified when its reach is below its
     ``cover``, or when every site of the problem is present.
+
+    With a ``density`` (as :func:`hcvt.voronoi` takes it) ``mass``, ``centroid``,
+    ``energy_terms`` and ``first`` are ρ-weighted as in one process; a callable is called
+    once per part and round, on the quadrature nodes of the cells computed. The reach,
+    and so the halo, does not depend on ρ.
     """
     if len(part.rows) == 0:
         return empty_cells(part.sites.shape[1])
@@ -322,6 +331,7 @@ def part_cells(
         own[todo].astype(np.uint32),
         int(total_sites),
         allow_outside=allow_outside,
+        **core_arguments(density, domain.dim, quadrature_degree),
     )
     reach = np.sqrt(out.pop("reach2"))
     # Kept once: the energy is summed by the client, the gradient is -2 first.
@@ -378,7 +388,7 @@ def _replace_rows(
 
 
 def gradient_of(cells: PartCells) -> NDArray[np.float64]:
-    """``∂E/∂x_i = -2 ∫(x - x_i)`` of each cell, (k, d): the core's, bit for bit."""
+    """``∂E/∂x_i = -2 ∫ρ(x - x_i)`` of each cell, (k, d): the core's, bit for bit."""
     return cells.arrays["first"] * -2.0
 
 
@@ -413,8 +423,11 @@ def hold_inside(
 
 
 def centroid_shift(cells: PartCells) -> NDArray[np.float64]:
-    """``c_i - x_i`` of each cell as the core computes it (``first · (1/mass)``; 0 if empty)."""
-    first, mass = cells.arrays["first"], cells.arrays["volume"]
+    """``c_i - x_i`` of each cell as the core computes it (``first · (1/mass)``; 0 if empty).
+
+    ρ-weighted with a density (``mass`` is then ``∫ρ``), as the core's Lloyd step.
+    """
+    first, mass = cells.arrays["first"], cells.arrays["mass"]
     nonzero = mass != 0
     shift = np.zeros_like(first)
     shift[nonzero] = first[nonzero] * (1.0 / mass[nonzero])[:, None]
@@ -427,10 +440,12 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     Fields set: ``gradient`` (k, d), ``precond`` (k,) = ``1/(2 m_i)``, ``shift`` (k, d)
     the move to the centroid. Partials (summed by the client in part order): ``energy``,
     ``sum_G``, ``cells`` (non-empty), ``sum_r2``, ``max_r``, ``counted``, ``g2``, ``x2``,
-    ``pinned`` (the core's ``Measures`` and ``pinned_sites``, DESIGN §7).
+    ``pinned`` (the core's ``Measures`` and ``pinned_sites``, DESIGN §7). With a density
+    ``m_i = ∫ρ``, the centroid and gradient are ρ-weighted, and the gap's cell size
+    stays the geometric ``V_i^(1/d)``, as in the core.
     """
     a = cells.arrays
-    mass, first = a["volume"], a["first"]
+    volume, mass, first = a["volume"], a["mass"], a["first"]
     gradient = gradient_of(cells)
     shift = centroid_shift(cells)
     d = domain.dim
@@ -443,9 +458,9 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
         cand = touching[outside]
         if cand.size:
             pinned[cand] = ~inside_or_on(domain, part.sites[cand] + shift[cand] * PIN_FRACTION)
-    counted = ~pinned & (mass > 0)
-    m = mass[counted]
-    r = np.sqrt((first[counted] ** 2).sum(axis=1)) / m / m ** (1.0 / d)
+    counted = ~pinned & (volume > 0) & (mass > 0)
+    m, v = mass[counted], volume[counted]
+    r = np.sqrt((first[counted] ** 2).sum(axis=1)) / m / v ** (1.0 / d)
     g = a["G"][~np.isnan(a["G"])]
     partials = {
         "energy": math.fsum(a["energy_terms"]),
@@ -457,7 +472,7 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
         "g2": math.fsum((gradient[counted] ** 2).ravel()),
         "x2": math.fsum((part.sites**2).ravel()),
         "pinned": float(pinned.sum()),
-        "empty": float((mass <= 0).sum()),
+        "empty": float((volume <= 0).sum()),
     }
     fields = dict(part.fields)
     fields["gradient"] = gradient

@@ -1,7 +1,7 @@
 //! One partition's cells among its own sites and a halo (`hcvt.distributed`).
 
 use hcvt_core::diagram::{
-    clipped_cells, ConvexCell, Options, PartCells, PolygonCell, PolyhedronCell,
+    clipped_cells_weighted, ConvexCell, Options, PartCells, PolygonCell, PolyhedronCell,
 };
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
@@ -11,16 +11,18 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{rows, to_array2, to_intp};
+use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
 use crate::domain::{PolygonDomain, SolidDomain};
-use crate::errors::to_py_err;
 
 /// Cells of `sites[own]` among `sites` (n, 2), a part of a problem of `total_sites` sites
 /// whose row numbers are `rows` (n,), increasing: a diagram dict with one row per own site
 /// and neighbours in the problem's rows, plus `first` (k, 2), each cell's first moment
-/// about its site, and `reach2` (k,) (see `hcvt.distributed`).
+/// about its site (ρ-weighted with a density, as `mass`, `centroid` and `energy_terms`),
+/// and `reach2` (k,) (see `hcvt.distributed`). The density as for `voronoi_2d`.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
+#[allow(clippy::too_many_arguments)]
 pub fn partition_cells_2d<'py>(
     py: Python<'py>,
     domain: &PolygonDomain,
@@ -29,13 +31,23 @@ pub fn partition_cells_2d<'py>(
     own: PyReadonlyArray1<'py, u32>,
     total_sites: usize,
     allow_outside: bool,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    cells_dict::<2, PolygonCell>(py, &domain.0, sites, rows, own, total_sites, allow_outside)
+    let given = Given::new(polynomial, function, quadrature_degree)?;
+    let job = Part {
+        total_sites,
+        allow_outside,
+        given: &given,
+    };
+    cells_dict::<2, PolygonCell>(py, &domain.0, sites, rows, own, job)
 }
 
 /// [`partition_cells_2d`] for sites (n, 3) in a solid.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
+#[allow(clippy::too_many_arguments)]
 pub fn partition_cells_3d<'py>(
     py: Python<'py>,
     domain: &SolidDomain,
@@ -44,8 +56,24 @@ pub fn partition_cells_3d<'py>(
     own: PyReadonlyArray1<'py, u32>,
     total_sites: usize,
     allow_outside: bool,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    cells_dict::<3, PolyhedronCell>(py, &domain.0, sites, rows, own, total_sites, allow_outside)
+    let given = Given::new(polynomial, function, quadrature_degree)?;
+    let job = Part {
+        total_sites,
+        allow_outside,
+        given: &given,
+    };
+    cells_dict::<3, PolyhedronCell>(py, &domain.0, sites, rows, own, job)
+}
+
+/// What a part's computation is told besides its sites.
+struct Part<'a> {
+    total_sites: usize,
+    allow_outside: bool,
+    given: &'a Given,
 }
 
 fn cells_dict<'py, const D: usize, C: ConvexCell<D>>(
@@ -54,8 +82,7 @@ fn cells_dict<'py, const D: usize, C: ConvexCell<D>>(
     sites: PyReadonlyArray2<'py, f64>,
     rows_in: PyReadonlyArray1<'py, i64>,
     own: PyReadonlyArray1<'py, u32>,
-    total_sites: usize,
-    allow_outside: bool,
+    job: Part<'_>,
 ) -> PyResult<Bound<'py, PyDict>>
 where
     Euclid: Space<D> + WindingNumber<D>,
@@ -77,20 +104,34 @@ where
         ));
     }
     let own: Vec<u32> = own.as_slice()?.to_vec();
-    let options = Options { allow_outside };
+    let options = Options {
+        allow_outside: job.allow_outside,
+    };
+    let density = job.given.density::<D>()?;
+    let total_sites = job.total_sites;
     let part: PartCells<D> = py
         .detach(|| {
             crate::threads::run(|| {
-                clipped_cells::<D, C>(boundary, &points, &own, total_sites, options)
+                clipped_cells_weighted::<D, C>(
+                    boundary,
+                    &points,
+                    &own,
+                    total_sites,
+                    options,
+                    density.as_ref(),
+                )
             })
         })
-        .map_err(|e| to_py_err(e.with_site_rows(|i| global.get(i).copied().unwrap_or(i))))?;
+        .map_err(|e| {
+            job.given
+                .error(e.with_site_rows(|i| global.get(i).copied().unwrap_or(i)))
+        })?;
     let own_sites: Vec<[f64; D]> = own
         .iter()
         .filter_map(|&i| points.get(i as usize).copied())
         .collect();
     let mut diagram = part.diagram;
-    let firsts: Vec<[f64; D]> = diagram.moments.iter().map(|m| m.first).collect();
+    let firsts: Vec<[f64; D]> = diagram.mass_moments().iter().map(|m| m.first).collect();
     let neighbors: Vec<usize> = diagram
         .neighbor_sites
         .iter()

@@ -220,13 +220,7 @@ where
             for m in sums.cells.iter_mut().chain(sums.faces.iter_mut()) {
                 *m = m.map(|row| scale(row, q.constant));
             }
-            diagram.weighted = (diagram.moments.iter())
-                .map(|m| Moments {
-                    mass: q.constant * m.mass,
-                    first: scale(m.first, q.constant),
-                    second: q.constant * m.second,
-                })
-                .collect();
+            diagram.weighted = weighted::scaled(&diagram.moments, q.constant);
             return Ok((diagram, cells, sums));
         }
     }
@@ -438,6 +432,30 @@ pub fn clipped_cells<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
+    clipped_cells_weighted::<D, C>(boundary, sites, own, total_sites, options, None)
+}
+
+/// [`clipped_cells`] under a `density` (DESIGN §8): each row's ρ-weighted moments in
+/// [`Diagram::weighted`], integrated over the same signed pieces as
+/// [`clipped_diagram_weighted`] does, so a certified cell's weighted moments are the whole
+/// problem's bit for bit (a sampled density is asked once for the nodes of the own cells;
+/// each node's value must depend on the node alone). The reach does not depend on ρ: it
+/// is where the cell's *geometry* read sites.
+///
+/// Errors also name a point where the density is not finite and positive, as
+/// [`clipped_diagram_weighted`]'s do, among the own sites' cells (a polynomial is checked
+/// at the own sites and the boundary vertices).
+pub fn clipped_cells_weighted<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    own: &[u32],
+    total_sites: usize,
+    options: Options,
+    density: Option<&Density<'_, D>>,
+) -> Result<PartCells<D>, CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
     if sites.is_empty() || own.is_empty() {
         return Ok(PartCells::default());
     }
@@ -475,6 +493,18 @@ where
             });
         }
     }
+    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
+    if let Some(Density::Polynomial(q)) = density {
+        weighted::check_polynomial(q, boundary, &own_sites)?;
+        if q.is_constant() {
+            // As the whole diagram does: the uniform cells, every moment times c.
+            let mut part =
+                clipped_cells_weighted::<D, C>(boundary, sites, own, total_sites, options, None)?;
+            part.diagram.weighted = weighted::scaled(&part.diagram.moments, q.constant);
+            return Ok(part);
+        }
+    }
+    let weighted_sums = weighted::WeightedSums::new(density)?;
     let index = SiteIndex::new(sites)?;
     let visit = Visit {
         sites,
@@ -482,13 +512,11 @@ where
         windings: &windings,
         total_sites: total_sites.max(sites.len()),
     };
-    let batches = without_errors(visit.batches::<C>(
-        boundary,
-        own,
-        None,
-        false,
-        &weighted::WeightedSums::default(),
-    ))?;
+    let mut batches =
+        without_errors(visit.batches::<C>(boundary, own, None, false, &weighted_sums))?;
+    if let Some(d @ Density::Sampled { field, .. }) = density {
+        weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
+    }
     let rows = own.len();
     let mut reach2 = Vec::with_capacity(rows);
     let mut diagram = Diagram {
@@ -500,6 +528,9 @@ where
         for (k, &count) in b.face_counts.iter().enumerate() {
             let count = count as usize;
             diagram.moments.push(b.moments[k]);
+            if density.is_some() {
+                diagram.weighted.push(b.weighted[k]);
+            }
             diagram.boundary_measure.push(b.boundary_measure[k]);
             for &(j, measure) in &b.neighbors[at..at + count] {
                 diagram.neighbor_sites.push(j);
@@ -509,6 +540,9 @@ where
             diagram.neighbor_offsets.push(diagram.neighbor_sites.len());
         }
         reach2.extend_from_slice(&b.reach2);
+    }
+    if density.is_some() {
+        weighted::check_masses(&diagram, &own_sites)?;
     }
     Ok(PartCells { diagram, reach2 })
 }
@@ -666,6 +700,7 @@ impl<const D: usize> Diagram<D> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::density::{Field, Quadratic};
     use crate::domain::Polygon;
     use crate::sample::interior_sites;
 
@@ -791,5 +826,80 @@ mod tests {
             certified += here;
         }
         assert!(certified > sites.len());
+    }
+
+    /// A field for the tests: `1 + exp(x) + y²`, one value per node.
+    struct ExpField;
+
+    impl Field<2> for ExpField {
+        fn values(&self, points: Vec<[f64; 2]>) -> Result<Vec<f64>, CoreError> {
+            Ok(points
+                .iter()
+                .map(|p| 1.0 + p[0].exp() + p[1] * p[1])
+                .collect())
+        }
+    }
+
+    /// With a density, a part's cells among a halo carry the whole diagram's weighted
+    /// moments bit for bit wherever the halo covers their reach: a polynomial, a constant
+    /// (the uniform cells scaled) and a sampled field.
+    #[test]
+    fn a_parts_weighted_cells_are_the_whole_diagrams() {
+        let square = Polygon::new(
+            vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            vec![[0, 1], [1, 2], [2, 3], [3, 0]],
+        )
+        .unwrap();
+        let sites = interior_sites(&square, 1500, 4);
+        let field = ExpField;
+        let densities = [
+            Density::Polynomial(
+                Quadratic::new(1.0, [2.0, -0.5], [[3.0, 0.5], [0.5, 1.0]]).unwrap(),
+            ),
+            Density::Polynomial(Quadratic::constant(2.5)),
+            Density::Sampled {
+                field: &field,
+                degree: 3,
+            },
+        ];
+        for density in &densities {
+            let (whole, _, _) = clipped_diagram_weighted::<2, PolygonCell>(
+                &square,
+                &sites,
+                Options::default(),
+                false,
+                None,
+                Some(density),
+            )
+            .unwrap();
+            // Part: the sites left of x = 0.4; halo: everything within 0.1 of x = 0.4.
+            let rows: Vec<usize> = (0..sites.len()).filter(|&i| sites[i][0] < 0.5).collect();
+            let local: Vec<[f64; 2]> = rows.iter().map(|&i| sites[i]).collect();
+            let own: Vec<u32> = (0..rows.len() as u32)
+                .filter(|&k| local[k as usize][0] < 0.4)
+                .collect();
+            let part = clipped_cells_weighted::<2, PolygonCell>(
+                &square,
+                &local,
+                &own,
+                sites.len(),
+                Options::default(),
+                Some(density),
+            )
+            .unwrap();
+            assert_eq!(part.diagram.weighted.len(), own.len());
+            let mut exact = 0;
+            for (k, &o) in own.iter().enumerate() {
+                let x = local[o as usize][0];
+                if part.reach2[k].sqrt() >= 0.5 - x {
+                    continue;
+                }
+                let i = rows[o as usize];
+                assert_eq!(part.diagram.moments[k], whole.moments[i], "cell {i}");
+                assert_eq!(part.diagram.weighted[k], whole.weighted[i], "cell {i}");
+                exact += 1;
+            }
+            assert!(exact > own.len() * 9 / 10, "{exact} of {}", own.len());
+        }
     }
 }

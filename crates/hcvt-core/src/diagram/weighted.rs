@@ -11,7 +11,7 @@ use crate::density::{
 };
 use crate::domain::Boundary;
 use crate::error::CoreError;
-use crate::geometry::{add, Euclid, Space};
+use crate::geometry::{add, scale, Euclid, Space};
 use crate::moments::{FaceMoments, Moments};
 
 use super::{Batch, ConvexCell, Diagram};
@@ -254,6 +254,19 @@ fn bad_node<const D: usize, C: ConvexCell<D>>(
     CoreError::InvalidDensity {
         reason: format!("the density is {value} at a node"),
     }
+}
+
+/// The moments of a constant density `c`: every moment times `c` (exact; for `c = 1` the
+/// geometric moments bit for bit).
+pub(super) fn scaled<const D: usize>(moments: &[Moments<D>], c: f64) -> Vec<Moments<D>> {
+    moments
+        .iter()
+        .map(|m| Moments {
+            mass: c * m.mass,
+            first: scale(m.first, c),
+            second: c * m.second,
+        })
+        .collect()
 }
 
 /// A polynomial must be finite and positive at every site and boundary vertex.
