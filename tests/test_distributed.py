@@ -16,6 +16,7 @@ import pytest
 
 import hcvt
 from hcvt import partition as pt
+from hcvt import shapes
 from hcvt.distributed import partitioned_cvt, partitioned_voronoi, two_loop
 
 distributed = pytest.importorskip("dask.distributed")
@@ -132,7 +133,7 @@ def test_no_cell_reaches_across_the_domain(name):
     Before cells still open into the domain were kept from localising, the largest reach
     was 559 (square) and 1,095 (star) spacings, and 208 / 228 cells reached beyond 20."""
     domain = (
-        hcvt.shapes.unit_square()
+        shapes.unit_square()
         if name == "square"
         else hcvt.load_domain(os.path.join(DATA, "2d", name))
     )
