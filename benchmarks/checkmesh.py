@@ -1,0 +1,178 @@
+"""OpenFOAM's checkMesh on converged CVTs of real meshes (issue 19), exact and merged.
+
+Run ``OPENBLAS_NUM_THREADS=1 python benchmarks/checkmesh.py`` (needs OpenFOAM's
+``checkMesh``; ``WM_PROJECT_DIR`` defaults to Debian's ``/usr/share/openfoam``). For each
+case (bunny 50k, cheese 10k by default) it
+
+1. converges a CVT to the default rule (Newton from scrambled Halton sites, seed 0) and
+   keeps its sites in ``--cache`` (``<name>_<n>_newton.npy`` and ``.json``): a later run
+   reads them and reprints the seconds the converging run took;
+2. writes the conforming mesh as an OpenFOAM case twice, ``boundary_faces="exact"`` and
+   ``"merged"`` (:mod:`hcvt.export.merge`), timing the merge and the writing;
+3. runs ``checkMesh`` on each and prints its verdict, its failed checks, its max
+   non-orthogonality and skewness, and its total volume against the input mesh's volume,
+   beside hcvt's own figures for the same mesh (:func:`hcvt.export.mesh_quality`) and,
+   for the merged mesh, how much the volumes OpenFOAM computes moved from the exact
+   cells' (total, sum of absolute per-cell changes, largest per-cell change).
+
+``docs/results/checkmesh.txt`` holds the output of one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import hcvt
+from hcvt.export import merged_boundary, mesh_quality, write_openfoam
+from hcvt.initialisation import initialise
+from hcvt.polymesh import PolyMesh
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
+NUM = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
+CASES = {"bunny": ("bunny.off", 50_000), "cheese": ("cheese.off", 10_000)}
+
+
+def converged_sites(name: str, n: int, cache: Path) -> tuple[np.ndarray, dict]:
+    """Sites of a CVT converged to the default rule, from ``cache`` or computed now."""
+    stem = cache / f"{Path(name).stem}_{n}_newton"
+    if stem.with_suffix(".npy").exists() and stem.with_suffix(".json").exists():
+        info = json.loads(stem.with_suffix(".json").read_text())
+        info["from_cache"] = str(stem.with_suffix(".npy"))
+        return np.load(stem.with_suffix(".npy")), info
+    domain = hcvt.load_domain(DATA / name)
+    start = time.perf_counter()
+    run = hcvt.cvt(domain, initialise(domain, n, "halton", seed=0), method="newton")
+    info = {
+        "seconds": time.perf_counter() - start,
+        "iterations": run.iterations,
+        "evaluations": run.evaluations,
+        "converged": run.converged,
+        "final": {"rms_gap": float(run.history["rms_gap"][-1])},
+    }
+    cache.mkdir(parents=True, exist_ok=True)
+    np.save(stem.with_suffix(".npy"), run.sites)
+    stem.with_suffix(".json").write_text(json.dumps(info, indent=1))
+    return run.sites, info
+
+
+def check_mesh(case: Path) -> str:
+    env = {**os.environ}
+    env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
+    done = subprocess.run(
+        ["checkMesh", "-case", str(case)], capture_output=True, text=True, env=env, check=True
+    )
+    return done.stdout
+
+
+def figure(log: str, pattern: str) -> float:
+    found = re.search(pattern, log)
+    return float(found.group(1)) if found else float("nan")
+
+
+def report(label: str, log: str, mesh: PolyMesh, domain_volume: float) -> None:
+    verdict = "Mesh OK" if "Mesh OK." in log else re.search(r"Failed \d+ mesh checks", log)[0]
+    failures = [f.strip() for f in re.findall(r"\*\*\*(.*)", log)]
+    total = figure(log, rf"Total volume = {NUM}")
+    ours = mesh_quality(mesh).summary()
+    print(f"  {label}: checkMesh: {verdict}")
+    for f in failures:
+        print(f"    *** {f}")
+    print(
+        f"    checkMesh: max non-orthogonality {figure(log, rf'non-orthogonality Max: {NUM}'):.6g}"
+        f" deg, average {figure(log, rf'average: {NUM}'):.6g}, max skewness "
+        f"{figure(log, rf'Max skewness = {NUM}'):.6g}, total volume {total:.15g} "
+        f"(input mesh {domain_volume:.15g}, relative {total / domain_volume - 1:+.3e})"
+    )
+    print(
+        f"    hcvt:      max non-orthogonality {ours['non_orthogonality_max']:.6g} deg, max "
+        f"skewness {ours['skewness_max']:.6g}, {ours['skew_faces']} faces skewness > 4, "
+        f"{ours['inverted_pyramids']} inverted pyramids, faces {ours['faces']}"
+    )
+
+
+def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
+    name, default_n = CASES[key]
+    n = n or default_n
+    domain = hcvt.load_domain(DATA / name)
+    sites, info = converged_sites(name, n, cache)
+    where = f" (sites from {info['from_cache']})" if "from_cache" in info else ""
+    print(
+        f"{name} {n}: CVT Newton from Halton, {info['iterations']} iterations, "
+        f"{info['evaluations']} diagrams, {info['seconds']:.1f} s, converged "
+        f"{info['converged']}, RMS gap {info['final']['rms_gap']:.2e}{where}"
+    )
+    start = time.perf_counter()
+    diagram = hcvt.voronoi(domain, sites)
+    mesh = diagram.mesh()
+    print(f"  diagram + mesh: {time.perf_counter() - start:.2f} s")
+    start = time.perf_counter()
+    merged, merge = merged_boundary(mesh, domain)
+    seconds = time.perf_counter() - start
+    exact_volume, volume = mesh.cell_geometry.volume, merged.cell_geometry.volume
+    change = np.abs(volume - exact_volume)
+    print(
+        f"  merge: {seconds:.2f} s, {merge.rounds} rounds, {merge.merged_faces} boundary "
+        f"faces joined into {merge.groups} merged faces, {len(merge.failing)} still failing"
+    )
+    print(
+        f"  volumes as OpenFOAM computes them, merged vs exact: total "
+        f"{volume.sum() / exact_volume.sum() - 1:+.3e} relative, sum |change| / domain volume "
+        f"{change.sum() / domain.volume:.3e}, cells changed {int((change > 0).sum())} of {n}, "
+        f"largest per-cell change {(change / exact_volume).max():.3e} relative, median over "
+        f"changed cells {np.median((change / exact_volume)[change > 0]):.3e}"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        root = keep or Path(tmp)
+        for label, written in (("exact", mesh), ("merged", merged)):
+            case = root / f"{Path(name).stem}_{n}_{label}"
+            shutil.rmtree(case, ignore_errors=True)
+            start = time.perf_counter()
+            write_openfoam(written, case, domain=domain, binary=True)
+            seconds = time.perf_counter() - start
+            start = time.perf_counter()
+            log = check_mesh(case)
+            print(
+                f"  {label}: written in {seconds:.2f} s (binary), checkMesh "
+                f"{time.perf_counter() - start:.1f} s"
+            )
+            report(label, log, written, domain.volume)
+    if len(merge.failing):
+        cells = np.unique(merged.owner[merge.failing])
+        centroid = merged.cell_geometry.centroid
+        centre, area = merged.face_geometry
+        behind = np.einsum(
+            "ij,ij->i",
+            area[merge.failing] / np.linalg.norm(area[merge.failing], axis=1)[:, None],
+            centre[merge.failing] - centroid[merged.owner[merge.failing]],
+        )
+        depth = -behind / volume[merged.owner[merge.failing]] ** (1 / 3)
+        print(
+            f"  still failing: faces {merge.failing.tolist()} of cells {cells.tolist()}; "
+            f"their centre lies {depth.round(3).tolist()} cell sizes V^(1/3) behind the "
+            "face's plane"
+        )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    parser.add_argument("-n", type=int, help="sites (default: bunny 50k, cheese 10k)")
+    parser.add_argument("--cache", type=Path, default=Path(".cache/checkmesh"))
+    parser.add_argument("--keep", type=Path, help="write the cases here and keep them")
+    args = parser.parse_args()
+    for key in args.cases:
+        run_case(key, args.n, args.cache, args.keep)
+
+
+if __name__ == "__main__":
+    main()
