@@ -32,7 +32,7 @@ from hcvt.export import (
     write_openfoam,
     write_vtu,
 )
-from hcvt.export.merge import outlines
+from hcvt.export.merge import merge_boundary_faces, outlines
 from hcvt.polymesh import PolyMesh
 from helpers import DATA, random_inside
 
@@ -514,6 +514,34 @@ def test_merged_boundary_leaves_a_passing_mesh_alone(sphere_cvt, sphere):
     merged, report = merged_boundary(mesh, sphere)
     assert report.rounds == 0 and report.groups == 0 and len(report.failing) == 0
     assert merged is mesh
+
+
+def test_outlines_of_pieces_join_discs_and_refuse_annuli_and_pinches():
+    # A 3 x 3 grid of unit squares in the plane z = 0, counter-clockwise from +z.
+    xy = np.array([(x, y, 0.0) for y in range(4) for x in range(4)], dtype=float)
+    quads = [
+        [4 * y + x, 4 * y + x + 1, 4 * y + x + 5, 4 * y + x + 4] for y in range(3) for x in range(3)
+    ]
+    mesh = PolyMesh(
+        xy,
+        np.arange(0, 37, 4),
+        np.array(quads).ravel(),
+        owner=np.zeros(9, dtype=np.intp),
+        neighbour=np.full(9, -1),
+        boundary_element=np.arange(9),
+        n_cells=1,
+    )
+    faces = np.array([0, 1, 0, 4, 0, 1, 2, 3, 5, 6, 7, 8])
+    group = np.array([7, 7, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9])  # 7: squares 0, 1; 8: corners
+    ids, offsets, vertices, simple = outlines(mesh, faces, group)
+    assert list(ids) == [7, 8, 9] and list(simple) == [True, False, False]  # 9: the ring
+    # Two squares side by side: the 2 x 1 rectangle, its middle edge gone, from point 0.
+    assert list(vertices[offsets[0] : offsets[1]]) == [0, 1, 2, 6, 5, 4]
+    merged, rep = merge_boundary_faces(mesh, np.array([0, 0, 2, 3, 4, 5, 6, 7, 8]))
+    assert list(rep) == [0, 2, 3, 4, 5, 6, 7, 8] and list(merged.face(0)) == [0, 1, 2, 6, 5, 4]
+    assert np.allclose(merged.face_geometry.area_vector[0], [0, 0, 2])
+    with pytest.raises(ValueError, match="do not make one simple loop"):
+        merge_boundary_faces(mesh, np.array([0, 1, 2, 3, 0, 5, 6, 7, 8]))  # a pinch
 
 
 def _converged(name: str, n: int) -> tuple[hcvt.Domain, hcvt.Diagram]:

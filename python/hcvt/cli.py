@@ -3,6 +3,7 @@
 hcvt run star -n 2000 --plot star.png
 hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
 hcvt run bunny.off -n 50000 --mesh case/ --cells cells.vtu
+hcvt run bunny.off -n 50000 --method newton --mesh case/ --mesh-boundary merged
 hcvt run square -n 1033 --method regular --moves 60 --plot square.png
 hcvt run unit-square -n 5000 --density "1 + 99*x^2" --plot graded.png
 hcvt show result.json --plot cells.png

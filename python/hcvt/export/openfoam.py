@@ -103,6 +103,7 @@ def write_openfoam(
                 "single disc, such as a cell wrapping a thin tunnel)",
                 stacklevel=2,
             )
+        mesh.check()  # still closed cells of positive volume
     patch, names = boundary_patches(mesh, domain, labels)
     compact, kept = mesh.compacted()
     fields = {"site": kept.astype(np.float64)}
