@@ -552,6 +552,14 @@ def _converged(name: str, n: int) -> tuple[hcvt.Domain, hcvt.Diagram]:
     return domain, run.diagram
 
 
+def test_cli_refuses_a_merged_boundary_in_2d(tmp_path):
+    args = ["run", str(DATA / "2d" / "unit_square.geojson"), "-n", "10"]
+    args += ["--mesh", str(tmp_path / "case"), "--mesh-boundary", "merged"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2 and "is for 3D meshes" in result.output
+    assert not (tmp_path / "case").exists()
+
+
 @pytest.mark.slow
 def test_merged_boundary_passes_checkmesh_on_a_converged_bunny_cvt(tmp_path):
     # A CVT converged to the default rule (RMS gap < 1e-7; 106 Newton iterations, about
