@@ -8,7 +8,7 @@ checks fail on such pieces though the cells are the exact Voronoi cells:
 - **skewness** of a boundary face is ``|s| / max(0.4 |d|, extent of the face along s)``,
   with ``d`` the normal offset and ``s`` the tangential offset of the face centre from the
   cell centre (:mod:`hcvt.export.quality`): a small piece at a cell's rim scores far
-  above checkMesh's limit 4 (measured up to 264 on the bunny);
+  above checkMesh's limit 4 (130 at most on a converged 50k bunny);
 - **face pyramids**: a cell that wraps a reflex edge of the surface can have its centre
   behind the plane of one of its pieces, and the cone from the centre over that piece has
   negative volume.
@@ -21,12 +21,13 @@ patch whose join passes and changes the cell's volume least, until no boundary f
 fails. A merged face is one polygon, the outline of its pieces: vertices strictly inside
 the merged region (used by that cell's pieces only) drop out of it.
 
-Exact planar faces cannot pass where a piece fails: a piece is already the largest planar
-face of its region of the surface (it is a whole input triangle's part in the cell), and
-splitting it only shrinks its extent, while the cell's centre is fixed by the cell. Where
-a cell's pieces make no single disc around a failing one (a cell wrapping a thin tunnel
-of the cheese, its pieces an annulus), merging cannot fix it either: such faces are
-reported (``MergeReport.failing``).
+Exact planar faces do not help where a piece fails: a piece is already the largest planar
+face of its part of the surface (all of one input triangle within the cell), splitting it
+leaves a smaller face at the same rim, and the cell's centre is fixed by the cell. Where
+a cell's pieces make no single disc (a cell wrapping a thin tunnel of the cheese) and its
+centre lies about a cell size behind a piece, no join was found to pass (pairs, all
+neighbours at once, and hundreds of random partitions into discs were tried:
+``docs/results/checkmesh.txt``): such faces are reported (``MergeReport.failing``).
 
 The cells stay the Voronoi cells, one per site, and every interior face is untouched. What
 changes is how OpenFOAM *measures* a cell with a merged face: a merged face is not planar,
@@ -289,14 +290,16 @@ def merge_failing_boundary_faces(
     """Merge boundary faces of ``mesh`` until none fails checkMesh's skewness or pyramids.
 
     Each round measures the current faces as checkMesh does (:mod:`hcvt.export.quality`)
-    and offers each failing boundary face the neighbouring faces of its cell and patch
-    (sharing an edge) whose join has one simple outline. It takes the one that changes
-    its cell's volume, as OpenFOAM computes it, the least: a merged face's area vector
-    ``S`` is the sum of its pieces', so the cell's volume ``Σ S_f·c_f / 3`` changes by
-    ``(S·c - Σ S_i·c_i) / 3`` with ``c`` the merged face's centre (OpenFOAM's fan) and
-    ``c_i`` the pieces'. Joins are made smallest change first, each face at most once per
-    round. Stops when no boundary face fails, or when no failing face can be joined
-    further (those are in ``MergeReport.failing``).
+    and offers each failing boundary face its joins with the neighbouring faces of its
+    cell and patch (sharing an edge), one at a time and all at once, whose outline is one
+    simple loop. It takes a join whose face passes (against the current cell centres),
+    and among those, or if none passes, the one that changes its cell's volume as
+    OpenFOAM computes it the least: a merged face's area vector ``S`` is the sum of its
+    pieces', so the cell's volume ``Σ S_f·c_f / 3`` changes by ``(S·c - Σ S_i·c_i) / 3``
+    with ``c`` the merged face's centre (OpenFOAM's fan) and ``c_i`` the pieces'. Joins
+    are made smallest change first, each face at most once per round. Stops when no
+    boundary face fails, or when no failing face can be joined further (those are in
+    ``MergeReport.failing``).
 
     Parameters
     ----------
