@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hcvt.export.geojson import write_geojson
+from hcvt.export.merge import MergeReport, merged_boundary
 from hcvt.export.openfoam import write_openfoam
 from hcvt.export.patches import boundary_patches
 from hcvt.export.quality import MeshQuality, mesh_quality
@@ -24,9 +25,11 @@ if TYPE_CHECKING:
     from hcvt.domain import Domain
 
 __all__ = [
+    "MergeReport",
     "MeshQuality",
     "as_polymesh",
     "boundary_patches",
+    "merged_boundary",
     "mesh_quality",
     "to_pyvista",
     "write_geojson",
@@ -66,6 +69,7 @@ def write_mesh(
     binary: bool = False,
     thickness: float | None = None,
     cell_data: dict[str, ArrayLike] | None = None,
+    boundary_faces: str = "exact",
 ) -> Path:
     """Write the conforming mesh of a diagram (or a PolyMesh) to ``path``.
 
@@ -89,6 +93,10 @@ def write_mesh(
         OpenFOAM, 2D: the extrusion depth.
     cell_data : dict of str to array_like of shape (n,), optional
         More per-cell values to write (beside a diagram's ``volume`` and ``G``).
+    boundary_faces : {"exact", "merged"}
+        OpenFOAM, 3D: ``"merged"`` joins the boundary pieces checkMesh would flag (skew,
+        inverted pyramids) into larger, non-planar faces so that it passes; the default
+        ``"exact"`` writes the exact pieces. See :func:`write_openfoam`.
 
     Returns
     -------
@@ -100,12 +108,15 @@ def write_mesh(
     NotImplementedError
         ``source`` has no ``mesh()``.
     ValueError
-        An unknown suffix; a GeoJSON of a 3D mesh.
+        An unknown suffix; a GeoJSON of a 3D mesh; ``boundary_faces="merged"`` for a file
+        that is not an OpenFOAM case.
     """
     mesh, own_domain, data = as_polymesh(source)
     data = {**data, **(cell_data or {})}
     path = Path(path)
     suffix = path.suffix.lower()
+    if suffix and boundary_faces != "exact":
+        raise ValueError(f"boundary_faces={boundary_faces!r} is for OpenFOAM cases only")
     if suffix == ".vtu":
         return write_vtu(mesh, path, cell_data=data)
     if suffix in (".geojson", ".json"):
@@ -123,6 +134,7 @@ def write_mesh(
         binary=binary,
         thickness=thickness,
         cell_data=data,
+        boundary_faces=boundary_faces,
     )
 
 

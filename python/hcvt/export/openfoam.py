@@ -15,12 +15,14 @@ A 2D mesh is extruded one cell thick along z, its front and back faces forming t
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hcvt.export.merge import BOUNDARY_FACES, merged_boundary
 from hcvt.export.patches import boundary_patches
 from hcvt.polymesh import PolyMesh
 
@@ -42,6 +44,7 @@ def write_openfoam(
     binary: bool = False,
     thickness: float | None = None,
     cell_data: dict[str, ArrayLike] | None = None,
+    boundary_faces: str = "exact",
 ) -> Path:
     """Write ``mesh`` as the OpenFOAM case directory ``case``.
 
@@ -66,13 +69,41 @@ def write_openfoam(
         2D only: the extrusion's depth along z, L; default the mean cell size ``(A/n)^½``.
     cell_data : dict of str to array_like of shape (n,), optional
         Per-cell values (row ``i`` is cell ``i`` of ``mesh``) written as volScalarFields.
+    boundary_faces : {"exact", "merged"}
+        3D only. ``"exact"``: every piece of an input triangle in a cell is its own
+        planar face; the geometry is exact (checkMesh's total volume is the domain's),
+        but checkMesh flags small pieces at a cell's rim as skew and, in a cell wrapping a
+        reflex edge, pieces its centre lies behind (face pyramids). ``"merged"``: those
+        pieces are joined to neighbouring pieces of the same cell and patch until
+        checkMesh's skewness and pyramid checks pass (:mod:`hcvt.export.merge`); cells
+        and interior faces are unchanged, but a merged face is not planar, so the
+        volumes OpenFOAM computes for the cells that have one move slightly
+        (``docs/results/checkmesh.txt``). Faces that cannot be fixed so are left failing
+        with a warning.
 
     Returns
     -------
     Path
         ``case``.
+
+    Raises
+    ------
+    ValueError
+        An unknown ``boundary_faces``, or ``"merged"`` for a 2D mesh.
     """
+    if boundary_faces not in BOUNDARY_FACES:
+        raise ValueError(f"boundary_faces must be one of {BOUNDARY_FACES}, got {boundary_faces!r}")
     mesh.check()
+    if boundary_faces == "merged":
+        mesh, report = merged_boundary(mesh, domain, labels)
+        if len(report.failing):
+            warnings.warn(
+                f"{len(report.failing)} boundary faces still fail checkMesh's skewness or "
+                "face-pyramid check after merging (a cell whose boundary pieces make no "
+                "single disc, such as a cell wrapping a thin tunnel)",
+                stacklevel=2,
+            )
+        mesh.check()  # still closed cells of positive volume
     patch, names = boundary_patches(mesh, domain, labels)
     compact, kept = mesh.compacted()
     fields = {"site": kept.astype(np.float64)}

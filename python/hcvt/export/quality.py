@@ -112,8 +112,21 @@ def mesh_quality(mesh: PolyMesh) -> MeshQuality:
     >>> q.non_orthogonality[0], q.skewness.max()
     (np.float64(0.0), np.float64(0.0))
     """
-    centre, area = mesh.face_geometry
     volume, centroid = mesh.cell_geometry
+    angle, skewness, inverted = face_quality(mesh, centroid)
+    return MeshQuality(volume, angle, skewness, inverted, mesh.interior)
+
+
+def face_quality(
+    mesh: PolyMesh, centroid: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Non-orthogonality, skewness and inverted pyramids of the faces of ``mesh``.
+
+    As :func:`mesh_quality`, but measured against the cell centres ``centroid`` (shape
+    (n, d)) given: :mod:`hcvt.export.merge` measures candidate faces with it before it
+    makes them. Returns the three per-face arrays of :class:`MeshQuality`.
+    """
+    centre, area = mesh.face_geometry
     inner = mesh.interior
     own = centroid[mesh.owner]
     d = np.where(inner[:, None], centroid[np.maximum(mesh.neighbour, 0)] - own, 0.0)
@@ -140,7 +153,7 @@ def mesh_quality(mesh: PolyMesh) -> MeshQuality:
     own_cone = _dot(area, cpf) / mesh.dim
     nei_cone = _dot(area, centroid[np.maximum(mesh.neighbour, 0)] - centre) / mesh.dim
     inverted = (own_cone < -_SMALL) | (inner & (nei_cone < -_SMALL))
-    return MeshQuality(volume, angle, skewness, inverted, inner)
+    return angle, skewness, inverted
 
 
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
