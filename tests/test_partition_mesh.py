@@ -181,3 +181,31 @@ def test_a_piece_records_the_row_across_each_face(holes):
         for r, a in zip(part.rows[mesh.owner[cross]], piece.across[cross], strict=True)
     }
     assert got == pairs
+
+
+def test_cli_run_with_a_scheduler_writes_pvtu_pieces(client, tmp_path):
+    """``hcvt run --scheduler ADDRESS --cells out.pvtu``: pieces ``out/part*.vtu`` by the
+    workers; read back, the cells' volumes are the single-process diagram's. Without
+    ``--scheduler`` a .pvtu is refused."""
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    path = os.path.join(DATA, "2d", "star5.geojson")
+    args = ["run", path, "-n", "600", "--method", "lloyd", "--max-iter", "1", "--seed", "2"]
+    out = tmp_path / "out.pvtu"
+    with_cells = CliRunner().invoke(
+        main,
+        [*args, "--scheduler", client.scheduler.address, "--sites-per-partition", "200"]
+        + ["--cells", str(out), "--out", str(tmp_path / "sites.npy")],
+    )
+    assert with_cells.exit_code == 0, with_cells.output
+    assert len(list((tmp_path / "out").glob("part*.vtu"))) >= 3
+    domain = hcvt.load_domain(path)
+    expected = hcvt.voronoi(domain, np.load(tmp_path / "sites.npy"))
+    grid = pv.read(out)
+    rows = grid.cell_data["row"].astype(np.int64)
+    assert np.array_equal(np.unique(rows), np.arange(600))
+    assert np.array_equal(grid.cell_data["volume"], expected.volume[rows])
+    refused = CliRunner().invoke(main, [*args, "--cells", str(tmp_path / "x.pvtu")])
+    assert refused.exit_code != 0 and "needs --scheduler" in refused.output
