@@ -5,7 +5,7 @@
 //!
 //! | file | owns |
 //! |------|------|
-//! | `mod.rs` | [`PolyMesh`], the drivers [`conforming_mesh_2d`] / [`conforming_mesh_3d`] and the global assembly: names to one vertex index, degenerate names merged, each interior face once |
+//! | `mod.rs` | [`PolyMesh`], the drivers [`conforming_mesh_2d`] / [`conforming_mesh_3d`] (and for a partition's own cells among its sites and halo, [`conforming_mesh_part_2d`] / [`conforming_mesh_part_3d`], DESIGN §10) and the global assembly: names to one vertex index, degenerate names merged, each interior face once |
 //! | `key.rs` | the combinatorial vertex names |
 //! | `planar.rs` | a convex polygon restricted to the domain in its plane (2D cells, 3D bisector faces) |
 //! | `cell2.rs` | one 2D cell's edges |
