@@ -247,29 +247,11 @@ where
     if own.is_empty() {
         return Ok(MeshPart::default());
     }
-    if let Some(&bad) = own.iter().find(|&&i| i as usize >= n) {
-        return Err(CoreError::SiteIndex {
-            reason: format!("own site {bad} is not one of the {n} sites"),
-        });
-    }
-    for (index, s) in sites.iter().enumerate() {
-        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
-            return Err(CoreError::NonFiniteSite { index, value });
-        }
-    }
-    // The own sites are checked as a whole problem's; the others are other parts' own.
-    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
-    let own_windings = checked_windings(boundary, &own_sites, options)
-        .map_err(|e| e.with_site_rows(|k| own.get(k).map_or(k, |&i| i as usize)))?;
-    let mut windings = vec![None; n];
-    let mut is_own = vec![false; n];
-    for (&i, &w) in own.iter().zip(&own_windings) {
-        windings[i as usize] = w;
-        is_own[i as usize] = true;
-    }
+    let (mut windings, is_own) = checked_part(boundary, sites, own, options)?;
     let index = SiteIndex::new(sites)?;
     let total = total_sites.max(n);
     let mut cells = Cells::new(n);
+    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
     let visit: Vec<u32> = morton_order(&own_sites)
         .iter()
         .map(|&k| own[k as usize])
@@ -298,6 +280,41 @@ where
         frontier = ring;
     }
     Ok(cells.assemble(sites, boundary.vertices(), Some(&is_own)))
+}
+
+/// A part's sites checked (all finite, `own` in range, the own sites as a whole
+/// problem's; the others are other parts' own): the own sites' winding numbers indexed
+/// like `sites` (`None` elsewhere), and which sites are own.
+fn checked_part<const D: usize>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    own: &[u32],
+    options: Options,
+) -> Result<(Vec<Option<i32>>, Vec<bool>), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let n = sites.len();
+    if let Some(&bad) = own.iter().find(|&&i| i as usize >= n) {
+        return Err(CoreError::SiteIndex {
+            reason: format!("own site {bad} is not one of the {n} sites"),
+        });
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
+    let own_windings = checked_windings(boundary, &own_sites, options)
+        .map_err(|e| e.with_site_rows(|k| own.get(k).map_or(k, |&i| i as usize)))?;
+    let mut windings = vec![None; n];
+    let mut is_own = vec![false; n];
+    for (&i, &w) in own.iter().zip(&own_windings) {
+        windings[i as usize] = w;
+        is_own[i as usize] = true;
+    }
+    Ok((windings, is_own))
 }
 
 /// The faces and reach of the cells `visit` (in parallel batches; each cell alone).
