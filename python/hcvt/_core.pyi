@@ -20,6 +20,8 @@ __all__ = [
     "get_num_threads",
     "mesh_2d",
     "mesh_3d",
+    "mesh_part_2d",
+    "mesh_part_3d",
     "partition_cells_2d",
     "partition_cells_3d",
     "set_num_threads",
@@ -101,6 +103,25 @@ def mesh_2d(
     domain: PolygonDomain, sites: _Float2, allow_outside: bool = False
 ) -> dict[str, Any]: ...
 def mesh_3d(domain: SolidDomain, sites: _Float2, allow_outside: bool = False) -> dict[str, Any]: ...
+
+# A part's mesh dicts (hcvt.partition_mesh): a mesh dict of the own cells' faces, owner and
+# neighbour indexing the sites given, plus computed (c,) intp and reach2 (c,).
+def mesh_part_2d(
+    domain: PolygonDomain,
+    sites: _Float2,
+    rows: NDArray[np.int64],
+    own: NDArray[np.uint32],
+    total_sites: int,
+    allow_outside: bool = False,
+) -> dict[str, Any]: ...
+def mesh_part_3d(
+    domain: SolidDomain,
+    sites: _Float2,
+    rows: NDArray[np.int64],
+    own: NDArray[np.uint32],
+    total_sites: int,
+    allow_outside: bool = False,
+) -> dict[str, Any]: ...
 
 # Partition dicts: a diagram dict with one row per own site, neighbor_sites in the
 # problem's rows, first (k, d) moments about the sites, reach2 (k,) (see hcvt.distributed).

@@ -100,7 +100,9 @@ def _load(input_: str, repair: bool):
     "--cells",
     "cells_path",
     type=click.Path(dir_okay=False),
-    help="Cells file: .vtu (polyhedra / polygons), .geojson (2D), .ply (3D triangles).",
+    help="Cells file: .vtu (polyhedra / polygons), .geojson (2D), .ply (3D triangles); "
+    "with --scheduler, .pvtu: one .vtu piece per part written by its worker, in the "
+    "directory named like the file.",
 )
 @click.option(
     "--mesh",
@@ -187,6 +189,9 @@ def run(
         raise click.UsageError(
             f"--scheduler runs the methods {', '.join(PARTITIONED)}, not {method!r}"
         )
+    pieces = cells_path is not None and Path(cells_path).suffix.lower() == ".pvtu"
+    if pieces and scheduler is None:
+        raise click.UsageError("--cells .pvtu (one piece per part) needs --scheduler")
     domain = _load(input_, repair)
     if mesh_boundary != "exact" and domain.dim != 3:
         raise click.UsageError("--mesh-boundary merged is for 3D meshes (a 2D mesh's are edges)")
@@ -239,15 +244,18 @@ def run(
             extra = weighted
             if client is not None:
                 extra = {**weighted, "client": client, "sites_per_partition": sites_per_partition}
+            if pieces:
+                # Each part's cells written where they are, then the arrays gathered.
+                extra = {"cells_pvtu": cells_path, **extra}
             if method == "voronoi":
-                diagram = hcvt.voronoi(domain, sites, **extra)
+                diagram = _voronoi(domain, sites, **extra)
             elif method == "monte-carlo":
                 mc = hcvt.global_monte_carlo(
                     domain, sites, seed=seed, rule=rule, tol=tol, progress=True, **weighted
                 )
                 sites, diagram, iterations = mc.sites, mc.diagram, mc.iterations
             else:
-                run = hcvt.cvt(
+                run = _cvt(
                     domain,
                     sites,
                     method=method,
@@ -321,7 +329,9 @@ def _write_meshes(
     info: dict[str, Any] = {}
     suffix = Path(cells_path).suffix.lower() if cells_path else ""
     cells_from_mesh = suffix in (".vtu", ".geojson", ".json")
-    if cells_path and not cells_from_mesh:
+    if suffix == ".pvtu":  # written per part by the workers
+        info["cells"] = str(cells_path)
+    elif cells_path and not cells_from_mesh:
         hcvt.io.write_cells(diagram, cells_path)
         info["cells"] = str(cells_path)
     if not (cells_from_mesh or mesh_dir):
@@ -365,6 +375,42 @@ def _write_meshes(
         f"{quality['inverted_pyramids']} inverted pyramids)"
     )
     return info
+
+
+def _voronoi(domain: Any, sites: Any, cells_pvtu: str | None = None, **kwargs: Any) -> Any:
+    """``hcvt.voronoi``, or with ``cells_pvtu`` (and a client) partitioned.
+
+    Its cells are then written as pieces by the workers first
+    (:meth:`hcvt.distributed.PartitionedDiagram.write_cells`), and the diagram gathered.
+    """
+    import hcvt
+
+    if cells_pvtu is None:
+        return hcvt.voronoi(domain, sites, **kwargs)
+    from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_voronoi
+
+    per_part = kwargs.pop("sites_per_partition") or DEFAULT_SITES_PER_PARTITION
+    parted = partitioned_voronoi(domain, sites, sites_per_partition=per_part, **kwargs)
+    parted.write_cells(cells_pvtu)
+    return parted.gather()
+
+
+def _cvt(domain: Any, sites: Any, cells_pvtu: str | None = None, **kwargs: Any) -> Any:
+    """``hcvt.cvt``, or with ``cells_pvtu`` (and a client) partitioned.
+
+    The final diagram's cells are then written as pieces by the workers first (as
+    :func:`_voronoi`), and the result gathered.
+    """
+    import hcvt
+
+    if cells_pvtu is None:
+        return hcvt.cvt(domain, sites, **kwargs)
+    from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt
+
+    per_part = kwargs.pop("sites_per_partition") or DEFAULT_SITES_PER_PARTITION
+    result = partitioned_cvt(domain, sites, sites_per_partition=per_part, **kwargs)
+    result.diagram.write_cells(cells_pvtu)
+    return result.gather()
 
 
 #: The methods ``run --scheduler`` partitions over dask.distributed workers.

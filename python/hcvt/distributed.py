@@ -257,6 +257,8 @@ class PartitionedDiagram:
         self._parts = parts
         self._cells = cells
         self.rounds = rounds
+        #: Halo sites of each round of :meth:`write_cells`, once it has run.
+        self.piece_rounds: list[int] = []
         self.n = cluster.n
         self.parts = len(parts)
         sums = cluster.gather([cluster.submit(_energy_partial, c) for c in cells])
@@ -323,6 +325,25 @@ class PartitionedDiagram:
             for p, c in zip(self._parts, self._cells, strict=True)
         ]
         return [path for paths in self._cluster.gather(futures) for path in paths]
+
+    def write_cells(self, path: str | Path) -> Path:
+        """Write the cells as one VTU piece per part, by its worker, and a .pvtu index.
+
+        ``path`` is the index (``cells.pvtu``: pieces ``cells/part{p:05d}.vtu`` beside it)
+        or a directory (``cells.pvtu`` and the pieces in it); every worker must reach it.
+        Each piece holds its part's cells with the faces and vertex coordinates of
+        :meth:`hcvt.Diagram.mesh` of the whole problem, bit for bit, and cell data
+        ``row`` (the problem row), ``volume`` and ``G``; the client writes only the index
+        (:mod:`hcvt.partition_mesh`). Returns the index's path; the halo sites of each
+        round are in ``self.piece_rounds``.
+        """
+        from hcvt import partition_mesh
+
+        rho = HALO_SPACINGS[self._cluster.domain.dim] * self._cluster.h
+        index, self.piece_rounds = partition_mesh.write_cells(
+            self._cluster, self._parts, self._cells, path, rho
+        )
+        return index
 
     def peak_memory_mb(self) -> dict[str, float]:
         """Peak resident memory of every worker process (and of this client), MB."""

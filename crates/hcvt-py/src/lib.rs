@@ -29,6 +29,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(diagram::voronoi_3d, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_2d, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh::mesh_part_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(mesh::mesh_part_3d, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells_2d, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells_3d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_2d, m)?)?;

@@ -1,12 +1,17 @@
 //! The conforming mesh of a diagram's cells as numpy arrays (`hcvt.polymesh.PolyMesh`).
 
-use hcvt_core::diagram::mesh::{conforming_mesh_2d, conforming_mesh_3d, PolyMesh};
+use hcvt_core::diagram::mesh::{
+    conforming_mesh_2d, conforming_mesh_3d, conforming_mesh_part_2d, conforming_mesh_part_3d,
+    MeshPart, PolyMesh,
+};
 use hcvt_core::diagram::Options;
-use numpy::PyReadonlyArray2;
+use hcvt_core::error::CoreError;
+use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{rows, to_array2, to_intp};
+use crate::arrays::{rows as site_rows, to_array2, to_intp};
 use crate::domain::{PolygonDomain, SolidDomain};
 use crate::errors::to_py_err;
 
@@ -38,7 +43,7 @@ pub fn mesh_2d<'py>(
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let points = rows::<f64, 2>(&sites, "sites")?;
+    let points = site_rows::<f64, 2>(&sites, "sites")?;
     let options = Options { allow_outside };
     let mesh = py
         .detach(|| crate::threads::run(|| conforming_mesh_2d(&domain.0, &points, options)))
@@ -56,10 +61,97 @@ pub fn mesh_3d<'py>(
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let points = rows::<f64, 3>(&sites, "sites")?;
+    let points = site_rows::<f64, 3>(&sites, "sites")?;
     let options = Options { allow_outside };
     let mesh = py
         .detach(|| crate::threads::run(|| conforming_mesh_3d(&domain.0, &points, options)))
         .map_err(to_py_err)?;
     mesh_dict(py, &mesh)
+}
+
+/// The faces of the cells `sites[own]` (n, 2) in the conforming mesh of a problem of
+/// `total_sites` sites, of which `sites` are those of rows `rows` (n,), increasing: a
+/// mesh dict whose `owner` and `neighbour` index `sites` (every face owned by an own
+/// cell; see `hcvt.partition_mesh`), plus `computed` (c,) the cells computed and `reach2`
+/// (c,) their reach squared. Errors name problem rows.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
+pub fn mesh_part_2d<'py>(
+    py: Python<'py>,
+    domain: &PolygonDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    rows: PyReadonlyArray1<'py, i64>,
+    own: PyReadonlyArray1<'py, u32>,
+    total_sites: usize,
+    allow_outside: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let points = site_rows::<f64, 2>(&sites, "sites")?;
+    let global = increasing_rows(&rows, points.len())?;
+    let own = own.as_slice()?.to_vec();
+    let options = Options { allow_outside };
+    let part = py.detach(|| {
+        crate::threads::run(|| {
+            conforming_mesh_part_2d(&domain.0, &points, &own, total_sites, options)
+        })
+    });
+    part_dict(py, named_by_rows(part, &global)?)
+}
+
+/// [`mesh_part_2d`] for sites (n, 3) in a solid.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
+pub fn mesh_part_3d<'py>(
+    py: Python<'py>,
+    domain: &SolidDomain,
+    sites: PyReadonlyArray2<'py, f64>,
+    rows: PyReadonlyArray1<'py, i64>,
+    own: PyReadonlyArray1<'py, u32>,
+    total_sites: usize,
+    allow_outside: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let points = site_rows::<f64, 3>(&sites, "sites")?;
+    let global = increasing_rows(&rows, points.len())?;
+    let own = own.as_slice()?.to_vec();
+    let options = Options { allow_outside };
+    let part = py.detach(|| {
+        crate::threads::run(|| {
+            conforming_mesh_part_3d(&domain.0, &points, &own, total_sites, options)
+        })
+    });
+    part_dict(py, named_by_rows(part, &global)?)
+}
+
+/// One increasing, non-negative problem row per site.
+fn increasing_rows(rows: &PyReadonlyArray1<'_, i64>, n: usize) -> PyResult<Vec<usize>> {
+    let global: Vec<usize> = rows
+        .as_slice()?
+        .iter()
+        .map(|&r| usize::try_from(r).map_err(|_| PyValueError::new_err("negative row")))
+        .collect::<PyResult<_>>()?;
+    if global.len() != n
+        || global
+            .iter()
+            .zip(global.iter().skip(1))
+            .any(|(a, b)| a >= b)
+    {
+        return Err(PyValueError::new_err(
+            "rows must hold one increasing row number per site",
+        ));
+    }
+    Ok(global)
+}
+
+/// The part, or its error naming problem rows.
+fn named_by_rows<const D: usize>(
+    part: Result<MeshPart<D>, CoreError>,
+    global: &[usize],
+) -> PyResult<MeshPart<D>> {
+    part.map_err(|e| to_py_err(e.with_site_rows(|i| global.get(i).copied().unwrap_or(i))))
+}
+
+fn part_dict<const D: usize>(py: Python<'_>, part: MeshPart<D>) -> PyResult<Bound<'_, PyDict>> {
+    let out = mesh_dict(py, &part.mesh)?;
+    out.set_item("computed", to_intp(py, &part.computed)?)?;
+    out.set_item("reach2", PyArray1::from_vec(py, part.reach2))?;
+    Ok(out)
 }

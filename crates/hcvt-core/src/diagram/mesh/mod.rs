@@ -5,7 +5,7 @@
 //!
 //! | file | owns |
 //! |------|------|
-//! | `mod.rs` | [`PolyMesh`], the drivers [`conforming_mesh_2d`] / [`conforming_mesh_3d`] and the global assembly: names to one vertex index, degenerate names merged, each interior face once |
+//! | `mod.rs` | [`PolyMesh`], the drivers [`conforming_mesh_2d`] / [`conforming_mesh_3d`] (and for a partition's own cells among its sites and halo, [`conforming_mesh_part_2d`] / [`conforming_mesh_part_3d`], DESIGN §10) and the global assembly: names to one vertex index, degenerate names merged, each interior face once |
 //! | `key.rs` | the combinatorial vertex names |
 //! | `planar.rs` | a convex polygon restricted to the domain in its plane (2D cells, 3D bisector faces) |
 //! | `cell2.rs` | one 2D cell's edges |
@@ -29,7 +29,8 @@ use std::hash::{BuildHasherDefault, Hasher};
 use rayon::prelude::*;
 
 use super::convex_cell::{ConvexCell, Face};
-use super::{checked_windings, morton_order, voronoi_cell, CellScratch, Options, SiteIndex};
+use super::{checked_windings, morton_order, voronoi_cell_among, CellScratch, Options};
+use super::{NearScratch, SiteIndex};
 use super::{PolygonCell, PolyhedronCell};
 use crate::domain::{Boundary, Polygon, Solid, WindingNumber};
 use crate::error::CoreError;
@@ -152,7 +153,7 @@ pub fn conforming_mesh_2d(
     sites: &[[f64; 2]],
     options: Options,
 ) -> Result<PolyMesh<2>, CoreError> {
-    conforming_mesh::<2, PolygonCell>(boundary, sites, options)
+    conforming_mesh::<2, PolygonCell>(boundary, sites, None, options).map(|part| part.mesh)
 }
 
 /// The conforming polyhedral mesh of the clipped diagram of `sites` in `boundary`.
@@ -163,67 +164,317 @@ pub fn conforming_mesh_3d(
     sites: &[[f64; 3]],
     options: Options,
 ) -> Result<PolyMesh<3>, CoreError> {
-    conforming_mesh::<3, PolyhedronCell>(boundary, sites, options)
+    conforming_mesh::<3, PolyhedronCell>(boundary, sites, None, options).map(|part| part.mesh)
 }
 
+/// The cells of a partition's sites in the conforming mesh of the whole problem (DESIGN
+/// §10): what [`conforming_mesh_part_2d`] / [`conforming_mesh_part_3d`] return.
+#[derive(Debug, Clone, Default)]
+pub struct MeshPart<const D: usize> {
+    /// Every face of the own cells, cells numbered as the `sites` given: a face between
+    /// two own cells once, owned by the smaller; a face between an own cell and another
+    /// one owned by the own cell (oriented out of it), `neighbour` the other cell. Each
+    /// face's vertex coordinates are bitwise those of the whole problem's mesh.
+    pub mesh: PolyMesh<D>,
+    /// The cells computed, increasing: the own cells and the ring of other cells that
+    /// share a vertex with them (their names and positions decide the shared vertices).
+    pub computed: Vec<u32>,
+    /// Reach of each computed cell, `L²` ([`super::PartCells::reach2`]): the part is the
+    /// whole problem's when `sites` holds every site within each one's reach.
+    pub reach2: Vec<f64>,
+}
+
+/// The own cells `own` (indices into `sites`) of a partition of a problem of
+/// `total_sites` sites, as they are in [`conforming_mesh_2d`] of the whole problem
+/// ([`MeshPart`]).
+///
+/// A vertex of the whole mesh takes its name and position from the first cell, in index
+/// order, that has it, and degenerate names merge between the cells that share a point;
+/// so besides the own cells this computes every other cell whose site is as near as the
+/// cell's own site (to 1e-7 of the cell's size) to one of their vertices: every cell that
+/// has that point. Exact when every computed cell is certified by its reach and `sites`
+/// lists the problem's sites in their relative order (as [`super::clipped_cells`]).
+///
+/// Errors as [`super::clipped_cells`], naming indices into `sites`.
+pub fn conforming_mesh_part_2d(
+    boundary: &Polygon,
+    sites: &[[f64; 2]],
+    own: &[u32],
+    total_sites: usize,
+    options: Options,
+) -> Result<MeshPart<2>, CoreError> {
+    conforming_mesh::<2, PolygonCell>(boundary, sites, Some((own, total_sites)), options)
+}
+
+/// [`conforming_mesh_part_2d`] in a solid.
+pub fn conforming_mesh_part_3d(
+    boundary: &Solid,
+    sites: &[[f64; 3]],
+    own: &[u32],
+    total_sites: usize,
+    options: Options,
+) -> Result<MeshPart<3>, CoreError> {
+    conforming_mesh::<3, PolyhedronCell>(boundary, sites, Some((own, total_sites)), options)
+}
+
+/// A vertex of a cell is shared with every cell whose site is within its distance from
+/// the cell's site plus this fraction of the cell's size (names merge at 1e-10 of it).
+const RING_REL: f64 = 1e-7;
+
+/// One cell's faces and reach, or its error.
+type Made<const D: usize> = (u32, Result<(CellFaces<D>, f64), CoreError>);
+
+/// The whole mesh (`subset` None), or the cells `own` of a part of a problem of
+/// `total_sites` sites among `sites` ([`MeshPart`]).
 fn conforming_mesh<const D: usize, C: CellGeometry<D>>(
     boundary: &Boundary<D>,
     sites: &[[f64; D]],
+    subset: Option<(&[u32], usize)>,
     options: Options,
-) -> Result<PolyMesh<D>, CoreError>
+) -> Result<MeshPart<D>, CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    let windings = checked_windings(boundary, sites, options)?;
+    let n = sites.len();
+    let Some((own, total_sites)) = subset else {
+        let windings = checked_windings(boundary, sites, options)?;
+        let index = SiteIndex::new(sites)?;
+        let mut cells = Cells::new(n);
+        let made = cell_faces::<D, C>(boundary, &index, sites, n, &windings, &morton_order(sites));
+        cells.take(made)?;
+        return Ok(cells.assemble(sites, boundary.vertices(), None));
+    };
+    if own.is_empty() {
+        return Ok(MeshPart::default());
+    }
+    let (mut windings, is_own) = checked_part(boundary, sites, own, options)?;
     let index = SiteIndex::new(sites)?;
-    let order = morton_order(sites);
-    type Made<const D: usize> = Vec<(u32, Result<CellFaces<D>, CoreError>)>;
-    let batches: Vec<Made<D>> = order
+    let total = total_sites.max(n);
+    let mut cells = Cells::new(n);
+    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
+    let visit: Vec<u32> = morton_order(&own_sites)
+        .iter()
+        .map(|&k| own[k as usize])
+        .collect();
+    cells.take(cell_faces::<D, C>(
+        boundary, &index, sites, total, &windings, &visit,
+    ))?;
+    // Rings until no new cell: a ring cell's faces toward the own cells may have vertices
+    // the own cells lack (degenerate points), whose other cells are needed in turn.
+    let mut frontier: Vec<u32> = own.to_vec();
+    loop {
+        let ring = cells.ring(&frontier, &is_own, &index, sites);
+        if ring.is_empty() {
+            break;
+        }
+        let ring_windings: Vec<Option<i32>> = ring
+            .par_iter()
+            .map(|&j| Euclid::winding_number(boundary, &sites[j as usize]))
+            .collect();
+        for (&j, &w) in ring.iter().zip(&ring_windings) {
+            windings[j as usize] = w;
+        }
+        cells.take(cell_faces::<D, C>(
+            boundary, &index, sites, total, &windings, &ring,
+        ))?;
+        frontier = ring;
+    }
+    Ok(cells.assemble(sites, boundary.vertices(), Some(&is_own)))
+}
+
+/// A part's sites checked (all finite, `own` in range, the own sites as a whole
+/// problem's; the others are other parts' own): the own sites' winding numbers indexed
+/// like `sites` (`None` elsewhere), and which sites are own.
+fn checked_part<const D: usize>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    own: &[u32],
+    options: Options,
+) -> Result<(Vec<Option<i32>>, Vec<bool>), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let n = sites.len();
+    if let Some(&bad) = own.iter().find(|&&i| i as usize >= n) {
+        return Err(CoreError::SiteIndex {
+            reason: format!("own site {bad} is not one of the {n} sites"),
+        });
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
+    let own_windings = checked_windings(boundary, &own_sites, options)
+        .map_err(|e| e.with_site_rows(|k| own.get(k).map_or(k, |&i| i as usize)))?;
+    let mut windings = vec![None; n];
+    let mut is_own = vec![false; n];
+    for (&i, &w) in own.iter().zip(&own_windings) {
+        windings[i as usize] = w;
+        is_own[i as usize] = true;
+    }
+    Ok((windings, is_own))
+}
+
+/// The faces and reach of the cells `visit` (in parallel batches; each cell alone).
+fn cell_faces<const D: usize, C: CellGeometry<D>>(
+    boundary: &Boundary<D>,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    total_sites: usize,
+    windings: &[Option<i32>],
+    visit: &[u32],
+) -> Vec<Made<D>>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let batches: Vec<Vec<Made<D>>> = visit
         .par_chunks(BATCH)
         .map_init(
             || (CellScratch::<C>::default(), C::Scratch::default()),
-            |(cells, geometry), chunk| {
+            |(scratch, geometry), chunk| {
                 chunk
                     .iter()
                     .map(|&i| {
                         let i = i as usize;
                         // Without the early cut of a convex domain's boundary cells: the
                         // faces are made here, from the bisectors and triangles alone.
-                        let made = voronoi_cell::<D, C>(boundary, &index, sites, i, false, cells)
-                            .map(|(cell, _)| {
-                                let mut faces = CellFaces::default();
-                                cell.clipped_faces(
-                                    boundary,
-                                    sites,
-                                    i,
-                                    windings[i],
-                                    &mut faces,
-                                    geometry,
-                                );
-                                faces
-                            });
-                        (i as u32, made)
+                        let made = voronoi_cell_among::<D, C>(
+                            boundary,
+                            index,
+                            sites,
+                            total_sites,
+                            i,
+                            false,
+                            scratch,
+                        )
+                        .map(|(cell, _)| {
+                            let mut faces = CellFaces::default();
+                            cell.clipped_faces(
+                                boundary,
+                                sites,
+                                i,
+                                windings[i],
+                                &mut faces,
+                                geometry,
+                            );
+                            faces
+                        });
+                        (i as u32, made.map(|faces| (faces, scratch.reach2())))
                     })
                     .collect()
             },
         )
         .collect();
-    let mut cells: Vec<CellFaces<D>> = (0..sites.len()).map(|_| CellFaces::default()).collect();
-    let mut first_error: Option<(u32, CoreError)> = None;
-    for (i, made) in batches.into_iter().flatten() {
-        match made {
-            Ok(faces) => cells[i as usize] = faces,
-            Err(e) => {
-                if first_error.as_ref().is_none_or(|(j, _)| i < *j) {
-                    first_error = Some((i, e));
+    batches.into_iter().flatten().collect()
+}
+
+/// The cells computed so far, indexed like the sites (empty where not computed).
+struct Cells<const D: usize> {
+    faces: Vec<CellFaces<D>>,
+    reach2: Vec<f64>,
+    computed: Vec<bool>,
+}
+
+impl<const D: usize> Cells<D> {
+    fn new(n: usize) -> Self {
+        Self {
+            faces: (0..n).map(|_| CellFaces::default()).collect(),
+            reach2: vec![0.0; n],
+            computed: vec![false; n],
+        }
+    }
+
+    /// Store `made`, or return the error of its first offending site in index order.
+    fn take(&mut self, made: Vec<Made<D>>) -> Result<(), CoreError> {
+        let mut first_error: Option<(u32, CoreError)> = None;
+        for (i, made) in made {
+            match made {
+                Ok((faces, reach2)) => {
+                    self.faces[i as usize] = faces;
+                    self.reach2[i as usize] = reach2;
+                    self.computed[i as usize] = true;
+                }
+                Err(e) => {
+                    if first_error.as_ref().is_none_or(|(j, _)| i < *j) {
+                        first_error = Some((i, e));
+                    }
                 }
             }
         }
+        first_error.map_or(Ok(()), |(_, e)| Err(e))
     }
-    if let Some((_, e)) = first_error {
-        return Err(e);
+
+    /// The sites, not yet computed, of the cells that may share a vertex with the own
+    /// cells through `frontier`: those at most [`RING_REL`] of the cell's size farther
+    /// from a vertex than the cell's site, for every vertex of an own cell and every
+    /// vertex of a ring cell's faces toward own cells. Increasing.
+    fn ring(
+        &self,
+        frontier: &[u32],
+        is_own: &[bool],
+        index: &SiteIndex<D>,
+        sites: &[[f64; D]],
+    ) -> Vec<u32> {
+        let found: Vec<Vec<u32>> = frontier
+            .par_chunks(BATCH)
+            .map_init(NearScratch::default, |near, chunk| {
+                let mut out = Vec::new();
+                for &c in chunk {
+                    let cell = &self.faces[c as usize];
+                    let s = sites[c as usize];
+                    let size = cell
+                        .nodes
+                        .iter()
+                        .map(|(_, x)| norm2(sub(*x, s)))
+                        .fold(0.0, f64::max);
+                    let slack = RING_REL * size.sqrt();
+                    for (k, side) in cell.sides.iter().enumerate() {
+                        let toward_own = matches!(side, Side::Neighbor(j) if is_own[*j as usize]);
+                        if !is_own[c as usize] && !toward_own {
+                            continue;
+                        }
+                        let (a, b) = (cell.starts[k] as usize, cell.starts[k + 1] as usize);
+                        for (_, x) in &cell.nodes[a..b] {
+                            let limit = norm2(sub(*x, s)).sqrt() + slack;
+                            let mut stream = index.near(*x, near);
+                            while let Some((j, _)) = stream.next_within(limit * limit) {
+                                if !self.computed[j as usize] {
+                                    out.push(j);
+                                }
+                            }
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        let mut ring: Vec<u32> = found.into_iter().flatten().collect();
+        ring.sort_unstable();
+        ring.dedup();
+        ring
     }
-    Ok(assemble(&cells, sites, boundary.vertices()))
+
+    /// The mesh of the computed cells, restricted to the faces of the `keep` cells when
+    /// given ([`MeshPart`]).
+    fn assemble(
+        self,
+        sites: &[[f64; D]],
+        boundary_vertices: &[[f64; D]],
+        keep: Option<&[bool]>,
+    ) -> MeshPart<D> {
+        let mesh = assemble(&self.faces, sites, boundary_vertices, keep);
+        let computed: Vec<u32> = (0..self.computed.len() as u32)
+            .filter(|&i| self.computed[i as usize])
+            .collect();
+        let reach2 = computed.iter().map(|&i| self.reach2[i as usize]).collect();
+        MeshPart {
+            mesh,
+            computed,
+            reach2,
+        }
+    }
 }
 
 /// A multiplicative hash (FxHash's step) for vertex names: the assembly hashes every
@@ -296,11 +547,16 @@ impl Classes {
 /// thread count): names to ids in order of first appearance, degenerate names merged
 /// (module doc), each interior face taken once from its owner (the smaller site), or from
 /// the other cell, reversed, when the owner has no such face.
+///
+/// With `keep`, only the faces of the kept cells, each owned by a kept cell ([`MeshPart`]):
+/// names, merges and faces are made as above, so that what is kept is the whole mesh's.
 fn assemble<const D: usize>(
     cells: &[CellFaces<D>],
     sites: &[[f64; D]],
     boundary_vertices: &[[f64; D]],
+    keep: Option<&[bool]>,
 ) -> PolyMesh<D> {
+    let kept = |i: usize| keep.is_none_or(|k| k[i]);
     let total: usize = cells.iter().map(|c| c.nodes.len()).sum();
     let mut ids: HashMap<Key, u32, BuildHasherDefault<NameHasher>> =
         HashMap::with_capacity_and_hasher(total / 3, BuildHasherDefault::default());
@@ -394,7 +650,10 @@ fn assemble<const D: usize>(
     let mut mesh = PolyMesh {
         points,
         face_offsets: vec![0],
-        open_chains: cells.iter().map(|c| c.open).sum(),
+        open_chains: (cells.iter().enumerate())
+            .filter(|&(i, _)| kept(i))
+            .map(|(_, c)| c.open)
+            .sum(),
         ..PolyMesh::default()
     };
     let mut interior: Vec<(u32, u32, Vec<u32>)> = Vec::new();
@@ -406,6 +665,9 @@ fn assemble<const D: usize>(
             loop_ids.extend(node_ids[i][a..b].iter().map(|&id| index[id as usize]));
             match *side {
                 Side::Neighbor(j) => {
+                    if !kept(i) && !kept(j as usize) {
+                        continue;
+                    }
                     let theirs = &toward[j as usize];
                     let other_has = theirs
                         .binary_search_by_key(&(i as u32), |&(n, _)| n)
@@ -423,6 +685,9 @@ fn assemble<const D: usize>(
                     }
                 }
                 Side::Boundary(t) => {
+                    if !kept(i) {
+                        continue;
+                    }
                     let Some(face) = collapse(&loop_ids, D) else {
                         continue;
                     };
@@ -441,7 +706,13 @@ fn assemble<const D: usize>(
     };
     interior.sort_by_key(|&(o, n, _)| (o, n));
     for (o, n, face) in &interior {
-        mesh.push(*o, i64::from(*n), -1, face);
+        if kept(*o as usize) {
+            mesh.push(*o, i64::from(*n), -1, face);
+        } else {
+            // A part's face toward a cell it does not keep: owned by its own cell.
+            let reversed: Vec<u32> = face.iter().rev().copied().collect();
+            mesh.push(*n, i64::from(*o), -1, &reversed);
+        }
     }
     for k in 0..boundary_faces.owner.len() {
         let f = &boundary_faces.face_vertices
@@ -583,4 +854,161 @@ fn collapse(ids: &[u32], min: usize) -> Option<Vec<u32>> {
         out.pop();
     }
     (out.len() >= min).then_some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sample::interior_sites;
+
+    /// Each cell's faces as sorted lists of vertex coordinates (bits), sorted; cells in the
+    /// numbering `row` gives (`None`: a cell not kept).
+    fn faces_by_cell<const D: usize>(
+        mesh: &PolyMesh<D>,
+        row: impl Fn(usize) -> Option<usize>,
+    ) -> HashMap<usize, Vec<Vec<[u64; D]>>> {
+        let mut out: HashMap<usize, Vec<Vec<[u64; D]>>> = HashMap::new();
+        for k in 0..mesh.owner.len() {
+            let mut face: Vec<[u64; D]> = mesh.face_vertices
+                [mesh.face_offsets[k]..mesh.face_offsets[k + 1]]
+                .iter()
+                .map(|&v| mesh.points[v as usize].map(f64::to_bits))
+                .collect();
+            face.sort_unstable();
+            let sides = [i64::from(mesh.owner[k]), mesh.neighbour[k]];
+            for cell in sides.into_iter().filter(|&c| c >= 0) {
+                if let Some(r) = row(cell as usize) {
+                    out.entry(r).or_default().push(face.clone());
+                }
+            }
+        }
+        for faces in out.values_mut() {
+            faces.sort_unstable();
+        }
+        out
+    }
+
+    /// The sites split at the middle of the first axis; each half's part mesh among its
+    /// sites and those within `rho` of its box (in the whole order), then, for every
+    /// computed cell whose reach that misses, also those within 1.5 times its reach (as
+    /// `hcvt.distributed`), until all are certified: each own cell then has exactly the
+    /// whole mesh's faces, vertex coordinates bit for bit, and every face of the part is
+    /// owned by an own cell.
+    fn parts_match_the_whole<const D: usize>(
+        sites: &[[f64; D]],
+        rho: f64,
+        whole: &PolyMesh<D>,
+        part: impl Fn(&[[f64; D]], &[u32], usize) -> MeshPart<D>,
+    ) {
+        let expected = faces_by_cell(whole, Some);
+        let middle = sites.iter().map(|s| s[0]).sum::<f64>() / sites.len() as f64;
+        for left in [true, false] {
+            let own_rows: Vec<usize> = (0..sites.len())
+                .filter(|&i| (sites[i][0] < middle) == left)
+                .collect();
+            let mut lo = [f64::INFINITY; D];
+            let mut hi = [f64::NEG_INFINITY; D];
+            for &i in &own_rows {
+                for k in 0..D {
+                    lo[k] = lo[k].min(sites[i][k] - rho);
+                    hi[k] = hi[k].max(sites[i][k] + rho);
+                }
+            }
+            let in_box = |s: &[f64; D]| (0..D).all(|k| s[k] >= lo[k] && s[k] <= hi[k]);
+            let mut balls: Vec<([f64; D], f64)> = Vec::new();
+            let (rows, got) = loop {
+                let rows: Vec<usize> = (0..sites.len())
+                    .filter(|&i| {
+                        in_box(&sites[i])
+                            || balls.iter().any(|(c, r)| norm2(sub(sites[i], *c)) <= r * r)
+                    })
+                    .collect();
+                let local: Vec<[f64; D]> = rows.iter().map(|&i| sites[i]).collect();
+                let own: Vec<u32> = own_rows
+                    .iter()
+                    .map(|i| rows.binary_search(i).unwrap() as u32)
+                    .collect();
+                let got = part(&local, &own, sites.len());
+                assert!(got.computed.len() > own.len(), "a ring of other cells");
+                let before = balls.len();
+                for (&c, &r2) in got.computed.iter().zip(&got.reach2) {
+                    let (s, r) = (local[c as usize], r2.sqrt());
+                    let boxed = (0..D).all(|k| s[k] - r > lo[k] && s[k] + r < hi[k]);
+                    let balled = balls.iter().any(|(b, rb)| *b == s && r < *rb);
+                    if !boxed && !balled && rows.len() < sites.len() {
+                        balls.push((s, 1.5 * r));
+                    }
+                }
+                if balls.len() == before {
+                    break (rows, got);
+                }
+            };
+            let is_own = |c: usize| own_rows.binary_search(&rows[c]).is_ok();
+            assert!(got.mesh.owner.iter().all(|&o| is_own(o as usize)));
+            let mine = faces_by_cell(&got.mesh, |c| is_own(c).then(|| rows[c]));
+            assert_eq!(mine.len(), own_rows.len());
+            for &i in &own_rows {
+                assert_eq!(mine[&i], expected[&i], "cell {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_parts_cells_are_the_whole_meshs_bit_for_bit_2d() {
+        let holed = Polygon::new(
+            vec![
+                [0.0, 0.0],
+                [1.0, 0.0],
+                [1.0, 1.0],
+                [0.0, 1.0],
+                [0.3, 0.3],
+                [0.3, 0.6],
+                [0.6, 0.6],
+                [0.6, 0.3],
+            ],
+            vec![
+                [0, 1],
+                [1, 2],
+                [2, 3],
+                [3, 0],
+                [4, 5],
+                [5, 6],
+                [6, 7],
+                [7, 4],
+            ],
+        )
+        .unwrap();
+        let sites = interior_sites(&holed, 1500, 5);
+        let whole = conforming_mesh_2d(&holed, &sites, Options::default()).unwrap();
+        parts_match_the_whole(&sites, 0.1, &whole, |local, own, total| {
+            conforming_mesh_part_2d(&holed, local, own, total, Options::default()).unwrap()
+        });
+    }
+
+    #[test]
+    fn a_parts_cells_are_the_whole_meshs_bit_for_bit_3d() {
+        let cube = Solid::cuboid([0.0; 3], [2.0; 3]).unwrap();
+        let sites = interior_sites(&cube, 600, 7);
+        let whole = conforming_mesh_3d(&cube, &sites, Options::default()).unwrap();
+        parts_match_the_whole(&sites, 0.5, &whole, |local, own, total| {
+            conforming_mesh_part_3d(&cube, local, own, total, Options::default()).unwrap()
+        });
+    }
+
+    /// A part's errors name its own sites only, as indices into the sites given.
+    #[test]
+    fn an_own_site_outside_is_named_by_its_index() {
+        let square = Polygon::new(
+            vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            vec![[0, 1], [1, 2], [2, 3], [3, 0]],
+        )
+        .unwrap();
+        let sites = [[0.2, 0.2], [0.8, 0.8], [1.5, 0.5], [0.5, 0.5]];
+        let err =
+            conforming_mesh_part_2d(&square, &sites, &[3, 2], 10, Options::default()).unwrap_err();
+        assert!(
+            matches!(err, CoreError::SiteOutsideDomain { index: 2, .. }),
+            "{err:?}"
+        );
+    }
 }
