@@ -82,6 +82,9 @@ DEFAULT_SITES_PER_PARTITION = 200_000
 #: in the bunny median 2.3 h, interior cells below 3.5 h, boundary cells median 4.2 h.
 #: The few cells beyond go again among a ball past their own reach.
 HALO_SPACINGS = {2: 3.0, 3: 4.0}
+
+#: Extra first-halo width of a mesh piece, in spacings (PartitionedDiagram.write_cells).
+RING_SPACINGS = 2.0
 #: Energy tolerance of the line search relative to ``|E|`` (as the core's ENERGY_NOISE).
 ENERGY_NOISE = 1e-12
 #: Armijo's sufficient-decrease constant and the number of trials of one line search.
@@ -339,7 +342,9 @@ class PartitionedDiagram:
         """
         from hcvt import partition_mesh
 
-        rho = HALO_SPACINGS[self._cluster.domain.dim] * self._cluster.h
+        # The piece also computes the ring of cells across its border (their vertices
+        # are shared): two spacings more keep that ring inside the first halo.
+        rho = (HALO_SPACINGS[self._cluster.domain.dim] + RING_SPACINGS) * self._cluster.h
         index, self.piece_rounds = partition_mesh.write_cells(
             self._cluster, self._parts, self._cells, path, rho
         )
