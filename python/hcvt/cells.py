@@ -79,17 +79,17 @@ def _face_triangles(mesh: PolyMesh) -> tuple[NDArray[np.intp], NDArray[np.intp]]
         ],
         axis=1,
     )
-    bad = np.flatnonzero(_non_convex(mesh))
+    bad = np.flatnonzero(non_convex_faces(mesh))
     if len(bad) == 0:
         return face_of, triangles
     keep = ~np.isin(face_of, bad)
-    made_face, made = _planar_triangles(mesh, bad)
+    made_face, made = planar_triangles(mesh, bad)
     face_of = np.concatenate([face_of[keep], made_face])
     order = np.argsort(face_of, kind="stable")
     return face_of[order], np.concatenate([triangles[keep], made])[order]
 
 
-def _non_convex(mesh: PolyMesh) -> NDArray[np.bool_]:
+def non_convex_faces(mesh: PolyMesh) -> NDArray[np.bool_]:
     """Shape (f,): faces with a reflex corner (turning against the face's normal)."""
     sizes = np.diff(mesh.face_offsets)
     face_of = np.repeat(np.arange(mesh.n_faces), sizes)
@@ -111,7 +111,7 @@ def _non_convex(mesh: PolyMesh) -> NDArray[np.bool_]:
     return out
 
 
-def _planar_triangles(
+def planar_triangles(
     mesh: PolyMesh, faces: NDArray[np.intp]
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Constrained Delaunay triangles (shapely/GEOS, one vectorised call) of planar faces.
@@ -120,6 +120,10 @@ def _planar_triangles(
     and its triangles mapped back to vertex indices by their (exact) projected corners,
     turned the way the face runs. A face GEOS cannot triangulate with its own corners
     (it moved a point, or the loop is not simple) keeps its fan.
+
+    Returns the face of each triangle, shape (t,) (entries of ``faces``, grouped by face
+    but not sorted), and the triangles' vertex indices, shape (t, 3); a face of ``k``
+    corners gives ``k - 2`` triangles, which use every corner.
     """
     sizes = np.diff(mesh.face_offsets)[faces]
     starts = mesh.face_offsets[faces]
