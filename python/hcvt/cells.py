@@ -145,19 +145,12 @@ def planar_triangles(
     parts, part_of = shapely.get_parts(
         shapely.constrained_delaunay_triangles(polygons), return_index=True
     )
-    corners = shapely.get_coordinates(shapely.get_exterior_ring(parts)).reshape(-1, 4, 2)[:, :3]
-    lookup = {
-        (int(w), x, y): int(k)
-        for w, (x, y), k in zip(which.tolist(), flat.tolist(), vertex.tolist(), strict=True)
-    }
-    found = np.array(
-        [
-            [lookup.get((int(w), x, y), -1) for x, y in c]
-            for w, c in zip(part_of.tolist(), corners.tolist(), strict=True)
-        ],
-        dtype=np.intp,
+    rings = shapely.get_exterior_ring(parts)
+    corners = shapely.get_coordinates(rings).reshape(-1, 4, 2)[:, :3].reshape(-1, 2)
+    found = _lookup(
+        np.column_stack([which, flat]), vertex, np.column_stack([np.repeat(part_of, 3), corners])
     ).reshape(-1, 3)
-    ccw = shapely.is_ccw(shapely.get_exterior_ring(parts))
+    ccw = shapely.is_ccw(rings)
     found = np.where(ccw[:, None], found, found[:, ::-1])
     failed = np.zeros(len(faces), dtype=bool)
     failed[part_of[(found < 0).any(axis=1)]] = True
@@ -169,6 +162,22 @@ def planar_triangles(
         out.append(_fan(mesh.face(int(faces[k]))))
         out_face.append(np.full(sizes[k] - 2, faces[k], dtype=np.intp))
     return np.concatenate(out_face), np.concatenate(out)
+
+
+def _lookup(
+    keys: NDArray[np.float64], values: NDArray[np.intp], queries: NDArray[np.float64]
+) -> NDArray[np.intp]:
+    """``values`` of the rows of ``keys`` (m, c) equal to each row of ``queries``, or -1.
+
+    Exact equality of floats, by sorting the rows' bytes (one sort, no Python loop);
+    ``+ 0.0`` makes -0.0 and 0.0 the same bytes.
+    """
+    width = np.dtype((np.void, 8 * keys.shape[1]))
+    k = np.ascontiguousarray(keys + 0.0, dtype=np.float64).view(width).ravel()
+    q = np.ascontiguousarray(queries + 0.0, dtype=np.float64).view(width).ravel()
+    order = np.argsort(k, kind="stable")
+    at = np.minimum(np.searchsorted(k[order], q), len(k) - 1)
+    return np.where(k[order][at] == q, values[order][at], -1)
 
 
 def _fan(face: NDArray[np.intp]) -> NDArray[np.intp]:
