@@ -142,9 +142,13 @@ def planar_triangles(
     u, v = np.where(flip, v, u), np.where(flip, u, v)
     flat = np.stack([p[np.arange(len(p)), u[which]], p[np.arange(len(p)), v[which]]], axis=1)
     polygons = shapely.polygons(shapely.linearrings(flat, indices=which))
-    parts, part_of = shapely.get_parts(
-        shapely.constrained_delaunay_triangles(polygons), return_index=True
-    )
+    # A face with a hole is one loop, its bridge to the hole walked both ways: a ring that
+    # touches itself, on which GEOS's triangulator can fail. It gets the polygon with its
+    # hole instead, made of the same coordinates (no point is made).
+    key = np.sort(which.astype(np.int64) * len(mesh.points) + vertex)
+    keyhole = np.unique(key[1:][key[1:] == key[:-1]] // len(mesh.points))
+    polygons[keyhole] = shapely.make_valid(polygons[keyhole], method="structure")
+    parts, part_of = _constrained_delaunay(polygons)
     rings = shapely.get_exterior_ring(parts)
     corners = shapely.get_coordinates(rings).reshape(-1, 4, 2)[:, :3].reshape(-1, 2)
     found = _lookup(
@@ -162,6 +166,27 @@ def planar_triangles(
         out.append(_fan(mesh.face(int(faces[k]))))
         out_face.append(np.full(sizes[k] - 2, faces[k], dtype=np.intp))
     return np.concatenate(out_face), np.concatenate(out)
+
+
+def _constrained_delaunay(
+    polygons: NDArray[np.object_],
+) -> tuple[NDArray[np.object_], NDArray[np.intp]]:
+    """GEOS's triangles of all polygons (one call), and the polygon of each triangle.
+
+    A polygon GEOS fails on (it raises for the whole call) gets no triangles.
+    """
+    try:
+        made = shapely.constrained_delaunay_triangles(polygons)
+    except shapely.errors.GEOSException:
+        made = np.array([_one_constrained_delaunay(p) for p in polygons], dtype=object)
+    return shapely.get_parts(made, return_index=True)
+
+
+def _one_constrained_delaunay(polygon: shapely.Geometry) -> shapely.Geometry:
+    try:
+        return shapely.constrained_delaunay_triangles(polygon)
+    except shapely.errors.GEOSException:
+        return shapely.GeometryCollection()
 
 
 def _lookup(

@@ -11,7 +11,9 @@ cuts into pieces becomes one polygon per piece, and a cell with a hole its trian
 polygons have no holes); the cell data ``site`` says which cell each came from.
 
 Faces VTK would triangulate wrongly (non-convex ones, and ones with a very short edge)
-are written as their triangles, each a face of the same two cells (:func:`_split_for_vtk`).
+and faces with a hole (which ``Diagram.mesh()`` makes as one loop with a bridge walked
+both ways, and VTK cannot take) are written as their triangles, each a face of the same
+two cells (:func:`_split_for_vtk`).
 
 Reading cells back: VTK measures a polyhedron two ways. vtkCellSizeFilter
 (``compute_cell_sizes``) sums the Delaunay tetrahedra of the cell's points
@@ -41,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt.cells import non_convex_faces, planar_triangles
+from hcvt.errors import InvalidMeshError
 from hcvt.polymesh import PolyMesh
 
 VTK_POLYGON = 7
@@ -70,7 +73,7 @@ def write_vtu(
     Path
         ``path``.
     """
-    mesh.check()
+    mesh.check(keyholes=mesh.dim == 3)  # faces with a hole are written as triangles
     path = Path(path)
     polyhedra: list[str] = []
     if mesh.dim == 3:
@@ -174,10 +177,13 @@ def _split_for_vtk(mesh: PolyMesh) -> PolyMesh:
     is a face of the same cells, so it is still written once each way round, and every
     cell keeps its points.
     """
-    split = non_convex_faces(mesh) | _has_short_edge(mesh)
+    split = non_convex_faces(mesh) | _has_short_edge(mesh) | _repeats_a_vertex(mesh)
     if not split.any():
         return mesh
     made_face, made = planar_triangles(mesh, np.flatnonzero(split))
+    flat = (made[:, 0] == made[:, 1]) | (made[:, 1] == made[:, 2]) | (made[:, 2] == made[:, 0])
+    if flat.any():  # GEOS failed on a face with a hole, whose fan would fold onto itself
+        raise InvalidMeshError(f"face {made_face[flat][0]} (with a hole) cannot be triangulated")
     kept = np.flatnonzero(~split)
     # Faces then triangles, each triangle where its face was (stable sort by face).
     origin = np.concatenate([kept, made_face])
@@ -200,6 +206,16 @@ def _split_for_vtk(mesh: PolyMesh) -> PolyMesh:
         boundary_element=mesh.boundary_element[origin],
         n_cells=mesh.n_cells,
     )
+
+
+def _repeats_a_vertex(mesh: PolyMesh) -> NDArray[np.bool_]:
+    """Shape (f,): keyhole faces (a face with a hole, its bridge edge walked both ways)."""
+    sizes = mesh.face_sizes
+    face_of = np.repeat(np.arange(mesh.n_faces, dtype=np.int64), sizes)
+    key = np.sort(face_of * len(mesh.points) + mesh.face_vertices)
+    out = np.zeros(mesh.n_faces, dtype=bool)
+    out[key[1:][key[1:] == key[:-1]] // len(mesh.points)] = True
+    return out
 
 
 def _has_short_edge(mesh: PolyMesh) -> NDArray[np.bool_]:
