@@ -61,7 +61,8 @@ def write_vtu(
     Parameters
     ----------
     mesh : PolyMesh
-        A conforming mesh (checked with :meth:`PolyMesh.check`).
+        A conforming mesh (checked with :meth:`PolyMesh.check`; in 3D faces with a hole
+        may repeat a vertex, ``keyholes=True``).
     path : str or Path
         The file to write.
     cell_data : dict of str to array_like of shape (n,), optional
@@ -72,6 +73,12 @@ def write_vtu(
     -------
     Path
         ``path``.
+
+    Raises
+    ------
+    InvalidMeshError
+        ``mesh`` is not conforming, or GEOS cannot triangulate one of its faces with a
+        hole.
     """
     mesh.check(keyholes=mesh.dim == 3)  # faces with a hole are written as triangles
     path = Path(path)
