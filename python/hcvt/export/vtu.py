@@ -236,8 +236,7 @@ def _has_short_edge(mesh: PolyMesh) -> NDArray[np.bool_]:
     pos = np.arange(len(mesh.face_vertices)) - start[face_of]
     p = mesh.points[mesh.face_vertices]
     following = p[start[face_of] + (pos + 1) % sizes[face_of]]
-    shortest = np.full(mesh.n_faces, np.inf)
-    np.minimum.at(shortest, face_of, np.linalg.norm(following - p, axis=1))
+    shortest = np.minimum.reduceat(np.linalg.norm(following - p, axis=1), start)
     low = np.minimum.reduceat(p, start, axis=0)
     high = np.maximum.reduceat(p, start, axis=0)
     return shortest < _SHORT_EDGE * np.linalg.norm(high - low, axis=1)
