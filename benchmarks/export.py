@@ -3,9 +3,12 @@
 Run ``OPENBLAS_NUM_THREADS=1 python benchmarks/export.py`` (``--cells 20000`` for a short
 run). The mesh is the Voronoi diagram of uniform random sites in the unit box, built by
 tests/meshes.py (scipy, one half-space intersection per cell; a few minutes for 100k
-cells, cached in the temporary directory). Printed: median seconds of each writer, and
-ratios against peers in the same run -- meshio 5.3's VTU writer on the same polyhedra,
-and OpenFOAM's own ``checkMesh`` reading (and checking) the case we wrote.
+cells, cached in the temporary directory), or with ``--domain bunny.off`` (a file in
+shared/data/3d) ``Diagram.mesh()`` of Halton sites in that mesh: its boundary cells have
+the non-convex faces the VTU writer splits into triangles. Printed: median seconds of
+each writer, the VTU's size, and ratios against peers in the same run -- meshio 5.3's VTU
+writer on the same polyhedra, and OpenFOAM's own ``checkMesh`` reading (and checking) the
+case we wrote.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from hcvt.export import mesh_quality, write_openfoam, write_vtu
+from hcvt.export.vtu import _split_for_vtk
 from hcvt.polymesh import PolyMesh
 from timing import median_seconds
 
@@ -41,6 +45,26 @@ def box_mesh(n: int, seed: int = 0) -> PolyMesh:
     print(f"built the mesh of {n} cells in {time.perf_counter() - start:.0f} s (cached: {cache})")
     np.savez(cache, **{k: getattr(mesh, k) for k in PolyMesh.__dataclass_fields__})
     return mesh
+
+
+def domain_mesh(name: str, n: int) -> PolyMesh:
+    """``Diagram.mesh()`` of ``n`` Halton sites in a mesh of shared/data/3d."""
+    import hcvt
+
+    data = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
+    domain = hcvt.load_domain(data / name)
+    return hcvt.voronoi(domain, hcvt.initialise(domain, n, "halton")).mesh()
+
+
+def vtu_unsplit(mesh: PolyMesh, path: Path) -> None:
+    """Our VTU writer with every face written whole: the cost of splitting for VTK."""
+    from hcvt.export import vtu
+
+    split, vtu._split_for_vtk = vtu._split_for_vtk, lambda m: m
+    try:
+        write_vtu(mesh, path)
+    finally:
+        vtu._split_for_vtk = split
 
 
 def meshio_vtu(mesh: PolyMesh, path: Path) -> None:
@@ -76,12 +100,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--cells", type=int, default=100_000)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--domain", help="a mesh in shared/data/3d instead of the unit box")
     args = parser.parse_args()
-    mesh = box_mesh(args.cells)
+    mesh = domain_mesh(args.domain, args.cells) if args.domain else box_mesh(args.cells)
     mesh.check()
     print(
         f"mesh: {mesh.n_cells} cells, {mesh.n_faces} faces, {len(mesh.points)} points, "
         f"{len(mesh.face_vertices)} face vertices"
+    )
+    written = _split_for_vtk(mesh.compacted()[0])
+    print(
+        f"VTU faces: {written.n_faces} ({written.n_faces / mesh.n_faces:.3f}x the mesh's: "
+        "those VTK would triangulate wrongly are written as triangles)"
     )
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -97,11 +127,18 @@ def main() -> None:
             fresh(lambda m: write_openfoam(m, out / "binary", binary=True)), args.repeats
         )
         vtu = median_seconds(fresh(lambda m: write_vtu(m, out / "c.vtu")), args.repeats)
+        vtu_mb = (out / "c.vtu").stat().st_size / 1e6
+        whole = median_seconds(fresh(lambda m: vtu_unsplit(m, out / "w.vtu")), args.repeats)
+        compact = mesh.compacted()[0]
+        split = median_seconds(fresh(lambda m: _split_for_vtk(compact)), args.repeats)
+        whole_mb = (out / "w.vtu").stat().st_size / 1e6
         quality = median_seconds(fresh(mesh_quality), args.repeats)
         rows += [
             ("OpenFOAM case, text", text),
             ("OpenFOAM case, binary", binary),
             ("VTU (ours)", vtu),
+            ("VTU (ours, no face split for VTK)", whole),
+            ("  the face split alone (part of VTU)", split),
             ("quality (non-orth., skewness)", quality),
         ]
         try:
@@ -115,8 +152,11 @@ def main() -> None:
     print(f"\n{'task':42s} {'median s':>9s}")
     for name, seconds in rows:
         print(f"{name:42s} {seconds:9.2f}")
+    print(f"\nVTU (ours): {vtu_mb:.1f} MB; with no face split for VTK {whole_mb:.1f} MB")
+    print(f"VTU (ours) / no face split: {vtu / whole:.2f}x time, {vtu_mb / whole_mb:.3f}x size")
+    print(f"face split / VTU (ours): {split / vtu:.2f}")
     if peer is not None:
-        print(f"\nmeshio VTU / ours: {peer / vtu:.1f}x")
+        print(f"meshio VTU / ours: {peer / vtu:.1f}x")
     print(f"OpenFOAM text / binary: {text / binary:.1f}x")
     if reading is not None:
         print(f"checkMesh reading+checking / our binary write: {reading / binary:.1f}x")

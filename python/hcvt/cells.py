@@ -79,17 +79,17 @@ def _face_triangles(mesh: PolyMesh) -> tuple[NDArray[np.intp], NDArray[np.intp]]
         ],
         axis=1,
     )
-    bad = np.flatnonzero(_non_convex(mesh))
+    bad = np.flatnonzero(non_convex_faces(mesh))
     if len(bad) == 0:
         return face_of, triangles
     keep = ~np.isin(face_of, bad)
-    made_face, made = _planar_triangles(mesh, bad)
+    made_face, made = planar_triangles(mesh, bad)
     face_of = np.concatenate([face_of[keep], made_face])
     order = np.argsort(face_of, kind="stable")
     return face_of[order], np.concatenate([triangles[keep], made])[order]
 
 
-def _non_convex(mesh: PolyMesh) -> NDArray[np.bool_]:
+def non_convex_faces(mesh: PolyMesh) -> NDArray[np.bool_]:
     """Shape (f,): faces with a reflex corner (turning against the face's normal)."""
     sizes = np.diff(mesh.face_offsets)
     face_of = np.repeat(np.arange(mesh.n_faces), sizes)
@@ -111,7 +111,7 @@ def _non_convex(mesh: PolyMesh) -> NDArray[np.bool_]:
     return out
 
 
-def _planar_triangles(
+def planar_triangles(
     mesh: PolyMesh, faces: NDArray[np.intp]
 ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Constrained Delaunay triangles (shapely/GEOS, one vectorised call) of planar faces.
@@ -120,6 +120,10 @@ def _planar_triangles(
     and its triangles mapped back to vertex indices by their (exact) projected corners,
     turned the way the face runs. A face GEOS cannot triangulate with its own corners
     (it moved a point, or the loop is not simple) keeps its fan.
+
+    Returns the face of each triangle, shape (t,) (entries of ``faces``, grouped by face
+    but not sorted), and the triangles' vertex indices, shape (t, 3); a face of ``k``
+    corners gives ``k - 2`` triangles, which use every corner.
     """
     sizes = np.diff(mesh.face_offsets)[faces]
     starts = mesh.face_offsets[faces]
@@ -138,22 +142,19 @@ def _planar_triangles(
     u, v = np.where(flip, v, u), np.where(flip, u, v)
     flat = np.stack([p[np.arange(len(p)), u[which]], p[np.arange(len(p)), v[which]]], axis=1)
     polygons = shapely.polygons(shapely.linearrings(flat, indices=which))
-    parts, part_of = shapely.get_parts(
-        shapely.constrained_delaunay_triangles(polygons), return_index=True
-    )
-    corners = shapely.get_coordinates(shapely.get_exterior_ring(parts)).reshape(-1, 4, 2)[:, :3]
-    lookup = {
-        (int(w), x, y): int(k)
-        for w, (x, y), k in zip(which.tolist(), flat.tolist(), vertex.tolist(), strict=True)
-    }
-    found = np.array(
-        [
-            [lookup.get((int(w), x, y), -1) for x, y in c]
-            for w, c in zip(part_of.tolist(), corners.tolist(), strict=True)
-        ],
-        dtype=np.intp,
+    # A face with a hole is one loop, its bridge to the hole walked both ways: a ring that
+    # touches itself, on which GEOS's triangulator can fail. It gets the polygon with its
+    # hole instead, made of the same coordinates (no point is made).
+    key = np.sort(which.astype(np.int64) * len(mesh.points) + vertex)
+    keyhole = np.unique(key[1:][key[1:] == key[:-1]] // len(mesh.points))
+    polygons[keyhole] = shapely.make_valid(polygons[keyhole], method="structure")
+    parts, part_of = _constrained_delaunay(polygons)
+    rings = shapely.get_exterior_ring(parts)
+    corners = shapely.get_coordinates(rings).reshape(-1, 4, 2)[:, :3].reshape(-1, 2)
+    found = _lookup(
+        np.column_stack([which, flat]), vertex, np.column_stack([np.repeat(part_of, 3), corners])
     ).reshape(-1, 3)
-    ccw = shapely.is_ccw(shapely.get_exterior_ring(parts))
+    ccw = shapely.is_ccw(rings)
     found = np.where(ccw[:, None], found, found[:, ::-1])
     failed = np.zeros(len(faces), dtype=bool)
     failed[part_of[(found < 0).any(axis=1)]] = True
@@ -165,6 +166,43 @@ def _planar_triangles(
         out.append(_fan(mesh.face(int(faces[k]))))
         out_face.append(np.full(sizes[k] - 2, faces[k], dtype=np.intp))
     return np.concatenate(out_face), np.concatenate(out)
+
+
+def _constrained_delaunay(
+    polygons: NDArray[np.object_],
+) -> tuple[NDArray[np.object_], NDArray[np.intp]]:
+    """GEOS's triangles of all polygons (one call), and the polygon of each triangle.
+
+    A polygon GEOS fails on (it raises for the whole call) gets no triangles.
+    """
+    try:
+        made = shapely.constrained_delaunay_triangles(polygons)
+    except shapely.errors.GEOSException:
+        made = np.array([_one_constrained_delaunay(p) for p in polygons], dtype=object)
+    return shapely.get_parts(made, return_index=True)
+
+
+def _one_constrained_delaunay(polygon: shapely.Geometry) -> shapely.Geometry:
+    try:
+        return shapely.constrained_delaunay_triangles(polygon)
+    except shapely.errors.GEOSException:
+        return shapely.GeometryCollection()
+
+
+def _lookup(
+    keys: NDArray[np.float64], values: NDArray[np.intp], queries: NDArray[np.float64]
+) -> NDArray[np.intp]:
+    """``values`` of the rows of ``keys`` (m, c) equal to each row of ``queries``, or -1.
+
+    Exact equality of floats, by sorting the rows' bytes (one sort, no Python loop);
+    ``+ 0.0`` makes -0.0 and 0.0 the same bytes.
+    """
+    width = np.dtype((np.void, 8 * keys.shape[1]))
+    k = np.ascontiguousarray(keys + 0.0, dtype=np.float64).view(width).ravel()
+    q = np.ascontiguousarray(queries + 0.0, dtype=np.float64).view(width).ravel()
+    order = np.argsort(k, kind="stable")
+    at = np.minimum(np.searchsorted(k[order], q), len(k) - 1)
+    return np.where(k[order][at] == q, values[order][at], -1)
 
 
 def _fan(face: NDArray[np.intp]) -> NDArray[np.intp]:

@@ -206,7 +206,7 @@ class PolyMesh:
         centroid[count == 0] = np.nan
         return CellGeometry(volume, centroid)
 
-    def check(self) -> None:
+    def check(self, *, keyholes: bool = False) -> None:
         """Raise :class:`hcvt.errors.InvalidMeshError` unless this is a conforming mesh.
 
         Checked: indices in range; an owner differs from its neighbour; an interior face
@@ -215,10 +215,14 @@ class PolyMesh:
         matched by the reverse edge of another of its faces, in 2D each vertex starts as
         many of its edges as it ends; every cell with faces has positive volume.
 
+        ``keyholes=True`` lets a face repeat a vertex: a face with a hole, joined to its rim
+        by an edge walked both ways (``Diagram.mesh()`` makes them on the cheese), for
+        writers that triangulate such faces.
+
         A mesh that passed is not checked again (the arrays are the caller's: do not
         change them in place).
         """
-        if self.__dict__.get("_checked"):
+        if self.__dict__.get("_checked") or (keyholes and self.__dict__.get("_checked_keyholes")):
             return
         n, f = self.n_cells, self.n_faces
         _require(self.owner, 0, n, "owner")
@@ -238,7 +242,7 @@ class PolyMesh:
             np.repeat(np.arange(f, dtype=np.intp), sizes) * len(self.points) + self.face_vertices
         )
         repeated = key[1:][key[1:] == key[:-1]]
-        if len(repeated):
+        if len(repeated) and not keyholes:
             raise InvalidMeshError(f"face {repeated[0] // len(self.points)} repeats a vertex")
         self._check_closed()
         volume = self.cell_geometry.volume
@@ -246,7 +250,9 @@ class PolyMesh:
         flat = np.flatnonzero(used & ~(volume > 0))
         if len(flat):
             raise InvalidMeshError(f"cell {flat[0]} has volume {volume[flat[0]]:.3g} <= 0")
-        object.__setattr__(self, "_checked", True)  # frozen dataclass: a private memo
+        # Frozen dataclass: a private memo, of which check passed.
+        memo = "_checked_keyholes" if keyholes and len(repeated) else "_checked"
+        object.__setattr__(self, memo, True)
 
     def _check_closed(self) -> None:
         """Every cell's outward boundary is a closed cycle (see :meth:`check`)."""

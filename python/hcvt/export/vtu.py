@@ -10,12 +10,24 @@ still read these arrays, and meshio reads them).
 cuts into pieces becomes one polygon per piece, and a cell with a hole its triangles (VTK
 polygons have no holes); the cell data ``site`` says which cell each came from.
 
-VTK's cell-size filter (``compute_cell_sizes``, VTK 9.7) gets some cells of a correct file
-wrong (measured): polyhedra with short edges (up to 0.7% on random Voronoi cells of the
-sphere; meshio's file of the same cells reads the same) and large non-convex polygons (a
-boundary cell of area 439.7 read as 1798). Measure cells through their faces instead:
+Faces VTK would triangulate wrongly (non-convex ones, and ones with a very short edge)
+and faces with a hole (which ``Diagram.mesh()`` makes as one loop with a bridge walked
+both ways, and VTK cannot take) are written as their triangles, each a face of the same
+two cells (:func:`_split_for_vtk`).
+
+Reading cells back: VTK measures a polyhedron two ways. vtkCellSizeFilter
+(``compute_cell_sizes``) sums the Delaunay tetrahedra of the cell's points
+(``vtkPolyhedron::TriangulateIds``, faces unused): at best their convex hull (measured,
+VTK 9.7: scipy's hull to 1e-15 for most cells, up to 9% less for others), never a
+non-convex cell; off by up to 14% on bunny boundary cells, 57% on the cheese's, and by
+up to 6e-6 on a few convex cells (bunny, 50k cells). No file can change that. Through
+its faces (vtkDataSetSurfaceFilter, vtkTriangleFilter, vtkMassProperties:
 ``grid.separate_cells().extract_surface().triangulate()``, then ``.volume`` or the
-triangles' areas (tests/test_export.py): domain volume to 1e-10 relative.
+triangles' cones) VTK gets every cell to 1e-11 relative (tests/test_export.py), once the
+float32 points that ``separate_cells`` (vtkShrinkFilter) makes are put back as read:
+that rounding alone costs ~1e-7 per cell. In 2D, the cell-size filter also gets large
+non-convex polygons wrong (a boundary cell of area 439.7 read as 1798); their triangles
+through ``extract_surface().triangulate()`` are right.
 
 Why our own writer and not meshio's: meshio 5.3 writes polyhedra that VTK reads as we do,
 but takes them as a Python list of faces per cell, in blocks by point count, and loops
@@ -30,10 +42,15 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hcvt.cells import non_convex_faces, planar_triangles
+from hcvt.errors import InvalidMeshError
 from hcvt.polymesh import PolyMesh
 
 VTK_POLYGON = 7
 VTK_POLYHEDRON = 42
+# Faces with an edge shorter than this fraction of their bounding-box diagonal are
+# written as triangles (see _split_for_vtk).
+_SHORT_EDGE = 1e-4
 
 
 def write_vtu(
@@ -44,7 +61,8 @@ def write_vtu(
     Parameters
     ----------
     mesh : PolyMesh
-        A conforming mesh (checked with :meth:`PolyMesh.check`).
+        A conforming mesh (checked with :meth:`PolyMesh.check`; in 3D faces with a hole
+        may repeat a vertex, ``keyholes=True``).
     path : str or Path
         The file to write.
     cell_data : dict of str to array_like of shape (n,), optional
@@ -55,14 +73,20 @@ def write_vtu(
     -------
     Path
         ``path``.
+
+    Raises
+    ------
+    InvalidMeshError
+        ``mesh`` is not conforming, or GEOS cannot triangulate one of its faces with a
+        hole.
     """
-    mesh.check()
+    mesh.check(keyholes=mesh.dim == 3)  # faces with a hole are written as triangles
     path = Path(path)
     polyhedra: list[str] = []
     if mesh.dim == 3:
         compact, kept = mesh.compacted()
         points = compact.points
-        connectivity, offsets, faces, face_offsets = _polyhedra(compact)
+        connectivity, offsets, faces, face_offsets = _polyhedra(_split_for_vtk(compact))
         # Cells by increasing point count (stable): meshio (5.3) reads polyhedra into
         # blocks by point count and pairs them with the cell data in that sorted order.
         order = np.argsort(np.diff(offsets, prepend=0), kind="stable")
@@ -144,6 +168,78 @@ def _polyhedra(
     connectivity = pairs % len(mesh.points)
     offsets = np.cumsum(np.bincount(owner_of_pair, minlength=mesh.n_cells))
     return connectivity, offsets, stream, face_offsets
+
+
+def _split_for_vtk(mesh: PolyMesh) -> PolyMesh:
+    """``mesh`` with the faces VTK would triangulate wrongly replaced by their triangles.
+
+    VTK triangulates a polygon face (``vtkPolygon::EarCutTriangulation``: its triangle
+    filter, surface filters and rendering) by an ear cut that treats corners closer than
+    1e-6 of the face's bounding-box diagonal as one, and that can stop halfway on a
+    non-convex face whose reflex corners turn by ~1e-3 (measured, VTK 9.7: up to 8.5e-6
+    of a boundary cell's volume lost on the bunny, 6.8e-5 on the cheese). So every
+    non-convex face, and every face with an edge shorter than ``_SHORT_EDGE`` of its
+    diagonal, is written as its constrained Delaunay triangles (GEOS, as
+    :meth:`Diagram.cells` triangulates them), which VTK takes as they are. Each triangle
+    is a face of the same cells, so it is still written once each way round, and every
+    cell keeps its points.
+    """
+    split = non_convex_faces(mesh) | _has_short_edge(mesh) | _repeats_a_vertex(mesh)
+    if not split.any():
+        return mesh
+    made_face, made = planar_triangles(mesh, np.flatnonzero(split))
+    flat = (made[:, 0] == made[:, 1]) | (made[:, 1] == made[:, 2]) | (made[:, 2] == made[:, 0])
+    if flat.any():  # GEOS failed on a face with a hole, whose fan would fold onto itself
+        raise InvalidMeshError(f"face {made_face[flat][0]} (with a hole) cannot be triangulated")
+    kept = np.flatnonzero(~split)
+    # Faces then triangles, each triangle where its face was (stable sort by face).
+    origin = np.concatenate([kept, made_face])
+    sizes = np.concatenate([mesh.face_sizes[kept], np.full(len(made), 3)])
+    within = np.arange(mesh.face_sizes[kept].sum()) - np.repeat(
+        np.cumsum(mesh.face_sizes[kept]) - mesh.face_sizes[kept], mesh.face_sizes[kept]
+    )
+    old = mesh.face_vertices[np.repeat(mesh.face_offsets[kept], mesh.face_sizes[kept]) + within]
+    order = np.argsort(origin, kind="stable")
+    vertices, ends = _permute(
+        np.concatenate([old, made.ravel()]).astype(np.intp), np.cumsum(sizes), order
+    )
+    origin = origin[order]
+    return PolyMesh(
+        points=mesh.points,
+        face_offsets=np.concatenate([[0], ends]).astype(np.intp),
+        face_vertices=vertices,
+        owner=mesh.owner[origin],
+        neighbour=mesh.neighbour[origin],
+        boundary_element=mesh.boundary_element[origin],
+        n_cells=mesh.n_cells,
+    )
+
+
+def _repeats_a_vertex(mesh: PolyMesh) -> NDArray[np.bool_]:
+    """Shape (f,): keyhole faces (a face with a hole, its bridge edge walked both ways)."""
+    sizes = mesh.face_sizes
+    face_of = np.repeat(np.arange(mesh.n_faces, dtype=np.int64), sizes)
+    key = np.sort(face_of * len(mesh.points) + mesh.face_vertices)
+    out = np.zeros(mesh.n_faces, dtype=bool)
+    out[key[1:][key[1:] == key[:-1]] // len(mesh.points)] = True
+    return out
+
+
+def _has_short_edge(mesh: PolyMesh) -> NDArray[np.bool_]:
+    """Shape (f,): faces with an edge shorter than ``_SHORT_EDGE`` of their diagonal.
+
+    The diagonal is the face's bounding box's, as VTK's polygon tolerance (1e-6 of it).
+    """
+    sizes = mesh.face_sizes
+    start = mesh.face_offsets[:-1]
+    face_of = np.repeat(np.arange(mesh.n_faces), sizes)
+    pos = np.arange(len(mesh.face_vertices)) - start[face_of]
+    p = mesh.points[mesh.face_vertices]
+    following = p[start[face_of] + (pos + 1) % sizes[face_of]]
+    shortest = np.minimum.reduceat(np.linalg.norm(following - p, axis=1), start)
+    low = np.minimum.reduceat(p, start, axis=0)
+    high = np.maximum.reduceat(p, start, axis=0)
+    return shortest < _SHORT_EDGE * np.linalg.norm(high - low, axis=1)
 
 
 def _permute(
