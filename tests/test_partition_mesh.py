@@ -17,6 +17,7 @@ import hcvt
 from hcvt import partition as pt
 from hcvt import partition_mesh as pm
 from hcvt.distributed import partitioned_voronoi
+from hcvt.export.vtu import _split_for_vtk
 
 distributed = pytest.importorskip("dask.distributed")
 pv = pytest.importorskip("pyvista")
@@ -118,9 +119,11 @@ def test_pvtu_pieces_are_the_single_process_mesh_bit_for_bit(
         # The cell data: the problem's volume and G, bit for bit.
         assert np.array_equal(grid.cell_data["volume"], expected.volume[rows])
         assert np.array_equal(grid.cell_data["G"], expected.G[rows])
-        # Every cell's faces and their vertices' coordinates: the whole mesh's, exactly.
+        # Every cell's faces and their vertices' coordinates: the whole mesh's, exactly, as
+        # the VTU writer puts them (3D faces VTK triangulates wrongly as their triangles).
         got = read_faces(grid, domain.dim)
-        want = whole_faces(expected.mesh())
+        whole = expected.mesh()
+        want = whole_faces(_split_for_vtk(whole) if domain.dim == 3 else whole)
         assert got.keys() == {int(r) for r in nonempty}
         for row in got:
             assert got[row] == want[row], f"{name} cell {row}"
