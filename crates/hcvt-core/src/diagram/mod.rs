@@ -732,28 +732,10 @@ mod tests {
     /// whole numbering), and with all sites as halo every cell is certified.
     #[test]
     fn a_part_with_a_covering_halo_gives_the_whole_diagrams_cells_bit_for_bit() {
-        let holed = Polygon::new(
-            vec![
-                [0.0, 0.0],
-                [1.0, 0.0],
-                [1.0, 1.0],
-                [0.0, 1.0],
-                [0.3, 0.3],
-                [0.3, 0.6],
-                [0.6, 0.6],
-                [0.6, 0.3],
-            ],
-            vec![
-                [0, 1],
-                [1, 2],
-                [2, 3],
-                [3, 0],
-                [4, 5],
-                [5, 6],
-                [6, 7],
-                [7, 4],
-            ],
-        )
+        let holed = Polygon::from_rings(&[
+            &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            &[[0.3, 0.3], [0.3, 0.6], [0.6, 0.6], [0.6, 0.3]],
+        ])
         .unwrap();
         let sites = interior_sites(&holed, 2000, 11);
         let (whole, _) =

@@ -41,6 +41,22 @@ pub type Polygon = Boundary<2>;
 /// A solid: triangles `[a, b, c]` counter-clockwise seen from outside.
 pub type Solid = Boundary<3>;
 
+impl Polygon {
+    /// A polygon from closed rings of vertices, each ring's last vertex joined to its
+    /// first: outer rings counter-clockwise, holes clockwise ([`Boundary::new`] checks).
+    pub fn from_rings(rings: &[&[[f64; 2]]]) -> Result<Self, CoreError> {
+        let mut vertices = Vec::new();
+        let mut segments = Vec::new();
+        for ring in rings {
+            let start = vertices.len() as u32;
+            let n = ring.len() as u32;
+            vertices.extend_from_slice(ring);
+            segments.extend((0..n).map(|k| [start + k, start + (k + 1) % n]));
+        }
+        Self::new(vertices, segments)
+    }
+}
+
 impl<const D: usize> Boundary<D>
 where
     Euclid: Space<D> + ConeMoments<D>,
@@ -413,27 +429,11 @@ mod tests {
     use super::*;
 
     fn square_with_hole() -> Polygon {
-        let v = vec![
-            [0.0, 0.0],
-            [4.0, 0.0],
-            [4.0, 4.0],
-            [0.0, 4.0],
-            [1.0, 1.0],
-            [1.0, 2.0],
-            [2.0, 2.0],
-            [2.0, 1.0],
-        ];
-        let s = vec![
-            [0, 1],
-            [1, 2],
-            [2, 3],
-            [3, 0],
-            [4, 5],
-            [5, 6],
-            [6, 7],
-            [7, 4],
-        ];
-        Polygon::new(v, s).unwrap()
+        Polygon::from_rings(&[
+            &[[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]],
+            &[[1.0, 1.0], [1.0, 2.0], [2.0, 2.0], [2.0, 1.0]],
+        ])
+        .unwrap()
     }
 
     #[test]

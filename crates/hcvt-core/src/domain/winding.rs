@@ -328,27 +328,11 @@ mod tests {
 
     #[test]
     fn inside_outside_hole_and_boundary() {
-        let v = vec![
-            [0.0, 0.0],
-            [4.0, 0.0],
-            [4.0, 4.0],
-            [0.0, 4.0],
-            [1.0, 1.0],
-            [1.0, 2.0],
-            [2.0, 2.0],
-            [2.0, 1.0],
-        ];
-        let s = vec![
-            [0, 1],
-            [1, 2],
-            [2, 3],
-            [3, 0],
-            [4, 5],
-            [5, 6],
-            [6, 7],
-            [7, 4],
-        ];
-        let p = Polygon::new(v, s).unwrap();
+        let p = Polygon::from_rings(&[
+            &[[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]],
+            &[[1.0, 1.0], [1.0, 2.0], [2.0, 2.0], [2.0, 1.0]],
+        ])
+        .unwrap();
         let w = |x: f64, y: f64| Euclid::winding_number(&p, &[x, y]);
         assert_eq!(w(3.0, 3.0), Some(1));
         assert_eq!(w(1.5, 1.5), Some(0)); // in the hole

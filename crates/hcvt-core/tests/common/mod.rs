@@ -26,15 +26,7 @@ pub fn dented_cube() -> Solid {
 /// Closed rings as one polygon: outer rings counter-clockwise, holes clockwise.
 #[allow(dead_code)]
 pub fn polygon(rings: &[&[[f64; 2]]]) -> Polygon {
-    let mut vertices = Vec::new();
-    let mut segments = Vec::new();
-    for ring in rings {
-        let start = vertices.len() as u32;
-        let n = ring.len() as u32;
-        vertices.extend_from_slice(ring);
-        segments.extend((0..n).map(|k| [start + k, start + (k + 1) % n]));
-    }
-    Polygon::new(vertices, segments).unwrap()
+    Polygon::from_rings(rings).unwrap()
 }
 
 /// `../shared/data/3d` beside the repository, or `None` where the shared data is absent.

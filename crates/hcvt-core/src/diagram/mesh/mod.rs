@@ -955,28 +955,10 @@ mod tests {
 
     #[test]
     fn a_parts_cells_are_the_whole_meshs_bit_for_bit_2d() {
-        let holed = Polygon::new(
-            vec![
-                [0.0, 0.0],
-                [1.0, 0.0],
-                [1.0, 1.0],
-                [0.0, 1.0],
-                [0.3, 0.3],
-                [0.3, 0.6],
-                [0.6, 0.6],
-                [0.6, 0.3],
-            ],
-            vec![
-                [0, 1],
-                [1, 2],
-                [2, 3],
-                [3, 0],
-                [4, 5],
-                [5, 6],
-                [6, 7],
-                [7, 4],
-            ],
-        )
+        let holed = Polygon::from_rings(&[
+            &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            &[[0.3, 0.3], [0.3, 0.6], [0.6, 0.6], [0.6, 0.3]],
+        ])
         .unwrap();
         let sites = interior_sites(&holed, 1500, 5);
         let whole = conforming_mesh_2d(&holed, &sites, Options::default()).unwrap();
