@@ -1,6 +1,8 @@
 //! numpy <-> fixed-size rows.
 
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -57,4 +59,24 @@ where
 {
     let flat: Vec<T> = rows.iter().flatten().copied().collect();
     to_intp(py, &flat)?.reshape([rows.len(), D])
+}
+
+/// One increasing, non-negative problem row per site.
+pub fn increasing_rows(rows: &PyReadonlyArray1<'_, i64>, n: usize) -> PyResult<Vec<usize>> {
+    let global: Vec<usize> = rows
+        .as_slice()?
+        .iter()
+        .map(|&r| usize::try_from(r).map_err(|_| PyValueError::new_err("negative row")))
+        .collect::<PyResult<_>>()?;
+    if global.len() != n
+        || global
+            .iter()
+            .zip(global.iter().skip(1))
+            .any(|(a, b)| a >= b)
+    {
+        return Err(PyValueError::new_err(
+            "rows must hold one increasing row number per site",
+        ));
+    }
+    Ok(global)
 }

@@ -7,11 +7,10 @@ use hcvt_core::diagram::mesh::{
 use hcvt_core::diagram::Options;
 use hcvt_core::error::CoreError;
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{rows as site_rows, to_array2, to_intp};
+use crate::arrays::{increasing_rows, rows as site_rows, to_array2, to_intp};
 use crate::domain::{PolygonDomain, SolidDomain};
 use crate::errors::to_py_err;
 
@@ -119,26 +118,6 @@ pub fn mesh_part_3d<'py>(
         })
     });
     part_dict(py, named_by_rows(part, &global)?)
-}
-
-/// One increasing, non-negative problem row per site.
-fn increasing_rows(rows: &PyReadonlyArray1<'_, i64>, n: usize) -> PyResult<Vec<usize>> {
-    let global: Vec<usize> = rows
-        .as_slice()?
-        .iter()
-        .map(|&r| usize::try_from(r).map_err(|_| PyValueError::new_err("negative row")))
-        .collect::<PyResult<_>>()?;
-    if global.len() != n
-        || global
-            .iter()
-            .zip(global.iter().skip(1))
-            .any(|(a, b)| a >= b)
-    {
-        return Err(PyValueError::new_err(
-            "rows must hold one increasing row number per site",
-        ));
-    }
-    Ok(global)
 }
 
 /// The part, or its error naming problem rows.

@@ -6,11 +6,10 @@ use hcvt_core::diagram::{
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{rows, to_array2, to_intp};
+use crate::arrays::{increasing_rows, rows, to_array2, to_intp};
 use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
 use crate::domain::{PolygonDomain, SolidDomain};
@@ -88,21 +87,7 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let points = rows::<f64, D>(&sites, "sites")?;
-    let global: Vec<usize> = rows_in
-        .as_slice()?
-        .iter()
-        .map(|&r| usize::try_from(r).map_err(|_| PyValueError::new_err("negative row")))
-        .collect::<PyResult<_>>()?;
-    if global.len() != points.len()
-        || global
-            .iter()
-            .zip(global.iter().skip(1))
-            .any(|(a, b)| a >= b)
-    {
-        return Err(PyValueError::new_err(
-            "rows must hold one increasing row number per site",
-        ));
-    }
+    let global = increasing_rows(&rows_in, points.len())?;
     let own: Vec<u32> = own.as_slice()?.to_vec();
     let options = Options {
         allow_outside: job.allow_outside,

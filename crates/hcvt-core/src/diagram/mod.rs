@@ -300,6 +300,41 @@ where
     Ok(windings)
 }
 
+/// A part's sites checked (all finite, `own` in range, the own sites as a whole
+/// problem's; the others are other parts' own): the own sites' winding numbers indexed
+/// like `sites` (`None` elsewhere), and which sites are own.
+pub(crate) fn checked_part<const D: usize>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    own: &[u32],
+    options: Options,
+) -> Result<(Vec<Option<i32>>, Vec<bool>), CoreError>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let n = sites.len();
+    if let Some(&bad) = own.iter().find(|&&i| i as usize >= n) {
+        return Err(CoreError::SiteIndex {
+            reason: format!("own site {bad} is not one of the {n} sites"),
+        });
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
+    let own_windings = checked_windings(boundary, &own_sites, options)
+        .map_err(|e| e.with_site_rows(|k| own.get(k).map_or(k, |&i| i as usize)))?;
+    let mut windings = vec![None; n];
+    let mut is_own = vec![false; n];
+    for (&i, &w) in own.iter().zip(&own_windings) {
+        windings[i as usize] = w;
+        is_own[i as usize] = true;
+    }
+    Ok((windings, is_own))
+}
+
 /// What every cell of one diagram computation shares: the sites, their index, the winding
 /// numbers of the sites whose cells are computed, and the number of sites of the whole
 /// problem (more than `sites.len()` when `sites` is a partition with its halo).
@@ -459,40 +494,7 @@ where
     if sites.is_empty() || own.is_empty() {
         return Ok(PartCells::default());
     }
-    for (index, s) in sites.iter().enumerate() {
-        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
-            return Err(CoreError::NonFiniteSite { index, value });
-        }
-    }
-    if let Some(&bad) = own.iter().find(|&&i| i as usize >= sites.len()) {
-        return Err(CoreError::SiteIndex {
-            reason: format!("own site {bad} is not one of the {} sites", sites.len()),
-        });
-    }
-    let mut windings = vec![None; sites.len()];
-    let own_windings: Vec<Option<i32>> = own
-        .par_iter()
-        .map(|&i| Euclid::winding_number(boundary, &sites[i as usize]))
-        .collect();
-    for (&i, &w) in own.iter().zip(&own_windings) {
-        windings[i as usize] = w;
-    }
-    if !options.allow_outside {
-        let mut outside: Vec<u32> = own
-            .iter()
-            .zip(&own_windings)
-            .filter(|(_, w)| **w == Some(0))
-            .map(|(&i, _)| i)
-            .collect();
-        outside.sort_unstable();
-        if let Some(&index) = outside.first() {
-            let index = index as usize;
-            return Err(CoreError::SiteOutsideDomain {
-                index,
-                point: sites[index].to_vec(),
-            });
-        }
-    }
+    let (windings, _) = checked_part(boundary, sites, own, options)?;
     let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
     if let Some(Density::Polynomial(q)) = density {
         weighted::check_polynomial(q, boundary, &own_sites)?;

@@ -29,7 +29,8 @@ use std::hash::{BuildHasherDefault, Hasher};
 use rayon::prelude::*;
 
 use super::convex_cell::{ConvexCell, Face};
-use super::{checked_windings, morton_order, voronoi_cell_among, CellScratch, Options};
+use super::{checked_part, checked_windings, morton_order, voronoi_cell_among};
+use super::{CellScratch, Options};
 use super::{NearScratch, SiteIndex};
 use super::{PolygonCell, PolyhedronCell};
 use crate::domain::{Boundary, Polygon, Solid, WindingNumber};
@@ -280,41 +281,6 @@ where
         frontier = ring;
     }
     Ok(cells.assemble(sites, boundary.vertices(), Some(&is_own)))
-}
-
-/// A part's sites checked (all finite, `own` in range, the own sites as a whole
-/// problem's; the others are other parts' own): the own sites' winding numbers indexed
-/// like `sites` (`None` elsewhere), and which sites are own.
-fn checked_part<const D: usize>(
-    boundary: &Boundary<D>,
-    sites: &[[f64; D]],
-    own: &[u32],
-    options: Options,
-) -> Result<(Vec<Option<i32>>, Vec<bool>), CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    let n = sites.len();
-    if let Some(&bad) = own.iter().find(|&&i| i as usize >= n) {
-        return Err(CoreError::SiteIndex {
-            reason: format!("own site {bad} is not one of the {n} sites"),
-        });
-    }
-    for (index, s) in sites.iter().enumerate() {
-        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
-            return Err(CoreError::NonFiniteSite { index, value });
-        }
-    }
-    let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
-    let own_windings = checked_windings(boundary, &own_sites, options)
-        .map_err(|e| e.with_site_rows(|k| own.get(k).map_or(k, |&i| i as usize)))?;
-    let mut windings = vec![None; n];
-    let mut is_own = vec![false; n];
-    for (&i, &w) in own.iter().zip(&own_windings) {
-        windings[i as usize] = w;
-        is_own[i as usize] = true;
-    }
-    Ok((windings, is_own))
 }
 
 /// The faces and reach of the cells `visit` (in parallel batches; each cell alone).
