@@ -112,13 +112,14 @@ def _load(input_: str, repair: bool):
 )
 @click.option(
     "--mesh-boundary",
-    type=click.Choice(["exact", "merged"]),
+    type=click.Choice(["exact", "merged", "split"]),
     default="exact",
     show_default=True,
     help="--mesh, 3D: exact (each piece of an input triangle in a cell is a planar face; "
-    "checkMesh flags small rim pieces as skew) or merged (pieces joined into larger, "
+    "checkMesh flags small rim pieces as skew), merged (pieces joined into larger, "
     "non-planar faces until checkMesh's skewness and pyramid checks pass; cell volumes "
-    "as OpenFOAM computes them move slightly).",
+    "as OpenFOAM computes them move slightly) or split (faces exact, failing cells cut "
+    "by planes into parts that pass; a site may own several cells, 0/site says which).",
 )
 @click.option("--summary", type=click.Path(dir_okay=False), help="Summary JSON file.")
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG of the cells by G.")
@@ -194,7 +195,9 @@ def run(
         raise click.UsageError("--cells .pvtu (one piece per part) needs --scheduler")
     domain = _load(input_, repair)
     if mesh_boundary != "exact" and domain.dim != 3:
-        raise click.UsageError("--mesh-boundary merged is for 3D meshes (a 2D mesh's are edges)")
+        raise click.UsageError(
+            f"--mesh-boundary {mesh_boundary} is for 3D meshes (a 2D mesh's are edges)"
+        )
     density = _density(density_spec, sizing_spec, domain.dim)
     weighted: dict[str, Any] = (
         {} if density is None else {"density": density, "quadrature_degree": quadrature_degree}
@@ -321,10 +324,11 @@ def _write_meshes(
     conforming mesh (``Diagram.mesh()``); a .ply goes through :func:`hcvt.io.write_cells`.
     With ``--mesh-boundary merged`` the case holds the merged mesh, and the quality
     figures are that mesh's (what checkMesh measures), beside ``merged_boundary``: the
-    faces merged and the change of total volume against the exact mesh.
+    faces merged and the change of total volume against the exact mesh. With ``split``
+    they are the split mesh's, beside ``split_cells``: the cuts and cells made.
     """
     import hcvt
-    from hcvt.export import merged_boundary, mesh_quality
+    from hcvt.export import merged_boundary, mesh_quality, split_failing_cells
 
     info: dict[str, Any] = {}
     suffix = Path(cells_path).suffix.lower() if cells_path else ""
@@ -342,7 +346,17 @@ def _write_meshes(
     if cells_path and cells_from_mesh:
         hcvt.write_mesh(mesh, cells_path, cell_data=data)
         info["cells"] = str(cells_path)
-    measured = mesh
+    measured, site = mesh, None
+    if mesh_dir and mesh_boundary == "split":
+        measured, site, split = split_failing_cells(mesh)
+        info["split_cells"] = {
+            "failing_cells": split.failing_cells,
+            "cuts": split.cuts,
+            "cells": split.cells,
+            "still_failing": len(split.failing),
+        }
+        if len(split.failing):
+            click.echo(f"warning: {len(split.failing)} faces still fail after splitting")
     if mesh_dir and mesh_boundary == "merged":
         measured, report = merged_boundary(mesh, diagram.domain)
         exact_total = float(mesh.cell_geometry.volume.sum())
@@ -359,7 +373,7 @@ def _write_meshes(
         if len(report.failing):
             click.echo(f"warning: {len(report.failing)} boundary faces still fail after merging")
     if mesh_dir:
-        hcvt.write_mesh(measured, mesh_dir, domain=diagram.domain, cell_data=data)
+        hcvt.write_mesh(measured, mesh_dir, domain=diagram.domain, cell_data=data, site=site)
         info["mesh"] = str(mesh_dir)
     info["write_seconds"] = time.perf_counter() - start
     quality = mesh_quality(measured).summary()

@@ -18,6 +18,7 @@ from hcvt.export.merge import MergeReport, merged_boundary
 from hcvt.export.openfoam import write_openfoam
 from hcvt.export.patches import boundary_patches
 from hcvt.export.quality import MeshQuality, mesh_quality
+from hcvt.export.split import SplitReport, split_failing_cells
 from hcvt.export.vtu import write_vtu
 from hcvt.polymesh import PolyMesh
 
@@ -27,10 +28,12 @@ if TYPE_CHECKING:
 __all__ = [
     "MergeReport",
     "MeshQuality",
+    "SplitReport",
     "as_polymesh",
     "boundary_patches",
     "merged_boundary",
     "mesh_quality",
+    "split_failing_cells",
     "to_pyvista",
     "write_geojson",
     "write_mesh",
@@ -70,6 +73,7 @@ def write_mesh(
     thickness: float | None = None,
     cell_data: dict[str, ArrayLike] | None = None,
     boundary_faces: str = "exact",
+    site: ArrayLike | None = None,
 ) -> Path:
     """Write the conforming mesh of a diagram (or a PolyMesh) to ``path``.
 
@@ -93,10 +97,15 @@ def write_mesh(
         OpenFOAM, 2D: the extrusion depth.
     cell_data : dict of str to array_like of shape (n,), optional
         More per-cell values to write (beside a diagram's ``volume`` and ``G``).
-    boundary_faces : {"exact", "merged"}
+    boundary_faces : {"exact", "merged", "split"}
         OpenFOAM, 3D: ``"merged"`` joins the boundary pieces checkMesh would flag (skew,
-        inverted pyramids) into larger, non-planar faces so that it passes; the default
-        ``"exact"`` writes the exact pieces. See :func:`write_openfoam`.
+        inverted pyramids) into larger, non-planar faces so that it passes; ``"split"``
+        keeps them and cuts their cells into parts that pass (a site may own several
+        cells); the default ``"exact"`` writes the exact pieces. See
+        :func:`write_openfoam`.
+    site : array_like of int, shape (n_cells,), optional
+        OpenFOAM: the site of each cell of a mesh split beforehand
+        (:func:`hcvt.export.split.split_failing_cells`).
 
     Returns
     -------
@@ -108,15 +117,15 @@ def write_mesh(
     NotImplementedError
         ``source`` has no ``mesh()``.
     ValueError
-        An unknown suffix; a GeoJSON of a 3D mesh; ``boundary_faces="merged"`` for a file
-        that is not an OpenFOAM case.
+        An unknown suffix; a GeoJSON of a 3D mesh; ``boundary_faces`` other than
+        ``"exact"``, or ``site``, for a file that is not an OpenFOAM case.
     """
     mesh, own_domain, data = as_polymesh(source)
     data = {**data, **(cell_data or {})}
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix and boundary_faces != "exact":
-        raise ValueError(f"boundary_faces={boundary_faces!r} is for OpenFOAM cases only")
+    if suffix and (boundary_faces != "exact" or site is not None):
+        raise ValueError("boundary_faces and site are for OpenFOAM cases only")
     if suffix == ".vtu":
         return write_vtu(mesh, path, cell_data=data)
     if suffix in (".geojson", ".json"):
@@ -135,6 +144,7 @@ def write_mesh(
         thickness=thickness,
         cell_data=data,
         boundary_faces=boundary_faces,
+        site=site,
     )
 
 

@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from hcvt.domain import Domain
 
 #: The ways :func:`hcvt.export.write_openfoam` writes boundary faces.
-BOUNDARY_FACES = ("exact", "merged")
+BOUNDARY_FACES = ("exact", "merged", "split")
 
 #: Rounds of :func:`merge_failing_boundary_faces` before it gives up on the faces left.
 MAX_ROUNDS = 60

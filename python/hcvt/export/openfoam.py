@@ -24,6 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hcvt.export.merge import BOUNDARY_FACES, merged_boundary
 from hcvt.export.patches import boundary_patches
+from hcvt.export.split import split_failing_cells
 from hcvt.polymesh import PolyMesh
 
 if TYPE_CHECKING:
@@ -45,6 +46,7 @@ def write_openfoam(
     thickness: float | None = None,
     cell_data: dict[str, ArrayLike] | None = None,
     boundary_faces: str = "exact",
+    site: ArrayLike | None = None,
 ) -> Path:
     """Write ``mesh`` as the OpenFOAM case directory ``case``.
 
@@ -67,9 +69,10 @@ def write_openfoam(
         written to the 17 digits that round-trip.
     thickness : float, optional
         2D only: the extrusion's depth along z, L; default the mean cell size ``(A/n)^½``.
-    cell_data : dict of str to array_like of shape (n,), optional
-        Per-cell values (row ``i`` is cell ``i`` of ``mesh``) written as volScalarFields.
-    boundary_faces : {"exact", "merged"}
+    cell_data : dict of str to array_like of shape (n_sites,), optional
+        Per-site values (row ``i`` is site ``i``) written as volScalarFields, each cell
+        taking its site's value.
+    boundary_faces : {"exact", "merged", "split"}
         3D only. ``"exact"``: every piece of an input triangle in a cell is its own
         planar face; the geometry is exact (checkMesh's total volume is the domain's),
         but checkMesh flags small pieces at a cell's rim as skew and, in a cell wrapping a
@@ -78,8 +81,15 @@ def write_openfoam(
         checkMesh's skewness and pyramid checks pass (:mod:`hcvt.export.merge`); cells
         and interior faces are unchanged, but a merged face is not planar, so the
         volumes OpenFOAM computes for the cells that have one move slightly
-        (``docs/results/checkmesh.txt``). Faces that cannot be fixed so are left failing
-        with a warning.
+        (``docs/results/checkmesh.txt``). ``"split"``: every face stays exact and
+        planar, and the cells with failing faces are cut by planes into parts that pass
+        (:mod:`hcvt.export.split`): the volumes stay exact, but a site may own several
+        cells (``0/site`` says which) and the cut faces are not orthogonal. Faces that
+        cannot be fixed are left failing with a warning.
+    site : array_like of int, shape (mesh.n_cells,), optional
+        The site each cell of ``mesh`` belongs to (default: cell ``i`` is site ``i``), as
+        :func:`hcvt.export.split.split_failing_cells` returns it for a mesh split
+        beforehand.
 
     Returns
     -------
@@ -89,11 +99,25 @@ def write_openfoam(
     Raises
     ------
     ValueError
-        An unknown ``boundary_faces``, or ``"merged"`` for a 2D mesh.
+        An unknown ``boundary_faces``, or ``"merged"`` or ``"split"`` for a 2D mesh; a
+        ``site`` of the wrong length.
     """
     if boundary_faces not in BOUNDARY_FACES:
         raise ValueError(f"boundary_faces must be one of {BOUNDARY_FACES}, got {boundary_faces!r}")
     mesh.check()
+    site_of = np.arange(mesh.n_cells) if site is None else np.asarray(site, dtype=np.intp)
+    if site_of.shape != (mesh.n_cells,):
+        raise ValueError(f"site must have one entry per cell ({mesh.n_cells}), got {site_of.shape}")
+    if boundary_faces == "split":
+        mesh, split_site, split = split_failing_cells(mesh)
+        site_of = site_of[split_site]
+        if len(split.failing):
+            warnings.warn(
+                f"{len(split.failing)} faces still fail checkMesh's skewness or face-pyramid "
+                "check after splitting their cells",
+                stacklevel=2,
+            )
+        mesh.check()
     if boundary_faces == "merged":
         mesh, report = merged_boundary(mesh, domain, labels)
         if len(report.failing):
@@ -106,9 +130,9 @@ def write_openfoam(
         mesh.check()  # still closed cells of positive volume
     patch, names = boundary_patches(mesh, domain, labels)
     compact, kept = mesh.compacted()
-    fields = {"site": kept.astype(np.float64)}
+    fields = {"site": site_of[kept].astype(np.float64)}
     for name, values in (cell_data or {}).items():
-        fields[name] = np.asarray(values, dtype=np.float64)[kept]
+        fields[name] = np.asarray(values, dtype=np.float64)[site_of[kept]]
     types = ["wall"] * len(names)
     if compact.dim == 2:
         compact, patch, names = _extrude(compact, patch, names, thickness)

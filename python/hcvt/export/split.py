@@ -1,0 +1,699 @@
+"""Split boundary cells by planes: exact planar faces that pass checkMesh, more cells.
+
+OpenFOAM's ``checkMesh`` fails two of its checks on the exact boundary pieces of a
+Voronoi cell (:mod:`hcvt.export.merge` explains both): a small piece at a cell's rim is
+*skew* (its centre lies far to the side of the cell's centre, compared with its own
+extent), and a cell wrapping a reflex edge has its centre *behind* one of its pieces. With
+one cell per site and planar faces neither can be fixed: the pieces are what they are and
+the cell's centre is the cell's. :mod:`hcvt.export.merge` joins pieces into non-planar
+faces, which passes on most meshes but moves the volumes OpenFOAM computes.
+
+This module keeps every face planar instead and splits the cell: a plane cuts a failing
+cell in two, so that each part's centre lies over its own pieces. Every new face is exact
+(a piece of a planar face, or the plane's section of the cell), so the volumes still sum
+to the domain's exactly and each site's parts still make up its Voronoi cell; what changes
+is that a site may own several cells. :func:`split_failing_cells` returns which site each
+cell belongs to (``write_openfoam`` writes it as the field ``0/site``).
+
+A cut is made locally first and measured (checkMesh's skewness, face pyramids and
+non-orthogonality errors on every face of the parts, against the neighbours' centres);
+only a cut that leaves fewer failing faces is applied. Applying it puts the new vertices
+where the plane crosses an edge into *every* face along that edge, so the mesh stays
+conforming. A cell whose parts still fail is cut again, up to :data:`MAX_DEPTH` times.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hcvt.export.merge import SKEWNESS_TARGET
+from hcvt.export.quality import SKEWNESS_LIMIT, face_quality
+from hcvt.polymesh import PolyMesh
+
+#: Cuts a failing cell may receive, one after the other (each part may be cut again).
+MAX_DEPTH = 6
+
+#: Cuts tried two levels deep (the cut, then its parts fixed) where no single cut helps.
+LOOK_AHEAD = 4
+
+#: Passes over the cells still failing (a cut moves a centre its neighbours measure against).
+SWEEPS = 8
+
+#: Where a candidate plane crosses the segment from a cell's centre to its worst face's
+#: centre (0: through the cell's centre).
+_OFFSETS = (0.5, 0.3, 0.7, 0.0, 0.85, 0.15)
+
+#: A candidate plane passing closer than this (relative to the cell size) to a vertex is
+#: moved along its normal: a vertex on the plane would make a degenerate cut.
+_CLEARANCE = 1e-6
+
+
+class SplitReport(NamedTuple):
+    """What :func:`split_failing_cells` did."""
+
+    failing_cells: int
+    """Cells of the input with a face failing checkMesh's skewness or pyramid check."""
+    cuts: int
+    """Planes applied."""
+    cells: int
+    """Cells of the output (the input's plus one per cut, more where a cut part fell in
+    pieces)."""
+    failing: NDArray[np.intp]
+    """Shape (k,): faces of the output that still fail (none when it passed)."""
+
+
+class _Face(NamedTuple):
+    """A face of a part of a cut cell, its loop oriented out of that part."""
+
+    loop: list[int]
+    source: int  # the cut cell's face it is a piece of, or -1 for a face on the plane
+    part: int  # the part it bounds
+    across: int  # the part on the other side (faces on the plane), else -1
+    ghost: int  # the cell on the other side outside the parts, else -1
+
+
+class _Cut(NamedTuple):
+    crossings: dict[tuple[int, int], tuple[int, NDArray[np.float64]]]
+    faces: list[_Face]
+    parts: int
+    failing: int
+    worst: float
+    part_failing: list[int]
+
+
+class _Journal:
+    """What to restore to undo the cuts made since it was opened (see ``_Editor.undo``)."""
+
+    def __init__(self, extra: int, faces: int, cells: int, cuts: int) -> None:
+        self.extra, self.faces, self.cells, self.cuts = extra, faces, cells, cuts
+        self.loops: dict[int, list[int] | None] = {}
+        self.cell_faces: dict[int, set[int]] = {}
+        self.vertex_faces: dict[int, set[int]] = {}
+        self.centroids: dict[int, NDArray[np.float64]] = {}
+
+
+def failing_faces(mesh: PolyMesh) -> NDArray[np.bool_]:
+    """Shape (f,): faces that fail checkMesh's skewness, pyramid or orthogonality checks."""
+    angle, skew, inverted = face_quality(mesh, mesh.cell_geometry.centroid)
+    return (skew > SKEWNESS_TARGET) | inverted | (np.nan_to_num(angle) >= 90.0)
+
+
+def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], SplitReport]:
+    """Cut the cells of ``mesh`` whose faces fail checkMesh until they pass (module docs).
+
+    Parameters
+    ----------
+    mesh : PolyMesh
+        A 3D conforming mesh with planar faces (``Diagram.mesh()``), cell ``i`` the cell
+        of site ``i``.
+
+    Returns
+    -------
+    split : PolyMesh
+        The mesh with the failing cells cut: the cells of ``mesh`` keep their indices
+        (the first part of a cut cell keeps it), new parts come after them; new vertices
+        come after ``mesh.points``. Faces on an input triangle keep its index in
+        ``boundary_element``.
+    site : ndarray of intp, shape (split.n_cells,)
+        The site (cell of ``mesh``) each cell belongs to.
+    report : SplitReport
+    """
+    if mesh.dim != 3:
+        raise ValueError("cells are split in 3D meshes only")
+    editor = _Editor(mesh)
+    failing = failing_faces(mesh)
+    cells = np.unique(
+        np.concatenate([mesh.owner[failing], mesh.neighbour[failing & mesh.interior]])
+    )
+    result, site = mesh, np.arange(mesh.n_cells)
+    for _ in range(SWEEPS):
+        before = editor.cuts
+        for c in cells.tolist():
+            editor.fix(int(c), MAX_DEPTH)
+        result, site = editor.mesh()
+        bad = failing_faces(result)
+        if editor.cuts == before or not bad.any():
+            break
+        cells = np.unique(
+            np.concatenate([result.owner[bad], result.neighbour[bad & result.interior]])
+        )
+    still = np.flatnonzero(failing_faces(result))
+    return result, site, SplitReport(len(cells), editor.cuts, result.n_cells, still)
+
+
+class _Editor:
+    """A mesh under cutting: faces as Python lists, maps kept up to date."""
+
+    def __init__(self, mesh: PolyMesh) -> None:
+        self.base = mesh.points
+        self.extra: list[NDArray[np.float64]] = []
+        sizes = mesh.face_sizes.tolist()
+        flat = mesh.face_vertices.tolist()
+        starts = mesh.face_offsets[:-1].tolist()
+        self.faces: list[list[int] | None] = [
+            flat[s : s + k] for s, k in zip(starts, sizes, strict=True)
+        ]
+        self.owner = mesh.owner.tolist()
+        self.neighbour = mesh.neighbour.tolist()
+        self.element = mesh.boundary_element.tolist()
+        cf = mesh.cell_faces
+        bounds = cf.offsets.tolist()
+        listed = cf.faces.tolist()
+        self.cell_faces = [set(listed[bounds[c] : bounds[c + 1]]) for c in range(mesh.n_cells)]
+        self.site = list(range(mesh.n_cells))
+        self.centroid = [row for row in mesh.cell_geometry.centroid]
+        self.vertex_faces: defaultdict[int, set[int]] = defaultdict(set)
+        for k, loop in enumerate(self.faces):
+            for v in loop or ():
+                self.vertex_faces[v].add(k)
+        self.cuts = 0
+        self.journal: _Journal | None = None
+
+    # ------------------------------------------------------------------ geometry access
+    def coords(self, ids: list[int]) -> NDArray[np.float64]:
+        nb = len(self.base)
+        return np.array([self.base[v] if v < nb else self.extra[v - nb] for v in ids])
+
+    def outward(self, c: int, k: int) -> list[int]:
+        loop = self.faces[k]
+        assert loop is not None
+        return list(loop) if self.owner[k] == c else loop[::-1]
+
+    def other(self, c: int, k: int) -> int:
+        """The cell across face ``k`` from cell ``c`` (-1 on the boundary)."""
+        return self.neighbour[k] if self.owner[k] == c else self.owner[k]
+
+    # ------------------------------------------------------------------ the search
+    def fix(self, c: int, depth: int) -> None:
+        """Cut cell ``c`` (and its parts, ``depth`` levels deep) while that helps."""
+        if depth == 0:
+            return
+        faces = sorted(self.cell_faces[c])
+        loops = [self.outward(c, k) for k in faces]
+        if any(len(set(loop)) < len(loop) for loop in loops):
+            return  # a face with a hole (keyhole): not cut
+        now = self.measure_cell(c, faces, loops)
+        if now is None or now[0] == 0:
+            return
+        tried: list[_Cut] = []
+        for normal, origin in (
+            plane for k in now[2] for plane in self.candidates(c, faces, loops, k)
+        ):
+            cut = self.cut(c, faces, loops, normal, origin)
+            if cut is None:
+                continue
+            tried.append(cut)
+            if cut.failing == 0:
+                break
+        tried.sort(key=lambda cut: cut.worst)
+        if tried and tried[0].worst < now[1]:
+            self.apply_and_fix(c, faces, tried[0], depth)
+        elif self.journal is None:
+            self.look_ahead(c, faces, tried[:LOOK_AHEAD], now[1], depth)
+
+    def apply_and_fix(self, c: int, faces: list[int], cut: _Cut, depth: int) -> None:
+        """Make ``cut`` in cell ``c``, then fix its failing parts."""
+        parts = self.apply(c, faces, cut)
+        for part, bad in zip(parts, cut.part_failing, strict=True):
+            if bad:
+                self.fix(part, depth - 1)
+
+    def look_ahead(
+        self, c: int, faces: list[int], cuts: list[_Cut], badness: float, depth: int
+    ) -> None:
+        """Keep the first of ``cuts`` that, its parts fixed in turn, beats ``badness``.
+
+        For a cell where no single cut helps; the cuts that do not beat it are undone.
+        """
+        for cut in cuts:
+            self.journal = _Journal(len(self.extra), len(self.faces), len(self.site), self.cuts)
+            self.apply_and_fix(c, faces, cut, depth)
+            region = [c, *range(self.journal.cells, len(self.site))]
+            after = self.measure(self.region_faces(region), len(region))
+            if after is not None and after[1].sum() < badness:
+                self.journal = None
+                return
+            self.undo()
+
+    def candidates(
+        self, c: int, faces: list[int], loops: list[list[int]], worst: int
+    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+        """Planes to try on cell ``c``: across the line from its centre to its worst face.
+
+        Normals: that line's part along the surface (as seen by the face, and by the
+        cell's whole boundary), turned by ±30° and ±60° about the surface normal, the line
+        itself, and the face's normal; each plane placed at :data:`_OFFSETS` along it.
+        """
+        cc = self.centroid[c]
+        pts = self.coords(loops[worst])
+        fc = pts.mean(axis=0)
+        n = _newell(pts)
+        n = n / np.linalg.norm(n)
+        cpf = fc - cc
+        tangential = cpf - (n @ cpf) * n
+        boundary = [
+            _newell(self.coords(loop))
+            for k, loop in zip(faces, loops, strict=True)
+            if self.neighbour[k] < 0
+        ]
+        mean = np.sum(boundary, axis=0) if boundary else n
+        mean = mean / (np.linalg.norm(mean) or 1.0)
+        flat = tangential - (mean @ tangential) * mean
+        side = np.cross(mean, flat)
+        turned = [
+            np.cos(a) * flat + np.sin(a) * side for a in np.radians([30.0, -30.0, 60.0, -60.0])
+        ]
+        normals = []
+        for v in (tangential, flat, *turned, cpf, n):
+            length = np.linalg.norm(v)
+            if length > 1e-9 * (np.linalg.norm(cpf) + 1e-300):
+                normals.append(v / length)
+        return [(normal, cc + t * cpf) for t in _OFFSETS for normal in normals]
+
+    def measure_cell(
+        self, c: int, faces: list[int], loops: list[list[int]]
+    ) -> tuple[int, float, list[int]] | None:
+        """(failing faces, badness, indices in ``faces`` of the 3 worst) of cell ``c``."""
+        local = [
+            _Face(loop, k, 0, -1, self.other(c, k)) for k, loop in zip(faces, loops, strict=True)
+        ]
+        measured = self.measure(local, 1)
+        if measured is None:
+            return None
+        bad, badness, _ = measured
+        worst = np.argsort(-badness, kind="stable")[: min(3, int(bad.sum()))]
+        return int(bad.sum()), float(badness.sum()), worst.tolist()
+
+    def measure(
+        self,
+        faces: list[_Face],
+        parts: int,
+        coords: Callable[[list[int]], NDArray[np.float64]] | None = None,
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]] | None:
+        """Failing flags and badness of ``faces`` bounding ``parts`` parts, their centres.
+
+        The parts are cells ``0..parts-1`` of a small mesh; the cells across the faces
+        from outside (``_Face.ghost``) are ghosts there, with their true centres.
+        ``coords`` maps vertex ids to coordinates (default :meth:`coords`). A face's
+        badness is 0 if it passes, else its skewness over checkMesh's limit (at least
+        1), plus 1 for an inverted pyramid. None if a part has no positive volume.
+        """
+        coords = coords or self.coords
+        ids: dict[int, int] = {}
+        flat: list[int] = []
+        offsets = [0]
+        owner, neighbour = [], []
+        ghosts: list[int] = []
+        ghost_of: dict[int, int] = {}
+        for face in faces:
+            flat.extend(ids.setdefault(v, len(ids)) for v in face.loop)
+            offsets.append(len(flat))
+            owner.append(face.part)
+            if face.across >= 0:
+                neighbour.append(face.across)
+            elif face.ghost >= 0:
+                if face.ghost not in ghost_of:
+                    ghost_of[face.ghost] = parts + len(ghosts)
+                    ghosts.append(face.ghost)
+                neighbour.append(ghost_of[face.ghost])
+            else:
+                neighbour.append(-1)
+        local = PolyMesh(
+            points=coords(list(ids)) if ids else np.zeros((0, 3)),
+            face_offsets=np.array(offsets, dtype=np.intp),
+            face_vertices=np.array(flat, dtype=np.intp),
+            owner=np.array(owner, dtype=np.intp),
+            neighbour=np.array(neighbour, dtype=np.intp),
+            boundary_element=np.where(np.array(neighbour) < 0, 0, -1).astype(np.intp),
+            n_cells=parts + len(ghosts),
+        )
+        volume, centroid = local.cell_geometry
+        if not (volume[:parts] > 0).all():
+            return None
+        centroid = centroid.copy()
+        for j, g in enumerate(ghosts):
+            centroid[parts + j] = self.centroid[g]
+        angle, skew, inverted = face_quality(local, centroid)
+        bad = (skew > SKEWNESS_TARGET) | inverted | (np.nan_to_num(angle) >= 90.0)
+        return (
+            bad,
+            np.where(bad, np.maximum(skew / SKEWNESS_LIMIT, 1.0) + inverted, 0.0),
+            centroid[:parts],
+        )
+
+    # ------------------------------------------------------------------ one cut
+    def cut(
+        self,
+        c: int,
+        faces: list[int],
+        loops: list[list[int]],
+        normal: NDArray[np.float64],
+        origin: NDArray[np.float64],
+    ) -> _Cut | None:
+        """Cell ``c`` cut by the plane ``normal·(x - origin) = 0``, measured; or None."""
+        verts = sorted({v for loop in loops for v in loop})
+        xyz = self.coords(verts)
+        size = float(np.ptp(xyz, axis=0).max())
+        dist = (xyz - origin) @ normal
+        if np.abs(dist).min() < _CLEARANCE * size:
+            origin = origin + 10 * _CLEARANCE * size * normal
+            dist = (xyz - origin) @ normal
+            if np.abs(dist).min() < _CLEARANCE * size:
+                return None
+        if (dist > 0).all() or (dist < 0).all():
+            return None
+        side = dict(zip(verts, dist.tolist(), strict=True))
+        position = dict(zip(verts, xyz, strict=True))
+        crossings: dict[tuple[int, int], tuple[int, NDArray[np.float64]]] = {}
+
+        def crossing(a: int, b: int) -> int:
+            key = (min(a, b), max(a, b))
+            if key not in crossings:
+                da, db = side[key[0]], side[key[1]]
+                t = da / (da - db)
+                x = position[key[0]] + t * (position[key[1]] - position[key[0]])
+                crossings[key] = (-1 - len(crossings), x)
+                position[crossings[key][0]] = x
+            return crossings[key][0]
+
+        pieces: list[tuple[list[int], int, int]] = []  # (loop, source face, side +1/-1)
+        chords: list[tuple[int, int]] = []  # on the + pieces, walked a -> b
+        for k, loop in zip(faces, loops, strict=True):
+            split = _split_loop(loop, side, crossing, position.__getitem__)
+            if split is None:
+                return None
+            for piece, sign in split[0]:
+                pieces.append((piece, k, sign))
+            chords.extend(split[1])
+        # The section: the chords of the + pieces, reversed, chained into loops.
+        ahead: dict[int, int] = {}
+        for a, b in chords:
+            if b in ahead:
+                return None
+            ahead[b] = a
+        sections: list[list[int]] = []
+        while ahead:
+            start, ring = next(iter(ahead)), []
+            v = start
+            while True:
+                ring.append(v)
+                nxt = ahead.pop(v, None)
+                if nxt is None:
+                    return None
+                if nxt == start:
+                    break
+                v = nxt
+            sections.append(ring)
+        for ring in sections:  # out of the + side is along -normal; a hole would be +
+            if _newell(np.array([position[v] for v in ring])) @ normal >= 0:
+                return None
+        # Parts: connected components of each side's faces (sharing an edge).
+        sided = [(p, s) for p, _, s in pieces] + [(r, 1) for r in sections]
+        part_of = _components([p for p, _ in sided], [s for _, s in sided])
+        n_parts = max(part_of) + 1
+        out: list[_Face] = []
+        for j, (piece, k, _) in enumerate(pieces):
+            out.append(_Face(piece, k, part_of[j], -1, self.other(c, k)))
+        for j, ring in enumerate(sections):
+            mine = part_of[len(pieces) + j]
+            across = _part_across(ring, pieces, part_of)
+            if across is None:
+                return None
+            out.append(_Face(ring, -1, mine, across, -1))
+        measured = self.measure(
+            out,
+            n_parts,
+            lambda ids: np.array([position[v] for v in ids]),
+        )
+        if measured is None:
+            return None
+        bad, badness, _ = measured
+        part_failing = [0] * n_parts
+        for face, b in zip(out, bad.tolist(), strict=True):
+            part_failing[face.part] += b
+            if face.across >= 0:
+                part_failing[face.across] += b
+        return _Cut(crossings, out, n_parts, int(bad.sum()), float(badness.sum()), part_failing)
+
+    # ------------------------------------------------------------------ applying a cut
+    def apply(self, c: int, faces: list[int], cut: _Cut) -> list[int]:
+        """Make the cut in the mesh; return the cells of its parts (the first is ``c``)."""
+        nb = len(self.base)
+        global_id: dict[int, int] = {}
+        old = set(faces)
+        for (a, b), (lid, x) in cut.crossings.items():
+            g = nb + len(self.extra)
+            self.extra.append(x)
+            global_id[lid] = g
+            for k in self.vertex_faces[a] & self.vertex_faces[b]:
+                if k in old:
+                    continue
+                self._keep(k, None, None)
+                loop = self.faces[k]
+                assert loop is not None
+                m = len(loop)
+                for i in range(m):
+                    if {loop[i], loop[(i + 1) % m]} == {a, b}:
+                        loop.insert(i + 1, g)
+                        self.vertex_faces[g].add(k)
+                        break
+        parts = [c] + [len(self.site) + j for j in range(cut.parts - 1)]
+        for _ in range(cut.parts - 1):
+            self.site.append(self.site[c])
+            self.cell_faces.append(set())
+            self.centroid.append(self.centroid[c])
+        for k in faces:
+            self._keep(k, None, None)
+            for cell in (self.owner[k], self.neighbour[k]):
+                if cell >= 0:
+                    self._keep(None, cell, None)
+                    self.cell_faces[cell].discard(k)
+            for v in self.faces[k] or ():
+                self._keep(None, None, v)
+                self.vertex_faces[v].discard(k)
+            self.faces[k] = None
+        for face in cut.faces:
+            loop = [global_id.get(v, v) for v in face.loop]
+            part = parts[face.part]
+            if face.across >= 0:
+                owner, neighbour, element = part, parts[face.across], -1
+            elif self.neighbour[face.source] < 0:
+                owner, neighbour, element = part, -1, self.element[face.source]
+            else:
+                other = self.other(c, face.source)
+                owner, neighbour, element = part, other, -1
+                if other < part:  # keep the original's owner where it was the owner
+                    owner, neighbour, loop = other, part, loop[::-1]
+            k = len(self.faces)
+            self.faces.append(loop)
+            self.owner.append(owner)
+            self.neighbour.append(neighbour)
+            self.element.append(element)
+            for cell in (owner, neighbour):
+                if cell >= 0:
+                    self._keep(None, cell, None)
+                    self.cell_faces[cell].add(k)
+            for v in loop:
+                self._keep(None, None, v)
+                self.vertex_faces[v].add(k)
+        for part in parts:
+            if self.journal is not None and part < self.journal.cells:
+                self.journal.centroids.setdefault(part, self.centroid[part])
+            self.centroid[part] = self._centroid(part)
+        self.cuts += 1
+        return parts
+
+    def _keep(self, face: int | None, cell: int | None, vertex: int | None) -> None:
+        """Note a face's loop, a cell's faces or a vertex's faces before they change."""
+        j = self.journal
+        if j is None:
+            return
+        if face is not None and face < j.faces and face not in j.loops:
+            loop = self.faces[face]
+            j.loops[face] = None if loop is None else list(loop)
+        if cell is not None and cell < j.cells and cell not in j.cell_faces:
+            j.cell_faces[cell] = set(self.cell_faces[cell])
+        if vertex is not None and vertex < len(self.base) + j.extra:
+            j.vertex_faces.setdefault(vertex, set(self.vertex_faces[vertex]))
+
+    def undo(self) -> None:
+        """Restore the mesh as it was when the journal was opened, and close it."""
+        j = self.journal
+        assert j is not None
+        self.journal = None
+        for v in range(len(self.base) + j.extra, len(self.base) + len(self.extra)):
+            self.vertex_faces.pop(v, None)
+        del self.extra[j.extra :]
+        for column in (self.faces, self.owner, self.neighbour, self.element):
+            del column[j.faces :]
+        for column in (self.site, self.cell_faces, self.centroid):
+            del column[j.cells :]
+        for k, loop in j.loops.items():
+            self.faces[k] = loop
+        for cell, faces in j.cell_faces.items():
+            self.cell_faces[cell] = faces
+        for v, faces in j.vertex_faces.items():
+            self.vertex_faces[v] = faces
+        for cell, x in j.centroids.items():
+            self.centroid[cell] = x
+        self.cuts = j.cuts
+
+    def _centroid(self, c: int) -> NDArray[np.float64]:
+        measured = self.measure(self.region_faces([c]), 1)
+        assert measured is not None
+        return measured[2][0]
+
+    def region_faces(self, cells: list[int]) -> list[_Face]:
+        """The faces of ``cells`` (parts ``0..len(cells)-1``), each once, out of a part."""
+        index = {cell: j for j, cell in enumerate(cells)}
+        out = []
+        for j, cell in enumerate(cells):
+            for k in sorted(self.cell_faces[cell]):
+                other = self.other(cell, k)
+                if other in index and index[other] < j:
+                    continue  # met from the other part already
+                across = index.get(other, -1)
+                ghost = other if across < 0 else -1
+                out.append(_Face(self.outward(cell, k), k, j, across, ghost))
+        return out
+
+    def mesh(self) -> tuple[PolyMesh, NDArray[np.intp]]:
+        keep = [k for k, loop in enumerate(self.faces) if loop is not None]
+        loops = [loop for loop in self.faces if loop is not None]
+        sizes = np.array([len(loop) for loop in loops], dtype=np.intp)
+        offsets = np.zeros(len(keep) + 1, dtype=np.intp)
+        np.cumsum(sizes, out=offsets[1:])
+        points = np.vstack([self.base, np.array(self.extra).reshape(-1, 3)])
+        result = PolyMesh(
+            points=points,
+            face_offsets=offsets,
+            face_vertices=np.fromiter(
+                (v for loop in loops for v in loop),
+                dtype=np.intp,
+                count=int(offsets[-1]),
+            ),
+            owner=np.array([self.owner[k] for k in keep], dtype=np.intp),
+            neighbour=np.array([self.neighbour[k] for k in keep], dtype=np.intp),
+            boundary_element=np.array([self.element[k] for k in keep], dtype=np.intp),
+            n_cells=len(self.site),
+        )
+        return result, np.array(self.site, dtype=np.intp)
+
+
+def _newell(pts: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Twice the vector area of the closed loop ``pts`` (k, 3)."""
+    return np.cross(pts, np.roll(pts, -1, axis=0)).sum(axis=0)
+
+
+def _split_loop(
+    loop: list[int],
+    side: dict[int, float],
+    crossing: Callable[[int, int], int],
+    point: Callable[[int], NDArray[np.float64]],
+) -> tuple[list[tuple[list[int], int]], list[tuple[int, int]]] | None:
+    """A planar face's loop cut by the plane: its pieces on each side, and the chords.
+
+    ``side[v]`` is a vertex's signed distance (never 0); ``crossing(a, b)`` the id of the
+    point where edge ``a b`` crosses. Returns ``([(piece, ±1), ...], chords)`` with
+    chords the segments of the plane inside the face, as walked by the + pieces; or
+    None where the crossings cannot be paired (not a simple face).
+    """
+    m = len(loop)
+    aug: list[int] = []
+    sign: list[int] = []
+    for i in range(m):
+        a, b = loop[i], loop[(i + 1) % m]
+        aug.append(a)
+        sign.append(1 if side[a] > 0 else -1)
+        if (side[a] > 0) != (side[b] > 0):
+            aug.append(crossing(a, b))
+            sign.append(0)
+    if 0 not in sign:
+        return [(list(loop), sign[0])], []
+    at = [i for i, s in enumerate(sign) if s == 0]
+    pts = np.array([point(aug[i]) for i in at])
+    direction = pts[-1] - pts[0] if len(at) == 2 else None
+    if direction is None:
+        centred = pts - pts.mean(axis=0)
+        direction = np.linalg.svd(centred)[2][0]
+    order = [at[j] for j in np.argsort(pts @ direction, kind="stable")]
+    partner: dict[int, int] = {}
+    for j in range(0, len(order), 2):
+        partner[order[j]] = order[j + 1]
+        partner[order[j + 1]] = order[j]
+    n = len(aug)
+    pieces: list[tuple[list[int], int]] = []
+    chords: list[tuple[int, int]] = []
+    for s in (1, -1):
+        # Directed steps on side s: loop edges leaving a vertex of side s (or a crossing
+        # followed by one), and at a crossing reached from side s, the chord.
+        step: dict[int, int] = {}
+        for i in range(n):
+            j = (i + 1) % n
+            if sign[i] == s or (sign[i] == 0 and sign[j] == s):
+                if sign[i] == 0 and sign[(i - 1) % n] == s:
+                    return None  # touches the plane without crossing
+                step[i] = j
+        for i in at:
+            if sign[(i - 1) % n] == s:
+                if sign[(partner[i] + 1) % n] != s:
+                    return None
+                step[i] = partner[i]
+                if s == 1:
+                    chords.append((aug[i], aug[partner[i]]))
+        while step:
+            start = next(iter(step))
+            ring, i = [], start
+            while True:
+                ring.append(aug[i])
+                i = step.pop(i)
+                if i == start:
+                    break
+                if i not in step:
+                    return None
+            pieces.append((ring, s))
+    return pieces, chords
+
+
+def _components(loops: list[list[int]], sides: list[int]) -> list[int]:
+    """Parts: loops of one side joined where they share an edge; numbered from 0."""
+    parent = list(range(len(loops)))
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    seen: dict[tuple[int, int, int], int] = {}
+    for j, loop in enumerate(loops):
+        m = len(loop)
+        for i in range(m):
+            a, b = loop[i], loop[(i + 1) % m]
+            key = (sides[j], min(a, b), max(a, b))
+            if key in seen:
+                parent[find(j)] = find(seen[key])
+            else:
+                seen[key] = j
+    roots: dict[int, int] = {}
+    return [roots.setdefault(find(j), len(roots)) for j in range(len(loops))]
+
+
+def _part_across(
+    ring: list[int], pieces: list[tuple[list[int], int, int]], part_of: list[int]
+) -> int | None:
+    """The part on the - side of a section loop: the - piece holding one of its edges."""
+    a, b = ring[0], ring[1]
+    for j, (piece, _, s) in enumerate(pieces):
+        if s > 0:
+            continue
+        m = len(piece)
+        for i in range(m):
+            if piece[i] == a and piece[(i + 1) % m] == b:
+                return part_of[j]
+    return None
