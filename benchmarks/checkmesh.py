@@ -1,4 +1,4 @@
-"""OpenFOAM's checkMesh on converged CVTs of real meshes (issue 19), exact and merged.
+"""OpenFOAM's checkMesh on converged CVTs of real meshes (issue 19): exact, merged, split.
 
 Run ``OPENBLAS_NUM_THREADS=1 python benchmarks/checkmesh.py`` (needs OpenFOAM's
 ``checkMesh``; ``WM_PROJECT_DIR`` defaults to Debian's ``/usr/share/openfoam``). For each
@@ -7,8 +7,9 @@ case (bunny 50k, cheese 10k by default) it
 1. converges a CVT to the default rule (Newton from scrambled Halton sites, seed 0) and
    keeps its sites in ``--cache`` (``<name>_<n>_newton.npy`` and ``.json``): a later run
    reads them and reprints the seconds the converging run took;
-2. writes the conforming mesh as an OpenFOAM case twice, ``boundary_faces="exact"`` and
-   ``"merged"`` (:mod:`hcvt.export.merge`), timing the merge and the writing;
+2. writes the conforming mesh as an OpenFOAM case three times, ``boundary_faces="exact"``,
+   ``"merged"`` (:mod:`hcvt.export.merge`) and ``"split"`` (:mod:`hcvt.export.split`),
+   timing the merge, the split and the writing;
 3. runs ``checkMesh`` on each and prints its verdict, its failed checks, its max
    non-orthogonality and skewness, and its total volume against the input mesh's volume,
    beside hcvt's own figures for the same mesh (:func:`hcvt.export.mesh_quality`) and,
@@ -39,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 import hcvt
-from hcvt.export import merged_boundary, mesh_quality, write_openfoam
+from hcvt.export import merged_boundary, mesh_quality, split_failing_cells, write_openfoam
 from hcvt.initialisation import initialise
 from hcvt.polymesh import PolyMesh
 
@@ -199,7 +200,8 @@ def report(label: str, log: str, mesh: PolyMesh, domain_volume: float) -> None:
     print(
         f"    hcvt:      max non-orthogonality {ours['non_orthogonality_max']:.6g} deg, max "
         f"skewness {ours['skewness_max']:.6g}, {ours['skew_faces']} faces skewness > 4, "
-        f"{ours['inverted_pyramids']} inverted pyramids, faces {ours['faces']}"
+        f"{ours['inverted_pyramids']} inverted pyramids, faces {ours['faces']}, "
+        f"{ours['non_orthogonal_faces']} faces non-orthogonality > 70 deg, cells {ours['cells']}"
     )
 
 
@@ -219,6 +221,17 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     mesh = diagram.mesh()
     print(f"  diagram + mesh: {time.perf_counter() - start:.2f} s")
     start = time.perf_counter()
+    split, site, cut = split_failing_cells(mesh)
+    seconds = time.perf_counter() - start
+    parts = np.bincount(site, weights=split.cell_geometry.volume, minlength=len(sites))
+    print(
+        f"  split: {seconds:.2f} s, {cut.failing_cells} failing cells, {cut.cuts} cuts, "
+        f"{cut.cells} cells ({cut.cells - n} more than sites, at most "
+        f"{np.bincount(site).max()} per site), {len(cut.failing)} faces still failing; "
+        f"per site, its cells' volumes vs its Voronoi cell's: largest difference "
+        f"{np.max(np.abs(parts - diagram.volume) / diagram.volume):.2e} relative"
+    )
+    start = time.perf_counter()
     merged, merge = merged_boundary(mesh, domain)
     seconds = time.perf_counter() - start
     exact_volume, volume = mesh.cell_geometry.volume, merged.cell_geometry.volume
@@ -235,7 +248,7 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     volume_change("every region", exact_volume, every.cell_geometry.volume, domain.volume)
     with tempfile.TemporaryDirectory() as tmp:
         root = keep or Path(tmp)
-        for label, written in (("exact", mesh), ("merged", merged)):
+        for label, written in (("exact", mesh), ("merged", merged), ("split", split)):
             case = root / f"{Path(name).stem}_{n}_{label}"
             shutil.rmtree(case, ignore_errors=True)
             start = time.perf_counter()

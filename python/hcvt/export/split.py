@@ -173,6 +173,8 @@ class _Editor:
                 self.vertex_faces[v].add(k)
         self.cuts = 0
         self.journal: _Journal | None = None
+        # Cells no cut helped, with their faces then: not tried again while unchanged.
+        self.stuck: dict[int, list[int]] = {}
 
     # ------------------------------------------------------------------ geometry access
     def coords(self, ids: list[int]) -> NDArray[np.float64]:
@@ -197,6 +199,8 @@ class _Editor:
         loops = [self.outward(c, k) for k in faces]
         if any(len(set(loop)) < len(loop) for loop in loops):
             return  # a face with a hole (keyhole): not cut
+        if self.stuck.get(c) == faces:
+            return  # tried before, and nothing around it has changed since
         now = self.measure_cell(c, faces, loops)
         if now is None or now[0] == 0:
             return
@@ -213,8 +217,10 @@ class _Editor:
         tried.sort(key=lambda cut: cut.worst)
         if tried and tried[0].worst < now[1]:
             self.apply_and_fix(c, faces, tried[0], depth)
-        elif self.journal is None:
-            self.look_ahead(c, faces, tried[:LOOK_AHEAD], now[1], depth)
+        elif self.journal is None and not self.look_ahead(
+            c, faces, tried[:LOOK_AHEAD], now[1], depth
+        ):
+            self.stuck[c] = faces
 
     def apply_and_fix(self, c: int, faces: list[int], cut: _Cut, depth: int) -> None:
         """Make ``cut`` in cell ``c``, then fix its failing parts."""
@@ -225,10 +231,11 @@ class _Editor:
 
     def look_ahead(
         self, c: int, faces: list[int], cuts: list[_Cut], badness: float, depth: int
-    ) -> None:
+    ) -> bool:
         """Keep the first of ``cuts`` that, its parts fixed in turn, beats ``badness``.
 
         For a cell where no single cut helps; the cuts that do not beat it are undone.
+        Returns whether one was kept.
         """
         for cut in cuts:
             self.journal = _Journal(len(self.extra), len(self.faces), len(self.site), self.cuts)
@@ -237,8 +244,9 @@ class _Editor:
             after = self.measure(self.region_faces(region), len(region))
             if after is not None and after[1].sum() < badness:
                 self.journal = None
-                return
+                return True
             self.undo()
+        return False
 
     def candidates(
         self, c: int, faces: list[int], loops: list[list[int]], worst: int
@@ -248,6 +256,7 @@ class _Editor:
         Normals: that line's part along the surface (as seen by the face, and by the
         cell's whole boundary), turned by ±30° and ±60° about the surface normal, the line
         itself, and the face's normal; each plane placed at :data:`_OFFSETS` along it.
+        Then the planes through the cell's centre across its principal axes.
         """
         cc = self.centroid[c]
         pts = self.coords(loops[worst])
@@ -273,7 +282,12 @@ class _Editor:
             length = np.linalg.norm(v)
             if length > 1e-9 * (np.linalg.norm(cpf) + 1e-300):
                 normals.append(v / length)
-        return [(normal, cc + t * cpf) for t in _OFFSETS for normal in normals]
+        planes = [(normal, cc + t * cpf) for t in _OFFSETS for normal in normals]
+        # The cell's own axes through its centre: for cells wrapping a tunnel or an edge.
+        xyz = self.coords(sorted({v for loop in loops for v in loop}))
+        axes = np.linalg.svd(xyz - xyz.mean(axis=0), full_matrices=False)[2]
+        planes += [(axis, cc) for axis in axes]
+        return planes
 
     def measure_cell(
         self, c: int, faces: list[int], loops: list[list[int]]
@@ -357,6 +371,7 @@ class _Editor:
     ) -> _Cut | None:
         """Cell ``c`` cut by the plane ``normal·(x - origin) = 0``, measured; or None."""
         verts = sorted({v for loop in loops for v in loop})
+        verts_array = np.array(verts)
         xyz = self.coords(verts)
         size = float(np.ptp(xyz, axis=0).max())
         dist = (xyz - origin) @ normal
@@ -383,7 +398,15 @@ class _Editor:
 
         pieces: list[tuple[list[int], int, int]] = []  # (loop, source face, side +1/-1)
         chords: list[tuple[int, int]] = []  # on the + pieces, walked a -> b
-        for k, loop in zip(faces, loops, strict=True):
+        # Faces wholly on one side go as they are; only the others are cut.
+        sizes = [len(loop) for loop in loops]
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+        above = dist[np.searchsorted(verts_array, [v for loop in loops for v in loop])] > 0
+        count = np.add.reduceat(above, starts).tolist()
+        for k, loop, up, size in zip(faces, loops, count, sizes, strict=True):
+            if up in (0, size):
+                pieces.append((list(loop), k, 1 if up else -1))
+                continue
             split = _split_loop(loop, side, crossing, position.__getitem__)
             if split is None:
                 return None
