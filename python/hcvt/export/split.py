@@ -41,6 +41,9 @@ MAX_DEPTH = 6
 #: Cuts tried two levels deep (the cut, then its parts fixed) where no single cut helps.
 LOOK_AHEAD = 4
 
+#: Directions tried through a cell's centre where the aimed planes fail.
+_DIRECTIONS = 24
+
 #: Passes over the cells still failing (a cut moves a centre its neighbours measure against).
 SWEEPS = 8
 
@@ -131,6 +134,7 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
         np.concatenate([mesh.owner[failing], mesh.neighbour[failing & mesh.interior]])
     )
     result, site = mesh, np.arange(mesh.n_cells)
+    first = len(cells)
     for _ in range(SWEEPS):
         before = editor.cuts
         for c in cells.tolist():
@@ -143,7 +147,7 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
             np.concatenate([result.owner[bad], result.neighbour[bad & result.interior]])
         )
     still = np.flatnonzero(failing_faces(result))
-    return result, site, SplitReport(len(cells), editor.cuts, result.n_cells, still)
+    return result, site, SplitReport(first, editor.cuts, result.n_cells, still)
 
 
 class _Editor:
@@ -204,10 +208,28 @@ class _Editor:
         now = self.measure_cell(c, faces, loops)
         if now is None or now[0] == 0:
             return
-        tried: list[_Cut] = []
-        for normal, origin in (
-            plane for k in now[2] for plane in self.candidates(c, faces, loops, k)
+        planes = [plane for k in now[2] for plane in self.candidates(c, faces, loops, k)]
+        tried = self.try_planes(c, faces, loops, planes)
+        if not tried or tried[0].worst >= now[1]:
+            tried += self.try_planes(c, faces, loops, self.more_planes(c, faces, loops))
+            tried.sort(key=lambda cut: cut.worst)
+        if tried and tried[0].worst < now[1]:
+            self.apply_and_fix(c, faces, tried[0], depth)
+        elif self.journal is None and not self.look_ahead(
+            c, faces, tried[:LOOK_AHEAD], now[1], depth
         ):
+            self.stuck[c] = faces
+
+    def try_planes(
+        self,
+        c: int,
+        faces: list[int],
+        loops: list[list[int]],
+        planes: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    ) -> list[_Cut]:
+        """The cuts of cell ``c`` by ``planes`` (until one leaves no failing face), best first."""
+        tried: list[_Cut] = []
+        for normal, origin in planes:
             cut = self.cut(c, faces, loops, normal, origin)
             if cut is None:
                 continue
@@ -215,12 +237,34 @@ class _Editor:
             if cut.failing == 0:
                 break
         tried.sort(key=lambda cut: cut.worst)
-        if tried and tried[0].worst < now[1]:
-            self.apply_and_fix(c, faces, tried[0], depth)
-        elif self.journal is None and not self.look_ahead(
-            c, faces, tried[:LOOK_AHEAD], now[1], depth
-        ):
-            self.stuck[c] = faces
+        return tried
+
+    def more_planes(
+        self, c: int, faces: list[int], loops: list[list[int]]
+    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+        """Planes through the centre of cell ``c`` for where :meth:`candidates` fail.
+
+        Four containing the axis its boundary pieces turn around (the axis of a tunnel
+        the cell wraps: the direction their normals least point along), then
+        :data:`_DIRECTIONS` normals spread over the sphere (a Fibonacci lattice).
+        """
+        cc = self.centroid[c]
+        normals = [_newell(self.coords(loop)) for k, loop in zip(faces, loops, strict=True)]
+        pieces = np.array([v for k, v in zip(faces, normals, strict=True) if self.neighbour[k] < 0])
+        planes = []
+        if len(pieces):
+            weighted = pieces / np.sqrt(np.linalg.norm(pieces, axis=1))[:, None]
+            frame = np.linalg.eigh(weighted.T @ weighted)[1]  # ascending: frame[:, 0] the axis
+            for angle in np.radians([0.0, 45.0, 90.0, 135.0]):
+                normal = np.cos(angle) * frame[:, 1] + np.sin(angle) * frame[:, 2]
+                planes.append((normal, cc))
+        k = np.arange(_DIRECTIONS) + 0.5
+        z = 1 - k / _DIRECTIONS  # a hemisphere: a plane's normal and its opposite are one
+        r = np.sqrt(1 - z * z)
+        turn = np.pi * (1 + 5**0.5) * k
+        spread = np.column_stack([r * np.cos(turn), r * np.sin(turn), z])
+        planes += [(normal, cc) for normal in spread]
+        return planes
 
     def apply_and_fix(self, c: int, faces: list[int], cut: _Cut, depth: int) -> None:
         """Make ``cut`` in cell ``c``, then fix its failing parts."""
@@ -283,6 +327,9 @@ class _Editor:
             if length > 1e-9 * (np.linalg.norm(cpf) + 1e-300):
                 normals.append(v / length)
         planes = [(normal, cc + t * cpf) for t in _OFFSETS for normal in normals]
+        # Just in front of the face's own plane: the part behind it holds the face and
+        # little else, so its centre lies behind the face (for a wrong pyramid).
+        planes += [(n, cc + t * cpf) for t in (0.97, 0.995)]
         # The cell's own axes through its centre: for cells wrapping a tunnel or an edge.
         xyz = self.coords(sorted({v for loop in loops for v in loop}))
         axes = np.linalg.svd(xyz - xyz.mean(axis=0), full_matrices=False)[2]
