@@ -90,7 +90,7 @@ def test_a_plane_missing_the_cell_is_no_cut(bunny_diagram):
 
 def test_split_fixes_random_cells_of_the_sphere_and_keeps_volumes():
     # 300 random sites (not a CVT) in the triangulated sphere: 407 faces fail to start
-    # with (pieces of its triangles at cells' rims), none after 150 cuts (measured).
+    # with (pieces of its triangles at cells' rims), none after about 150 cuts (measured).
     domain = hcvt.load_domain(DATA / "3d" / "sphere.ply")
     diagram = hcvt.voronoi(domain, random_inside(domain, 300, seed=5))
     mesh = diagram.mesh()
@@ -174,5 +174,5 @@ def test_split_passes_checkmesh_with_the_exact_volume_on_a_converged_bunny_cvt(t
     angle = _figure(log, rf"non-orthogonality Max: {NUM}")
     assert abs(angle - quality["non_orthogonality_max"]) < 1e-9
     # The price: the sections are not Voronoi faces, so they are not orthogonal (the
-    # exact mesh's max is 0.03 degrees; measured here 86 degrees, 20 faces above 70).
+    # exact mesh's max is 0.03 degrees; measured here 86 degrees, 19 faces above 70).
     assert 1.0 < angle < 90.0

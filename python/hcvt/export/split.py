@@ -85,8 +85,9 @@ class _Cut(NamedTuple):
     faces: list[_Face]
     parts: int
     failing: int
-    worst: float
+    worst: float  # total badness (see _Editor.measure)
     part_failing: list[int]
+    failing_sources: frozenset[int]  # the cut cell's faces with a failing piece
 
 
 class _Journal:
@@ -215,10 +216,16 @@ class _Editor:
             tried.sort(key=lambda cut: cut.worst)
         if tried and tried[0].worst < now[1]:
             self.apply_and_fix(c, faces, tried[0], depth)
-        elif self.journal is None and not self.look_ahead(
-            c, faces, tried[:LOOK_AHEAD], now[1], depth
-        ):
-            self.stuck[c] = faces
+        elif self.journal is None:
+            # Look ahead first from the cuts that fix the worst face, whatever they break.
+            # (A cut that leaves the worst face failing as badly only moves the problem.)
+            target = faces[now[2][0]]
+            moved = [
+                cut for cut in tried if target not in cut.failing_sources or cut.worst != now[1]
+            ]
+            moved.sort(key=lambda cut: (target in cut.failing_sources, cut.worst))
+            if not self.look_ahead(c, faces, moved[:LOOK_AHEAD], now[1], depth):
+                self.stuck[c] = faces
 
     def try_planes(
         self,
@@ -329,7 +336,7 @@ class _Editor:
         planes = [(normal, cc + t * cpf) for t in _OFFSETS for normal in normals]
         # Just in front of the face's own plane: the part behind it holds the face and
         # little else, so its centre lies behind the face (for a wrong pyramid).
-        planes += [(n, cc + t * cpf) for t in (0.97, 0.995)]
+        planes += [(n, cc + t * cpf) for t in (0.97, 0.995, 1.0)]
         # The cell's own axes through its centre: for cells wrapping a tunnel or an edge.
         xyz = self.coords(sorted({v for loop in loops for v in loop}))
         axes = np.linalg.svd(xyz - xyz.mean(axis=0), full_matrices=False)[2]
@@ -508,7 +515,10 @@ class _Editor:
             part_failing[face.part] += b
             if face.across >= 0:
                 part_failing[face.across] += b
-        return _Cut(crossings, out, n_parts, int(bad.sum()), float(badness.sum()), part_failing)
+        sources = frozenset(face.source for face, b in zip(out, bad, strict=True) if b)
+        return _Cut(
+            crossings, out, n_parts, int(bad.sum()), float(badness.sum()), part_failing, sources
+        )
 
     # ------------------------------------------------------------------ applying a cut
     def apply(self, c: int, faces: list[int], cut: _Cut) -> list[int]:
