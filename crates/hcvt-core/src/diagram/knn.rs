@@ -253,10 +253,7 @@ impl<const D: usize> Grid<D> {
             buckets,
             starts: vec![0; count + 1],
             points: Vec::new(),
-            slack: 1e-9 * largest_side
-                + 16.0
-                    * f64::EPSILON
-                    * (norm2(bounds.lo).max(norm2(bounds.hi)).sqrt() + norm2(extent).sqrt()),
+            slack: rounding_slack(&bounds, extent, largest_side),
         };
         let buckets: Vec<usize> = sites.iter().map(|s| grid.bucket(s)).collect();
         for &b in &buckets {
@@ -430,6 +427,11 @@ impl<const D: usize> Grid<D> {
                 nearest = nearest.min(face - p[k]);
             }
         }
+        if nearest == f64::INFINITY {
+            // The block holds the whole grid (tested first: an infinite slack would make
+            // the bound NaN, and the rings would grow for ever).
+            return f64::INFINITY;
+        }
         let bound = nearest - self.slack;
         if bound == f64::INFINITY {
             f64::INFINITY
@@ -439,6 +441,21 @@ impl<const D: usize> Grid<D> {
             f64::NEG_INFINITY
         }
     }
+}
+
+/// The grid's slack for rounding in [`Grid::covered2`], L: a billionth of a bucket plus 16
+/// ulps of the coordinates' size. Where squaring the coordinates overflows (sites near
+/// 1e155 and beyond) the size is bounded by the largest coordinate instead, so that the
+/// slack stays finite.
+fn rounding_slack<const D: usize>(bounds: &Aabb<D>, extent: [f64; D], largest_side: f64) -> f64 {
+    let size = norm2(bounds.lo).max(norm2(bounds.hi)).sqrt() + norm2(extent).sqrt();
+    let size = if size.is_finite() {
+        size
+    } else {
+        let largest = |v: [f64; D]| v.iter().fold(0.0, |m: f64, &x| m.max(x.abs()));
+        (D as f64).sqrt() * (largest(bounds.lo).max(largest(bounds.hi)) + largest(extent))
+    };
+    1e-9 * largest_side + 16.0 * f64::EPSILON * size
 }
 
 /// Move the sites of `pending` within `covered2` to its front and return their number:
@@ -503,6 +520,29 @@ mod tests {
 
     fn streamed<const D: usize>(index: &SiteIndex<D>, p: [f64; D]) -> Vec<(u32, f64)> {
         index.nearest(p, usize::MAX)
+    }
+
+    /// Sites so far apart that their squared coordinates overflow (hypothesis found it:
+    /// the slack became infinite, the bound NaN, and the rings grew for ever).
+    #[test]
+    fn sites_whose_squares_overflow_stream_to_the_end() {
+        let sites = [
+            [2.8794063704950784e18, 0.0],
+            [5.549490502643398e-160, -1.7478835447777867e185],
+            [5e-324, 0.0],
+            [0.0, 0.0],
+            [5e-324, -4.802692022558717e-206],
+        ];
+        let index = SiteIndex::new(&sites).unwrap();
+        for &p in &sites {
+            // The stream ends; a site at an infinite squared distance is beyond any limit.
+            let finite: Vec<_> = brute_force(&sites, p)
+                .into_iter()
+                .filter(|s| s.1.is_finite())
+                .collect();
+            assert_eq!(streamed(&index, p), finite, "query {p:?}");
+            assert_eq!(index.nearest_one(p), finite[0], "query {p:?}");
+        }
     }
 
     fn assert_streams_in_order<const D: usize>(sites: &[[f64; D]], queries: &[[f64; D]]) {
