@@ -16,7 +16,8 @@ from click.testing import CliRunner
 
 import hcvt
 from hcvt.cli import main
-from hcvt.export import split_failing_cells, write_vtu
+from hcvt.export import merged_boundary, split_boundary, split_failing_cells, write_vtu
+from hcvt.export import split as split_module
 from hcvt.export.split import _Editor, failing_faces
 from helpers import DATA, random_inside
 from test_export import NUM, _check_mesh, _figure, _vtk_cell_volumes
@@ -113,6 +114,20 @@ def test_split_fixes_random_cells_of_the_sphere_and_keeps_volumes():
     assert np.allclose(by_site, diagram.volume, rtol=1e-12, atol=0)
 
 
+def test_split_boundary_merges_the_faces_no_cut_fixed(monkeypatch):
+    # With no cut allowed, every failing face is left to the merge: split_boundary is then
+    # merged_boundary, one cell per site.
+    domain = hcvt.load_domain(DATA / "3d" / "sphere.ply")
+    mesh = hcvt.voronoi(domain, random_inside(domain, 100, seed=4)).mesh()
+    monkeypatch.setattr(split_module, "MAX_DEPTH", 0)
+    split, site, report = split_boundary(mesh, domain)
+    merged, merge = merged_boundary(mesh, domain)
+    assert report.cuts == 0 and report.merged_faces == merge.merged_faces > 0
+    assert np.array_equal(site, np.arange(mesh.n_cells))
+    assert np.array_equal(split.face_vertices, merged.face_vertices)
+    assert len(report.failing) == len(merge.failing) == 0
+
+
 def test_split_leaves_a_passing_mesh_alone():
     domain = hcvt.load_domain(DATA / "3d" / "sphere.ply")
     run = hcvt.cvt(domain, random_inside(domain, 60, seed=2), method="lbfgs", tol=1e-6)
@@ -158,7 +173,8 @@ def test_split_passes_checkmesh_with_the_exact_volume_on_a_converged_bunny_cvt(t
     assert "Mesh OK." in log and "***" not in log
     assert "ok (closed singly connected)" in log
     split = info["split_cells"]
-    assert split["still_failing"] == 0 and split["cuts"] > 0
+    assert split["still_failing"] == 0 and split["cuts"] > 0 and split["faces_merged"] == 0
+    assert abs(split["volume_total_relative_change"]) < 1e-14
     # One cell per cut more, or a few more where a cut left a side in two pieces.
     assert _figure(log, r"cells:\s+(\d+)") == split["cells"] >= 1000 + split["cuts"]
     domain = hcvt.load_domain(DATA / "3d" / "bunny.off")

@@ -328,7 +328,7 @@ def _write_meshes(
     they are the split mesh's, beside ``split_cells``: the cuts and cells made.
     """
     import hcvt
-    from hcvt.export import merged_boundary, mesh_quality, split_failing_cells
+    from hcvt.export import merged_boundary, mesh_quality, split_boundary
 
     info: dict[str, Any] = {}
     suffix = Path(cells_path).suffix.lower() if cells_path else ""
@@ -348,13 +348,20 @@ def _write_meshes(
         info["cells"] = str(cells_path)
     measured, site = mesh, None
     if mesh_dir and mesh_boundary == "split":
-        measured, site, split = split_failing_cells(mesh)
+        measured, site, split = split_boundary(mesh, diagram.domain)
+        exact_total = float(mesh.cell_geometry.volume.sum())
         info["split_cells"] = {
             "failing_cells": split.failing_cells,
             "cuts": split.cuts,
             "cells": split.cells,
+            "faces_merged": split.merged_faces,
             "still_failing": len(split.failing),
+            "volume_total_relative_change": float(
+                measured.cell_geometry.volume.sum() / exact_total - 1.0
+            ),
         }
+        if split.merged_faces:
+            click.echo(f"note: {split.merged_faces} boundary faces no cut fixed were merged")
         if len(split.failing):
             click.echo(f"warning: {len(split.failing)} faces still fail after splitting")
     if mesh_dir and mesh_boundary == "merged":

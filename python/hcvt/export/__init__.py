@@ -18,7 +18,7 @@ from hcvt.export.merge import MergeReport, merged_boundary
 from hcvt.export.openfoam import write_openfoam
 from hcvt.export.patches import boundary_patches
 from hcvt.export.quality import MeshQuality, mesh_quality
-from hcvt.export.split import SplitReport, split_failing_cells
+from hcvt.export.split import SplitReport, split_boundary, split_failing_cells
 from hcvt.export.vtu import write_vtu
 from hcvt.polymesh import PolyMesh
 
@@ -33,6 +33,7 @@ __all__ = [
     "boundary_patches",
     "merged_boundary",
     "mesh_quality",
+    "split_boundary",
     "split_failing_cells",
     "to_pyvista",
     "write_geojson",

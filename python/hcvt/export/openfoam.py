@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hcvt.export.merge import BOUNDARY_FACES, merged_boundary
 from hcvt.export.patches import boundary_patches
-from hcvt.export.split import split_failing_cells
+from hcvt.export.split import split_boundary
 from hcvt.polymesh import PolyMesh
 
 if TYPE_CHECKING:
@@ -84,7 +84,8 @@ def write_openfoam(
         (``docs/results/checkmesh.txt``). ``"split"``: every face stays exact and
         planar, and the cells with failing faces are cut by planes into parts that pass
         (:mod:`hcvt.export.split`): the volumes stay exact, but a site may own several
-        cells (``0/site`` says which) and the cut faces are not orthogonal. Faces that
+        cells (``0/site`` says which) and the cut faces are not orthogonal; the few
+        faces no cut fixes are merged as with ``"merged"``, with a warning. Faces that
         cannot be fixed are left failing with a warning.
     site : array_like of int, shape (mesh.n_cells,), optional
         The site each cell of ``mesh`` belongs to (default: cell ``i`` is site ``i``), as
@@ -109,12 +110,13 @@ def write_openfoam(
     if site_of.shape != (mesh.n_cells,):
         raise ValueError(f"site must have one entry per cell ({mesh.n_cells}), got {site_of.shape}")
     if boundary_faces == "split":
-        mesh, split_site, split = split_failing_cells(mesh)
+        mesh, split_site, split = split_boundary(mesh, domain, labels)
         site_of = site_of[split_site]
-        if len(split.failing):
+        if split.merged_faces or len(split.failing):
             warnings.warn(
-                f"{len(split.failing)} faces still fail checkMesh's skewness or face-pyramid "
-                "check after splitting their cells",
+                f"{split.merged_faces} boundary faces no cut fixed were merged (the cells "
+                f"holding them lose their exact volume); {len(split.failing)} faces still "
+                "fail checkMesh's skewness or face-pyramid check",
                 stacklevel=2,
             )
         mesh.check()

@@ -26,14 +26,17 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-from hcvt.export.merge import SKEWNESS_TARGET
+from hcvt.export.merge import SKEWNESS_TARGET, merged_boundary
 from hcvt.export.quality import SKEWNESS_LIMIT, face_quality
 from hcvt.polymesh import PolyMesh
+
+if TYPE_CHECKING:
+    from hcvt.domain import Domain
 
 #: Cuts a failing cell may receive, one after the other (each part may be cut again).
 MAX_DEPTH = 6
@@ -68,6 +71,9 @@ class SplitReport(NamedTuple):
     pieces)."""
     failing: NDArray[np.intp]
     """Shape (k,): faces of the output that still fail (none when it passed)."""
+    merged_faces: int = 0
+    """Boundary faces no cut fixed, merged by :func:`split_boundary` (0 from
+    :func:`split_failing_cells`)."""
 
 
 class _Face(NamedTuple):
@@ -105,6 +111,24 @@ def failing_faces(mesh: PolyMesh) -> NDArray[np.bool_]:
     """Shape (f,): faces that fail checkMesh's skewness, pyramid or orthogonality checks."""
     angle, skew, inverted = face_quality(mesh, mesh.cell_geometry.centroid)
     return (skew > SKEWNESS_TARGET) | inverted | (np.nan_to_num(angle) >= 90.0)
+
+
+def split_boundary(
+    mesh: PolyMesh, domain: Domain | None = None, labels: ArrayLike | None = None
+) -> tuple[PolyMesh, NDArray[np.intp], SplitReport]:
+    """:func:`split_failing_cells`, then the boundary faces no cut fixed merged.
+
+    The faces still failing after the cuts are joined to neighbouring pieces of their cell
+    and patch as :func:`hcvt.export.merge.merged_boundary` does (``domain`` and ``labels``
+    give the patches). Only the cells holding such a face lose their exact volume (a
+    merged face is not planar): on a converged CVT of the cheese (10k sites), 4 faces in
+    4 cells, the total moving by 6.8e-8 of the domain's.
+    """
+    split, site, report = split_failing_cells(mesh)
+    if len(report.failing) == 0:
+        return split, site, report
+    merged, merge = merged_boundary(split, domain, labels)
+    return merged, site, report._replace(failing=merge.failing, merged_faces=merge.merged_faces)
 
 
 def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], SplitReport]:
