@@ -627,13 +627,16 @@ def test_cli_refuses_a_merged_boundary_in_2d(tmp_path):
     assert not (tmp_path / "case").exists()
 
 
-@pytest.mark.slow
-def test_merged_boundary_passes_checkmesh_on_a_converged_bunny_cvt(tmp_path):
-    # A CVT converged to the default rule (RMS gap < 1e-7; 106 Newton iterations, about
-    # 30 s), written with --mesh-boundary merged: checkMesh says "Mesh OK".
+def passing_bunny_case(tmp_path: Path, boundary: str) -> tuple[dict, str, Path]:
+    """``hcvt run bunny.off -n 1000`` to a converged CVT, its case checked by checkMesh.
+
+    Newton from Halton sites to the default rule (RMS gap < 1e-7; 106 iterations, about
+    30 s), written with ``--mesh-boundary boundary``; checkMesh must say "Mesh OK" with no
+    failed check. Returns the run's summary, checkMesh's log and the sites file.
+    """
     case, summary, sites = tmp_path / "case", tmp_path / "s.json", tmp_path / "x.npy"
     args = ["run", str(DATA / "3d" / "bunny.off"), "-n", "1000", "--method", "newton"]
-    args += ["--init", "halton", "--mesh", str(case), "--mesh-boundary", "merged"]
+    args += ["--init", "halton", "--mesh", str(case), "--mesh-boundary", boundary]
     args += ["--summary", str(summary), "--out", str(sites)]
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.output
@@ -642,6 +645,12 @@ def test_merged_boundary_passes_checkmesh_on_a_converged_bunny_cvt(tmp_path):
     log = _check_mesh(case)
     print(log[log.index("Checking geometry") :])
     assert "Mesh OK." in log and "***" not in log
+    return info, log, sites
+
+
+@pytest.mark.slow
+def test_merged_boundary_passes_checkmesh_on_a_converged_bunny_cvt(tmp_path):
+    info, log, sites = passing_bunny_case(tmp_path, "merged")
     # The boundary is still one closed surface: no vertex dropped from a merged face is
     # left in another face (a T-junction would open it).
     assert "ok (closed singly connected)" in log

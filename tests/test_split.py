@@ -7,20 +7,17 @@ converged CVT must pass checkMesh with the domain's exact volume.
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
 import hcvt
-from hcvt.cli import main
 from hcvt.export import merged_boundary, split_boundary, split_failing_cells, write_vtu
 from hcvt.export import split as split_module
 from hcvt.export.split import _Editor, failing_faces
 from helpers import DATA, random_inside
-from test_export import NUM, _check_mesh, _figure, _vtk_cell_volumes
+from test_export import NUM, _figure, _vtk_cell_volumes, passing_bunny_case
 
 pv = pytest.importorskip("pyvista")
 
@@ -157,20 +154,10 @@ def _site_field(text: str) -> np.ndarray:
 
 @pytest.mark.slow
 def test_split_passes_checkmesh_with_the_exact_volume_on_a_converged_bunny_cvt(tmp_path):
-    # A CVT converged to the default rule (106 Newton iterations, about 30 s), its mesh
-    # written with --mesh-boundary split: "Mesh OK", every face planar, and the total
-    # volume OpenFOAM computes is the input mesh's to the 17 digits it prints.
-    case, summary, sites = tmp_path / "case", tmp_path / "s.json", tmp_path / "x.npy"
-    args = ["run", str(DATA / "3d" / "bunny.off"), "-n", "1000", "--method", "newton"]
-    args += ["--init", "halton", "--mesh", str(case), "--mesh-boundary", "split"]
-    args += ["--summary", str(summary), "--out", str(sites)]
-    result = CliRunner().invoke(main, args)
-    assert result.exit_code == 0, result.output
-    info = json.loads(summary.read_text())
-    assert info["rms_gap"] < 1e-7
-    log = _check_mesh(case)
-    print(log[log.index("Checking geometry") :])
-    assert "Mesh OK." in log and "***" not in log
+    # "Mesh OK", every face planar, and the total volume OpenFOAM computes is the input
+    # mesh's to the 17 digits it prints.
+    info, log, _ = passing_bunny_case(tmp_path, "split")
+    case = tmp_path / "case"
     assert "ok (closed singly connected)" in log
     split = info["split_cells"]
     assert split["still_failing"] == 0 and split["cuts"] > 0 and split["faces_merged"] == 0
