@@ -46,7 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt.export.patches import boundary_patches
-from hcvt.export.quality import SKEWNESS_LIMIT, face_quality, mesh_quality
+from hcvt.export.quality import face_quality, fails_checkmesh
 from hcvt.polymesh import PolyMesh
 
 if TYPE_CHECKING:
@@ -57,11 +57,6 @@ BOUNDARY_FACES = ("exact", "merged", "split")
 
 #: Rounds of :func:`merge_failing_boundary_faces` before it gives up on the faces left.
 MAX_ROUNDS = 60
-
-#: Skewness a face must not exceed after merging: checkMesh's limit 4 less a margin far
-#: above the 1e-9 by which our figures and checkMesh's printed ones have been seen to
-#: differ, so that a face we pass at 3.999999 is not failed by OpenFOAM's rounding.
-SKEWNESS_TARGET = SKEWNESS_LIMIT * (1.0 - 1e-6)
 
 
 class MergeReport(NamedTuple):
@@ -279,8 +274,7 @@ def boundary_adjacency(
 
 def failing_boundary_faces(mesh: PolyMesh) -> NDArray[np.intp]:
     """Boundary faces checkMesh flags: skewness above ``SKEWNESS_TARGET``, inverted pyramid."""
-    quality = mesh_quality(mesh)
-    bad = (quality.skewness > SKEWNESS_TARGET) | quality.inverted_pyramid
+    bad = fails_checkmesh(*face_quality(mesh, mesh.cell_geometry.centroid))
     return np.flatnonzero(bad & ~mesh.interior)
 
 
@@ -413,8 +407,7 @@ def _best_joins(
         n_cells=mesh.n_cells,
     )
     centre, area = rings.face_geometry
-    _, skewness, inverted = face_quality(rings, centroid)
-    fails = (skewness > SKEWNESS_TARGET) | inverted
+    fails = fails_checkmesh(*face_quality(rings, centroid))
     piece_centre, piece_area = mesh.face_geometry
     moment = np.einsum("ij,ij->i", piece_area[faces_all], piece_centre[faces_all])
     exact = np.bincount(cand_all, weights=moment, minlength=len(cand_src))[ok]

@@ -31,6 +31,11 @@ if TYPE_CHECKING:
 NON_ORTHOGONALITY_LIMIT = 70.0
 SKEWNESS_LIMIT = 4.0
 
+#: Skewness a face must not exceed to be sure to pass: checkMesh's limit 4 less a margin
+#: far above the 1e-9 by which our figures and checkMesh's printed ones have been seen to
+#: differ, so that a face we pass at 3.999999 is not failed by OpenFOAM's rounding.
+SKEWNESS_TARGET = SKEWNESS_LIMIT * (1.0 - 1e-6)
+
 # OpenFOAM's guard against 0/0 in the skewness (ROOTVSMALL), and its pyramid tolerance.
 _ROOT_VSMALL = 1e-150
 _SMALL = 1e-15
@@ -154,6 +159,18 @@ def face_quality(
     nei_cone = _dot(area, centroid[np.maximum(mesh.neighbour, 0)] - centre) / mesh.dim
     inverted = (own_cone < -_SMALL) | (inner & (nei_cone < -_SMALL))
     return angle, skewness, inverted
+
+
+def fails_checkmesh(
+    angle: NDArray[np.float64], skewness: NDArray[np.float64], inverted: NDArray[np.bool_]
+) -> NDArray[np.bool_]:
+    """Faces checkMesh's skewness, face-pyramid or orthogonality checks fail.
+
+    From :func:`face_quality`'s arrays: skewness above :data:`SKEWNESS_TARGET`, an
+    inverted pyramid, or non-orthogonality of 90° or more (an error; a boundary face's NaN
+    angle passes).
+    """
+    return (skewness > SKEWNESS_TARGET) | inverted | (np.nan_to_num(angle) >= 90.0)
 
 
 def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -40,8 +40,8 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt.export.merge import SKEWNESS_TARGET, merged_boundary
-from hcvt.export.quality import SKEWNESS_LIMIT, face_quality
+from hcvt.export.merge import merged_boundary
+from hcvt.export.quality import SKEWNESS_LIMIT, face_quality, fails_checkmesh
 from hcvt.polymesh import PolyMesh
 
 if TYPE_CHECKING:
@@ -118,8 +118,7 @@ class _Journal:
 
 def failing_faces(mesh: PolyMesh) -> NDArray[np.bool_]:
     """Shape (f,): faces that fail checkMesh's skewness, pyramid or orthogonality checks."""
-    angle, skew, inverted = face_quality(mesh, mesh.cell_geometry.centroid)
-    return (skew > SKEWNESS_TARGET) | inverted | (np.nan_to_num(angle) >= 90.0)
+    return fails_checkmesh(*face_quality(mesh, mesh.cell_geometry.centroid))
 
 
 def split_boundary(
@@ -168,7 +167,7 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
     cells = np.unique(
         np.concatenate([mesh.owner[failing], mesh.neighbour[failing & mesh.interior]])
     )
-    result, site = mesh, np.arange(mesh.n_cells)
+    result, site, bad = mesh, np.arange(mesh.n_cells), failing
     first = len(cells)
     for _ in range(SWEEPS):
         before = editor.cuts
@@ -181,8 +180,7 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
         cells = np.unique(
             np.concatenate([result.owner[bad], result.neighbour[bad & result.interior]])
         )
-    still = np.flatnonzero(failing_faces(result))
-    return result, site, SplitReport(first, editor.cuts, result.n_cells, still)
+    return result, site, SplitReport(first, editor.cuts, result.n_cells, np.flatnonzero(bad))
 
 
 class _Editor:
@@ -240,7 +238,7 @@ class _Editor:
             return  # a face with a hole (keyhole): not cut
         if self.stuck.get(c) == faces:
             return  # tried before, and nothing around it has changed since
-        now = self.measure_cell(c, faces, loops)
+        now = self.measure_cell(c)
         if now is None or now[0] == 0:
             return
         planes = [plane for k in now[2] for plane in self.candidates(c, faces, loops, k)]
@@ -377,14 +375,12 @@ class _Editor:
         planes += [(axis, cc) for axis in axes]
         return planes
 
-    def measure_cell(
-        self, c: int, faces: list[int], loops: list[list[int]]
-    ) -> tuple[int, float, list[int]] | None:
-        """(failing faces, badness, indices in ``faces`` of the 3 worst) of cell ``c``."""
-        local = [
-            _Face(loop, k, 0, -1, self.other(c, k)) for k, loop in zip(faces, loops, strict=True)
-        ]
-        measured = self.measure(local, 1)
+    def measure_cell(self, c: int) -> tuple[int, float, list[int]] | None:
+        """(failing faces, badness, indices of the 3 worst) of cell ``c``.
+
+        Indices into its faces in increasing order, as :meth:`fix` lists them.
+        """
+        measured = self.measure(self.region_faces([c]), 1)
         if measured is None:
             return None
         bad, badness, _ = measured
@@ -441,7 +437,7 @@ class _Editor:
         for j, g in enumerate(ghosts):
             centroid[parts + j] = self.centroid[g]
         angle, skew, inverted = face_quality(local, centroid)
-        bad = (skew > SKEWNESS_TARGET) | inverted | (np.nan_to_num(angle) >= 90.0)
+        bad = fails_checkmesh(angle, skew, inverted)
         return (
             bad,
             np.where(bad, np.maximum(skew / SKEWNESS_LIMIT, 1.0) + inverted, 0.0),
