@@ -53,6 +53,9 @@ MAX_DEPTH = 6
 #: Cuts tried two levels deep (the cut, then its parts fixed) where no single cut helps.
 LOOK_AHEAD = 4
 
+#: The look-ahead's width in a last round over the cells the first rounds left failing.
+DEEP_LOOK_AHEAD = 32
+
 #: Directions tried through a cell's centre where the aimed planes fail.
 _DIRECTIONS = 24
 
@@ -62,6 +65,11 @@ SWEEPS = 8
 #: Where a candidate plane crosses the segment from a cell's centre to its worst face's
 #: centre (0: through the cell's centre).
 _OFFSETS = (0.5, 0.3, 0.7, 0.0, 0.85, 0.15)
+
+#: How far in front of a face its own plane is moved (relative to the cell size) in
+#: :meth:`_Editor.own_planes`: just enough for the face to lie wholly on one side, and
+#: further, for a face with coplanar neighbours that would make a part of slivers.
+_IN_FRONT = (1e-4, 1e-2)
 
 #: A candidate plane passing closer than this (relative to the cell size) to a vertex is
 #: moved along its normal: a vertex on the plane would make a degenerate cut.
@@ -169,17 +177,23 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
     )
     result, site, bad = mesh, np.arange(mesh.n_cells), failing
     first = len(cells)
-    for _ in range(SWEEPS):
-        before = editor.cuts
-        for c in cells.tolist():
-            editor.fix(int(c), MAX_DEPTH)
-        result, site = editor.mesh()
-        bad = failing_faces(result)
-        if editor.cuts == before or not bad.any():
+    # The wide look-ahead is costly, so only the few cells the narrow one left get it.
+    for width in (LOOK_AHEAD, DEEP_LOOK_AHEAD):
+        editor.look_ahead_width = width
+        editor.stuck.clear()
+        for _ in range(SWEEPS):
+            before = editor.cuts
+            for c in cells.tolist():
+                editor.fix(int(c), MAX_DEPTH)
+            result, site = editor.mesh()
+            bad = failing_faces(result)
+            cells = np.unique(
+                np.concatenate([result.owner[bad], result.neighbour[bad & result.interior]])
+            )
+            if editor.cuts == before or not bad.any():
+                break
+        if not bad.any():
             break
-        cells = np.unique(
-            np.concatenate([result.owner[bad], result.neighbour[bad & result.interior]])
-        )
     return result, site, SplitReport(first, editor.cuts, result.n_cells, np.flatnonzero(bad))
 
 
@@ -212,6 +226,7 @@ class _Editor:
         self.journal: _Journal | None = None
         # Cells no cut helped, with their faces then: not tried again while unchanged.
         self.stuck: dict[int, list[int]] = {}
+        self.look_ahead_width = LOOK_AHEAD
 
     # ------------------------------------------------------------------ geometry access
     def coords(self, ids: list[int]) -> NDArray[np.float64]:
@@ -256,7 +271,9 @@ class _Editor:
                 cut for cut in tried if target not in cut.failing_sources or cut.worst != now[1]
             ]
             moved.sort(key=lambda cut: (target in cut.failing_sources, cut.worst))
-            if not self.look_ahead(c, faces, moved[:LOOK_AHEAD], now[1], depth):
+            behind = self.try_planes(c, faces, loops, self.own_planes(faces, loops, now[2]))
+            chosen = behind + moved[: self.look_ahead_width]
+            if not self.look_ahead(c, faces, chosen, now[1], depth):
                 self.stuck[c] = faces
 
     def try_planes(
@@ -303,6 +320,27 @@ class _Editor:
         turn = np.pi * (1 + 5**0.5) * k
         spread = np.column_stack([r * np.cos(turn), r * np.sin(turn), z])
         planes += [(normal, cc) for normal in spread]
+        return planes
+
+    def own_planes(
+        self, faces: list[int], loops: list[list[int]], worst: list[int]
+    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+        """The planes of the faces ``worst`` (indices into ``faces``), just in front of them.
+
+        For a small piece at a reflex edge of the surface, whose cell wraps around the
+        edge so that the cell's centre lies beyond the piece's plane (an inverted
+        pyramid): the part behind that plane holds the piece with its centre on the right
+        side, and its own cuts then fix its skewness. No single cut shows that promise, so
+        the look-ahead tries these first.
+        """
+        xyz = self.coords(sorted({v for loop in loops for v in loop}))
+        size = float(np.ptp(xyz, axis=0).max())
+        planes = []
+        for j in worst:
+            pts = self.coords(loops[j])
+            normal = _newell(pts)
+            normal = normal / np.linalg.norm(normal)
+            planes += [(normal, pts.mean(axis=0) + t * size * normal) for t in _IN_FRONT]
         return planes
 
     def apply_and_fix(self, c: int, faces: list[int], cut: _Cut, depth: int) -> None:
