@@ -10,7 +10,7 @@
 use std::cmp::Ordering;
 
 use super::numpy_order::{matvec_dot, vector_dot};
-use super::quality::{measure, total_badness};
+use super::quality::{face_geometry, measure_faces, total_badness, FaceGeometry};
 use super::{Across, Loops, Region, RegionQuality};
 use crate::error::CoreError;
 use crate::geometry::{add, cross, sub};
@@ -113,9 +113,14 @@ pub fn cut_cell_by_planes(
     planes: &[Plane],
 ) -> Result<Vec<Option<Cut>>, CoreError> {
     validate(cell, planes)?;
+    // A face the plane leaves whole is the same loop in every cut: measured once.
+    let mut normals = Vec::new();
+    let whole: Vec<FaceGeometry> = (cell.faces.iter())
+        .map(|ring| face_geometry(cell.points, ring, &mut normals))
+        .collect();
     let mut tried = Vec::new();
     for &plane in planes {
-        let cut = cut(cell, plane);
+        let cut = cut(cell, &whole, plane);
         let done = cut.as_ref().is_some_and(|c| c.failing == 0);
         tried.push(cut);
         if done {
@@ -147,13 +152,9 @@ fn validate(cell: &Cell<'_>, planes: &[Plane]) -> Result<(), CoreError> {
             return Err(CoreError::InvalidPoint { index, value });
         }
     }
+    let finite = |v: [f64; 3]| v.iter().all(|x| x.is_finite());
     for (index, plane) in planes.iter().enumerate() {
-        if !plane
-            .normal
-            .iter()
-            .chain(&plane.origin)
-            .all(|x| x.is_finite())
-        {
+        if !(finite(plane.normal) && finite(plane.origin)) {
             return Err(CoreError::InvalidPlane {
                 index,
                 reason: format!("normal {:?}, origin {:?}", plane.normal, plane.origin),
@@ -164,12 +165,13 @@ fn validate(cell: &Cell<'_>, planes: &[Plane]) -> Result<(), CoreError> {
 }
 
 /// The faces of the parts as they are made, before the parts are known: their loops,
-/// and per loop the cell face it comes from (None for a section) and its side of the
-/// plane (±1).
+/// and per loop the cell face it comes from (None for a section), whether it is all of
+/// that face, and its side of the plane (±1).
 #[derive(Debug, Default)]
 struct Pieces {
     faces: Loops,
     source: Vec<Option<u32>>,
+    whole: Vec<bool>,
     side: Vec<i8>,
 }
 
@@ -177,24 +179,23 @@ impl Pieces {
     fn push(&mut self, ring: &[u32], source: Option<u32>, side: i8) {
         self.faces.push(ring);
         self.source.push(source);
+        self.whole.push(false);
         self.side.push(side);
+    }
+
+    fn push_whole(&mut self, ring: &[u32], source: u32, side: i8) {
+        self.push(ring, Some(source), side);
+        if let Some(last) = self.whole.last_mut() {
+            *last = true;
+        }
     }
 }
 
-/// [`cut_cell`] on a validated cell.
-fn cut(cell: &Cell<'_>, plane: Plane) -> Option<Cut> {
+/// [`cut_cell`] on a validated cell whose faces' geometry is `whole`.
+fn cut(cell: &Cell<'_>, whole: &[FaceGeometry], plane: Plane) -> Option<Cut> {
     let dist = signed_distances(cell.points, plane)?;
     let mut crossings = Crossings::new(cell.points, &dist);
-    let mut pieces = Pieces::default();
-    let mut chords = Vec::new();
-    for (k, ring) in cell.faces.iter().enumerate() {
-        let above = ring.iter().filter(|&&v| dist[v as usize] > 0.0).count();
-        if above == 0 || above == ring.len() {
-            pieces.push(ring, Some(k as u32), if above > 0 { 1 } else { -1 });
-            continue;
-        }
-        split_loop(ring, k as u32, &mut crossings, &mut pieces, &mut chords)?;
-    }
+    let (mut pieces, chords) = face_pieces(cell, &mut crossings)?;
     let cut_pieces = pieces.faces.len();
     for ring in chain_sections(&chords)? {
         // Out of the + side is along -normal; a hole in the section would be along +.
@@ -207,9 +208,7 @@ fn cut(cell: &Cell<'_>, plane: Plane) -> Option<Cut> {
     let across = (0..pieces.faces.len())
         .map(|j| match pieces.source[j] {
             Some(k) => Some(cell.ghosts[k as usize].map_or(Across::Boundary, Across::Ghost)),
-            None => {
-                part_across(pieces.faces.get(j), &pieces, cut_pieces, &part_of).map(Across::Part)
-            }
+            None => part_across(pieces.faces.get(j), &pieces, cut_pieces, &part_of),
         })
         .collect::<Option<Vec<Across>>>()?;
     let region = Region {
@@ -220,14 +219,32 @@ fn cut(cell: &Cell<'_>, plane: Plane) -> Option<Cut> {
         parts: part_of.iter().max().map_or(0, |&p| p as usize + 1),
         ghost_centroids: cell.ghost_centroids,
     };
-    let quality = measure(&region)?;
-    Some(measured_cut(
-        crossings.list,
-        pieces,
-        part_of,
-        across,
-        quality,
-    ))
+    let mut normals = Vec::new();
+    let geometry: Vec<FaceGeometry> = (0..pieces.faces.len())
+        .map(|j| match (pieces.source[j], pieces.whole[j]) {
+            (Some(k), true) => whole[k as usize],
+            _ => face_geometry(&crossings.positions, pieces.faces.get(j), &mut normals),
+        })
+        .collect();
+    let quality = measure_faces(&region, &geometry)?;
+    let crossings = crossings.list;
+    Some(measured_cut(crossings, pieces, part_of, across, quality))
+}
+
+/// The pieces of the cell's faces, in face order, and the chords; None where a face
+/// cannot be split ([`split_loop`]).
+fn face_pieces(cell: &Cell<'_>, crossings: &mut Crossings<'_>) -> Option<(Pieces, Vec<[u32; 2]>)> {
+    let mut pieces = Pieces::default();
+    let mut chords = Vec::new();
+    for (k, ring) in cell.faces.iter().enumerate() {
+        let above = ring.iter().filter(|&&v| crossings.above(v)).count();
+        if above == 0 || above == ring.len() {
+            pieces.push_whole(ring, k as u32, if above > 0 { 1 } else { -1 });
+        } else {
+            split_loop(ring, k as u32, crossings, &mut pieces, &mut chords)?;
+        }
+    }
+    Some((pieces, chords))
 }
 
 /// The cut's faces with their quality, and the reference's tallies of it.
@@ -365,7 +382,7 @@ fn split_loop(
     }
     let at: Vec<usize> = (0..aug.len()).filter(|&i| sign[i] == 0).collect();
     if at.is_empty() {
-        pieces.push(ring, Some(source), sign.first().copied().unwrap_or(1));
+        pieces.push_whole(ring, source, sign.first().copied().unwrap_or(1));
         return Some(());
     }
     let partner = pair_crossings(&aug, &at, &crossings.positions)?;
@@ -590,7 +607,12 @@ fn find(parent: &mut [usize], mut i: usize) -> usize {
 /// `_part_across`: the part on the `-` side of a section, the part of the first of the
 /// cell's `-` pieces (the first `cut_pieces`) that walks the section's first edge the same
 /// way.
-fn part_across(ring: &[u32], pieces: &Pieces, cut_pieces: usize, part_of: &[u32]) -> Option<u32> {
+fn part_across(
+    ring: &[u32],
+    pieces: &Pieces,
+    cut_pieces: usize,
+    part_of: &[u32],
+) -> Option<Across> {
     let (&a, &b) = (ring.first()?, ring.get(1)?);
     (0..cut_pieces)
         .filter(|&j| pieces.side[j] < 0)
@@ -599,5 +621,5 @@ fn part_across(ring: &[u32], pieces: &Pieces, cut_pieces: usize, part_of: &[u32]
             let k = piece.len();
             (0..k).any(|i| piece[i] == a && piece[(i + 1) % k] == b)
         })
-        .map(|j| part_of[j])
+        .map(|j| Across::Part(part_of[j]))
 }

@@ -113,13 +113,16 @@ fn validate(region: &Region<'_>) -> Result<(), CoreError> {
 /// [`measure_region`] on a region whose indices are known to be in range.
 pub(super) fn measure(region: &Region<'_>) -> Option<RegionQuality> {
     let mut normals = Vec::new();
-    let faces: Vec<FaceGeometry> = region
-        .faces
-        .iter()
+    let faces: Vec<FaceGeometry> = (region.faces.iter())
         .map(|ring| face_geometry(region.points, ring, &mut normals))
         .collect();
+    measure_faces(region, &faces)
+}
+
+/// [`measure`] with each face's centre and area known (`faces`, one per face of `region`).
+pub(super) fn measure_faces(region: &Region<'_>, faces: &[FaceGeometry]) -> Option<RegionQuality> {
     let (volumes, centroids): (Vec<f64>, Vec<[f64; 3]>) =
-        part_geometry(region, &faces)?.into_iter().unzip();
+        part_geometry(region, faces)?.into_iter().unzip();
     let centroid_of = |across: Across| match across {
         Across::Part(p) => Some(centroids[p as usize]),
         Across::Ghost(g) => Some(region.ghost_centroids[g as usize]),
@@ -151,7 +154,7 @@ pub(super) fn measure(region: &Region<'_>) -> Option<RegionQuality> {
 
 /// A face's centre and area vector (normal, length its area), `L` and `L²`.
 #[derive(Debug, Clone, Copy)]
-struct FaceGeometry {
+pub(super) struct FaceGeometry {
     centre: [f64; 3],
     area: [f64; 3],
 }
@@ -160,7 +163,11 @@ struct FaceGeometry {
 /// area vector their sum, the centre their area-weighted centroid (the average where the
 /// face has no area). Each column summed as `np.add.reduceat` sums it; `normals` holds
 /// the triangles' (twice their vector areas).
-fn face_geometry(points: &[[f64; 3]], ring: &[u32], normals: &mut Vec<[f64; 3]>) -> FaceGeometry {
+pub(super) fn face_geometry(
+    points: &[[f64; 3]],
+    ring: &[u32],
+    normals: &mut Vec<[f64; 3]>,
+) -> FaceGeometry {
     let k = ring.len();
     let at = |i: usize| points[ring[i] as usize];
     let next = |i: usize| points[ring[if i + 1 == k { 0 } else { i + 1 }] as usize];
