@@ -15,9 +15,11 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "PolygonDomain",
     "SolidDomain",
+    "cut_cell_3d",
     "cvt_2d",
     "cvt_3d",
     "get_num_threads",
+    "measure_region_3d",
     "mesh_2d",
     "mesh_3d",
     "mesh_part_2d",
@@ -175,6 +177,32 @@ def cvt_3d(
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
+) -> dict[str, Any]: ...
+
+# The split's kernel (hcvt.export._cut_kernel): indices int64, -1 for "none". A region's
+# measure: bad (f,) bool, badness (f,), volumes (parts,), centroids (parts, 3), or None if
+# a part has no positive volume. A cell cut by planes until one passes: a dict of
+# tried (int), per cut made plane, parts, failing, worst, and flat arrays with per-cut
+# offsets: crossing_offsets / crossing_edges (x, 2) / crossing_points (x, 3), face_offsets
+# / loop_offsets / loop_vertices / source / part / across / ghost / bad / badness, and
+# part_offsets / part_failing / volumes / centroids (P, 3).
+def measure_region_3d(
+    points: _Float2,
+    face_offsets: NDArray[np.int64],
+    face_vertices: NDArray[np.int64],
+    owner: NDArray[np.int64],
+    neighbour: NDArray[np.int64],
+    parts: int,
+    ghost_centroids: _Float2,
+) -> tuple[NDArray[np.bool_], _Float1, _Float1, _Float2] | None: ...
+def cut_cell_3d(
+    points: _Float2,
+    face_offsets: NDArray[np.int64],
+    face_vertices: NDArray[np.int64],
+    ghosts: NDArray[np.int64],
+    ghost_centroids: _Float2,
+    normals: _Float2,
+    origins: _Float2,
 ) -> dict[str, Any]: ...
 def set_num_threads(n: int) -> None: ...
 def get_num_threads() -> int: ...

@@ -119,6 +119,31 @@ pub enum CoreError {
         /// The value found there.
         value: f64,
     },
+    /// A face handed to the split kernel ([`crate::split`]) refers to a vertex, part or
+    /// ghost that does not exist, or its loop is malformed.
+    #[error("face {face}: {reason}")]
+    InvalidFace {
+        /// Index of the face.
+        face: usize,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A point handed to the split kernel has a non-finite coordinate.
+    #[error("point {index} has a non-finite coordinate ({value})")]
+    InvalidPoint {
+        /// Index of the point.
+        index: usize,
+        /// The offending coordinate.
+        value: f64,
+    },
+    /// A cutting plane has a non-finite normal or origin.
+    #[error("plane {index}: {reason}")]
+    InvalidPlane {
+        /// Row of the plane.
+        index: usize,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 impl CoreError {

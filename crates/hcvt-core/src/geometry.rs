@@ -28,6 +28,16 @@ pub fn dot<const D: usize>(a: [f64; D], b: [f64; D]) -> f64 {
     a.iter().zip(&b).map(|(x, y)| x * y).sum()
 }
 
+/// The cross product `u × v`, each component rounded as numpy's `np.cross` rounds it.
+#[inline]
+pub fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
 /// Squared length `|a|²`.
 #[inline]
 pub fn norm2<const D: usize>(a: [f64; D]) -> f64 {

@@ -6,6 +6,7 @@ use pyo3::prelude::*;
 pyo3::import_exception!(hcvt.errors, InvalidSitesError);
 pyo3::import_exception!(hcvt.errors, InvalidDomainError);
 pyo3::import_exception!(hcvt.errors, InvalidDensityError);
+pyo3::import_exception!(hcvt.errors, InvalidMeshError);
 
 /// No wildcard arm: a new `CoreError` variant does not compile until it is given a class.
 pub fn to_py_err(err: CoreError) -> PyErr {
@@ -26,5 +27,8 @@ pub fn to_py_err(err: CoreError) -> PyErr {
         CoreError::InvalidDensity { .. } | CoreError::DensityValue { .. } => {
             InvalidDensityError::new_err(message)
         }
+        CoreError::InvalidFace { .. }
+        | CoreError::InvalidPoint { .. }
+        | CoreError::InvalidPlane { .. } => InvalidMeshError::new_err(message),
     }
 }

@@ -10,7 +10,7 @@ use crate::diagram::clip::boundary_candidates;
 use crate::diagram::convex_cell::{ConvexCell, Face};
 use crate::diagram::PolyhedronCell;
 use crate::domain::{Solid, WindingNumber};
-use crate::geometry::{add, dot, sub, Euclid, Space};
+use crate::geometry::{add, cross, dot, sub, Euclid, Space};
 
 /// Buffers of one thread's 3D cells.
 #[derive(Debug, Default)]
@@ -40,14 +40,6 @@ struct BoundaryNode {
     key: Key,
     vertex: Option<u32>,
     out: Gen,
-}
-
-fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-    [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ]
 }
 
 /// The projection to two coordinates that keeps counter-clockwise seen from `+normal`

@@ -2,9 +2,9 @@
 //! per step through the triangles' adjacency), and integrated as fans of triangles for the
 //! cell's moments, the face measures and the face moments (DESIGN §3).
 
-use super::{cross, PolyhedronCell};
+use super::PolyhedronCell;
 use crate::diagram::convex_cell::Face;
-use crate::geometry::{add, dot, norm2, scale, sub};
+use crate::geometry::{add, cross, dot, norm2, scale, sub};
 use crate::moments::{FaceMoments, Moments};
 
 /// Scratch of [`PolyhedronCell::for_each_ring`].

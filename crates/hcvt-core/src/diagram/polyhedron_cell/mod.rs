@@ -15,7 +15,7 @@ mod faces;
 mod tests;
 
 use super::convex_cell::{ConvexCell, Face};
-use crate::geometry::{add, dot, norm2, scale, sub, Aabb, HalfSpace};
+use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
 
 /// A plane of the cell, `normal · x <= offset`, and what made it. Vertices are computed
@@ -485,13 +485,4 @@ fn order_cycle(scratch: &mut Scratch, planes: usize) -> bool {
         rim_from[e.a as usize] = NO_EDGE;
     }
     simple && cycle.len() == rim.len()
-}
-
-#[inline]
-fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
-    [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ]
 }
