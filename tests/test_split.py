@@ -13,6 +13,7 @@ import pytest
 import hcvt
 from hcvt.export import merged_boundary, split_boundary, split_failing_cells, write_vtu
 from hcvt.export import split as split_module
+from hcvt.export._cut_kernel import cut_by_planes
 from hcvt.export.split import _Editor, failing_faces
 from helpers import DATA, random_inside
 from test_export import NUM, _figure, _vtk_cell_volumes, passing_bunny_case
@@ -33,8 +34,7 @@ def _cut(mesh, cell, normal):
     faces = sorted(editor.cell_faces[cell])
     loops = [editor.outward(cell, k) for k in faces]
     centre = mesh.cell_geometry.centroid[cell]
-    cut = editor.cut(cell, faces, loops, np.asarray(normal, dtype=float), centre)
-    assert cut is not None
+    (cut,) = cut_by_planes(editor, cell, faces, loops, [(np.asarray(normal, float), centre)])
     parts = editor.apply(cell, faces, cut)
     split, site = editor.mesh()
     return split, site, parts
@@ -81,7 +81,7 @@ def test_a_plane_missing_the_cell_is_no_cut(bunny_diagram):
     faces = sorted(editor.cell_faces[0])
     loops = [editor.outward(0, k) for k in faces]
     far = mesh.cell_geometry.centroid[0] + [1e3, 0, 0]
-    assert editor.cut(0, faces, loops, np.array([1.0, 0, 0]), far) is None
+    assert cut_by_planes(editor, 0, faces, loops, [(np.array([1.0, 0, 0]), far)]) == []
 
 
 def test_split_fixes_random_cells_of_the_sphere_and_keeps_volumes():

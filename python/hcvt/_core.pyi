@@ -181,8 +181,8 @@ def cvt_3d(
 
 # The split's kernel (hcvt.export._cut_kernel): indices int64, -1 for "none". A region's
 # measure: bad (f,) bool, badness (f,), volumes (parts,), centroids (parts, 3), or None if
-# a part has no positive volume. A cell cut by planes until one passes: a dict of
-# tried (int), per cut made plane, parts, failing, worst, and flat arrays with per-cut
+# a part has no positive volume. A cell cut by each of the planes: a dict of tried (int),
+# per cut made plane, parts, failing, worst, oblique, and flat arrays with per-cut
 # offsets: crossing_offsets / crossing_edges (x, 2) / crossing_points (x, 3), face_offsets
 # / loop_offsets / loop_vertices / source / part / across / ghost / bad / badness, and
 # part_offsets / part_failing / volumes / centroids (P, 3).

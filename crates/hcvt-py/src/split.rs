@@ -106,14 +106,14 @@ pub fn measure_region_3d<'py>(
     )))
 }
 
-/// One cell cut by each plane `normals[i] · (x - origins[i]) = 0` (p, 3) in turn until a
-/// cut leaves no failing face (`_Editor.try_planes`); see `hcvt_core::split::cut_cell`.
+/// One cell cut by each plane `normals[i] · (x - origins[i]) = 0` (p, 3); see
+/// `hcvt_core::split::cut_cell_by_planes`.
 ///
 /// The cell: `points` (m, 3), outward faces `face_offsets` (f+1,) / `face_vertices`,
 /// `ghosts` (f,) the cell across each face (a row of `ghost_centroids` (g, 3)) or -1.
 ///
 /// Returns a dict: `tried` (int) planes tried; per cut made (r of them, None cuts left
-/// out) `plane` (r,) its row, `parts`, `failing` (r,) and `worst` (r,); each cut's rows of
+/// out) `plane` (r,) its row, `parts`, `failing` (r,), `worst` (r,) and `oblique` (r,); each cut's rows of
 /// the arrays below run from its offset to the next: `crossing_offsets` (r+1,) into
 /// `crossing_edges` (x, 2) and `crossing_points` (x, 3), the crossing `j` of a cut being
 /// vertex `m + j`; `face_offsets` (r+1,) into the faces `loop_offsets` (F+1,) /
@@ -177,6 +177,7 @@ fn cuts_dict<'py>(py: Python<'py>, tried: &[Option<Cut>]) -> PyResult<Bound<'py,
     out.set_item("parts", to_intp(py, &flat.parts)?)?;
     out.set_item("failing", to_intp(py, &flat.failing)?)?;
     out.set_item("worst", PyArray1::from_vec(py, flat.worst))?;
+    out.set_item("oblique", PyArray1::from_vec(py, flat.oblique))?;
     out.set_item("crossing_offsets", to_intp(py, &flat.crossing_offsets)?)?;
     out.set_item("crossing_edges", to_intp2(py, &flat.crossing_edges)?)?;
     out.set_item("crossing_points", to_array2(py, &flat.crossing_points)?)?;
@@ -202,6 +203,7 @@ struct FlatCuts {
     parts: Vec<usize>,
     failing: Vec<usize>,
     worst: Vec<f64>,
+    oblique: Vec<f64>,
     crossing_offsets: Vec<usize>,
     crossing_edges: Vec<[u32; 2]>,
     crossing_points: Vec<[f64; 3]>,
@@ -227,6 +229,7 @@ impl Default for FlatCuts {
             parts: Vec::new(),
             failing: Vec::new(),
             worst: Vec::new(),
+            oblique: Vec::new(),
             crossing_offsets: vec![0],
             crossing_edges: Vec::new(),
             crossing_points: Vec::new(),
@@ -253,6 +256,7 @@ impl FlatCuts {
         self.parts.push(cut.parts);
         self.failing.push(cut.failing);
         self.worst.push(cut.worst);
+        self.oblique.push(cut.quality.oblique);
         self.crossing_edges
             .extend(cut.crossings.iter().map(|c| c.edge));
         self.crossing_points

@@ -1,104 +1,112 @@
-"""The kernel of :mod:`hcvt.export.split` in the Rust core: a cell cut by planes, measured.
+"""The split's kernel in the Rust core: a cell cut by planes, a region measured.
 
-Drop-in replacements, with the inputs and outputs of the methods they replace, for
-``_Editor.cut``, ``_Editor.try_planes`` and ``_Editor.measure``: each takes the editor as
-its first argument, so that inside ``_Editor`` ::
+:mod:`hcvt.export.split` searches for cuts; trying one is the core's work
+(``hcvt_core::split``): the pieces of each face on either side of the plane, the sections
+on it, the parts, and checkMesh's figures for every face of the parts against the
+neighbours' true centres. This module translates between the search's editor (global
+vertex, face and cell numbers, Python lists) and the core's local arrays.
 
-    def try_planes(self, c, faces, loops, planes):
-        from hcvt.export import _cut_kernel  # it subclasses _Cut: import it after
-
-        return _cut_kernel.try_planes(self, c, faces, loops, planes)
-
-The core (``hcvt_core::split``) does what those methods do, rounded as numpy rounds them,
-so the cuts found are the same: the same None-ness, faces (loops, sources, parts), failing
-flags, badness and centres (``tests/test_cut_kernel.py`` compares them on the bunny and the
-cheese; a whole ``split_failing_cells`` of 300 random sites in the bunny gives the same
-mesh bit for bit). There, on the 153 failing cells (22,157 cuts), ``try_planes`` takes
-1.1 s where the Python methods take 44 s: the core 38 us a cut, the Python around it 11.
-``cut`` converts the cell for each plane (9 times faster only); the search goes through
-``try_planes``.
+The core rounds as numpy rounds :func:`hcvt.export.quality.face_quality`, so that a face
+the search passes is a face the final check on the whole mesh passes. It replaced a Python
+version of the same steps, which it matched bit for bit on the bunny and the cheese, about
+40 times faster.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hcvt import _core
-from hcvt.export import split as _split
 
 if TYPE_CHECKING:
-    from hcvt.export.split import _Cut, _Editor, _Face
+    from hcvt.export.split import _Editor
 
-_Plane = tuple[NDArray[np.float64], NDArray[np.float64]]
-#: ``_Cut.crossings``: edge (lower id, higher id) -> (new id ``-1 - j``, its point).
-_Crossings = dict[tuple[int, int], tuple[int, NDArray[np.float64]]]
+#: A plane as (normal, a point on it), both shape (3,).
+Plane = tuple[NDArray[np.float64], NDArray[np.float64]]
 
-
-class _LocalCell(NamedTuple):
-    """A cell of the editor in the core's terms (``_core.cut_cell_3d``'s first arguments)."""
-
-    vertices: list[int]  # the editor's id of each local vertex, increasing
-    faces: list[int]  # the editor's face of each local face
-    ghost_cells: list[int]  # the editor's cell of each ghost
-    points: NDArray[np.float64]  # (m, 3)
-    face_offsets: NDArray[np.int64]  # (f + 1,)
-    face_vertices: NDArray[np.int64]  # local vertex ids
-    ghosts: NDArray[np.int64]  # (f,) the ghost across each face, or -1
-    ghost_centroids: NDArray[np.float64]  # (g, 3)
-
-    def cut(self, normals: NDArray[np.float64], origins: NDArray[np.float64]) -> dict[str, Any]:
-        """``_core.cut_cell_3d`` of this cell by the planes (p, 3)."""
-        return _core.cut_cell_3d(
-            self.points,
-            self.face_offsets,
-            self.face_vertices,
-            self.ghosts,
-            self.ghost_centroids,
-            normals,
-            origins,
-        )
+#: A cut's new vertices: edge (lower id, higher id) -> (new id ``-1 - j``, its point).
+Crossings = dict[tuple[int, int], tuple[int, NDArray[np.float64]]]
 
 
-def cut(
+class Face(NamedTuple):
+    """A face of a part of a region, its loop oriented out of that part."""
+
+    loop: list[int]
+    source: int  # the editor's face it is (a piece of), or -1 for a face on a cut's plane
+    part: int  # the part it bounds
+    across: int  # the part on the other side, else -1
+    ghost: int  # the editor's cell on the other side outside the parts, else -1
+
+
+class Cut:
+    """One cut of a cell by a plane, as the core made and measured it.
+
+    A search tries some 150 planes per failing cell and applies one or a few, so the new
+    vertices and faces (:attr:`crossings`, :attr:`faces`) are made as Python objects only
+    when first read.
+    """
+
+    def __init__(self, batch: _Batch, row: int) -> None:
+        out = batch.out
+        self._batch, self._row = batch, row
+        p0, p1 = out["part_offsets"][row : row + 2].tolist()
+        self.parts: int = p1 - p0
+        self.failing: int = int(out["failing"][row])
+        """Faces of the parts that fail checkMesh."""
+        self.worst: float = float(out["worst"][row])
+        """Their total badness (0 when none fails; see ``_Editor.measure``)."""
+        self.oblique: float = float(out["oblique"][row])
+        """Sum of ``1 - cos`` of the non-orthogonality of the faces with a cell across."""
+        self.part_failing: list[int] = out["part_failing"][p0:p1].tolist()
+        """Per part, its failing faces."""
+        self.failing_sources: frozenset[int] = batch.failing_sources(row)
+        """The editor's faces with a failing piece (-1: a section)."""
+
+    @cached_property
+    def crossings(self) -> Crossings:
+        """The new vertices where the plane crosses the cell's edges."""
+        return self._batch.crossings(self._row)
+
+    @cached_property
+    def faces(self) -> list[Face]:
+        """The parts' faces: the pieces of the cell's faces in order, then the sections."""
+        return self._batch.faces(self._row)
+
+
+def cut_by_planes(
     editor: _Editor,
     c: int,
     faces: list[int],
     loops: list[list[int]],
-    normal: NDArray[np.float64],
-    origin: NDArray[np.float64],
-) -> _Cut | None:
-    """``editor.cut(c, faces, loops, normal, origin)``: cell ``c`` cut by one plane, or None."""
-    cell = _local_cell(editor, c, faces, loops)
-    made = _cuts(cell, [(normal, origin)])
-    return made[0][1] if made else None
+    planes: list[Plane],
+) -> list[Cut]:
+    """Cell ``c`` of ``editor`` cut by each of ``planes``, in their order.
 
-
-def try_planes(
-    editor: _Editor, c: int, faces: list[int], loops: list[list[int]], planes: list[_Plane]
-) -> list[_Cut]:
-    """``editor.try_planes(c, faces, loops, planes)``: the cuts until one passes, best first."""
+    ``faces`` are the cell's faces and ``loops`` their outward loops (``_Editor.fix``).
+    Planes that make no cut (missing the cell, or through it degenerately) give none.
+    """
     if not planes:
         return []
-    tried = [made for _, made in _cuts(_local_cell(editor, c, faces, loops), planes)]
-    tried.sort(key=lambda made: made.worst)
-    return tried
+    cell = _LocalCell(editor, c, faces, loops)
+    normals = np.array([normal for normal, _ in planes], dtype=np.float64).reshape(-1, 3)
+    origins = np.array([origin for _, origin in planes], dtype=np.float64).reshape(-1, 3)
+    batch = _Batch(cell, cell.cut(normals, origins))
+    return [Cut(batch, r) for r in range(len(batch.out["plane"]))]
 
 
-def measure(
-    editor: _Editor,
-    faces: list[_Face],
-    parts: int,
-    coords: Callable[[list[int]], NDArray[np.float64]] | None = None,
+def measure_region(
+    editor: _Editor, faces: list[Face], parts: int
 ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]] | None:
-    """``editor.measure(faces, parts, coords)``: failing flags (f,), badness (f,), centres.
+    """Failing flags and badness of ``faces`` (f,), the centres of their parts (parts, 3).
 
-    The centres have shape (parts, 3); None if a part has no positive volume.
+    ``faces`` bound parts ``0..parts-1``; None if a part has no positive volume. The
+    cells across the faces from outside (``Face.ghost``) count with their centres in
+    ``editor``.
     """
-    coords = coords or editor.coords
     ids: dict[int, int] = {}
     flat = [ids.setdefault(v, len(ids)) for face in faces for v in face.loop]
     offsets = np.zeros(len(faces) + 1, dtype=np.int64)
@@ -113,7 +121,7 @@ def measure(
         else:
             neighbour.append(-1)
     measured = _core.measure_region_3d(
-        coords(list(ids)) if ids else np.zeros((0, 3)),
+        editor.coords(list(ids)) if ids else np.zeros((0, 3)),
         offsets,
         np.array(flat, dtype=np.int64),
         np.array([face.part for face in faces], dtype=np.int64),
@@ -127,60 +135,44 @@ def measure(
     return bad, badness, centroids
 
 
-def _local_cell(editor: _Editor, c: int, faces: list[int], loops: list[list[int]]) -> _LocalCell:
-    """Cell ``c`` (its faces and outward loops as ``_Editor.fix`` lists them) for the core.
+class _LocalCell:
+    """A cell of the editor in the core's terms (``_core.cut_cell_3d``'s first arguments).
 
     Local vertex numbers follow the global ones, so that each crossing is interpolated
-    from the same end as in ``_Editor.cut``.
+    from its lower-numbered end whichever cell cuts the edge.
     """
-    vertices = sorted({v for loop in loops for v in loop})
-    local = {v: j for j, v in enumerate(vertices)}
-    offsets = np.zeros(len(loops) + 1, dtype=np.int64)
-    np.cumsum([len(loop) for loop in loops], out=offsets[1:])
-    flat = np.array([local[v] for loop in loops for v in loop], dtype=np.int64)
-    others = [editor.other(c, k) for k in faces]
-    ghost_cells = sorted({cell for cell in others if cell >= 0})
-    number = {cell: j for j, cell in enumerate(ghost_cells)}
-    ghosts = np.array([number.get(cell, -1) for cell in others], dtype=np.int64)
-    centroids = _centroids(editor, ghost_cells)
-    points = editor.coords(vertices)
-    return _LocalCell(vertices, faces, ghost_cells, points, offsets, flat, ghosts, centroids)
 
+    def __init__(self, editor: _Editor, c: int, faces: list[int], loops: list[list[int]]):
+        self.vertices = sorted({v for loop in loops for v in loop})
+        local = {v: j for j, v in enumerate(self.vertices)}
+        self.faces = faces
+        self.face_offsets = np.zeros(len(loops) + 1, dtype=np.int64)
+        np.cumsum([len(loop) for loop in loops], out=self.face_offsets[1:])
+        self.face_vertices = np.array([local[v] for loop in loops for v in loop], dtype=np.int64)
+        others = [editor.other(c, k) for k in faces]
+        self.ghost_cells = sorted({cell for cell in others if cell >= 0})
+        number = {cell: j for j, cell in enumerate(self.ghost_cells)}
+        self.ghosts = np.array([number.get(cell, -1) for cell in others], dtype=np.int64)
+        self.ghost_centroids = _centroids(editor, self.ghost_cells)
+        self.points = editor.coords(self.vertices)
 
-def _centroids(editor: _Editor, cells: list[int]) -> NDArray[np.float64]:
-    """Shape (len(cells), 3): the editor's centres of ``cells``."""
-    return np.array([editor.centroid[cell] for cell in cells], dtype=np.float64).reshape(-1, 3)
-
-
-def _cuts(cell: _LocalCell, planes: list[_Plane]) -> list[tuple[int, _Cut]]:
-    """The cuts of ``cell`` by ``planes`` until one passes, with their planes' rows."""
-    normals = np.array([normal for normal, _ in planes], dtype=np.float64).reshape(-1, 3)
-    origins = np.array([origin for _, origin in planes], dtype=np.float64).reshape(-1, 3)
-    batch = _Batch(cell, cell.cut(normals, origins))
-    out = batch.out
-    face_at = out["face_offsets"]
-    part_at = out["part_offsets"].tolist()
-    part_failing = out["part_failing"].tolist()
-    # The sources of each cut's failing faces: few faces fail, so go through those only.
-    failing = np.flatnonzero(out["bad"])
-    cut_of = (np.searchsorted(face_at, failing, side="right") - 1).tolist()
-    sources: list[list[int]] = [[] for _ in range(len(face_at) - 1)]
-    for r, k in zip(cut_of, batch.source[out["source"][failing]].tolist(), strict=True):
-        sources[r].append(k)
-    rows = zip(out["plane"].tolist(), out["failing"].tolist(), out["worst"].tolist(), strict=True)
-    made: list[tuple[int, _Cut]] = []
-    for r, (row, bad, worst) in enumerate(rows):
-        p0, p1 = part_at[r], part_at[r + 1]
-        cut = _KernelCut({}, [], p1 - p0, bad, worst, part_failing[p0:p1], frozenset(sources[r]))
-        cut._batch, cut._row = batch, r
-        made.append((row, cut))
-    return made
+    def cut(self, normals: NDArray[np.float64], origins: NDArray[np.float64]) -> dict[str, Any]:
+        """``_core.cut_cell_3d`` of this cell by the planes (p, 3)."""
+        return _core.cut_cell_3d(
+            self.points,
+            self.face_offsets,
+            self.face_vertices,
+            self.ghosts,
+            self.ghost_centroids,
+            normals,
+            origins,
+        )
 
 
 class _Batch:
-    """The core's cuts of one cell (``_core.cut_cell_3d``), numbered as the editor numbers.
+    """The core's cuts of one cell, numbered as the editor numbers.
 
-    Its vertex m + j is crossing j (``-1 - j`` in ``_Editor.cut``); its faces and ghosts
+    Its vertex m + j is crossing j (``-1 - j`` in a :class:`Cut`); its faces and ghosts
     the cell's local ones. Each table ends with -1, which "none" (-1) indexes.
     """
 
@@ -193,13 +185,21 @@ class _Batch:
         self.source = np.array([*cell.faces, -1], dtype=np.int64)
         self.ghost = np.array([*cell.ghost_cells, -1], dtype=np.int64)
 
-    def items(self, r: int) -> tuple[_Crossings, list[_Face]]:
-        """Cut ``r``'s ``crossings`` and ``faces``, as ``_Editor.cut`` makes them."""
+    def failing_sources(self, r: int) -> frozenset[int]:
+        out = self.out
+        f0, f1 = out["face_offsets"][r : r + 2]
+        bad = np.flatnonzero(out["bad"][f0:f1]) + f0
+        return frozenset(self.source[out["source"][bad]].tolist())
+
+    def crossings(self, r: int) -> Crossings:
         out = self.out
         x0, x1 = out["crossing_offsets"][r : r + 2].tolist()
         ends = self.vertex[out["crossing_edges"][x0:x1]].tolist()
         points = out["crossing_points"][x0:x1].copy()  # not a view of every cut's
-        crossings = {(a, b): (-1 - j, points[j]) for j, (a, b) in enumerate(ends)}
+        return {(a, b): (-1 - j, points[j]) for j, (a, b) in enumerate(ends)}
+
+    def faces(self, r: int) -> list[Face]:
+        out = self.out
         f0, f1 = out["face_offsets"][r : r + 2].tolist()
         bounds = out["loop_offsets"][f0 : f1 + 1]
         flat = self.vertex[out["loop_vertices"][bounds[0] : bounds[-1]]].tolist()
@@ -212,33 +212,9 @@ class _Batch:
             self.ghost[out["ghost"][f0:f1]].tolist(),
             strict=True,
         )
-        return crossings, [_split._Face(*face) for face in fields]
+        return [Face(*face) for face in fields]
 
 
-class _KernelCut(_split._Cut):
-    """A ``_Cut`` from the core whose ``crossings`` and ``faces`` are made when first read.
-
-    A failing cell's search tries some 150 cuts (300 random sites in the bunny) and
-    applies one or a few: making every cut's faces as Python objects took six times the
-    core's time, most of it in the garbage collector. The tuple's own items for those two
-    fields are empty placeholders: read them as attributes.
-    """
-
-    _batch: _Batch
-    _row: int
-
-    @property
-    def crossings(self) -> _Crossings:
-        """The new vertices: edge (lower id, higher id) -> (id ``-1 - j``, point)."""
-        return self._items()[0]
-
-    @property
-    def faces(self) -> list[_Face]:
-        """The parts' faces, as ``_Editor.cut`` lists them."""
-        return self._items()[1]
-
-    def _items(self) -> tuple[_Crossings, list[_Face]]:
-        made = self.__dict__.get("_made")
-        if made is None:
-            made = self.__dict__["_made"] = self._batch.items(self._row)
-        return made
+def _centroids(editor: _Editor, cells: list[int]) -> NDArray[np.float64]:
+    """Shape (len(cells), 3): the editor's centres of ``cells``."""
+    return np.array([editor.centroid[cell] for cell in cells], dtype=np.float64).reshape(-1, 3)

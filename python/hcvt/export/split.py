@@ -35,13 +35,14 @@ from __future__ import annotations
 
 from collections import defaultdict
 from collections.abc import Callable
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hcvt.export._cut_kernel import Cut, Face, Plane, cut_by_planes, measure_region
 from hcvt.export.merge import merged_boundary
-from hcvt.export.quality import SKEWNESS_LIMIT, face_quality, fails_checkmesh
+from hcvt.export.quality import face_quality, fails_checkmesh
 from hcvt.polymesh import PolyMesh
 
 if TYPE_CHECKING:
@@ -71,10 +72,6 @@ _OFFSETS = (0.5, 0.3, 0.7, 0.0, 0.85, 0.15)
 #: further, for a face with coplanar neighbours that would make a part of slivers.
 _IN_FRONT = (1e-4, 1e-2)
 
-#: A candidate plane passing closer than this (relative to the cell size) to a vertex is
-#: moved along its normal: a vertex on the plane would make a degenerate cut.
-_CLEARANCE = 1e-6
-
 
 class SplitReport(NamedTuple):
     """What :func:`split_failing_cells` did."""
@@ -91,26 +88,6 @@ class SplitReport(NamedTuple):
     merged_faces: int = 0
     """Boundary faces no cut fixed, merged by :func:`split_boundary` (0 from
     :func:`split_failing_cells`)."""
-
-
-class _Face(NamedTuple):
-    """A face of a part of a cut cell, its loop oriented out of that part."""
-
-    loop: list[int]
-    source: int  # the cut cell's face it is a piece of, or -1 for a face on the plane
-    part: int  # the part it bounds
-    across: int  # the part on the other side (faces on the plane), else -1
-    ghost: int  # the cell on the other side outside the parts, else -1
-
-
-class _Cut(NamedTuple):
-    crossings: dict[tuple[int, int], tuple[int, NDArray[np.float64]]]
-    faces: list[_Face]
-    parts: int
-    failing: int
-    worst: float  # total badness (see _Editor.measure)
-    part_failing: list[int]
-    failing_sources: frozenset[int]  # the cut cell's faces with a failing piece
 
 
 class _Journal:
@@ -177,9 +154,15 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
     )
     result, site, bad = mesh, np.arange(mesh.n_cells), failing
     first = len(cells)
-    # The wide look-ahead is costly, so only the few cells the narrow one left get it.
-    for width in (LOOK_AHEAD, DEEP_LOOK_AHEAD):
-        editor.look_ahead_width = width
+    # The wide look-ahead is costly, so only the few cells the narrow one left get it;
+    # the last round ranks the cuts by badness alone (the first plane among equals), a
+    # second path through the search for the cells the least oblique cuts lead nowhere.
+    for width, rank in (
+        (LOOK_AHEAD, _rank),
+        (DEEP_LOOK_AHEAD, _rank),
+        (DEEP_LOOK_AHEAD, _by_badness),
+    ):
+        editor.look_ahead_width, editor.rank = width, rank
         editor.stuck.clear()
         for _ in range(SWEEPS):
             before = editor.cuts
@@ -227,6 +210,7 @@ class _Editor:
         # Cells no cut helped, with their faces then: not tried again while unchanged.
         self.stuck: dict[int, list[int]] = {}
         self.look_ahead_width = LOOK_AHEAD
+        self.rank: Callable[[Cut], Any] = _rank
 
     # ------------------------------------------------------------------ geometry access
     def coords(self, ids: list[int]) -> NDArray[np.float64]:
@@ -257,10 +241,11 @@ class _Editor:
         if now is None or now[0] == 0:
             return
         planes = [plane for k in now[2] for plane in self.candidates(c, faces, loops, k)]
+        planes += self.own_planes(faces, loops, now[2])
         tried = self.try_planes(c, faces, loops, planes)
         if not tried or tried[0].worst >= now[1]:
             tried += self.try_planes(c, faces, loops, self.more_planes(c, faces, loops))
-            tried.sort(key=lambda cut: cut.worst)
+            tried.sort(key=self.rank)
         if tried and tried[0].worst < now[1]:
             self.apply_and_fix(c, faces, tried[0], depth)
         elif self.journal is None:
@@ -277,27 +262,14 @@ class _Editor:
                 self.stuck[c] = faces
 
     def try_planes(
-        self,
-        c: int,
-        faces: list[int],
-        loops: list[list[int]],
-        planes: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
-    ) -> list[_Cut]:
-        """The cuts of cell ``c`` by ``planes`` (until one leaves no failing face), best first."""
-        tried: list[_Cut] = []
-        for normal, origin in planes:
-            cut = self.cut(c, faces, loops, normal, origin)
-            if cut is None:
-                continue
-            tried.append(cut)
-            if cut.failing == 0:
-                break
-        tried.sort(key=lambda cut: cut.worst)
+        self, c: int, faces: list[int], loops: list[list[int]], planes: list[Plane]
+    ) -> list[Cut]:
+        """The cuts of cell ``c`` by ``planes``, best first (``self.rank``, :func:`_rank`)."""
+        tried = cut_by_planes(self, c, faces, loops, planes)
+        tried.sort(key=self.rank)
         return tried
 
-    def more_planes(
-        self, c: int, faces: list[int], loops: list[list[int]]
-    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    def more_planes(self, c: int, faces: list[int], loops: list[list[int]]) -> list[Plane]:
         """Planes through the centre of cell ``c`` for where :meth:`candidates` fail.
 
         Four containing the axis its boundary pieces turn around (the axis of a tunnel
@@ -322,9 +294,7 @@ class _Editor:
         planes += [(normal, cc) for normal in spread]
         return planes
 
-    def own_planes(
-        self, faces: list[int], loops: list[list[int]], worst: list[int]
-    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    def own_planes(self, faces: list[int], loops: list[list[int]], worst: list[int]) -> list[Plane]:
         """The planes of the faces ``worst`` (indices into ``faces``), just in front of them.
 
         For a small piece at a reflex edge of the surface, whose cell wraps around the
@@ -343,7 +313,7 @@ class _Editor:
             planes += [(normal, pts.mean(axis=0) + t * size * normal) for t in _IN_FRONT]
         return planes
 
-    def apply_and_fix(self, c: int, faces: list[int], cut: _Cut, depth: int) -> None:
+    def apply_and_fix(self, c: int, faces: list[int], cut: Cut, depth: int) -> None:
         """Make ``cut`` in cell ``c``, then fix its failing parts."""
         parts = self.apply(c, faces, cut)
         for part, bad in zip(parts, cut.part_failing, strict=True):
@@ -351,7 +321,7 @@ class _Editor:
                 self.fix(part, depth - 1)
 
     def look_ahead(
-        self, c: int, faces: list[int], cuts: list[_Cut], badness: float, depth: int
+        self, c: int, faces: list[int], cuts: list[Cut], badness: float, depth: int
     ) -> bool:
         """Keep the first of ``cuts`` that, its parts fixed in turn, beats ``badness``.
 
@@ -371,7 +341,7 @@ class _Editor:
 
     def candidates(
         self, c: int, faces: list[int], loops: list[list[int]], worst: int
-    ) -> list[tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    ) -> list[Plane]:
         """Planes to try on cell ``c``: across the line from its centre to its worst face.
 
         Normals: that line's part along the surface (as seen by the face, and by the
@@ -426,170 +396,19 @@ class _Editor:
         return int(bad.sum()), float(badness.sum()), worst.tolist()
 
     def measure(
-        self,
-        faces: list[_Face],
-        parts: int,
-        coords: Callable[[list[int]], NDArray[np.float64]] | None = None,
+        self, faces: list[Face], parts: int
     ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]] | None:
         """Failing flags and badness of ``faces`` bounding ``parts`` parts, their centres.
 
         The parts are cells ``0..parts-1`` of a small mesh; the cells across the faces
-        from outside (``_Face.ghost``) are ghosts there, with their true centres.
-        ``coords`` maps vertex ids to coordinates (default :meth:`coords`). A face's
-        badness is 0 if it passes, else its skewness over checkMesh's limit (at least
-        1), plus 1 for an inverted pyramid. None if a part has no positive volume.
+        from outside (``Face.ghost``) are ghosts there, with their true centres. A face's
+        badness is 0 if it passes, else its skewness over checkMesh's limit (at least 1),
+        plus 1 for an inverted pyramid. None if a part has no positive volume.
         """
-        coords = coords or self.coords
-        ids: dict[int, int] = {}
-        flat: list[int] = []
-        offsets = [0]
-        owner, neighbour = [], []
-        ghosts: list[int] = []
-        ghost_of: dict[int, int] = {}
-        for face in faces:
-            flat.extend(ids.setdefault(v, len(ids)) for v in face.loop)
-            offsets.append(len(flat))
-            owner.append(face.part)
-            if face.across >= 0:
-                neighbour.append(face.across)
-            elif face.ghost >= 0:
-                if face.ghost not in ghost_of:
-                    ghost_of[face.ghost] = parts + len(ghosts)
-                    ghosts.append(face.ghost)
-                neighbour.append(ghost_of[face.ghost])
-            else:
-                neighbour.append(-1)
-        local = PolyMesh(
-            points=coords(list(ids)) if ids else np.zeros((0, 3)),
-            face_offsets=np.array(offsets, dtype=np.intp),
-            face_vertices=np.array(flat, dtype=np.intp),
-            owner=np.array(owner, dtype=np.intp),
-            neighbour=np.array(neighbour, dtype=np.intp),
-            boundary_element=np.where(np.array(neighbour) < 0, 0, -1).astype(np.intp),
-            n_cells=parts + len(ghosts),
-        )
-        volume, centroid = local.cell_geometry
-        if not (volume[:parts] > 0).all():
-            return None
-        centroid = centroid.copy()
-        for j, g in enumerate(ghosts):
-            centroid[parts + j] = self.centroid[g]
-        angle, skew, inverted = face_quality(local, centroid)
-        bad = fails_checkmesh(angle, skew, inverted)
-        return (
-            bad,
-            np.where(bad, np.maximum(skew / SKEWNESS_LIMIT, 1.0) + inverted, 0.0),
-            centroid[:parts],
-        )
-
-    # ------------------------------------------------------------------ one cut
-    def cut(
-        self,
-        c: int,
-        faces: list[int],
-        loops: list[list[int]],
-        normal: NDArray[np.float64],
-        origin: NDArray[np.float64],
-    ) -> _Cut | None:
-        """Cell ``c`` cut by the plane ``normal·(x - origin) = 0``, measured; or None."""
-        verts = sorted({v for loop in loops for v in loop})
-        verts_array = np.array(verts)
-        xyz = self.coords(verts)
-        size = float(np.ptp(xyz, axis=0).max())
-        dist = (xyz - origin) @ normal
-        if np.abs(dist).min() < _CLEARANCE * size:
-            origin = origin + 10 * _CLEARANCE * size * normal
-            dist = (xyz - origin) @ normal
-            if np.abs(dist).min() < _CLEARANCE * size:
-                return None
-        if (dist > 0).all() or (dist < 0).all():
-            return None
-        side = dict(zip(verts, dist.tolist(), strict=True))
-        position = dict(zip(verts, xyz, strict=True))
-        crossings: dict[tuple[int, int], tuple[int, NDArray[np.float64]]] = {}
-
-        def crossing(a: int, b: int) -> int:
-            key = (min(a, b), max(a, b))
-            if key not in crossings:
-                da, db = side[key[0]], side[key[1]]
-                t = da / (da - db)
-                x = position[key[0]] + t * (position[key[1]] - position[key[0]])
-                crossings[key] = (-1 - len(crossings), x)
-                position[crossings[key][0]] = x
-            return crossings[key][0]
-
-        pieces: list[tuple[list[int], int, int]] = []  # (loop, source face, side +1/-1)
-        chords: list[tuple[int, int]] = []  # on the + pieces, walked a -> b
-        # Faces wholly on one side go as they are; only the others are cut.
-        sizes = [len(loop) for loop in loops]
-        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-        above = dist[np.searchsorted(verts_array, [v for loop in loops for v in loop])] > 0
-        count = np.add.reduceat(above, starts).tolist()
-        for k, loop, up, size in zip(faces, loops, count, sizes, strict=True):
-            if up in (0, size):
-                pieces.append((list(loop), k, 1 if up else -1))
-                continue
-            split = _split_loop(loop, side, crossing, position.__getitem__)
-            if split is None:
-                return None
-            for piece, sign in split[0]:
-                pieces.append((piece, k, sign))
-            chords.extend(split[1])
-        # The section: the chords of the + pieces, reversed, chained into loops.
-        ahead: dict[int, int] = {}
-        for a, b in chords:
-            if b in ahead:
-                return None
-            ahead[b] = a
-        sections: list[list[int]] = []
-        while ahead:
-            start, ring = next(iter(ahead)), []
-            v = start
-            while True:
-                ring.append(v)
-                nxt = ahead.pop(v, None)
-                if nxt is None:
-                    return None
-                if nxt == start:
-                    break
-                v = nxt
-            sections.append(ring)
-        for ring in sections:  # out of the + side is along -normal; a hole would be +
-            if _newell(np.array([position[v] for v in ring])) @ normal >= 0:
-                return None
-        # Parts: connected components of each side's faces (sharing an edge).
-        sided = [(p, s) for p, _, s in pieces] + [(r, 1) for r in sections]
-        part_of = _components([p for p, _ in sided], [s for _, s in sided])
-        n_parts = max(part_of) + 1
-        out: list[_Face] = []
-        for j, (piece, k, _) in enumerate(pieces):
-            out.append(_Face(piece, k, part_of[j], -1, self.other(c, k)))
-        for j, ring in enumerate(sections):
-            mine = part_of[len(pieces) + j]
-            across = _part_across(ring, pieces, part_of)
-            if across is None:
-                return None
-            out.append(_Face(ring, -1, mine, across, -1))
-        measured = self.measure(
-            out,
-            n_parts,
-            lambda ids: np.array([position[v] for v in ids]),
-        )
-        if measured is None:
-            return None
-        bad, badness, _ = measured
-        part_failing = [0] * n_parts
-        for face, b in zip(out, bad.tolist(), strict=True):
-            part_failing[face.part] += b
-            if face.across >= 0:
-                part_failing[face.across] += b
-        sources = frozenset(face.source for face, b in zip(out, bad, strict=True) if b)
-        return _Cut(
-            crossings, out, n_parts, int(bad.sum()), float(badness.sum()), part_failing, sources
-        )
+        return measure_region(self, faces, parts)
 
     # ------------------------------------------------------------------ applying a cut
-    def apply(self, c: int, faces: list[int], cut: _Cut) -> list[int]:
+    def apply(self, c: int, faces: list[int], cut: Cut) -> list[int]:
         """Make the cut in the mesh; return the cells of its parts (the first is ``c``)."""
         nb = len(self.base)
         global_id: dict[int, int] = {}
@@ -696,7 +515,7 @@ class _Editor:
         assert measured is not None
         return measured[2][0]
 
-    def region_faces(self, cells: list[int]) -> list[_Face]:
+    def region_faces(self, cells: list[int]) -> list[Face]:
         """The faces of ``cells`` (parts ``0..len(cells)-1``), each once, out of a part."""
         index = {cell: j for j, cell in enumerate(cells)}
         out = []
@@ -707,7 +526,7 @@ class _Editor:
                     continue  # met from the other part already
                 across = index.get(other, -1)
                 ghost = other if across < 0 else -1
-                out.append(_Face(self.outward(cell, k), k, j, across, ghost))
+                out.append(Face(self.outward(cell, k), k, j, across, ghost))
         return out
 
     def mesh(self) -> tuple[PolyMesh, NDArray[np.intp]]:
@@ -733,115 +552,16 @@ class _Editor:
         return result, np.array(self.site, dtype=np.intp)
 
 
+def _rank(cut: Cut) -> tuple[float, float]:
+    """How a cut compares: by its faces' badness, then by how oblique they are."""
+    return cut.worst, cut.oblique
+
+
+def _by_badness(cut: Cut) -> float:
+    """How a cut compares in the last round: by its faces' badness alone."""
+    return cut.worst
+
+
 def _newell(pts: NDArray[np.float64]) -> NDArray[np.float64]:
     """Twice the vector area of the closed loop ``pts`` (k, 3)."""
     return np.cross(pts, np.roll(pts, -1, axis=0)).sum(axis=0)
-
-
-def _split_loop(
-    loop: list[int],
-    side: dict[int, float],
-    crossing: Callable[[int, int], int],
-    point: Callable[[int], NDArray[np.float64]],
-) -> tuple[list[tuple[list[int], int]], list[tuple[int, int]]] | None:
-    """A planar face's loop cut by the plane: its pieces on each side, and the chords.
-
-    ``side[v]`` is a vertex's signed distance (never 0); ``crossing(a, b)`` the id of the
-    point where edge ``a b`` crosses. Returns ``([(piece, ±1), ...], chords)`` with
-    chords the segments of the plane inside the face, as walked by the + pieces; or
-    None where the crossings cannot be paired (not a simple face).
-    """
-    m = len(loop)
-    aug: list[int] = []
-    sign: list[int] = []
-    for i in range(m):
-        a, b = loop[i], loop[(i + 1) % m]
-        aug.append(a)
-        sign.append(1 if side[a] > 0 else -1)
-        if (side[a] > 0) != (side[b] > 0):
-            aug.append(crossing(a, b))
-            sign.append(0)
-    if 0 not in sign:
-        return [(list(loop), sign[0])], []
-    at = [i for i, s in enumerate(sign) if s == 0]
-    pts = np.array([point(aug[i]) for i in at])
-    direction = pts[-1] - pts[0] if len(at) == 2 else None
-    if direction is None:
-        centred = pts - pts.mean(axis=0)
-        direction = np.linalg.svd(centred)[2][0]
-    order = [at[j] for j in np.argsort(pts @ direction, kind="stable")]
-    partner: dict[int, int] = {}
-    for j in range(0, len(order), 2):
-        partner[order[j]] = order[j + 1]
-        partner[order[j + 1]] = order[j]
-    n = len(aug)
-    pieces: list[tuple[list[int], int]] = []
-    chords: list[tuple[int, int]] = []
-    for s in (1, -1):
-        # Directed steps on side s: loop edges leaving a vertex of side s (or a crossing
-        # followed by one), and at a crossing reached from side s, the chord.
-        step: dict[int, int] = {}
-        for i in range(n):
-            j = (i + 1) % n
-            if sign[i] == s or (sign[i] == 0 and sign[j] == s):
-                if sign[i] == 0 and sign[(i - 1) % n] == s:
-                    return None  # touches the plane without crossing
-                step[i] = j
-        for i in at:
-            if sign[(i - 1) % n] == s:
-                if sign[(partner[i] + 1) % n] != s:
-                    return None
-                step[i] = partner[i]
-                if s == 1:
-                    chords.append((aug[i], aug[partner[i]]))
-        while step:
-            start = next(iter(step))
-            ring, i = [], start
-            while True:
-                ring.append(aug[i])
-                i = step.pop(i)
-                if i == start:
-                    break
-                if i not in step:
-                    return None
-            pieces.append((ring, s))
-    return pieces, chords
-
-
-def _components(loops: list[list[int]], sides: list[int]) -> list[int]:
-    """Parts: loops of one side joined where they share an edge; numbered from 0."""
-    parent = list(range(len(loops)))
-
-    def find(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    seen: dict[tuple[int, int, int], int] = {}
-    for j, loop in enumerate(loops):
-        m = len(loop)
-        for i in range(m):
-            a, b = loop[i], loop[(i + 1) % m]
-            key = (sides[j], min(a, b), max(a, b))
-            if key in seen:
-                parent[find(j)] = find(seen[key])
-            else:
-                seen[key] = j
-    roots: dict[int, int] = {}
-    return [roots.setdefault(find(j), len(roots)) for j in range(len(loops))]
-
-
-def _part_across(
-    ring: list[int], pieces: list[tuple[list[int], int, int]], part_of: list[int]
-) -> int | None:
-    """The part on the - side of a section loop: the - piece holding one of its edges."""
-    a, b = ring[0], ring[1]
-    for j, (piece, _, s) in enumerate(pieces):
-        if s > 0:
-            continue
-        m = len(piece)
-        for i in range(m):
-            if piece[i] == a and piece[(i + 1) % m] == b:
-                return part_of[j]
-    return None

@@ -101,9 +101,8 @@ pub fn cut_cell(cell: &Cell<'_>, plane: Plane) -> Result<Option<Cut>, CoreError>
     Ok(cut_cell_by_planes(cell, &[plane])?.pop().flatten())
 }
 
-/// `cell` cut by each of `planes` in turn, as `_Editor.try_planes` tries them: row `i`
-/// is [`cut_cell`] by `planes[i]`, and the rows stop after the first cut that leaves no
-/// failing face.
+/// `cell` cut by each of `planes`: row `i` is [`cut_cell`] by `planes[i]`. Every plane is
+/// tried, so that the search can choose among the cuts that pass (the least oblique).
 ///
 /// # Errors
 ///
@@ -118,16 +117,10 @@ pub fn cut_cell_by_planes(
     let whole: Vec<FaceGeometry> = (cell.faces.iter())
         .map(|ring| face_geometry(cell.points, ring, &mut normals))
         .collect();
-    let mut tried = Vec::new();
-    for &plane in planes {
-        let cut = cut(cell, &whole, plane);
-        let done = cut.as_ref().is_some_and(|c| c.failing == 0);
-        tried.push(cut);
-        if done {
-            break;
-        }
-    }
-    Ok(tried)
+    Ok(planes
+        .iter()
+        .map(|&plane| cut(cell, &whole, plane))
+        .collect())
 }
 
 /// Every index of `cell` in range, its points and the planes finite.

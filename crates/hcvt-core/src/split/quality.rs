@@ -52,6 +52,10 @@ pub struct RegionQuality {
     /// 0 for a passing face; else its skewness over [`SKEWNESS_LIMIT`] (at least 1), plus
     /// 1 for an inverted pyramid (`_Editor.measure` in `hcvt.export.split`).
     pub badness: Vec<f64>,
+    /// How far the faces with a cell across are from orthogonal: the sum over them of
+    /// `1 − cos θ`, θ the non-orthogonality (checkMesh's average is the angle of the mean
+    /// cosine). The search prefers, among cuts that fail alike, the least oblique.
+    pub oblique: f64,
     /// Each part's volume, `L³`.
     pub volumes: Vec<f64>,
     /// Each part's centroid, `L`.
@@ -130,6 +134,7 @@ pub(super) fn measure_faces(region: &Region<'_>, faces: &[FaceGeometry]) -> Opti
     };
     let mut bad = Vec::with_capacity(faces.len());
     let mut badness = Vec::with_capacity(faces.len());
+    let mut oblique = 0.0;
     for (k, face) in faces.iter().enumerate() {
         let ring = region.faces.get(k);
         let owner = centroids[region.owner[k] as usize];
@@ -141,12 +146,16 @@ pub(super) fn measure_faces(region: &Region<'_>, faces: &[FaceGeometry]) -> Opti
             centroid_of(region.across[k]),
         );
         let fails = quality.fails();
+        if !quality.non_orthogonality.is_nan() {
+            oblique += 1.0 - quality.non_orthogonality.to_radians().cos();
+        }
         bad.push(fails);
         badness.push(if fails { quality.badness() } else { 0.0 });
     }
     Some(RegionQuality {
         bad,
         badness,
+        oblique,
         volumes,
         centroids,
     })

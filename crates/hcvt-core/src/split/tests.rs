@@ -188,9 +188,10 @@ fn the_batch_stops_at_the_first_passing_cut() {
         origin: [x, 0.5, 0.5],
     };
     let tried = cut_cell_by_planes(&cell, &[plane(3.0), plane(0.5), plane(0.25)]).unwrap();
-    assert_eq!(tried.len(), 2);
+    assert_eq!(tried.len(), 3);
     assert!(tried[0].is_none());
     assert_eq!(tried[1].as_ref().unwrap().failing, 0);
+    assert!(tried[2].is_some());
 }
 
 /// Bad indices and non-finite planes are errors naming the face or plane, not panics.
