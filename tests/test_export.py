@@ -627,15 +627,18 @@ def test_cli_refuses_a_merged_boundary_in_2d(tmp_path):
     assert not (tmp_path / "case").exists()
 
 
-def passing_bunny_case(tmp_path: Path, boundary: str) -> tuple[dict, str, Path]:
-    """``hcvt run bunny.off -n 1000`` to a converged CVT, its case checked by checkMesh.
+def passing_case(
+    tmp_path: Path, boundary: str, mesh: str = "bunny.off"
+) -> tuple[dict, str, Path]:
+    """``hcvt run mesh -n 1000`` to a converged CVT, its case checked by checkMesh.
 
-    Newton from Halton sites to the default rule (RMS gap < 1e-7; 106 iterations, about
-    30 s), written with ``--mesh-boundary boundary``; checkMesh must say "Mesh OK" with no
-    failed check. Returns the run's summary, checkMesh's log and the sites file.
+    Newton from Halton sites to the default rule (RMS gap < 1e-7; on the bunny 106
+    iterations, about 30 s), written with ``--mesh-boundary boundary``; checkMesh must say
+    "Mesh OK" with no failed check. Returns the run's summary, checkMesh's log and the
+    sites file.
     """
     case, summary, sites = tmp_path / "case", tmp_path / "s.json", tmp_path / "x.npy"
-    args = ["run", str(DATA / "3d" / "bunny.off"), "-n", "1000", "--method", "newton"]
+    args = ["run", str(DATA / "3d" / mesh), "-n", "1000", "--method", "newton"]
     args += ["--init", "halton", "--mesh", str(case), "--mesh-boundary", boundary]
     args += ["--summary", str(summary), "--out", str(sites)]
     result = CliRunner().invoke(main, args)
@@ -650,7 +653,7 @@ def passing_bunny_case(tmp_path: Path, boundary: str) -> tuple[dict, str, Path]:
 
 @pytest.mark.slow
 def test_merged_boundary_passes_checkmesh_on_a_converged_bunny_cvt(tmp_path):
-    info, log, sites = passing_bunny_case(tmp_path, "merged")
+    info, log, sites = passing_case(tmp_path, "merged")
     # The boundary is still one closed surface: no vertex dropped from a merged face is
     # left in another face (a T-junction would open it).
     assert "ok (closed singly connected)" in log

@@ -15,6 +15,9 @@ pub const SKEWNESS_LIMIT: f64 = 4.0;
 /// (`hcvt.export.quality.SKEWNESS_TARGET`).
 pub const SKEWNESS_TARGET: f64 = SKEWNESS_LIMIT * (1.0 - 1e-6);
 
+/// The largest aspect ratio of a part: checkMesh's limit 1000 less the same margin.
+const ASPECT_TARGET: f64 = 1000.0 * (1.0 - 1e-6);
+
 /// OpenFOAM's guard against 0/0 (`ROOTVSMALL`).
 const ROOT_VSMALL: f64 = 1e-150;
 
@@ -198,7 +201,7 @@ pub(super) fn face_geometry(
 
 /// Each part's volume and centroid by pyramids from the average of its face centres
 /// (OpenFOAM's `makeCellCentresAndVols`, `hcvt.polymesh.PolyMesh.cell_geometry`); None
-/// unless every part has a positive volume.
+/// unless every part has a positive volume and an aspect ratio checkMesh passes.
 ///
 /// The volume is exact for planar faces; the centroid only where the face centres are,
 /// which the fan's unsigned triangle areas miss on a face that is not convex (as in
@@ -230,9 +233,28 @@ fn part_geometry(region: &Region<'_>, faces: &[FaceGeometry]) -> Option<Vec<(f64
                 moment =
                     std::array::from_fn(|c| moment[c] + cone * ((3.0 * centre[c] + apex[c]) / 4.0));
             }
-            (volume > 0.0).then(|| (volume, moment.map(|m| m / volume)))
+            let acceptable = volume > 0.0 && aspect_ratio(faces_of, faces, volume) <= ASPECT_TARGET;
+            acceptable.then(|| (volume, moment.map(|m| m / volume)))
         })
         .collect()
+}
+
+/// checkMesh's aspect ratio of a cell (`primitiveMeshTools::cellClosedness`): with `s` the
+/// sum over its faces of the absolute area components, the larger of `max(s) / min(s)`
+/// and `(s_x + s_y + s_z) / 6 / V^(2/3)` (1 for an axis-aligned cube, 1.5 at most for a
+/// sphere). checkMesh fails a mesh with a cell above 1000: a sliver cut off a cell.
+fn aspect_ratio(faces_of: &[(usize, f64)], faces: &[FaceGeometry], volume: f64) -> f64 {
+    let mut sum = [0.0; 3];
+    for &(k, _) in faces_of {
+        sum = std::array::from_fn(|c| sum[c] + faces[k].area[c].abs());
+    }
+    let (low, high) = (
+        sum.iter().copied().fold(f64::INFINITY, f64::min),
+        sum.iter().copied().fold(0.0, f64::max),
+    );
+    let by_axis = high / (low + ROOT_VSMALL);
+    let by_area = (sum[0] + sum[1] + sum[2]) / 6.0 / volume.max(ROOT_VSMALL).powf(2.0 / 3.0);
+    by_axis.max(by_area)
 }
 
 /// One face's checkMesh figures.
