@@ -627,9 +627,7 @@ def test_cli_refuses_a_merged_boundary_in_2d(tmp_path):
     assert not (tmp_path / "case").exists()
 
 
-def passing_case(
-    tmp_path: Path, boundary: str, mesh: str = "bunny.off"
-) -> tuple[dict, str, Path]:
+def passing_case(tmp_path: Path, boundary: str, mesh: str = "bunny.off") -> tuple[dict, str, Path]:
     """``hcvt run mesh -n 1000`` to a converged CVT, its case checked by checkMesh.
 
     Newton from Halton sites to the default rule (RMS gap < 1e-7; on the bunny 106
