@@ -15,20 +15,27 @@ to the domain's exactly and each site's parts still make up its Voronoi cell; wh
 is that a site may own several cells. :func:`split_failing_cells` returns which site each
 cell belongs to (``write_openfoam`` writes it as the field ``0/site``).
 
-A cut is made locally first and measured (checkMesh's skewness, face pyramids and
-non-orthogonality errors on every face of the parts, against the neighbours' centres);
-only a cut that lowers the summed badness of the faces (``_Editor.measure``) is applied.
-Where no single cut helps, a few are tried two deep (the cut, then its parts fixed) and
-undone unless the whole beats the cell. Applying a cut puts the new vertices where the
-plane crosses an edge into *every* face along that edge, so the mesh stays conforming. A
-cell whose parts still fail is cut again, up to :data:`MAX_DEPTH` times, and the cells
-still failing get :data:`SWEEPS` passes (a cut moves a centre its neighbours are measured
-against). :func:`split_boundary` merges what no cut fixed.
+A cut is made locally first and measured by the core (``hcvt_core::split`` through
+:mod:`hcvt.export._cut_kernel`: checkMesh's skewness, face pyramids and non-orthogonality
+errors on every face of the parts, against the neighbours' centres; a part checkMesh would
+call a sliver, aspect ratio above 1000, makes no cut). Every candidate plane is tried, and
+the cuts are ranked by the summed badness of their faces (``_Editor.measure``), then by how
+oblique their faces are (the sum of ``1 - cos`` of their non-orthogonality); only a cut that
+lowers the cell's badness is applied. Where no single cut helps, a few are tried two deep
+(the cut, then its parts fixed) and undone unless the whole beats the cell: first the cuts
+by the failing faces' own planes (for a small piece at a reflex edge, whose cell's centre
+lies beyond it), then the best ranked. Applying a cut puts the new vertices where the plane
+crosses an edge into *every* face along that edge, so the mesh stays conforming. A cell
+whose parts still fail is cut again, up to :data:`MAX_DEPTH` times; the cells still
+failing get :data:`SWEEPS` passes (a cut moves a centre its neighbours are measured
+against), then passes with a :data:`DEEP_LOOK_AHEAD`-wide look-ahead, the last ranking by
+badness alone. :func:`split_boundary` merges what no cut fixed.
 
 The price: a section is not a Voronoi face, so the segment between two parts' centres is
-not along its normal (non-orthogonality up to 76.5° on a converged 50k bunny, 87.6° on
-the 10k cheese, against 0.04° and 0.1° for the exact cells), and the search runs in
-Python (43 s and 199 s there): ``docs/results/checkmesh.txt``.
+not along its normal (non-orthogonality up to 71.9° on a converged 50k bunny, 86.2° on the
+10k cheese, against 0.04° and 0.1° for the exact cells), and a site owns several cells
+(3.3% more cells than sites on the bunny, 44% on the cheese). The search took 14 s and 35 s
+there, and left no face to merge (``docs/results/checkmesh.txt``).
 """
 
 from __future__ import annotations
@@ -114,8 +121,8 @@ def split_boundary(
     The faces still failing after the cuts are joined to neighbouring pieces of their cell
     and patch as :func:`hcvt.export.merge.merged_boundary` does (``domain`` and ``labels``
     give the patches). Only the cells holding such a face lose their exact volume (a
-    merged face is not planar): on a converged CVT of the cheese (10k sites), 5 faces
-    after 4,351 cuts, the total moving by 7.2e-8 of the domain's
+    merged face is not planar): on a converged CVT of the cheese with 1k sites, 1 face
+    after 2,473 cuts, the total moving by 8.9e-11 of the domain's; none at 4k and 10k
     (``docs/results/checkmesh.txt``).
     """
     split, site, report = split_failing_cells(mesh)

@@ -1,9 +1,10 @@
 //! Sums and dot products rounded in the order numpy rounds them.
 //!
 //! The split's search compares the badness of cuts and stops at thresholds (a pyramid
-//! below `-1e-15`, a skewness above 4(1 − 1e-6)), so a result that differs from the
-//! Python reference (`hcvt.export.split`) in its last bit can make it choose another cut.
-//! Each helper here reproduces one numpy expression that reference uses, as measured on
+//! below `-1e-15`, a skewness above 4(1 − 1e-6)), and the final check measures the whole
+//! mesh with numpy (`hcvt.export.quality`): a result that differs from numpy's in its last
+//! bit could pass a face there that fails here. Each helper here reproduces one numpy
+//! expression that the reference (the search's former Python version) used, as measured on
 //! numpy 2.4 (x86-64, baseline SIMD SSE4.2, OpenBLAS matrix-vector products): the
 //! expression is named in each doc. Elsewhere plain Rust arithmetic already matches
 //! numpy's elementwise operations (no fused multiply-add unless written).
