@@ -97,6 +97,29 @@ pub struct Cut {
 ///
 /// [`CoreError::InvalidFace`] for an index out of range, [`CoreError::InvalidPoint`] for a
 /// non-finite vertex, [`CoreError::InvalidPlane`] for a non-finite plane.
+///
+/// # Example
+///
+/// ```
+/// use hcvt_core::split::{cut_cell, Across, Cell, Loops, Plane};
+///
+/// // The unit cube (corner i at its bits), its faces on the boundary, halved at x = 0.5:
+/// // four sides in two pieces each, two whole, and the section between the halves.
+/// let points: Vec<[f64; 3]> = (0..8)
+///     .map(|i| [i & 1, (i >> 1) & 1, (i >> 2) & 1].map(f64::from))
+///     .collect();
+/// let rings = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+/// let faces = Loops::new((0..=6).map(|k| 4 * k).collect(), rings.concat())?;
+/// let cell = Cell { points: &points, faces: &faces, ghosts: &[None; 6], ghost_centroids: &[] };
+/// let plane = Plane { normal: [1.0, 0.0, 0.0], origin: [0.5, 0.5, 0.5] };
+/// let cut = cut_cell(&cell, plane)?.expect("the plane crosses the cube");
+/// assert_eq!((cut.parts, cut.crossings.len(), cut.faces.len()), (2, 4, 11));
+/// assert_eq!((cut.part[10], cut.across[10]), (1, Across::Part(0))); // the section: + to -
+/// let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-15);
+/// assert!(close(&cut.quality.volumes, &[0.5, 0.5]));
+/// assert!(close(&cut.quality.centroids.concat(), &[0.25, 0.5, 0.5, 0.75, 0.5, 0.5]));
+/// # Ok::<(), hcvt_core::CoreError>(())
+/// ```
 pub fn cut_cell(cell: &Cell<'_>, plane: Plane) -> Result<Option<Cut>, CoreError> {
     Ok(cut_cell_by_planes(cell, &[plane])?.pop().flatten())
 }
