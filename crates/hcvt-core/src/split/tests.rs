@@ -181,8 +181,8 @@ fn an_l_shaped_cell_cut_across_both_arms_gives_three_parts() {
     }
 }
 
-/// The batch stops after the first plane whose cut leaves no failing face, and keeps a
-/// row for every plane before it (None where it cuts nothing).
+/// The batch keeps a row for every plane (None where it cuts nothing), past the first
+/// whose cut leaves no failing face.
 #[test]
 fn the_batch_tries_every_plane() {
     let (points, faces) = prism(&SQUARE);
