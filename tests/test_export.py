@@ -218,6 +218,9 @@ def test_checkmesh_passes_the_sphere_cvt_mesh(sphere_cvt, sphere, tmp_path, bina
     )
     assert abs(_figure(log, rf"average: {NUM}") - ours["non_orthogonality_average"]) < 1e-9
     assert abs(_figure(log, rf"Max skewness = {NUM}") - ours["skewness_max"]) < 1e-9
+    assert _figure(log, rf"Max aspect ratio = {NUM}") == pytest.approx(
+        ours["aspect_ratio_max"], rel=1e-9
+    )
     # A CVT: centroids sit on (near) the sites, so faces are close to orthogonal.
     assert ours["non_orthogonality_max"] < 30
     # Another OpenFOAM tool on the case as written: foamToVTK, fields included.
@@ -531,6 +534,9 @@ def test_cli_writes_case_and_cells_through_diagram_mesh(name, tmp_path):
     log = _check_mesh(case)
     assert "Mesh OK." in log
     assert abs(_figure(log, rf"Max skewness = {NUM}") - quality["skewness_max"]) < 1e-9
+    # In 2D as OpenFOAM measures the one-cell-thick extrusion.
+    aspect = _figure(log, rf"Max aspect ratio = {NUM}")
+    assert aspect == pytest.approx(quality["aspect_ratio_max"], rel=1e-9)
     grid = pv.read(vtu)
     assert grid.n_cells == 80
     assert sorted(grid.cell_data.keys()) == ["G", "site", "volume"]
@@ -646,6 +652,8 @@ def passing_case(tmp_path: Path, boundary: str, mesh: str = "bunny.off") -> tupl
     log = _check_mesh(case)
     print(log[log.index("Checking geometry") :])
     assert "Mesh OK." in log and "***" not in log
+    aspect = _figure(log, rf"Max aspect ratio = {NUM}")
+    assert aspect == pytest.approx(info["mesh_quality"]["aspect_ratio_max"], rel=1e-9)
     return info, log, sites
 
 

@@ -393,7 +393,8 @@ def _write_meshes(
         f"{quality['non_orthogonality_average']:.2f} deg  skewness max "
         f"{quality['skewness_max']:.3f}  (checkMesh's limits: {quality['non_orthogonal_faces']} "
         f"faces > 70 deg, {quality['skew_faces']} skewness > 4, "
-        f"{quality['inverted_pyramids']} inverted pyramids)"
+        f"{quality['inverted_pyramids']} inverted pyramids, "
+        f"{quality['high_aspect_cells']} cells aspect ratio > 1000)"
     )
     return info
 

@@ -27,9 +27,11 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from hcvt.polymesh import PolyMesh
 
-#: checkMesh's thresholds: non-orthogonality (degrees) and skewness it reports as bad.
+#: checkMesh's thresholds: non-orthogonality (degrees) and skewness it reports as bad, and
+#: the cell aspect ratio above which it fails the mesh ("High aspect ratio cells").
 NON_ORTHOGONALITY_LIMIT = 70.0
 SKEWNESS_LIMIT = 4.0
+ASPECT_RATIO_LIMIT = 1000.0
 
 #: Skewness a face must not exceed to be sure to pass: checkMesh's limit 4 less a margin
 #: far above the 1e-9 by which our figures and checkMesh's printed ones have been seen to
@@ -53,6 +55,8 @@ class MeshQuality:
         Degrees, for interior faces; NaN on boundary faces.
     skewness : ndarray, shape (f,)
         Dimensionless, every face.
+    aspect_ratio : ndarray, shape (n,)
+        checkMesh's aspect ratio of each cell (:func:`cell_aspect_ratio`).
     inverted_pyramid : ndarray of bool, shape (f,)
         Whether the cone from a cell's centroid over this face has negative volume on
         either side (checkMesh's "face pyramids" error): the centroid lies beyond the
@@ -62,6 +66,7 @@ class MeshQuality:
     """
 
     volume: NDArray[np.float64]
+    aspect_ratio: NDArray[np.float64]
     non_orthogonality: NDArray[np.float64]
     skewness: NDArray[np.float64]
     inverted_pyramid: NDArray[np.bool_]
@@ -95,6 +100,8 @@ class MeshQuality:
             "skewness_max": float(self.skewness.max()) if len(self.skewness) else 0.0,
             "skew_faces": int((self.skewness > SKEWNESS_LIMIT).sum()),
             "inverted_pyramids": int(self.inverted_pyramid.sum()),
+            "aspect_ratio_max": float(self.aspect_ratio.max()) if len(cells) else 0.0,
+            "high_aspect_cells": int((self.aspect_ratio > ASPECT_RATIO_LIMIT).sum()),
         }
 
 
@@ -119,7 +126,31 @@ def mesh_quality(mesh: PolyMesh) -> MeshQuality:
     """
     volume, centroid = mesh.cell_geometry
     angle, skewness, inverted = face_quality(mesh, centroid)
-    return MeshQuality(volume, angle, skewness, inverted, mesh.interior)
+    aspect = cell_aspect_ratio(mesh)
+    return MeshQuality(volume, aspect, angle, skewness, inverted, mesh.interior)
+
+
+def cell_aspect_ratio(mesh: PolyMesh) -> NDArray[np.float64]:
+    """The aspect ratio checkMesh gives each cell, shape (n,) (0 for a cell with no faces).
+
+    OpenFOAM's ``primitiveMeshTools::cellClosedness``: with ``s`` the sum over a cell's
+    faces of the absolute components of their area vectors, ``max(s) / min(s)``, and in 3D
+    at least ``(s_x + s_y + s_z) / 6 / V^(2/3)``. 1 for an axis-aligned cube or square;
+    checkMesh fails a mesh with a cell above :data:`ASPECT_RATIO_LIMIT` (a sliver). A 2D
+    mesh is measured as OpenFOAM measures its one-cell-thick extrusion (the empty
+    direction left out).
+    """
+    _, area = mesh.face_geometry
+    magnitude = np.abs(area)
+    inner = mesh.interior
+    cells = np.concatenate([mesh.owner, mesh.neighbour[inner]])
+    s = np.zeros((mesh.n_cells, mesh.dim))
+    np.add.at(s, cells, np.concatenate([magnitude, magnitude[inner]]))
+    ratio = s.max(axis=1) / (s.min(axis=1) + _ROOT_VSMALL)
+    if mesh.dim == 3:
+        volume = np.maximum(mesh.cell_geometry.volume, _ROOT_VSMALL)
+        ratio = np.maximum(ratio, s.sum(axis=1) / 6.0 / volume ** (2.0 / 3.0))
+    return ratio
 
 
 def face_quality(
