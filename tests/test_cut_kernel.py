@@ -17,7 +17,7 @@ import hcvt
 from hcvt import _core
 from hcvt.errors import InvalidMeshError
 from hcvt.export._cut_kernel import cut_by_planes
-from hcvt.export.split import _Editor, _Journal, failing_faces
+from hcvt.export.split import _Editor, _Journal, _newell, failing_faces
 from helpers import DATA, random_inside
 
 #: Failing cells tried per domain.
@@ -39,7 +39,8 @@ def test_the_cores_cut_is_what_the_mesh_then_measures(name: str) -> None:
             continue  # a keyhole face: the search leaves it alone
         now = editor.measure_cell(c)
         assert now is not None and now[0] > 0
-        planes = [p for k in now[2] for p in editor.candidates(c, faces, loops, k)]
+        normals = [_newell(editor.coords(loop)) for loop in loops]
+        planes = [p for k in now[2] for p in editor.candidates(c, faces, loops, normals, k)]
         cuts = cut_by_planes(editor, c, faces, loops, planes)
         assert 0 < len(cuts) <= len(planes)
         for cut in (

@@ -247,11 +247,14 @@ class _Editor:
         now = self.measure_cell(c)
         if now is None or now[0] == 0:
             return
-        planes = [plane for k in now[2] for plane in self.candidates(c, faces, loops, k)]
-        planes += self.own_planes(faces, loops, now[2])
+        # Each face's Newell vector, once: every plane below is aimed with them.
+        normals = [_newell(self.coords(loop)) for loop in loops]
+        planes = [p for k in now[2] for p in self.candidates(c, faces, loops, normals, k)]
+        planes += self.own_planes(loops, normals, now[2])
         tried = self.try_planes(c, faces, loops, planes)
         if not tried or tried[0].worst >= now[1]:
-            tried += self.try_planes(c, faces, loops, self.more_planes(c, faces, loops))
+            more = self.more_planes(c, faces, normals)
+            tried += self.try_planes(c, faces, loops, more)
             tried.sort(key=self.rank)
         if tried and tried[0].worst < now[1]:
             self.apply_and_fix(c, faces, tried[0], depth)
@@ -263,7 +266,8 @@ class _Editor:
                 cut for cut in tried if target not in cut.failing_sources or cut.worst != now[1]
             ]
             moved.sort(key=lambda cut: (target in cut.failing_sources, cut.worst))
-            behind = self.try_planes(c, faces, loops, self.own_planes(faces, loops, now[2]))
+            own = self.own_planes(loops, normals, now[2])
+            behind = self.try_planes(c, faces, loops, own)
             chosen = behind + moved[: self.look_ahead_width]
             if not self.look_ahead(c, faces, chosen, now[1], depth):
                 self.stuck[c] = faces
@@ -276,7 +280,9 @@ class _Editor:
         tried.sort(key=self.rank)
         return tried
 
-    def more_planes(self, c: int, faces: list[int], loops: list[list[int]]) -> list[Plane]:
+    def more_planes(
+        self, c: int, faces: list[int], normals: list[NDArray[np.float64]]
+    ) -> list[Plane]:
         """Planes through the centre of cell ``c`` for where :meth:`candidates` fail.
 
         Four containing the axis its boundary pieces turn around (the axis of a tunnel
@@ -284,7 +290,6 @@ class _Editor:
         :data:`_DIRECTIONS` normals spread over the sphere (a Fibonacci lattice).
         """
         cc = self.centroid[c]
-        normals = [_newell(self.coords(loop)) for k, loop in zip(faces, loops, strict=True)]
         pieces = np.array([v for k, v in zip(faces, normals, strict=True) if self.neighbour[k] < 0])
         planes = []
         if len(pieces):
@@ -301,7 +306,9 @@ class _Editor:
         planes += [(normal, cc) for normal in spread]
         return planes
 
-    def own_planes(self, faces: list[int], loops: list[list[int]], worst: list[int]) -> list[Plane]:
+    def own_planes(
+        self, loops: list[list[int]], normals: list[NDArray[np.float64]], worst: list[int]
+    ) -> list[Plane]:
         """The planes of the faces ``worst`` (indices into ``faces``), just in front of them.
 
         For a small piece at a reflex edge of the surface, whose cell wraps around the
@@ -314,10 +321,9 @@ class _Editor:
         size = float(np.ptp(xyz, axis=0).max())
         planes = []
         for j in worst:
-            pts = self.coords(loops[j])
-            normal = _newell(pts)
-            normal = normal / np.linalg.norm(normal)
-            planes += [(normal, pts.mean(axis=0) + t * size * normal) for t in _IN_FRONT]
+            normal = normals[j] / np.linalg.norm(normals[j])
+            centre = self.coords(loops[j]).mean(axis=0)
+            planes += [(normal, centre + t * size * normal) for t in _IN_FRONT]
         return planes
 
     def apply_and_fix(self, c: int, faces: list[int], cut: Cut, depth: int) -> None:
@@ -347,7 +353,12 @@ class _Editor:
         return False
 
     def candidates(
-        self, c: int, faces: list[int], loops: list[list[int]], worst: int
+        self,
+        c: int,
+        faces: list[int],
+        loops: list[list[int]],
+        normals: list[NDArray[np.float64]],
+        worst: int,
     ) -> list[Plane]:
         """Planes to try on cell ``c``: across the line from its centre to its worst face.
 
@@ -357,17 +368,11 @@ class _Editor:
         Then the planes through the cell's centre across its principal axes.
         """
         cc = self.centroid[c]
-        pts = self.coords(loops[worst])
-        fc = pts.mean(axis=0)
-        n = _newell(pts)
-        n = n / np.linalg.norm(n)
+        fc = self.coords(loops[worst]).mean(axis=0)
+        n = normals[worst] / np.linalg.norm(normals[worst])
         cpf = fc - cc
         tangential = cpf - (n @ cpf) * n
-        boundary = [
-            _newell(self.coords(loop))
-            for k, loop in zip(faces, loops, strict=True)
-            if self.neighbour[k] < 0
-        ]
+        boundary = [v for k, v in zip(faces, normals, strict=True) if self.neighbour[k] < 0]
         mean = np.sum(boundary, axis=0) if boundary else n
         mean = mean / (np.linalg.norm(mean) or 1.0)
         flat = tangential - (mean @ tangential) * mean
