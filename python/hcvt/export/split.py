@@ -250,8 +250,8 @@ class _Editor:
         # Each face's Newell vector, once: every plane below is aimed with them.
         normals = [_newell(self.coords(loop)) for loop in loops]
         planes = [p for k in now[2] for p in self.candidates(c, faces, loops, normals, k)]
-        planes += self.own_planes(loops, normals, now[2])
-        tried = self.try_planes(c, faces, loops, planes)
+        behind = self.try_planes(c, faces, loops, self.own_planes(loops, normals, now[2]))
+        tried = sorted(self.try_planes(c, faces, loops, planes) + behind, key=self.rank)
         if not tried or tried[0].worst >= now[1]:
             more = self.more_planes(c, faces, normals)
             tried += self.try_planes(c, faces, loops, more)
@@ -266,8 +266,6 @@ class _Editor:
                 cut for cut in tried if target not in cut.failing_sources or cut.worst != now[1]
             ]
             moved.sort(key=lambda cut: (target in cut.failing_sources, cut.worst))
-            own = self.own_planes(loops, normals, now[2])
-            behind = self.try_planes(c, faces, loops, own)
             chosen = behind + moved[: self.look_ahead_width]
             if not self.look_ahead(c, faces, chosen, now[1], depth):
                 self.stuck[c] = faces
