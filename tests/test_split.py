@@ -190,5 +190,5 @@ def test_split_passes_checkmesh_on_a_converged_cheese_cvt(tmp_path):
     domain = hcvt.load_domain(DATA / "3d" / "cheese.off")
     total = _figure(log, rf"Total volume = {NUM}")
     print(f"total volume {total!r}, input mesh {domain.volume!r}")
-    assert abs(total / domain.volume - 1) < 1e-6
+    assert abs(total / domain.volume - 1) < 1e-9  # measured +8.9e-11
     assert abs(split["volume_total_relative_change"] - (total / domain.volume - 1)) < 1e-12
