@@ -8,7 +8,7 @@ case (bunny 50k, cheese 10k by default) it
    keeps its sites in ``--cache`` (``<name>_<n>_newton.npy`` and ``.json``): a later run
    reads them and reprints the seconds the converging run took;
 2. writes the conforming mesh as an OpenFOAM case three times, ``boundary_faces="exact"``,
-   ``"merged"`` (:mod:`hcvt.export.merge`) and ``"split"`` (:mod:`hcvt.export.split`:
+   ``"merged"`` (:mod:`hcvt.mesh.merge`) and ``"split"`` (:mod:`hcvt.mesh.split`:
    cells cut by planes, then any face no cut fixed merged), timing the merge, the split
    and the writing;
 3. runs ``checkMesh`` on each and prints its verdict, its failed checks, its max
@@ -47,8 +47,8 @@ from hcvt.export import (
     split_failing_cells,
     write_openfoam,
 )
-from hcvt.initialisation import initialise
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.polymesh import PolyMesh
+from hcvt.seeding.initialisation import initialise
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
 NUM = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
@@ -87,13 +87,13 @@ def merge_every_region(mesh: PolyMesh, domain: hcvt.Domain) -> tuple[PolyMesh, i
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from hcvt.export.merge import (
+    from hcvt.mesh.merge import (
         boundary_adjacency,
         failing_boundary_faces,
         merge_boundary_faces,
         outlines,
     )
-    from hcvt.export.patches import boundary_patches
+    from hcvt.mesh.patches import boundary_patches
 
     patch, _ = boundary_patches(mesh, domain)
     a, b = boundary_adjacency(mesh, patch)
@@ -123,9 +123,9 @@ def volume_change(label: str, exact: np.ndarray, volume: np.ndarray, domain: flo
 
 def search_partitions(mesh: PolyMesh, domain: hcvt.Domain, cell: int, trials: int = 1500) -> str:
     """Random partitions of ``cell``'s pieces into 2-4 connected groups: how many pass."""
-    from hcvt.export.merge import boundary_adjacency, outlines
-    from hcvt.export.patches import boundary_patches
-    from hcvt.export.quality import SKEWNESS_LIMIT, face_quality
+    from hcvt.mesh.merge import boundary_adjacency, outlines
+    from hcvt.mesh.patches import boundary_patches
+    from hcvt.mesh.quality import SKEWNESS_LIMIT, face_quality
 
     patch, _ = boundary_patches(mesh, domain)
     a, b = boundary_adjacency(mesh, patch)

@@ -44,7 +44,7 @@ from scipy.optimize import minimize
 from scipy.spatial import Voronoi
 
 import hcvt
-from hcvt import shapes
+from hcvt.geometry import shapes
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 TOL = 1e-10  # the paper's rule, input coordinates

@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from hcvt.export import mesh_quality, write_openfoam, write_vtu
-from hcvt.export.vtu import _split_for_vtk
-from hcvt.polymesh import PolyMesh
+from hcvt.io.vtu import _split_for_vtk
+from hcvt.mesh.polymesh import PolyMesh
 from timing import median_seconds
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

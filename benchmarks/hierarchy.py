@@ -26,7 +26,7 @@ import time
 import hcvt
 from hcvt.experiments import PAPER
 from hcvt.experiments.table8 import DEFAULT_RULE
-from hcvt.shapes import builtin_domain
+from hcvt.geometry.shapes import builtin_domain
 
 
 def seconds(run, repeat: int) -> tuple[float, object]:

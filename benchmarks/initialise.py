@@ -29,7 +29,7 @@ import numpy as np
 import hcvt
 from timing import median_seconds
 
-init = importlib.import_module("hcvt.initialisation")
+init = importlib.import_module("hcvt.seeding.initialisation")
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 DOMAINS = {

@@ -23,9 +23,9 @@ import time
 from pathlib import Path
 
 import hcvt
-from hcvt import shapes
-from hcvt.distributed import partitioned_voronoi
-from hcvt.export.vtu import write_vtu
+from hcvt.distributed.driver import partitioned_voronoi
+from hcvt.geometry import shapes
+from hcvt.io.vtu import write_vtu
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 if not DATA.is_dir():

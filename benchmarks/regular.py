@@ -25,7 +25,7 @@ import statistics
 import time
 
 import hcvt
-from hcvt import shapes
+from hcvt.geometry import shapes
 
 # (name, domain, n, moves)
 CASES = [

@@ -33,12 +33,12 @@ import time
 
 import numpy as np
 
-from hcvt import shapes
-from hcvt.distributed import partitioned_cvt, partitioned_voronoi
+from hcvt.distributed.driver import partitioned_cvt, partitioned_voronoi
+from hcvt.geometry import shapes
 
 CHILD = """
 import sys, time, numpy as np, hcvt
-from hcvt import shapes
+from hcvt.geometry import shapes
 def hwm():
     for line in open("/proc/self/status"):
         if line.startswith("VmHWM:"):

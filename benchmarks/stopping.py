@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import hcvt
-from hcvt import shapes
+from hcvt.geometry import shapes
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 THRESHOLDS = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8)

@@ -7,7 +7,7 @@
   vertices welded into shared points. Every face lies on a bisector plane or on a domain
   triangle's plane, so Σ volume equals the domain's volume to round-off.
 
-Each returns a :class:`hcvt.polymesh.PolyMesh` in the contract's layout (owner < neighbour is
+Each returns a :class:`hcvt.mesh.PolyMesh` in the contract's layout (owner < neighbour is
 *not* imposed: the exporters must order faces themselves).
 """
 
@@ -20,7 +20,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import HalfspaceIntersection, cKDTree
 
 import hcvt
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.polymesh import PolyMesh
 
 
 def box_domain(lo=(0.0, 0.0, 0.0), hi=(1.0, 1.0, 1.0)) -> hcvt.Domain:

@@ -39,8 +39,8 @@ EXPECTED = {
 FILES = sorted(p.relative_to(DATA).as_posix() for p in DATA.glob("[23]d/bad/*.*"))
 needs_data = pytest.mark.skipif(not FILES, reason="../shared/data not found")
 needs_cvt = pytest.mark.skipif(
-    importlib.util.find_spec("hcvt.initialisation") is None,
-    reason="hcvt run needs hcvt.initialisation and hcvt.optimise (not on this branch yet)",
+    importlib.util.find_spec("hcvt.seeding.initialisation") is None,
+    reason="hcvt run needs hcvt.seeding.initialisation and hcvt.optimise (not on this branch yet)",
 )
 
 

@@ -1,4 +1,4 @@
-"""The global Monte-Carlo baseline of Lu et al. (2012), as reconstructed in hcvt.baselines."""
+"""The global Monte-Carlo baseline of Lu et al. (2012), as in hcvt.seeding.baselines."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt.shapes import square
+from hcvt.geometry.shapes import square
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +46,8 @@ def test_rejected_updates_found_no_lower_minimum(square_run):
 
 
 def test_perturbed_sites_stay_inside_a_non_convex_domain():
-    from hcvt.baselines import perturb
-    from hcvt.shapes import star
+    from hcvt.geometry.shapes import star
+    from hcvt.seeding.baselines import perturb
 
     domain = star()
     sites = hcvt.initialise(domain, 500, method="random", seed=0)

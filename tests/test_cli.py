@@ -104,7 +104,7 @@ def test_bad_input_is_one_line_and_exit_2(args, message, tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("path", BAD_POLYGON_FILES, ids=lambda p: p.stem)
 def test_bad_polygon_files_fail_cleanly_or_are_normalised(path):
-    from hcvt.io import read_polygon
+    from hcvt.io.readers import read_polygon
 
     result = CliRunner().invoke(main, ["run", str(path), "-n", "50", "--method", "lloyd"])
     assert "Traceback" not in result.output

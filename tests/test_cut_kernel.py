@@ -1,7 +1,7 @@
-"""The split's kernel in the core (hcvt.export._cut_kernel) against the whole-mesh check.
+"""The split's kernel in the core (hcvt.mesh.cut) against the whole-mesh check.
 
 The search trusts the core's figures for a cut's parts; the final check is
-``split.failing_faces`` on the whole mesh (numpy, ``hcvt.export.quality``). On real
+``split.failing_faces`` on the whole mesh (numpy, ``hcvt.mesh.quality``). On real
 boundary cells of the bunny and of the cheese (which has holes), each cut applied must give
 a mesh whose parts fail exactly the faces, and have exactly the centres and volumes, the core
 predicted. (The kernel replaced a Python version of itself; it matched it bit for bit on
@@ -16,8 +16,8 @@ import pytest
 import hcvt
 from hcvt import _core
 from hcvt.errors import InvalidMeshError
-from hcvt.export._cut_kernel import cut_by_planes
-from hcvt.export.split import _Editor, _Journal, _newell, failing_faces
+from hcvt.mesh.cut import cut_by_planes
+from hcvt.mesh.split import Editor, _Journal, _newell, failing_faces
 from helpers import DATA, random_inside
 
 #: Failing cells tried per domain.
@@ -28,7 +28,7 @@ CELLS = 12
 def test_the_cores_cut_is_what_the_mesh_then_measures(name: str) -> None:
     domain = hcvt.load_domain(DATA / "3d" / name)
     mesh = hcvt.voronoi(domain, random_inside(domain, 300, seed=5)).mesh()
-    editor = _Editor(mesh)
+    editor = Editor(mesh)
     bad = failing_faces(mesh)
     cells = np.unique(mesh.owner[bad]).tolist()
     checked = 0

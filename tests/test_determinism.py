@@ -88,7 +88,7 @@ def _in_threads(n: int, run):
 
 @pytest.mark.parametrize("shape", ["star", "ball"])
 def test_cvt_hierarchy_and_initialisations_do_not_depend_on_threads(shape):
-    from hcvt.shapes import builtin_domain
+    from hcvt.geometry.shapes import builtin_domain
 
     domain = builtin_domain(shape)
     n = 600 if domain.dim == 2 else 200

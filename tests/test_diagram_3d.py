@@ -252,7 +252,7 @@ def test_cells_are_closed_outward_and_export(
     piece = ET.parse(vtu).getroot().find("UnstructuredGrid/Piece")
     assert piece is not None and int(piece.get("NumberOfCells")) == d.n
     names = {a.get("Name") for a in piece.iter("DataArray")}
-    assert {"id", "G", "volume", "faces", "faceoffsets"} <= names
+    assert {"site", "G", "volume", "faces", "faceoffsets"} <= names
 
     ply = hcvt.io.write_cells(d, tmp_path / "cells.ply")
     mesh = trimesh.load(ply, process=False)

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt import partition as pt
-from hcvt import shapes
-from hcvt.distributed import partitioned_cvt, partitioned_voronoi, two_loop
+from hcvt.distributed import partition as pt
+from hcvt.distributed.driver import partitioned_cvt, partitioned_voronoi, two_loop
+from hcvt.geometry import shapes
 
 distributed = pytest.importorskip("dask.distributed")
 
@@ -281,7 +281,7 @@ def test_restarts_resume_after_a_loss_and_never_after_bad_input():
     loss, the domain is scattered again and the attempt resumes from the saved state, at
     most MAX_RESTARTS times in a run; bad input and a run without a checkpoint raise at
     once."""
-    from hcvt.distributed import MAX_RESTARTS, _Restarts
+    from hcvt.distributed.driver import MAX_RESTARTS, _Restarts
 
     class Cluster:
         scattered = 0

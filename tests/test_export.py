@@ -32,9 +32,9 @@ from hcvt.export import (
     write_openfoam,
     write_vtu,
 )
-from hcvt.export.merge import merge_boundary_faces, outlines
-from hcvt.export.vtu import _split_for_vtk
-from hcvt.polymesh import PolyMesh
+from hcvt.io.vtu import _split_for_vtk
+from hcvt.mesh.merge import merge_boundary_faces, outlines
+from hcvt.mesh.polymesh import PolyMesh
 from helpers import DATA, random_inside
 
 pv = pytest.importorskip("pyvista")
@@ -266,7 +266,7 @@ def test_boundary_components_become_patches():
     two = hcvt.Domain.from_mesh(
         np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
     )
-    from hcvt.export.patches import _components
+    from hcvt.mesh.patches import _components
 
     count, label = _components(two)
     assert count == 2 and list(label) == [0] * 12 + [1] * 12

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt.hierarchy import max_subdivisions, schedule, subdivide
+from hcvt.seeding.hierarchy import max_subdivisions, schedule, subdivide
 
 G_HEXAGON = 5.0 / (36.0 * np.sqrt(3.0))
 
@@ -110,7 +110,7 @@ def test_subdividing_a_bcc_lattice_gives_the_finer_bcc_lattice():
     ],
 )
 def test_every_level_has_exactly_the_scheduled_count(shape, n, s, edges):
-    from hcvt.shapes import builtin_domain
+    from hcvt.geometry.shapes import builtin_domain
 
     domain = builtin_domain(shape)
     result = hcvt.hierarchical_cvt(domain, n, s, init="random", seed=1, edges=edges)
@@ -132,7 +132,7 @@ def test_regularity_on_the_square_meets_the_paper():
     # random sites (s = 4) 0.08086, from a lattice (s = 1) 0.08077. Ours: random + L-BFGS
     # 0.08092-0.08106 over seeds 0-7 (tests/test_optimise.py), hierarchical 0.08080 over 24
     # seeds and 0.080745 from the lattice (deterministic).
-    from hcvt.shapes import square
+    from hcvt.geometry.shapes import square
 
     domain = square()
     hier = [hcvt.hierarchical_cvt(domain, 1033, 4, seed=k).diagram.mean_G for k in range(10)]
@@ -146,7 +146,7 @@ def test_regularity_on_the_square_meets_the_paper():
 
 
 def test_history_has_the_shape_of_a_cvt_history_and_a_callback_can_stop():
-    from hcvt.shapes import square
+    from hcvt.geometry.shapes import square
 
     domain = square()
     levels = []
@@ -168,7 +168,7 @@ def test_history_has_the_shape_of_a_cvt_history_and_a_callback_can_stop():
 
 
 def test_rng_takes_a_seed_or_a_generator_as_numpy_does():
-    from hcvt.shapes import star
+    from hcvt.geometry.shapes import star
 
     domain = star()
     for method in ("random", "halton", "lattice"):

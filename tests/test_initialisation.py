@@ -18,10 +18,10 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
 import hcvt
-from hcvt.initialisation import LatticeResult, initialise, lattice
+from hcvt.seeding.initialisation import LatticeResult, initialise, lattice
 from helpers import DATA, POLYGON_FILES
 
-init = importlib.import_module("hcvt.initialisation")
+init = importlib.import_module("hcvt.seeding.initialisation")
 MESH_FILES = sorted(p for p in (DATA / "3d").glob("*.*") if p.suffix in {".obj", ".off", ".ply"})
 needs_data = pytest.mark.skipif(not POLYGON_FILES, reason="../shared/data not found")
 _DOMAINS: dict[Path, hcvt.Domain] = {}
@@ -242,7 +242,7 @@ def test_public_names() -> None:
     import types
 
     # issue 16: `hcvt.initialise` is a function only, with no attributes patched on; the
-    # module is `hcvt.initialisation`.
+    # module is `hcvt.seeding.initialisation`.
     assert isinstance(hcvt.initialise, types.FunctionType)
     assert hcvt.initialise is init.initialise and not hasattr(hcvt.initialise, "lattice")
     assert isinstance(init, types.ModuleType) and init.lattice is lattice

@@ -14,7 +14,7 @@ import pytest
 import trimesh
 
 import hcvt
-from hcvt import mesh
+from hcvt.geometry import repair as mesh
 from helpers import DATA
 
 MESHES = sorted(p for p in (DATA / "3d").glob("*.*") if p.suffix in {".off", ".obj", ".ply"})

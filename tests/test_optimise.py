@@ -15,7 +15,7 @@ import pytest
 import shapely
 
 import hcvt
-from hcvt import shapes
+from hcvt.geometry import shapes
 from helpers import DATA, random_inside
 
 BALL = DATA / "3d" / "sphere.ply"

@@ -1,4 +1,4 @@
-"""A partitioned diagram's cells as VTU pieces and a .pvtu index (hcvt.partition_mesh).
+"""A partitioned diagram's cells as VTU pieces and a .pvtu index (hcvt.distributed.partition_mesh).
 
 A LocalCluster of 2 worker *processes* (one thread each): every piece is made and written
 by the worker holding its part. Each piece's faces, read back by VTK (pyvista), are those
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt import partition as pt
-from hcvt import partition_mesh as pm
-from hcvt.distributed import partitioned_voronoi
-from hcvt.export.vtu import _split_for_vtk
+from hcvt.distributed import partition as pt
+from hcvt.distributed import partition_mesh as pm
+from hcvt.distributed.driver import partitioned_voronoi
+from hcvt.io.vtu import _split_for_vtk
 
 distributed = pytest.importorskip("dask.distributed")
 pv = pytest.importorskip("pyvista")

@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 import hcvt
 from hcvt import _core
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.polymesh import PolyMesh
 from helpers import DATA, random_inside
 
 DATA_3D = DATA / "3d"

@@ -10,8 +10,9 @@ from click.testing import CliRunner
 
 import hcvt
 from hcvt.cli import main
-from hcvt.regular import posed_lattice, relax_defects
-from hcvt.shapes import square
+from hcvt.geometry import shapes
+from hcvt.geometry.shapes import square
+from hcvt.seeding.regular import posed_lattice, relax_defects
 from helpers import DATA
 
 # The paper's row (f) of Table 4, posed by hand: 35 rows parallel to x, spaced 20/35, of 30
@@ -81,15 +82,15 @@ def test_regular_beats_hierarchical_on_a_real_polygon():
 
 
 def test_posed_lattice_is_exact_and_ranked():
-    poses = posed_lattice(hcvt.shapes.star(), 300, seed=1, orientations=4, offsets=2, refine=1)
+    poses = posed_lattice(shapes.star(), 300, seed=1, orientations=4, offsets=2, refine=1)
     energies = [p.energy for p in poses]
     assert energies == sorted(energies)
     assert all(p.sites.shape == (300, 2) for p in poses)
-    assert energies[0] == pytest.approx(hcvt.voronoi(hcvt.shapes.star(), poses[0].sites).energy)
+    assert energies[0] == pytest.approx(hcvt.voronoi(shapes.star(), poses[0].sites).energy)
 
 
 def test_regular_cvt_is_deterministic_and_3d_runs():
-    ball = hcvt.shapes.ball()
+    ball = shapes.ball()
     kwargs = dict(seed=3, orientations=2, offsets=2, refine=1, finalists=1, moves=2)
     a = hcvt.regular_cvt(ball, 150, **kwargs)
     b = hcvt.regular_cvt(ball, 150, rng=3, **{k: v for k, v in kwargs.items() if k != "seed"})

@@ -12,9 +12,9 @@ import pytest
 
 import hcvt
 from hcvt.export import merged_boundary, split_boundary, split_failing_cells, write_vtu
-from hcvt.export import split as split_module
-from hcvt.export._cut_kernel import cut_by_planes
-from hcvt.export.split import _Editor, failing_faces
+from hcvt.mesh import split as split_module
+from hcvt.mesh.cut import cut_by_planes
+from hcvt.mesh.split import Editor, failing_faces
 from helpers import DATA, random_inside
 from test_export import NUM, _figure, _vtk_cell_volumes, passing_case
 
@@ -30,7 +30,7 @@ def bunny_diagram() -> hcvt.Diagram:
 
 def _cut(mesh, cell, normal):
     """``mesh`` with ``cell`` cut by the plane through its centroid across ``normal``."""
-    editor = _Editor(mesh)
+    editor = Editor(mesh)
     faces = sorted(editor.cell_faces[cell])
     loops = [editor.outward(cell, k) for k in faces]
     centre = mesh.cell_geometry.centroid[cell]
@@ -77,7 +77,7 @@ def test_a_cut_keeps_the_mesh_conforming_and_each_sites_volume(bunny_diagram, tm
 
 def test_a_plane_missing_the_cell_is_no_cut(bunny_diagram):
     mesh = bunny_diagram.mesh()
-    editor = _Editor(mesh)
+    editor = Editor(mesh)
     faces = sorted(editor.cell_faces[0])
     loops = [editor.outward(0, k) for k in faces]
     far = mesh.cell_geometry.centroid[0] + [1e3, 0, 0]

@@ -5,26 +5,34 @@ The public API (DESIGN §1): :class:`Domain` and :func:`load_domain` build domai
 centroidal Voronoi tessellation.
 """
 
+import importlib
 from typing import TYPE_CHECKING, Any
 
 from hcvt import density, io
 from hcvt._core import get_num_threads, set_num_threads
-from hcvt.baselines import MonteCarloResult, global_monte_carlo
+from hcvt.api import cvt, voronoi
 from hcvt.density import Polynomial, SizingField
-from hcvt.diagram import Diagram, voronoi
-from hcvt.domain import Domain, RepairReport
+from hcvt.diagram import Diagram
 from hcvt.errors import (
     InvalidDensityError,
     InvalidDomainError,
     InvalidMeshError,
     InvalidSitesError,
 )
-from hcvt.export import write_mesh
-from hcvt.hierarchy import HierarchicalResult, hierarchical_cvt
-from hcvt.initialisation import LatticeResult, initialise
-from hcvt.io import load_domain, write_cells
-from hcvt.optimise import CVTResult, cvt
-from hcvt.regular import RegularResult, defects, regular_cvt
+from hcvt.geometry import Domain, RepairReport
+from hcvt.io import load_domain, write_cells, write_mesh
+from hcvt.optimise import CVTResult
+from hcvt.seeding import (
+    HierarchicalResult,
+    LatticeResult,
+    MonteCarloResult,
+    RegularResult,
+    defects,
+    global_monte_carlo,
+    hierarchical_cvt,
+    initialise,
+    regular_cvt,
+)
 
 __all__ = [
     "CVTResult",
@@ -67,7 +75,5 @@ def __getattr__(name: str) -> Any:
     # `hcvt.plot` imports matplotlib on first use only (PEP 562): `import hcvt` must not
     # pull it in, nor touch the backend.
     if name == "plot":
-        import importlib
-
         return importlib.import_module("hcvt.plot")
     raise AttributeError(f"module 'hcvt' has no attribute {name!r}")

@@ -99,15 +99,15 @@ def voronoi_3d(
     quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 
-# Conforming mesh dicts (hcvt.polymesh.PolyMesh): points (p, d), face_offsets (f+1,),
+# Conforming mesh dicts (hcvt.mesh.polymesh.PolyMesh): points (p, d), face_offsets (f+1,),
 # face_vertices, owner, neighbour, boundary_element (intp), open_chains (int).
 def mesh_2d(
     domain: PolygonDomain, sites: _Float2, allow_outside: bool = False
 ) -> dict[str, Any]: ...
 def mesh_3d(domain: SolidDomain, sites: _Float2, allow_outside: bool = False) -> dict[str, Any]: ...
 
-# A part's mesh dicts (hcvt.partition_mesh): a mesh dict of the own cells' faces, owner and
-# neighbour indexing the sites given, plus computed (c,) intp and reach2 (c,).
+# A part's mesh dicts (hcvt.distributed.partition_mesh): a mesh dict of the own cells' faces,
+# owner and neighbour indexing the sites given, plus computed (c,) intp and reach2 (c,).
 def mesh_part_2d(
     domain: PolygonDomain,
     sites: _Float2,
@@ -179,7 +179,7 @@ def cvt_3d(
     quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
 
-# The split's kernel (hcvt.export._cut_kernel): indices int64, -1 for "none". A region's
+# The split's kernel (hcvt.mesh.cut): indices int64, -1 for "none". A region's
 # measure: bad (f,) bool, badness (f,), volumes (parts,), centroids (parts, 3), or None if
 # a part has no positive volume. A cell cut by each of the planes: a dict of tried (int),
 # per cut made plane, parts, failing, worst, oblique, and flat arrays with per-cut

@@ -13,6 +13,7 @@ hcvt reproduce table4 --runs 10 --out results
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import json
 import os
 import sys
@@ -24,6 +25,14 @@ from typing import Any
 import click
 import numpy as np
 
+import hcvt
+from hcvt import plot as pictures
+from hcvt.density import Polynomial, SizingField
+from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt, partitioned_voronoi
+from hcvt.experiments import reproduce as run_experiment
+from hcvt.geometry.shapes import BUILTIN, builtin_domain
+from hcvt.lazy import load
+from hcvt.mesh import merged_boundary, mesh_quality, split_boundary
 from hcvt.optimise import RULES, default_tol
 
 METHODS = ("hierarchical", "regular", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
@@ -51,8 +60,6 @@ def main() -> None:
 
 
 def _load(input_: str, repair: bool):
-    import hcvt
-    from hcvt.shapes import BUILTIN, builtin_domain
 
     if input_ in BUILTIN:
         return builtin_domain(input_)
@@ -184,8 +191,6 @@ def run(
     quadrature_degree: int,
 ) -> None:
     """CVT of N sites in INPUT: a built-in shape (square, star, ...) or a polygon/mesh file."""
-    import hcvt
-
     if scheduler is not None and method not in PARTITIONED:
         raise click.UsageError(
             f"--scheduler runs the methods {', '.join(PARTITIONED)}, not {method!r}"
@@ -327,9 +332,6 @@ def _write_meshes(
     faces merged and the change of total volume against the exact mesh. With ``split``
     they are the split mesh's, beside ``split_cells``: the cuts and cells made.
     """
-    import hcvt
-    from hcvt.export import merged_boundary, mesh_quality, split_boundary
-
     info: dict[str, Any] = {}
     suffix = Path(cells_path).suffix.lower() if cells_path else ""
     cells_from_mesh = suffix in (".vtu", ".geojson", ".json")
@@ -405,11 +407,8 @@ def _voronoi(domain: Any, sites: Any, cells_pvtu: str | None = None, **kwargs: A
     Its cells are then written as pieces by the workers first
     (:meth:`hcvt.distributed.PartitionedDiagram.write_cells`), and the diagram gathered.
     """
-    import hcvt
-
     if cells_pvtu is None:
         return hcvt.voronoi(domain, sites, **kwargs)
-    from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_voronoi
 
     per_part = kwargs.pop("sites_per_partition") or DEFAULT_SITES_PER_PARTITION
     parted = partitioned_voronoi(domain, sites, sites_per_partition=per_part, **kwargs)
@@ -423,11 +422,8 @@ def _cvt(domain: Any, sites: Any, cells_pvtu: str | None = None, **kwargs: Any) 
     The final diagram's cells are then written as pieces by the workers first (as
     :func:`_voronoi`), and the result gathered.
     """
-    import hcvt
-
     if cells_pvtu is None:
         return hcvt.cvt(domain, sites, **kwargs)
-    from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt
 
     per_part = kwargs.pop("sites_per_partition") or DEFAULT_SITES_PER_PARTITION
     result = partitioned_cvt(domain, sites, sites_per_partition=per_part, **kwargs)
@@ -442,8 +438,8 @@ PARTITIONED = ("voronoi", "lbfgs", "lloyd")
 @contextlib.contextmanager
 def _client(scheduler: str) -> Iterator[Any]:
     """A dask client of ``scheduler``, or of a LocalCluster (one worker process per core)."""
-    from dask.distributed import Client, LocalCluster
-
+    dask_distributed = load("dask.distributed")
+    Client, LocalCluster = dask_distributed.Client, dask_distributed.LocalCluster  # noqa: N806
     if scheduler == "local":
         workers = os.cpu_count() or 1
         with (
@@ -460,8 +456,6 @@ def _client(scheduler: str) -> Iterator[Any]:
 
 def _density(spec: str | None, sizing: str | None, dim: int) -> Any:
     """The density of ``--density`` or ``--sizing``, or None."""
-    from hcvt.density import Polynomial, SizingField
-
     if spec is not None and sizing is not None:
         raise ValueError("give --density or --sizing, not both")
     if sizing is not None:
@@ -475,8 +469,6 @@ def _density(spec: str | None, sizing: str | None, dim: int) -> Any:
 
 def _function(spec: str) -> Any:
     """The function NAME of ``FILE.py:NAME``, imported from the user's file."""
-    import importlib.util
-
     path, _, name = spec.rpartition(":")
     if not path.endswith(".py") or not name:
         raise ValueError(f"expected FILE.py:NAME, got {spec!r}")
@@ -511,13 +503,12 @@ def _write_sites(path: Path, sites: np.ndarray) -> None:
 
 
 def _plot(diagram: Any, path: str) -> None:
-    from hcvt import plot
 
     if diagram.domain.dim == 2:
-        ax = plot.plot_cells(diagram, show_defects=True)
+        ax = pictures.plot_cells(diagram, show_defects=True)
     else:
-        ax = plot.plot_cut(diagram)
-    plot.save(ax, path)
+        ax = pictures.plot_cut(diagram)
+    pictures.save(ax, path)
 
 
 @main.command()
@@ -525,8 +516,6 @@ def _plot(diagram: Any, path: str) -> None:
 @click.option("--plot", type=click.Path(dir_okay=False), required=True, help="PNG to write.")
 def show(summary: str, plot: str) -> None:
     """Picture of a saved result: a summary JSON written by ``hcvt run --summary``."""
-    import hcvt
-
     info = json.loads(Path(summary).read_text())
     if "sites" not in info:
         raise ValueError(f"{summary} has no sites file; run with --out and --summary")
@@ -551,13 +540,9 @@ def reproduce(experiment: str, runs: int, quick: bool, scheduler: str | None, ou
 
     Writes OUT/EXPERIMENT.md (ours beside the paper's), OUT/EXPERIMENT.csv and the figures.
     """
-    from rich.progress import Progress
-
-    from hcvt.experiments import reproduce as run_experiment
-
     if runs < 1:
         raise ValueError(f"--runs must be at least 1, got {runs}")
-    with Progress(transient=True) as bar:
+    with load("rich.progress").Progress(transient=True) as bar:
         tasks: dict[str, Any] = {}
 
         def step(name: str, done: int, total: int) -> None:

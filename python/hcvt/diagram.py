@@ -10,11 +10,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
 from hcvt import _core
-from hcvt.cells import polygons, triangulated
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
-from hcvt.domain import Domain
 from hcvt.errors import InvalidSitesError
-from hcvt.polymesh import PolyMesh
+from hcvt.geometry.domain import Domain
+from hcvt.io.writers import to_pyvista
+from hcvt.mesh.cells import polygons, triangulated
+from hcvt.mesh.polymesh import PolyMesh
 
 # Faces shorter (2D) or smaller (3D) than this fraction of h^(d-1), h = (V/n)^(1/d), are
 # not restricted Delaunay edges: lattices produce faces of zero measure up to round-off.
@@ -87,6 +88,8 @@ class Diagram:
         sites: NDArray[np.float64],
         arrays: dict[str, Any],
         density: DensityLike = None,
+        *,
+        allow_outside: bool = False,
     ):
         self.domain = domain
         self.sites = sites
@@ -103,7 +106,7 @@ class Diagram:
         self.neighbor_offsets: NDArray[np.intp] = arrays["neighbor_offsets"]
         self.neighbor_sites: NDArray[np.intp] = arrays["neighbor_sites"]
         self.neighbor_measures: NDArray[np.float64] = arrays["neighbor_measures"]
-        self._allow_outside = bool(arrays.get("_allow_outside", False))
+        self._allow_outside = allow_outside
         self._mesh: PolyMesh | None = None
 
     @property
@@ -217,10 +220,8 @@ class Diagram:
 
         For interactive viewing (``diagram.to_pyvista().plot()``); cell data ``site``,
         ``volume``, ``G``. Needs pyvista, an optional extra (``pip install 'hcvt[viz]'``),
-        and ``Diagram.mesh()``. See :func:`hcvt.export.to_pyvista`.
+        and ``Diagram.mesh()``. See :func:`hcvt.io.to_pyvista`.
         """
-        from hcvt.export import to_pyvista
-
         return to_pyvista(self)
 
     def __repr__(self) -> str:
@@ -235,94 +236,20 @@ def voronoi(
     sites: ArrayLike,
     *,
     allow_outside: bool = False,
-    client: Any = None,
-    sites_per_partition: int | None = None,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> Diagram:
-    """Clipped Voronoi diagram of ``sites`` inside ``domain``, exact to round-off.
+    """The clipped Voronoi diagram of ``sites`` in ``domain``, in this process.
 
-    Parameters
-    ----------
-    domain : Domain
-        Polygon with holes (d = 2) or closed-mesh solid (d = 3); length unit L.
-    sites : array_like of float, shape (n, d)
-        Generator positions in L: finite, distinct, inside the domain (points on the
-        boundary count as inside). Copied to C-contiguous float64.
-    allow_outside : bool, default False
-        Accept sites outside the domain. The cell of such a site is the part of its Voronoi
-        cell inside the domain: possibly empty (volume 0, centroid = site, G = NaN) and
-        not containing the site. Such a site must lie within 64 times the smallest side of
-        the domain's bounding box: farther, its cell cannot be cut accurately (the error
-        grows as the distance squared).
-    client : dask.distributed.Client, optional
-        Compute the cells on its workers, the sites split into spatial parts of at most
-        ``sites_per_partition`` sites (default 200,000), each with a halo of nearby sites
-        grown until every cell is certified (:mod:`hcvt.distributed`); the cells are then
-        gathered here. Per-cell arrays are bitwise those of one process (with a
-        ``density`` too); ``energy`` is summed per part and agrees to round-off. For cells
-        that stay on the workers use :func:`hcvt.distributed.partitioned_voronoi`.
-    sites_per_partition : int, optional
-        With ``client``: the most sites one part holds (fixed by the data, not by the
-        number of workers).
-    density : Polynomial, SizingField or callable, optional
-        A density ρ > 0 (:mod:`hcvt.density`): ``mass``, ``centroid``, ``energy_terms``,
-        ``energy`` and ``gradient`` are then ρ-weighted, exactly for a polynomial of degree
-        ≤ 2; ``volume``, ``second_moment`` and ``G`` stay geometric. A constant density
-        gives the uniform diagram (``Polynomial(1.0)`` bitwise).
-    quadrature_degree : int, default 4
-        Degree (1 to 5) of the simplex rule that samples a callable density.
-
-    Returns
-    -------
-    Diagram
-        ``volume`` (n,), ``centroid`` (n, d), ``second_moment`` (n,), ``G`` (n,),
-        ``energy``, ``neighbors`` (k, 2), ``face_measures`` (k,), ``cells()``.
-
-    Raises
-    ------
-    ValueError
-        Bad shape or dtype, or n = 0.
-    InvalidDensityError
-        The density is not finite and positive where evaluated; the message names the point.
-    InvalidSitesError
-        Non-finite coordinates, coinciding sites, a site outside the domain (or, with
-        ``allow_outside``, too far outside it); the message names the first offending row.
-
-    Examples
-    --------
-    A 2 x 2 grid in the unit square: four squares of area 1/4, G = 1/12.
-
-    >>> import hcvt
-    >>> square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
-    >>> sites = [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75], [0.75, 0.75]]
-    >>> diagram = hcvt.voronoi(square, sites)
-    >>> diagram.volume
-    array([0.25, 0.25, 0.25, 0.25])
-    >>> diagram.G.round(6)
-    array([0.083333, 0.083333, 0.083333, 0.083333])
+    :func:`hcvt.voronoi` without ``client``, which documents the parameters.
     """
-    if client is not None:
-        from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_voronoi
-
-        per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION
-        return partitioned_voronoi(
-            domain,
-            sites,
-            client,
-            sites_per_partition=per_part,
-            allow_outside=allow_outside,
-            density=density,
-            quadrature_degree=quadrature_degree,
-        ).gather()
     points = as_sites(sites, domain.dim)
     compute = getattr(_core, f"voronoi_{domain.dim}d", None)
     if compute is None:
         raise NotImplementedError(f"no diagram for dimension {domain.dim} in this build")
     weighted = core_arguments(density, domain.dim, quadrature_degree)
     arrays = compute(domain._core, points, allow_outside=allow_outside, **weighted)
-    arrays["_allow_outside"] = allow_outside
-    return Diagram(domain, points, arrays, density)
+    return Diagram(domain, points, arrays, density, allow_outside=allow_outside)
 
 
 def as_sites(sites: ArrayLike, dim: int) -> NDArray[np.float64]:

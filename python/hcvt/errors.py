@@ -16,7 +16,7 @@ class InvalidSitesError(ValueError):
 
 
 class InvalidMeshError(ValueError):
-    """A :class:`hcvt.polymesh.PolyMesh` is not a conforming mesh (open cell, bad index, ...).
+    """A :class:`hcvt.mesh.polymesh.PolyMesh` is not a conforming mesh (open cell, bad index, ...).
 
     The message names the first offending cell or face.
     """

@@ -38,7 +38,8 @@ from numpy.typing import ArrayLike, NDArray
 from hcvt import _core
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
-from hcvt.domain import Domain
+from hcvt.geometry.domain import Domain
+from hcvt.lazy import load
 
 METHODS = ("lbfgs", "lloyd", "newton")
 RULES = ("gap", "paper")
@@ -52,6 +53,12 @@ def default_tol(rule: str) -> float:
     """The tolerance used for ``rule`` when none is given: 1e-7 (gap) or 1e-10 (paper)."""
     check_rule(rule)
     return GAP_TOL if rule == "gap" else PAPER_TOL
+
+
+def check_method(method: str) -> None:
+    """Raise ``ValueError`` unless ``method`` is one of :data:`METHODS`."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
 
 
 def check_rule(rule: str) -> None:
@@ -129,112 +136,14 @@ def cvt(
     memory: int = 7,
     callback: Callable[[dict[str, Any]], Any] | None = None,
     progress: bool = False,
-    client: Any = None,
-    sites_per_partition: int | None = None,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
 ) -> CVTResult:
-    """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``.
+    """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``, in this process.
 
-    Parameters
-    ----------
-    domain : Domain
-        Polygon (d = 2) or solid (d = 3); length unit L.
-    sites : array_like of float, shape (n, d)
-        Initial sites: finite, distinct, inside the domain. Not modified.
-    method : {"lbfgs", "newton", "lloyd"}
-        L-BFGS (memory ``memory``, strong-Wolfe line search, preconditioned so that its
-        first step is a Lloyd step; the paper's method), Newton (the exact Hessian from
-        the same diagram, truncated conjugate gradients in a trust region; 3-5x fewer
-        diagrams from random sites, see ``hcvt-core/src/optimise/newton.rs``; the Hessian
-        takes about 0.2 kB per site in 2D and 1.2 kB in 3D on top of the diagram) or Lloyd's
-        ``x_i <- c_i``.
-    rule : {"gap", "paper"}
-        Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
-        (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates
-        (``"paper"``, the paper's rule to the letter); module docs.
-    tol : float, optional
-        The rule's tolerance; default 1e-7 for ``"gap"``, the paper's 1e-10 for ``"paper"``.
-    max_iter : int
-        Stop after this many iterations.
-    memory : int
-        L-BFGS correction pairs kept.
-    callback : callable, optional
-        ``callback(info)`` after every iterate (the initial sites first), ``info`` a dict
-        with the history fields of that iterate and ``sites`` (n, d). Returning a true
-        value, or raising ``StopIteration`` as with scipy.optimize, stops the run
-        (``stop_reason == "interrupted"``).
-    progress : bool
-        Show a progress bar (rich) of the rule's value towards ``tol``.
-    client : dask.distributed.Client, optional
-        Run on its workers, the sites and their state split into spatial parts of at most
-        ``sites_per_partition`` sites (default 200,000) that stay there between iterations
-        (:mod:`hcvt.distributed`; ``"lbfgs"`` and ``"lloyd"`` only; the callback's info
-        then has no ``sites``). Lloyd is bitwise the single-process run; L-BFGS is bitwise
-        the same for any number of workers, not the single-process iterates; with a
-        ``density`` too.
-    sites_per_partition : int, optional
-        With ``client``: the most sites one part holds.
-    density : Polynomial, SizingField or callable, optional
-        A density ρ > 0 (:mod:`hcvt.density`): the energy becomes ``Σ ∫ ρ |x - x_i|²``,
-        Lloyd moves each site to its ρ-weighted centroid and L-BFGS follows the ρ-weighted
-        gradient; both rules apply unchanged (``h_i`` stays the geometric ``V_i^(1/d)``).
-        Newton's Hessian weighs its face terms by ρ on each face, exactly for a
-        :class:`~hcvt.density.Polynomial`; with a callable Newton is not offered
-        (InvalidDensityError). A callable is called once per diagram, with the GIL.
-    quadrature_degree : int, default 4
-        Degree (1 to 5) of the simplex rule that samples a callable density.
-
-    Returns
-    -------
-    CVTResult
-        ``sites``, ``diagram``, ``history``, ``rule``, ``tol``, ``converged``,
-        ``stop_reason``, ``iterations``, ``evaluations``, ``seconds``.
-
-    Raises
-    ------
-    ValueError
-        Unknown method or rule, negative tol, bad shape.
-    InvalidSitesError
-        Sites outside the domain, coinciding or non-finite; the message names the row.
-
-    Examples
-    --------
-    Four sites in the unit square converge to the 2 x 2 grid of squares, G = 1/12.
-
-    >>> import hcvt
-    >>> square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
-    >>> res = hcvt.cvt(square, [[0.2, 0.3], [0.7, 0.2], [0.3, 0.6], [0.8, 0.9]])
-    >>> res.converged, res.stop_reason
-    (True, 'converged')
-    >>> res.sites.round(6)
-    array([[0.25, 0.25],
-           [0.75, 0.25],
-           [0.25, 0.75],
-           [0.75, 0.75]])
-    >>> round(res.mean_G, 6)
-    0.083333
+    :func:`hcvt.cvt` without ``client``, which documents the parameters.
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    if client is not None:
-        from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt
-
-        return partitioned_cvt(
-            domain,
-            sites,
-            method,
-            client,
-            rule=rule,
-            tol=tol,
-            max_iter=max_iter,
-            memory=memory,
-            callback=callback,
-            progress=progress,
-            sites_per_partition=sites_per_partition or DEFAULT_SITES_PER_PARTITION,
-            density=density,
-            quadrature_degree=quadrature_degree,
-        ).gather()
+    check_method(method)
     tol = default_tol(rule) if tol is None else tol
     if not tol >= 0:
         raise ValueError(f"tol must be a number >= 0, got {tol!r}")
@@ -245,8 +154,8 @@ def cvt(
     run = getattr(_core, f"cvt_{domain.dim}d", None)
     if run is None:
         raise NotImplementedError(f"no CVT for dimension {domain.dim} in this build")
-    bar = _Progress(rule, tol) if progress else None
-    observe = _chain(callback, bar)
+    bar = ProgressBar(rule, tol) if progress else None
+    observe = chain_observers(callback, bar)
     try:
         out = run(
             domain._core,
@@ -278,8 +187,8 @@ def cvt(
     )
 
 
-def _chain(
-    callback: Callable[[dict[str, Any]], Any] | None, bar: _Progress | None
+def chain_observers(
+    callback: Callable[[dict[str, Any]], Any] | None, bar: ProgressBar | None
 ) -> Callable[[dict[str, Any]], bool] | None:
     """One observer for the core: the progress bar, then the user's callback."""
     if callback is None and bar is None:
@@ -302,7 +211,7 @@ def _chain(
 RULE_FIELDS = {"gap": ("rms_gap", "RMS gap"), "paper": ("grad_norm", "|g|/|X|")}
 
 
-class _Progress:
+class ProgressBar:
     """A rich progress bar of the deciding value ``v``: ``log(v0/v) / log(v0/tol)``.
 
     One line that fits 80 columns (a pipe's width to rich): ``CVT, RMS gap < 1e-07``, the
@@ -310,8 +219,12 @@ class _Progress:
     """
 
     def __init__(self, rule: str, tol: float) -> None:
-        from rich.progress import BarColumn, Progress, TextColumn
-
+        progress = load("rich.progress")
+        BarColumn, Progress, TextColumn = (  # noqa: N806 (rich's class names)
+            progress.BarColumn,
+            progress.Progress,
+            progress.TextColumn,
+        )
         self._field, label = RULE_FIELDS[rule]
         self._tol = max(tol, 1e-300)
         self._start: float | None = None

@@ -15,9 +15,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 import shapely
 from matplotlib.collections import PolyCollection
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from numpy.typing import ArrayLike
 
-from hcvt.diagram import Diagram
+from hcvt.density import grading_slope
+from hcvt.diagram import Diagram, voronoi
+from hcvt.seeding.regular import defects
 
 G_OPTIMUM = {2: 5.0 / (36.0 * np.sqrt(3.0)), 3: 19.0 / (192.0 * 2.0 ** (1.0 / 3.0))}
 CMAP = "RdYlBu_r"
@@ -109,8 +112,6 @@ def _draw_cells(
 
 def _mark_defects(ax: Any, diagram: Diagram) -> str:
     """Mark defective interior sites on ``ax``; returns ``", D defects"`` for the title."""
-    from hcvt.regular import defects
-
     found = defects(diagram)
     for sign, marker, colour in ((-1, "v", "k"), (1, "^", "m")):
         pick = found.defective & (np.sign(found.counts - found.ideal) == sign)
@@ -162,8 +163,6 @@ def plot_cut(
     centroid) are drawn, seen from the cut side, so that the interior cells show.
     ``at=-inf`` draws every cell: the boundary view.
     """
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-
     if diagram.domain.dim != 3:
         raise ValueError("plot_cut draws 3D diagrams; use plot_cells for 2D")
     if ax is None:
@@ -235,8 +234,6 @@ def comparison_figure(domains: dict[str, Any], runs: dict[str, dict], path: Any,
     defects marked, :func:`hcvt.defects`), ``"histograms"`` (G histograms with shared
     bins) or ``"cuts"`` (3D cut views). Each run holds ``sites`` and ``G``.
     """
-    from hcvt.diagram import voronoi
-
     labels = list(runs)
     dim = next(iter(domains.values())).dim
     vmin, vmax = shared_range([runs[k]["G"] for k in labels], dim)
@@ -271,8 +268,6 @@ def levels_figure(domain: Any, run: dict, path: Any) -> None:
 
     2D: the cells; 3D: cut views (the cells behind the median plane, Fig. 1 (e)).
     """
-    from hcvt.diagram import voronoi
-
     diagrams = [voronoi(domain, sites) for sites in run["levels_sites"]]
     vmin, vmax = shared_range([d.G for d in diagrams], domain.dim)
     fig = plt.figure(figsize=(4 * len(diagrams), 4.4))
@@ -305,8 +300,6 @@ def grading_figure(diagram: Diagram, path: Any) -> float:
     against ``ρ(c_i)`` on log axes for the cells off the boundary, with the fitted line
     and Gersho's slope ``-1/(d+2)``. Writes ``path``; returns the fitted slope.
     """
-    from hcvt.density import grading_slope
-
     if diagram.density is None:
         raise ValueError("grading_figure needs a diagram computed with a density")
     dim = diagram.domain.dim

@@ -8,7 +8,7 @@ median over the seeds of each row as the paper does for random initialisations, 
 ``DIR/EXPERIMENT.md`` (our value beside the paper's, with the ratio), ``DIR/EXPERIMENT.csv``
 (every run) and the figures.
 
-Shapes are the paper's, at the paper's size (:mod:`hcvt.shapes`): the 20 x 20 square
+Shapes are the paper's, at the paper's size (:mod:`hcvt.geometry.shapes`): the 20 x 20 square
 (area 400), the five-branch star of area 117.5 and the ball of volume 1.42, so that
 energies compare without scaling. Meshes of Table 7 come from ``../shared/data/3d``.
 

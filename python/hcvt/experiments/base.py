@@ -19,6 +19,14 @@ from typing import Any
 
 import numpy as np
 
+import hcvt
+from hcvt import plot
+from hcvt.experiments.paper import PAPER
+from hcvt.geometry.shapes import BUILTIN, builtin_domain
+from hcvt.io import load_domain
+from hcvt.lazy import load
+from hcvt.seeding.hierarchy import schedule
+
 Row = dict[str, Any]
 
 
@@ -128,9 +136,6 @@ def levels_table(experiment: Experiment, summaries: list[Summary]) -> str:
     The paper's values per level come from ``PAPER[experiment.paper_levels]`` when it has
     them (Table 2); Figure 1 gives pictures only.
     """
-    from hcvt.experiments.paper import PAPER
-    from hcvt.hierarchy import schedule
-
     config = summaries[0].config
     if experiment.dim is None:
         raise ValueError(f"{experiment.name}: a levels table needs one dimension")
@@ -220,9 +225,6 @@ def comparison(
 # ------------------------------------------------------------------------------ runs
 def load_shape(shape: str):
     """A built-in shape by name, or a mesh file of ``../shared/data/3d`` by file name."""
-    from hcvt.io import load_domain
-    from hcvt.shapes import BUILTIN, builtin_domain
-
     if shape in BUILTIN:
         return builtin_domain(shape)
     return load_domain(data_dir() / "3d" / shape, repair=True)
@@ -249,8 +251,6 @@ def data_dir() -> Path:
 
 def run_config(config: Config) -> Row:
     """Run one configuration; returns its numbers (and sites/G/history when asked)."""
-    import hcvt
-
     domain = load_shape(config.shape)
     start = time.perf_counter()
     levels: list[float] = []
@@ -355,8 +355,12 @@ def run_grid(
     ``scheduler``: an existing scheduler address; by default a LocalCluster of one
     single-threaded worker process per core. ``serial``: one task at a time (timings).
     """
-    from dask.distributed import Client, LocalCluster, as_completed
-
+    dask_distributed = load("dask.distributed")
+    Client, LocalCluster, as_completed = (  # noqa: N806 (dask's class names)
+        dask_distributed.Client,
+        dask_distributed.LocalCluster,
+        dask_distributed.as_completed,
+    )
     cluster = None
     if scheduler is None:
         workers = 1 if serial else (os.cpu_count() or 1)
@@ -410,8 +414,6 @@ def _median_run(summary: Summary, key: str = "mean_G") -> Row:
 
 def draw_figures(experiment: Experiment, summaries: list[Summary], out: Path) -> list[Path]:
     """The experiment's figures as PNG files in ``out``; returns their paths."""
-    from hcvt import plot
-
     written = []
     for kind in experiment.figures:
         path = out / f"{experiment.name}_{kind}.png"

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from hcvt.experiments.base import Config, Experiment
 from hcvt.experiments.paper import PAPER
-from hcvt.hierarchy import max_subdivisions
+from hcvt.seeding.hierarchy import max_subdivisions
 
 METHODS = (
     ("random + Newton", "newton", "random"),

@@ -3,7 +3,7 @@
 ``PAPER[name]`` holds the values of the paper's table ``name``, keyed by its rows: mean G
 and CVT energy per configuration (Tables 2–6; energies at the paper's site count), seconds
 (Tables 7 and 8). Tables 4 and 5 are keyed by our row labels; the shapes are the paper's at
-the paper's size (:mod:`hcvt.shapes`), so energies compare without scaling.
+the paper's size (:mod:`hcvt.geometry.shapes`), so energies compare without scaling.
 """
 
 from __future__ import annotations

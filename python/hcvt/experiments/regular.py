@@ -2,7 +2,7 @@
 
 Beside the paper's Tables 3-6, for the cases where the paper gave its most regular values:
 a plain Newton CVT from random sites (the time reference), the paper's hierarchical method
-(Newton at every level), our best-posed lattice (:func:`hcvt.regular.posed_lattice` and a
+(Newton at every level), our best-posed lattice (:func:`hcvt.seeding.regular.posed_lattice` and a
 Newton CVT, no moves) and :func:`hcvt.regular_cvt` (the same, then defect-relaxation
 moves). Every row also gives the interior defects (:func:`hcvt.defects`). The paper's values
 set beside a row are its most regular of that case: the hand-posed lattice (square 1,033:

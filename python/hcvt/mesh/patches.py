@@ -18,8 +18,8 @@ from scipy.sparse.csgraph import connected_components
 from hcvt.errors import InvalidMeshError
 
 if TYPE_CHECKING:
-    from hcvt.domain import Domain
-    from hcvt.polymesh import PolyMesh
+    from hcvt.geometry.domain import Domain
+    from hcvt.mesh.polymesh import PolyMesh
 
 
 def boundary_patches(

@@ -22,13 +22,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt.export.merge import BOUNDARY_FACES, merged_boundary
-from hcvt.export.patches import boundary_patches
-from hcvt.export.split import split_boundary
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.merge import BOUNDARY_FACES, merged_boundary
+from hcvt.mesh.patches import boundary_patches
+from hcvt.mesh.polymesh import PolyMesh
+from hcvt.mesh.split import split_boundary
 
 if TYPE_CHECKING:
-    from hcvt.domain import Domain
+    from hcvt.geometry.domain import Domain
 
 #: Label and scalar sizes written in binary files (OpenFOAM's default build, and Debian's).
 ARCH = "LSB;label=32;scalar=64"
@@ -61,7 +61,7 @@ def write_openfoam(
         ``checkMesh -case DIR`` and ``foamToVTK`` run), and ``0/site`` (the site of each
         cell, a volScalarField) plus one ``0/<name>`` per ``cell_data`` entry.
     domain, labels
-        Patches: see :func:`hcvt.export.patches.boundary_patches`. Every patch is of type
+        Patches: see :func:`hcvt.mesh.patches.boundary_patches`. Every patch is of type
         ``wall``.
     binary : bool, default False
         Binary lists (``format binary``, 32-bit labels, 64-bit scalars: ``ARCH``); much
@@ -78,18 +78,18 @@ def write_openfoam(
         but checkMesh flags small pieces at a cell's rim as skew and, in a cell wrapping a
         reflex edge, pieces its centre lies behind (face pyramids). ``"merged"``: those
         pieces are joined to neighbouring pieces of the same cell and patch until
-        checkMesh's skewness and pyramid checks pass (:mod:`hcvt.export.merge`); cells
+        checkMesh's skewness and pyramid checks pass (:mod:`hcvt.mesh.merge`); cells
         and interior faces are unchanged, but a merged face is not planar, so the
         volumes OpenFOAM computes for the cells that have one move slightly
         (``docs/results/checkmesh.txt``). ``"split"``: every face stays exact and
         planar, and the cells with failing faces are cut by planes into parts that pass
-        (:mod:`hcvt.export.split`): the volumes stay exact, but a site may own several
+        (:mod:`hcvt.mesh.split`): the volumes stay exact, but a site may own several
         cells (``0/site`` says which) and the cut faces are not orthogonal; the few
         faces no cut fixes are merged as with ``"merged"``, with a warning. Faces that
         cannot be fixed are left failing with a warning.
     site : array_like of int, shape (mesh.n_cells,), optional
         The site each cell of ``mesh`` belongs to (default: cell ``i`` is site ``i``), as
-        :func:`hcvt.export.split.split_failing_cells` returns it for a mesh split
+        :func:`hcvt.mesh.split.split_failing_cells` returns it for a mesh split
         beforehand.
 
     Returns

@@ -1,4 +1,4 @@
-"""Each cell's own geometry, read off the conforming mesh (:class:`hcvt.polymesh.PolyMesh`).
+"""Each cell's own geometry, read off the conforming mesh (:class:`hcvt.mesh.polymesh.PolyMesh`).
 
 The mesh stores every face once; a cell is the faces it owns, as they are, and the faces
 it neighbours, reversed, so that each cell's faces run counter-clockwise seen from outside
@@ -11,7 +11,7 @@ import numpy as np
 import shapely
 from numpy.typing import NDArray
 
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.polymesh import PolyMesh
 
 Triangulation = tuple[NDArray[np.float64], NDArray[np.intp]]
 

@@ -15,7 +15,7 @@ import numpy as np
 import shapely
 from numpy.typing import ArrayLike
 
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.polymesh import PolyMesh
 
 
 def write_geojson(

@@ -29,8 +29,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike
 from hcvt.diagram import Diagram
-from hcvt.domain import Domain
-from hcvt.initialisation import RandomState, random_state
+from hcvt.geometry.domain import Domain
+from hcvt.lazy import load
+from hcvt.optimise import cvt
+from hcvt.seeding.initialisation import RandomState, random_state
 
 
 @dataclass
@@ -102,8 +104,6 @@ def global_monte_carlo(
     MonteCarloResult
         The lowest-energy CVT found and the history of every update.
     """
-    from hcvt.optimise import cvt
-
     if int(updates) != updates or updates < 0:
         raise ValueError(f"updates must be a non-negative integer, got {updates!r}")
     generator = np.random.default_rng(random_state(seed, rng))
@@ -174,6 +174,4 @@ def perturb(
 def _progress(items: range, show: bool):
     if not show:
         return items
-    from rich.progress import track
-
-    return track(items, description="Monte-Carlo updates", transient=True)
+    return load("rich.progress").track(items, description="Monte-Carlo updates", transient=True)

@@ -2,7 +2,7 @@
 
 The index names each piece's file (relative to the index) and declares the arrays every
 piece holds: points as Float64 with 3 components (2D pieces lie in z = 0, as
-:func:`hcvt.export.vtu.write_vtu` writes them), and the cell data by name and VTK type.
+:func:`hcvt.io.vtu.write_vtu` writes them), and the cell data by name and VTK type.
 It holds no cells itself, so the client writes it without reading the pieces (VTK's file
 format document, "Parallel File Formats").
 """

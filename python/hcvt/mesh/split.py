@@ -1,11 +1,11 @@
 """Split boundary cells by planes: exact planar faces that pass checkMesh, more cells.
 
 OpenFOAM's ``checkMesh`` fails two of its checks on the exact boundary pieces of a
-Voronoi cell (:mod:`hcvt.export.merge` explains both): a small piece at a cell's rim is
+Voronoi cell (:mod:`hcvt.mesh.merge` explains both): a small piece at a cell's rim is
 *skew* (its centre lies far to the side of the cell's centre, compared with its own
 extent), and a cell wrapping a reflex edge has its centre *behind* one of its pieces. With
 one cell per site and planar faces neither can be fixed: the pieces are what they are and
-the cell's centre is the cell's. :mod:`hcvt.export.merge` joins pieces into non-planar
+the cell's centre is the cell's. :mod:`hcvt.mesh.merge` joins pieces into non-planar
 faces, which passes on most meshes but moves the volumes OpenFOAM computes.
 
 This module keeps every face planar instead and splits the cell: a plane cuts a failing
@@ -16,10 +16,10 @@ is that a site may own several cells. :func:`split_failing_cells` returns which 
 cell belongs to (``write_openfoam`` writes it as the field ``0/site``).
 
 A cut is made locally first and measured by the core (``hcvt_core::split`` through
-:mod:`hcvt.export._cut_kernel`: checkMesh's skewness, face pyramids and non-orthogonality
+:mod:`hcvt.mesh.cut`: checkMesh's skewness, face pyramids and non-orthogonality
 errors on every face of the parts, against the neighbours' centres; a part checkMesh would
 call a sliver, aspect ratio above 1000, makes no cut). Every candidate plane is tried, and
-the cuts are ranked by the summed badness of their faces (``_Editor.measure``), then by how
+the cuts are ranked by the summed badness of their faces (``Editor.measure``), then by how
 oblique their faces are (the sum of ``1 - cos`` of their non-orthogonality); only a cut that
 lowers the cell's badness is applied. Where no single cut helps, a few are tried two deep
 (the cut, then its parts fixed) and undone unless the whole beats the cell: first the cuts
@@ -47,13 +47,13 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt.export._cut_kernel import Cut, Face, Plane, cut_by_planes, measure_region
-from hcvt.export.merge import merged_boundary
-from hcvt.export.quality import face_quality, fails_checkmesh
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.cut import Cut, Face, Plane, cut_by_planes, measure_region
+from hcvt.mesh.merge import merged_boundary
+from hcvt.mesh.polymesh import PolyMesh
+from hcvt.mesh.quality import face_quality, fails_checkmesh
 
 if TYPE_CHECKING:
-    from hcvt.domain import Domain
+    from hcvt.geometry.domain import Domain
 
 #: Cuts a failing cell may receive, one after the other (each part may be cut again).
 MAX_DEPTH = 6
@@ -75,7 +75,7 @@ SWEEPS = 8
 _OFFSETS = (0.5, 0.3, 0.7, 0.0, 0.85, 0.15)
 
 #: How far in front of a face its own plane is moved (relative to the cell size) in
-#: :meth:`_Editor.own_planes`: just enough for the face to lie wholly on one side, and
+#: :meth:`Editor.own_planes`: just enough for the face to lie wholly on one side, and
 #: further, for a face with coplanar neighbours that would make a part of slivers.
 _IN_FRONT = (1e-4, 1e-2)
 
@@ -98,7 +98,7 @@ class SplitReport(NamedTuple):
 
 
 class _Journal:
-    """What to restore to undo the cuts made since it was opened (see ``_Editor.undo``)."""
+    """What to restore to undo the cuts made since it was opened (see ``Editor.undo``)."""
 
     def __init__(self, extra: int, faces: int, cells: int, cuts: int) -> None:
         self.extra, self.faces, self.cells, self.cuts = extra, faces, cells, cuts
@@ -119,7 +119,7 @@ def split_boundary(
     """:func:`split_failing_cells`, then the boundary faces no cut fixed merged.
 
     The faces still failing after the cuts are joined to neighbouring pieces of their cell
-    and patch as :func:`hcvt.export.merge.merged_boundary` does (``domain`` and ``labels``
+    and patch as :func:`hcvt.mesh.merge.merged_boundary` does (``domain`` and ``labels``
     give the patches). Only the cells holding such a face lose their exact volume (a
     merged face is not planar): on a converged CVT of the cheese with 1k sites, 1 face
     after 2,473 cuts, the total moving by 8.9e-11 of the domain's; none at 4k and 10k
@@ -154,7 +154,7 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
     """
     if mesh.dim != 3:
         raise ValueError("cells are split in 3D meshes only")
-    editor = _Editor(mesh)
+    editor = Editor(mesh)
     failing = failing_faces(mesh)
     cells = np.unique(
         np.concatenate([mesh.owner[failing], mesh.neighbour[failing & mesh.interior]])
@@ -187,7 +187,7 @@ def split_failing_cells(mesh: PolyMesh) -> tuple[PolyMesh, NDArray[np.intp], Spl
     return result, site, SplitReport(first, editor.cuts, result.n_cells, np.flatnonzero(bad))
 
 
-class _Editor:
+class Editor:
     """A mesh under cutting: faces as Python lists, maps kept up to date."""
 
     def __init__(self, mesh: PolyMesh) -> None:
@@ -221,10 +221,12 @@ class _Editor:
 
     # ------------------------------------------------------------------ geometry access
     def coords(self, ids: list[int]) -> NDArray[np.float64]:
+        """The points of vertex ids ``ids`` (the mesh's, then the cuts' new ones), (k, 3)."""
         nb = len(self.base)
         return np.array([self.base[v] if v < nb else self.extra[v - nb] for v in ids])
 
     def outward(self, c: int, k: int) -> list[int]:
+        """Face ``k``'s vertex loop, oriented out of cell ``c``."""
         loop = self.faces[k]
         assert loop is not None
         return list(loop) if self.owner[k] == c else loop[::-1]
@@ -540,6 +542,7 @@ class _Editor:
         return out
 
     def mesh(self) -> tuple[PolyMesh, NDArray[np.intp]]:
+        """The edited mesh, and the site of each of its cells."""
         keep = [k for k, loop in enumerate(self.faces) if loop is not None]
         loops = [loop for loop in self.faces if loop is not None]
         sizes = np.array([len(loop) for loop in loops], dtype=np.intp)

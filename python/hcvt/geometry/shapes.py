@@ -14,7 +14,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hcvt.domain import Domain
+from hcvt.geometry.domain import Domain
+from hcvt.lazy import load
 
 # The paper's star: its Table 5 optimal energy 0.221 at n = 10025 gives area ≈ 117.5.
 STAR_AREA = 117.5
@@ -42,9 +43,7 @@ def ball(volume: float = BALL_VOLUME) -> Domain:
     trimesh's icosphere at subdivision 3, centred at the origin, scaled so that the
     polyhedron (not the sphere it approximates) has volume ``volume``.
     """
-    import trimesh
-
-    mesh = trimesh.creation.icosphere(subdivisions=3)
+    mesh = load("trimesh").creation.icosphere(subdivisions=3)
     scale = (volume / mesh.volume) ** (1.0 / 3.0)
     return Domain.from_mesh(np.asarray(mesh.vertices) * scale, np.asarray(mesh.faces))
 

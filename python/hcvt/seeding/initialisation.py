@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
 from hcvt.density import DensityLike, evaluate
-from hcvt.domain import Domain, _polygon_boundary
+from hcvt.geometry.domain import Domain, polygon_boundary
 
 METHODS = ("random", "halton", "hammersley", "lattice")
 # Memory of one site with its diagram, measured order of magnitude (bytes).
@@ -538,7 +538,7 @@ def boundary_pieces(domain: Domain) -> NDArray[np.float64]:
 def _boundary_pieces(domain: Domain) -> NDArray[np.float64]:
     """Boundary segments (P, 2, 2) or triangles (P, 3, 3), world coordinates."""
     if domain.dim == 2:
-        vertices, segments = _polygon_boundary(domain.geometry)
+        vertices, segments = polygon_boundary(domain.geometry)
         return vertices[segments]
     return domain.vertices[domain.faces]
 

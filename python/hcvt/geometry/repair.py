@@ -18,7 +18,9 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
+from hcvt import _core
 from hcvt.errors import InvalidDomainError
+from hcvt.lazy import load
 
 Vertices = NDArray[np.float64]
 Faces = NDArray[np.intp]
@@ -464,8 +466,6 @@ def nesting(v: Vertices, f: Faces) -> Nesting:
     one of its faces not lying on another shell) tested against every other shell, oriented
     outward on its own, by the core's exact winding number, says which shells enclose it.
     """
-    from hcvt import _core
-
     count, label = shells(f)
     order = np.argsort(label, kind="stable")
     starts = np.searchsorted(label[order], np.arange(count + 1))
@@ -623,10 +623,4 @@ def unite_shells(
 
 
 def _manifold_module() -> Any:
-    try:
-        import manifold3d
-    except ImportError as err:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "uniting crossing shells needs manifold3d: pip install manifold3d"
-        ) from err
-    return manifold3d
+    return load("manifold3d")

@@ -17,8 +17,9 @@ from numpy.typing import ArrayLike, NDArray
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
-from hcvt import _core, mesh
+from hcvt import _core
 from hcvt.errors import InvalidDomainError
+from hcvt.geometry import repair as mesh
 
 
 @dataclass(frozen=True)
@@ -125,7 +126,7 @@ class Domain:
         else:
             _check_polygon(geometry)
         geometry = _normalise_polygon(geometry)
-        vertices, segments = _polygon_boundary(geometry)
+        vertices, segments = polygon_boundary(geometry)
         return cls(_core.PolygonDomain(vertices, segments), 2, geometry, report)
 
     # ------------------------------------------------------------------ 3D
@@ -568,7 +569,7 @@ def _normalise_polygon(geometry: Polygon | MultiPolygon) -> Polygon | MultiPolyg
     return parts[0] if len(parts) == 1 else MultiPolygon(parts)
 
 
-def _polygon_boundary(
+def polygon_boundary(
     geometry: Polygon | MultiPolygon,
 ) -> tuple[NDArray[np.float64], NDArray[np.uint32]]:
     """Vertices (V, 2) and segments (S, 2) of every ring, interior on the left."""

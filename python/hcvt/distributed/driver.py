@@ -1,58 +1,4 @@
-"""One diagram or one CVT partitioned over dask.distributed workers (DESIGN §10).
-
-The sites are cut into parts by median planes fixed by the data (:func:`hcvt.partition.kd_split`,
-at most ``sites_per_partition`` sites each, never by the number of workers). Each part
-lives on a worker as a dask future; the domain is scattered to every worker once.
-
-**Diagram.** In rounds: a part's cells are computed among its sites and the sites of the
-other parts within a distance ``rho = 3 h`` of its sites' box (taken by small tasks where
-those parts live, so only the halo travels). Each cell reports its reach; the cells whose
-reach ``rho`` does not cover are computed again among the sites within 1.5 times their
-reach (a ball per cell), and so on until every cell is certified or its part holds every
-site. The per-cell arrays are then bitwise
-those of :func:`hcvt.voronoi` in one process (module docs of :mod:`hcvt.partition`).
-
-**Sums.** Energy, mean G, the stopping measures and the L-BFGS dot products are summed per
-part with :func:`math.fsum` in row order, then over the parts in part order. They differ
-from the single process's sequential sums by round-off (energies agree to about 1e-15
-relative) and do not depend on the number of workers.
-
-**CVT.** Sites, gradients and L-BFGS pairs stay in their parts between iterations; the
-client sees only scalars and the small Gram matrices of the pairs:
-
-- Lloyd moves each site to its centroid with the core's operations, so a partitioned Lloyd
-  run is bitwise the single-process ``hcvt.cvt(..., method="lloyd")`` run, site by site.
-- L-BFGS runs the two-loop recursion on the client in coefficient space (vector-free
-  L-BFGS, Chen et al. 2014): one reduction of the partial Gram matrices of
-  ``[s_k, y_k, g]`` (plain and preconditioned by ``1/(2 m_i)``) per iteration, then each part
-  forms its direction. The preconditioner and its Oren–Luenberger scaling are the core's;
-  the line search is a backtracking Armijo search from the unit step (with the
-  approximate-Wolfe acceptance of Hager and Zhang near round-off), falling back to a Lloyd
-  step, so the iterates are not the core's (whose strong-Wolfe search differs). What is
-  guaranteed: the run is bitwise the same for any number of workers.
-- Newton is not offered: its truncated CG needs a Hessian product per CG iteration, i.e.
-  one halo exchange of the vector per product (tens per step), each a round trip through
-  the scheduler; not done here.
-- After every step, sites that crossed a plane of the split move, with their per-row
-  state, to the part that now holds their position (the split stays fixed).
-
-**Density.** With ``density=`` (DESIGN §8) each part's cells carry their ρ-weighted
-moments, integrated by the core exactly as in one process (``clipped_cells_weighted``), so
-``mass``, the weighted ``centroid``, ``energy_terms`` and the gradient are bitwise the
-single-process ones; Lloyd moves to the weighted centroids and L-BFGS is preconditioned by
-``1/(2 m_i)`` with ``m_i = ∫ρ``, as the core. The density is scattered to every worker
-with the domain. A callable is called once per part and round, on the quadrature nodes of
-the cells computed there: bitwise equality then needs each value to depend on its point
-alone (numpy's elementwise functions do; a function that normalises by its whole input
-does not). The halo is unchanged: a cell's reach is where its geometry read sites.
-
-**Worker loss.** With ``checkpoint`` (a temporary directory by default), every part is
-written at the end of every iteration; if a task fails because a worker died (or its data
-was lost), the domain and density are scattered again (the only copy may have gone with
-the worker, since dask's active memory manager drops unused replicas) and the iteration is
-run again from the files of the last completed one. The result is the same, since every
-step is deterministic.
-"""
+"""The partitioned diagram and CVT: the client's side (:mod:`hcvt.distributed`)."""
 
 from __future__ import annotations
 
@@ -69,11 +15,13 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt import partition as pt
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
-from hcvt.domain import Domain
+from hcvt.distributed import partition as pt
+from hcvt.distributed import partition_mesh
 from hcvt.errors import InvalidDomainError, InvalidSitesError
+from hcvt.geometry.domain import Domain
+from hcvt.optimise import CVTResult, ProgressBar, chain_observers, default_tol
 
 #: Parts hold at most this many sites unless told otherwise.
 DEFAULT_SITES_PER_PARTITION = 200_000
@@ -288,13 +236,13 @@ class PartitionedDiagram:
             sites[p.rows] = p.sites
             rows_of.append(p.rows)
             for key, value in c.arrays.items():
-                if key in ("neighbor_offsets", *pt._FACES):
+                if key in ("neighbor_offsets", *pt.FACE_ARRAYS):
                     continue
                 if key not in arrays:
                     arrays[key] = np.empty((n, *value.shape[1:]), dtype=value.dtype)
                 arrays[key][p.rows] = value
             counts[p.rows] = np.diff(c.arrays["neighbor_offsets"])
-            faces.append((p.rows, {k: c.arrays[k] for k in pt._FACES}))
+            faces.append((p.rows, {k: c.arrays[k] for k in pt.FACE_ARRAYS}))
         offsets = np.zeros(n + 1, dtype=np.intp)
         np.cumsum(counts, out=offsets[1:])
         neighbor_sites = np.empty(offsets[-1], dtype=np.intp)
@@ -312,16 +260,17 @@ class PartitionedDiagram:
             neighbor_offsets=offsets,
             neighbor_sites=neighbor_sites,
             neighbor_measures=neighbor_measures,
-            _allow_outside=self._cluster.allow_outside,
         )
-        return Diagram(domain, sites, arrays, self._cluster.density)
+        allow_outside = self._cluster.allow_outside
+        return Diagram(domain, sites, arrays, self._cluster.density, allow_outside=allow_outside)
 
     def write(self, directory: str | Path) -> list[str]:
         """Write every part's rows, sites and per-cell arrays as .npy files, on its worker.
 
         Files ``part{p:05d}.{name}.npy`` in ``directory`` (which every worker must reach):
-        ``rows`` (k,), ``sites`` (k, d) and the arrays of :class:`hcvt.partition.PartCells`
-        (neighbours in problem rows, CSR offsets local to the part). Returns the paths.
+        ``rows`` (k,), ``sites`` (k, d) and the arrays of
+        :class:`hcvt.distributed.partition.PartCells` (neighbours in problem rows, CSR offsets
+        local to the part). Returns the paths.
         """
         futures = [
             self._cluster.submit(pt.write_part, c, p, str(directory))
@@ -337,11 +286,9 @@ class PartitionedDiagram:
         Each piece holds its part's cells with the faces and vertex coordinates of
         :meth:`hcvt.Diagram.mesh` of the whole problem, bit for bit, and cell data
         ``row`` (the problem row), ``volume`` and ``G``; the client writes only the index
-        (:mod:`hcvt.partition_mesh`). Returns the index's path; the halo sites of each
+        (:mod:`hcvt.distributed.partition_mesh`). Returns the index's path; the halo sites of each
         round are in ``self.piece_rounds``.
         """
-        from hcvt import partition_mesh
-
         # The piece also computes the ring of cells across its border (their vertices
         # are shared): two spacings more keep that ring inside the first halo.
         rho = (HALO_SPACINGS[self._cluster.domain.dim] + RING_SPACINGS) * self._cluster.h
@@ -644,8 +591,6 @@ class PartitionedCVTResult:
 
     def gather(self) -> Any:
         """A :class:`hcvt.CVTResult` with the sites and diagram gathered on the client."""
-        from hcvt.optimise import CVTResult
-
         diagram = self.diagram.gather()
         return CVTResult(
             sites=diagram.sites,
@@ -688,8 +633,6 @@ def partitioned_cvt(
     ``quadrature_degree`` as for :func:`hcvt.cvt` (the preconditioner is then ``1/(2 m_i)``
     with ``m_i = ∫ρ``, as the core's).
     """
-    from hcvt.optimise import _chain, _Progress, default_tol
-
     if method not in ("lbfgs", "lloyd"):
         raise ValueError(
             f"a partitioned CVT runs 'lbfgs' or 'lloyd' (Newton needs a halo exchange per "
@@ -714,8 +657,8 @@ def partitioned_cvt(
         Path(directory).mkdir(parents=True, exist_ok=True)
     run = _Cvt(cluster, split, method, rule, memory, directory)
     field_name = {"gap": "rms_gap", "paper": "grad_norm"}[rule]
-    bar = _Progress(rule, tol) if progress else None
-    observe = _chain(callback, bar)
+    bar = ProgressBar(rule, tol) if progress else None
+    observe = chain_observers(callback, bar)
     restarts = _Restarts(cluster)
 
     def start(sites: NDArray[np.float64]) -> tuple[_Iterate, list[str] | None]:

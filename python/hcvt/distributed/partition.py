@@ -1,6 +1,6 @@
 """Sites in spatial partitions with halos: the work of one partition, on any process.
 
-Everything here is a plain function of numpy arrays (and a :class:`~hcvt.domain.Domain`),
+Everything here is a plain function of numpy arrays (and a :class:`~hcvt.geometry.domain.Domain`),
 run by :mod:`hcvt.distributed` as dask tasks; nothing imports dask. DESIGN §10:
 
 - :func:`kd_split` cuts space by median planes until every part holds at most a target
@@ -22,16 +22,18 @@ run by :mod:`hcvt.distributed` as dask tasks; nothing imports dask. DESIGN §10:
 from __future__ import annotations
 
 import math
+import resource
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from hcvt import _core
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
-from hcvt.domain import Domain
+from hcvt.geometry.domain import Domain
 
 #: A halo covers a cell when the cell's reach is below this fraction of the halo width:
 #: the halo is selected by comparing coordinates with the part's box widened by ``rho``,
@@ -271,8 +273,6 @@ def ball_slice(
     the balls (which is all a halo needs), in memory linear in the sites. (Listing each
     ball's sites took more than 2 GB on a 10M-site run: the balls overlap.)
     """
-    from scipy.spatial import cKDTree
-
     if len(part.rows) == 0 or len(centres) == 0:
         return part.rows[:0], part.sites[:0]
     lo = (centres - radii[:, None]).min(axis=0)
@@ -352,7 +352,8 @@ def part_cells(
     return previous
 
 
-_FACES = ("neighbor_sites", "neighbor_measures")
+#: The per-face arrays of a part's cells (CSR rows by `neighbor_offsets`).
+FACE_ARRAYS = ("neighbor_sites", "neighbor_measures")
 
 
 def _replace_rows(
@@ -364,7 +365,7 @@ def _replace_rows(
     """
     out = {}
     for key, value in old.items():
-        if key == "neighbor_offsets" or key in _FACES:
+        if key == "neighbor_offsets" or key in FACE_ARRAYS:
             continue
         value[todo] = new[key]
         out[key] = value
@@ -375,7 +376,7 @@ def _replace_rows(
     np.cumsum(counts, out=offsets[1:])
     replaced = np.zeros(len(counts), dtype=bool)
     replaced[todo] = True
-    for key in _FACES:
+    for key in FACE_ARRAYS:
         values = np.empty(offsets[-1], dtype=old[key].dtype)
         keep = np.repeat(~replaced, counts)
         old_keep = np.repeat(~replaced, np.diff(old["neighbor_offsets"]))
@@ -674,6 +675,5 @@ def peak_rss_mb() -> float:
                     return int(line.split()[1]) / 1024.0
     except OSError:
         pass
-    import resource
 
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

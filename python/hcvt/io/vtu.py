@@ -42,9 +42,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt.cells import non_convex_faces, planar_triangles
 from hcvt.errors import InvalidMeshError
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.cells import non_convex_faces, planar_triangles
+from hcvt.mesh.polymesh import PolyMesh
 
 VTK_POLYGON = 7
 VTK_POLYHEDRON = 42

@@ -1,12 +1,12 @@
 """The split's kernel in the Rust core: a cell cut by planes, a region measured.
 
-:mod:`hcvt.export.split` searches for cuts; trying one is the core's work
+:mod:`hcvt.mesh.split` searches for cuts; trying one is the core's work
 (``hcvt_core::split``): the pieces of each face on either side of the plane, the sections
 on it, the parts, and checkMesh's figures for every face of the parts against the
 neighbours' true centres. This module translates between the search's editor (global
 vertex, face and cell numbers, Python lists) and the core's local arrays.
 
-The core rounds as numpy rounds :func:`hcvt.export.quality.face_quality`, so that a face
+The core rounds as numpy rounds :func:`hcvt.mesh.quality.face_quality`, so that a face
 the search passes is a face the final check on the whole mesh passes. It replaced a Python
 version of the same steps, which it matched bit for bit on the bunny and the cheese, about
 40 times faster.
@@ -15,15 +15,27 @@ version of the same steps, which it matched bit for bit on the bunny and the che
 from __future__ import annotations
 
 from functools import cached_property
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hcvt import _core
 
-if TYPE_CHECKING:
-    from hcvt.export.split import _Editor
+
+class Editor(Protocol):
+    """What the kernel reads of the split search's mesh (:class:`hcvt.mesh.split.Editor`)."""
+
+    centroid: list[NDArray[np.float64]]  # per cell, (3,)
+
+    def coords(self, ids: list[int]) -> NDArray[np.float64]:
+        """The points of vertex ids ``ids``, shape (len(ids), 3)."""
+        ...
+
+    def other(self, c: int, k: int) -> int:
+        """The cell across face ``k`` from cell ``c`` (-1 on the boundary)."""
+        ...
+
 
 #: A plane as (normal, a point on it), both shape (3,).
 Plane = tuple[NDArray[np.float64], NDArray[np.float64]]
@@ -58,7 +70,7 @@ class Cut:
         self.failing: int = int(out["failing"][row])
         """Faces of the parts that fail checkMesh."""
         self.worst: float = float(out["worst"][row])
-        """Their total badness (0 when none fails; see ``_Editor.measure``)."""
+        """Their total badness (0 when none fails; see ``Editor.measure``)."""
         self.oblique: float = float(out["oblique"][row])
         """Sum of ``1 - cos`` of the non-orthogonality of the faces with a cell across."""
         self.part_failing: list[int] = out["part_failing"][p0:p1].tolist()
@@ -78,7 +90,7 @@ class Cut:
 
 
 def cut_by_planes(
-    editor: _Editor,
+    editor: Editor,
     c: int,
     faces: list[int],
     loops: list[list[int]],
@@ -86,7 +98,7 @@ def cut_by_planes(
 ) -> list[Cut]:
     """Cell ``c`` of ``editor`` cut by each of ``planes``, in their order.
 
-    ``faces`` are the cell's faces and ``loops`` their outward loops (``_Editor.fix``).
+    ``faces`` are the cell's faces and ``loops`` their outward loops (``Editor.fix``).
     Planes that make no cut (missing the cell, or through it degenerately) give none.
     """
     if not planes:
@@ -99,7 +111,7 @@ def cut_by_planes(
 
 
 def measure_region(
-    editor: _Editor, faces: list[Face], parts: int
+    editor: Editor, faces: list[Face], parts: int
 ) -> tuple[NDArray[np.bool_], NDArray[np.float64], NDArray[np.float64]] | None:
     """Failing flags and badness of ``faces`` (f,), the centres of their parts (parts, 3).
 
@@ -142,7 +154,7 @@ class _LocalCell:
     from its lower-numbered end whichever cell cuts the edge.
     """
 
-    def __init__(self, editor: _Editor, c: int, faces: list[int], loops: list[list[int]]):
+    def __init__(self, editor: Editor, c: int, faces: list[int], loops: list[list[int]]):
         self.vertices = sorted({v for loop in loops for v in loop})
         local = {v: j for j, v in enumerate(self.vertices)}
         self.faces = faces
@@ -215,6 +227,6 @@ class _Batch:
         return [Face(*face) for face in fields]
 
 
-def _centroids(editor: _Editor, cells: list[int]) -> NDArray[np.float64]:
+def _centroids(editor: Editor, cells: list[int]) -> NDArray[np.float64]:
     """Shape (len(cells), 3): the editor's centres of ``cells``."""
     return np.array([editor.centroid[cell] for cell in cells], dtype=np.float64).reshape(-1, 3)

@@ -1,13 +1,13 @@
 """Merged boundary faces: a cell's pieces of input triangles joined so that checkMesh passes.
 
 A boundary cell of a diagram meets the domain's surface in one piece per input triangle it
-crosses, each an exact planar face (:class:`hcvt.polymesh.PolyMesh`). OpenFOAM's
+crosses, each an exact planar face (:class:`hcvt.mesh.polymesh.PolyMesh`). OpenFOAM's
 ``checkMesh`` judges every face against its cell's centre on its own, and two of its
 checks fail on such pieces though the cells are the exact Voronoi cells:
 
 - **skewness** of a boundary face is ``|s| / max(0.4 |d|, extent of the face along s)``,
   with ``d`` the normal offset and ``s`` the tangential offset of the face centre from the
-  cell centre (:mod:`hcvt.export.quality`): a small piece at a cell's rim scores far
+  cell centre (:mod:`hcvt.mesh.quality`): a small piece at a cell's rim scores far
   above checkMesh's limit 4 (130 at most on a converged 50k bunny);
 - **face pyramids**: a cell that wraps a reflex edge of the surface can have its centre
   behind the plane of one of its pieces, and the cone from the centre over that piece has
@@ -34,7 +34,7 @@ changes is how OpenFOAM *measures* a cell with a merged face: a merged face is n
 and OpenFOAM takes its area vector (exact: the vector area of a closed loop depends on the
 loop alone) and its centre (the area-weighted centre of a fan from the vertex average), so
 the volume it computes, ``Σ S_f·(c_f - x0) / 3``, is no longer the cell's exact volume.
-:attr:`hcvt.polymesh.PolyMesh.cell_geometry` computes exactly what OpenFOAM computes, so
+:attr:`hcvt.mesh.polymesh.PolyMesh.cell_geometry` computes exactly what OpenFOAM computes, so
 the change is measurable before writing: see ``docs/results/checkmesh.txt``.
 """
 
@@ -45,12 +45,12 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt.export.patches import boundary_patches
-from hcvt.export.quality import face_quality, fails_checkmesh
-from hcvt.polymesh import PolyMesh
+from hcvt.mesh.patches import boundary_patches
+from hcvt.mesh.polymesh import PolyMesh
+from hcvt.mesh.quality import face_quality, fails_checkmesh
 
 if TYPE_CHECKING:
-    from hcvt.domain import Domain
+    from hcvt.geometry.domain import Domain
 
 #: The ways :func:`hcvt.export.write_openfoam` writes boundary faces.
 BOUNDARY_FACES = ("exact", "merged", "split")
@@ -78,7 +78,7 @@ def merged_boundary(
     """``mesh`` with its failing boundary faces merged, within each patch (module docs).
 
     ``domain`` and ``labels`` give the patches as :func:`write_openfoam` makes them
-    (:func:`hcvt.export.patches.boundary_patches`); see
+    (:func:`hcvt.mesh.patches.boundary_patches`); see
     :func:`merge_failing_boundary_faces`.
     """
     patch, _ = boundary_patches(mesh, domain, labels)
@@ -283,7 +283,7 @@ def merge_failing_boundary_faces(
 ) -> tuple[PolyMesh, MergeReport]:
     """Merge boundary faces of ``mesh`` until none fails checkMesh's skewness or pyramids.
 
-    Each round measures the current faces as checkMesh does (:mod:`hcvt.export.quality`)
+    Each round measures the current faces as checkMesh does (:mod:`hcvt.mesh.quality`)
     and offers each failing boundary face its joins with the neighbouring faces of its
     cell and patch (sharing an edge), one at a time and all at once, whose outline is one
     simple loop. It takes a join whose face passes (against the current cell centres),
@@ -301,7 +301,7 @@ def merge_failing_boundary_faces(
         A 3D conforming mesh (:meth:`PolyMesh.check` passes).
     patch : ndarray of intp, shape (f,)
         The patch of every boundary face (-1 interior), as
-        :func:`hcvt.export.patches.boundary_patches` gives: faces of different patches
+        :func:`hcvt.mesh.patches.boundary_patches` gives: faces of different patches
         are never merged.
     max_rounds : int
         Rounds before giving up on the faces left.

@@ -11,6 +11,7 @@ from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
+import shapely
 from numpy.typing import NDArray
 
 from hcvt.errors import InvalidMeshError
@@ -126,7 +127,7 @@ class PolyMesh:
         Two unit squares side by side share face 0 (owner 0, neighbour 1):
 
         >>> import numpy as np
-        >>> from hcvt.polymesh import PolyMesh
+        >>> from hcvt.mesh.polymesh import PolyMesh
         >>> pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], dtype=float)
         >>> edges = [[1, 4], [0, 1], [4, 3], [3, 0], [1, 2], [2, 5], [5, 4]]
         >>> m = PolyMesh(pts, np.arange(0, 15, 2), np.array(edges).ravel(),
@@ -350,8 +351,6 @@ class PolyMesh:
         return out
 
     def _triangulate(self, loops: list[NDArray[np.intp]]) -> list[NDArray[np.intp]]:
-        import shapely
-
         shells = [r for r in loops if _shoelace(self.points[r]) > 0]
         holes = [shapely.Polygon(self.points[r]) for r in loops if _shoelace(self.points[r]) < 0]
         ids = {tuple(self.points[v].tolist()): int(v) for r in loops for v in r}

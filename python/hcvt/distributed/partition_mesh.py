@@ -31,11 +31,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt import _core
-from hcvt import partition as pt
-from hcvt.domain import Domain
-from hcvt.export.pvtu import write_pvtu
-from hcvt.export.vtu import write_vtu
-from hcvt.polymesh import PolyMesh
+from hcvt.distributed import partition as pt
+from hcvt.geometry.domain import Domain
+from hcvt.io.pvtu import write_pvtu
+from hcvt.io.vtu import write_vtu
+from hcvt.mesh.polymesh import PolyMesh
 
 #: Per-cell arrays written with each piece besides the row (Float64, as write_vtu writes).
 CELL_ARRAYS = ("volume", "G")
@@ -206,7 +206,7 @@ def write_cells(
 ) -> tuple[Path, list[int]]:
     """Each part's piece written by its worker, then the index by the client.
 
-    ``cluster`` is :class:`hcvt.distributed._Cluster` (the domain on every worker);
+    ``cluster`` is :class:`hcvt.distributed.driver._Cluster` (the domain on every worker);
     ``parts`` and ``cells`` the futures of a :class:`hcvt.distributed.PartitionedDiagram`;
     ``rho`` the first halo's width around each part's sites' box, L. Returns the index's
     path and the halo sites of every round.

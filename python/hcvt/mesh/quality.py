@@ -3,7 +3,7 @@
 Cell volume, face non-orthogonality and skewness.
 
 Definitions (OpenFOAM ``primitiveMeshTools``; centres as in
-:attr:`hcvt.polymesh.PolyMesh.face_geometry` and ``cell_geometry``, which follow it):
+:attr:`hcvt.mesh.polymesh.PolyMesh.face_geometry` and ``cell_geometry``, which follow it):
 
 - **non-orthogonality** of an interior face: the angle, in degrees, between its area
   vector ``S`` and ``d = C_N - C_P``, the segment from the owner's centroid to the
@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 if TYPE_CHECKING:
-    from hcvt.polymesh import PolyMesh
+    from hcvt.mesh.polymesh import PolyMesh
 
 #: checkMesh's thresholds: non-orthogonality (degrees) and skewness it reports as bad, and
 #: the cell aspect ratio above which it fails the mesh ("High aspect ratio cells").
@@ -113,7 +113,7 @@ def mesh_quality(mesh: PolyMesh) -> MeshQuality:
     A grid of boxes is orthogonal and unskewed:
 
     >>> import numpy as np
-    >>> from hcvt.polymesh import PolyMesh
+    >>> from hcvt.mesh.polymesh import PolyMesh
     >>> pts = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], dtype=float)
     >>> edges = [[1, 4], [0, 1], [4, 3], [3, 0], [1, 2], [2, 5], [5, 4]]
     >>> m = PolyMesh(pts, np.arange(0, 15, 2), np.array(edges).ravel(),
@@ -159,7 +159,7 @@ def face_quality(
     """Non-orthogonality, skewness and inverted pyramids of the faces of ``mesh``.
 
     As :func:`mesh_quality`, but measured against the cell centres ``centroid`` (shape
-    (n, d)) given: :mod:`hcvt.export.merge` measures candidate faces with it before it
+    (n, d)) given: :mod:`hcvt.mesh.merge` measures candidate faces with it before it
     makes them. Returns the three per-face arrays of :class:`MeshQuality`.
     """
     centre, area = mesh.face_geometry

@@ -40,9 +40,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from hcvt.diagram import Diagram, as_sites, voronoi
-from hcvt.domain import Domain
 from hcvt.errors import InvalidSitesError
-from hcvt.initialisation import (
+from hcvt.geometry.domain import Domain
+from hcvt.optimise import check_rule, cvt
+from hcvt.seeding.hierarchy import hierarchical_cvt
+from hcvt.seeding.initialisation import (
     RandomState,
     boundary_pieces,
     check_count,
@@ -189,7 +191,7 @@ def posed_lattice(
     """Hexagonal (2D) or BCC (3D) lattices with exactly ``n`` sites, best first.
 
     Candidates are poses (orientation, offset); for each, the spacing giving exactly ``n``
-    sites inside is found by bisection on the count (:func:`hcvt.initialisation.lattice_at`)
+    sites inside is found by bisection on the count (:func:`hcvt.seeding.initialisation.lattice_at`)
     and the pose is scored by the energy of its clipped lattice (one diagram, a few
     milliseconds per thousand sites). Coarse to fine:
 
@@ -434,8 +436,6 @@ def relax_defects(
     -------
     Relaxation
     """
-    from hcvt.optimise import cvt
-
     if moves < 0 or worst < 0 or (patience is not None and patience < 1):
         raise ValueError(
             f"need moves >= 0, worst >= 0, patience >= 1; got {moves}, {worst}, {patience}"
@@ -645,9 +645,6 @@ def regular_cvt(
         ``sites``, ``diagram``, ``history``, ``pose``, ``defects``, the start's energy and
         defects, and the relaxation's record.
     """
-    from hcvt.hierarchy import hierarchical_cvt
-    from hcvt.optimise import check_rule, cvt
-
     check_rule(rule)
     n = check_count(n, domain.dim)
     if start not in STARTS:

@@ -16,12 +16,13 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
+from scipy.spatial import Delaunay, cKDTree
 
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike
 from hcvt.diagram import Diagram, voronoi
-from hcvt.domain import Domain
-from hcvt.initialisation import RandomState
+from hcvt.geometry.domain import Domain
+from hcvt.optimise import check_rule, cvt
+from hcvt.seeding.initialisation import RandomState, initialise, random_state
 
 # Sites per subdivision in the ideal lattice: hexagonal 1 + 6/2, BCC 1 + 14/2 (paper §4.1.1).
 GROWTH = {2: 4, 3: 8}
@@ -133,8 +134,6 @@ def subdivide(
 
 def delaunay_edges(sites: NDArray[np.float64]) -> NDArray[np.int64]:
     """Edges ``(i, j)``, ``i < j``, of the Delaunay triangulation of ``sites``, sorted."""
-    from scipy.spatial import Delaunay
-
     simplices = Delaunay(sites).simplices
     d = sites.shape[1]
     pairs = [simplices[:, [a, b]] for a in range(d + 1) for b in range(a + 1, d + 1)]
@@ -399,9 +398,6 @@ def hierarchical_cvt(
     HierarchicalResult
         ``sites`` (n, d), ``diagram``, and ``levels`` (the paper's Table 1 in ``table()``).
     """
-    from hcvt.initialisation import initialise, random_state
-    from hcvt.optimise import check_rule, cvt
-
     check_rule(rule)
     if init not in ("random", "lattice"):
         raise ValueError(f"init must be 'random' or 'lattice', got {init!r}")

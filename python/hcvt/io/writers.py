@@ -1,6 +1,6 @@
-"""Writing conforming meshes: OpenFOAM cases, VTU files, GeoJSON; their quality figures.
+"""Writing conforming meshes: OpenFOAM cases, VTU files, GeoJSON; viewing them in pyvista.
 
-:func:`write_mesh` takes a :class:`hcvt.polymesh.PolyMesh` or anything with a ``mesh()``
+:func:`write_mesh` takes a :class:`hcvt.mesh.PolyMesh` or anything with a ``mesh()``
 method returning one (a :class:`hcvt.Diagram`), and picks the format from the path.
 """
 
@@ -13,34 +13,14 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from hcvt.export.geojson import write_geojson
-from hcvt.export.merge import MergeReport, merged_boundary
-from hcvt.export.openfoam import write_openfoam
-from hcvt.export.patches import boundary_patches
-from hcvt.export.quality import MeshQuality, mesh_quality
-from hcvt.export.split import SplitReport, split_boundary, split_failing_cells
-from hcvt.export.vtu import write_vtu
-from hcvt.polymesh import PolyMesh
+from hcvt.io.geojson import write_geojson
+from hcvt.io.openfoam import write_openfoam
+from hcvt.io.vtu import write_vtu
+from hcvt.lazy import load
+from hcvt.mesh.polymesh import PolyMesh
 
 if TYPE_CHECKING:
-    from hcvt.domain import Domain
-
-__all__ = [
-    "MergeReport",
-    "MeshQuality",
-    "SplitReport",
-    "as_polymesh",
-    "boundary_patches",
-    "merged_boundary",
-    "mesh_quality",
-    "split_boundary",
-    "split_failing_cells",
-    "to_pyvista",
-    "write_geojson",
-    "write_mesh",
-    "write_openfoam",
-    "write_vtu",
-]
+    from hcvt.geometry.domain import Domain
 
 
 def as_polymesh(source: Any) -> tuple[PolyMesh, Domain | None, dict[str, ArrayLike]]:
@@ -54,7 +34,7 @@ def as_polymesh(source: Any) -> tuple[PolyMesh, Domain | None, dict[str, ArrayLi
     make = getattr(source, "mesh", None)
     if make is None:
         raise NotImplementedError(
-            f"{type(source).__name__} has no conforming mesh: pass a hcvt.polymesh.PolyMesh "
+            f"{type(source).__name__} has no conforming mesh: pass a hcvt.mesh.polymesh.PolyMesh "
             "or a Diagram of a build with Diagram.mesh()"
         )
     data: dict[str, ArrayLike] = {}
@@ -106,7 +86,7 @@ def write_mesh(
         :func:`write_openfoam`.
     site : array_like of int, shape (n_cells,), optional
         OpenFOAM: the site of each cell of a mesh split beforehand
-        (:func:`hcvt.export.split.split_failing_cells`).
+        (:func:`hcvt.mesh.split.split_failing_cells`).
 
     Returns
     -------
@@ -161,12 +141,7 @@ def to_pyvista(source: Any) -> Any:
     ImportError
         pyvista is not installed.
     """
-    try:
-        import pyvista
-    except ImportError as err:
-        raise ImportError(
-            "to_pyvista needs pyvista, an optional extra: pip install 'hcvt[viz]'"
-        ) from err
+    pyvista = load("pyvista")
     mesh, _, data = as_polymesh(source)
     with tempfile.TemporaryDirectory() as tmp:
         file = write_vtu(mesh, Path(tmp) / "mesh.vtu", cell_data=data)

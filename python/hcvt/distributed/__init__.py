@@ -1,0 +1,72 @@
+"""One diagram or one CVT partitioned over dask.distributed workers (DESIGN §10).
+
+The sites are cut into parts by median planes fixed by the data
+(:func:`hcvt.distributed.partition.kd_split`, at most ``sites_per_partition`` sites each,
+never by the number of workers). Each part
+lives on a worker as a dask future; the domain is scattered to every worker once.
+
+**Diagram.** In rounds: a part's cells are computed among its sites and the sites of the
+other parts within a distance ``rho = 3 h`` of its sites' box (taken by small tasks where
+those parts live, so only the halo travels). Each cell reports its reach; the cells whose
+reach ``rho`` does not cover are computed again among the sites within 1.5 times their
+reach (a ball per cell), and so on until every cell is certified or its part holds every
+site. The per-cell arrays are then bitwise
+those of :func:`hcvt.voronoi` in one process (module docs of :mod:`hcvt.distributed.partition`).
+
+**Sums.** Energy, mean G, the stopping measures and the L-BFGS dot products are summed per
+part with :func:`math.fsum` in row order, then over the parts in part order. They differ
+from the single process's sequential sums by round-off (energies agree to about 1e-15
+relative) and do not depend on the number of workers.
+
+**CVT.** Sites, gradients and L-BFGS pairs stay in their parts between iterations; the
+client sees only scalars and the small Gram matrices of the pairs:
+
+- Lloyd moves each site to its centroid with the core's operations, so a partitioned Lloyd
+  run is bitwise the single-process ``hcvt.cvt(..., method="lloyd")`` run, site by site.
+- L-BFGS runs the two-loop recursion on the client in coefficient space (vector-free
+  L-BFGS, Chen et al. 2014): one reduction of the partial Gram matrices of
+  ``[s_k, y_k, g]`` (plain and preconditioned by ``1/(2 m_i)``) per iteration, then each part
+  forms its direction. The preconditioner and its Oren–Luenberger scaling are the core's;
+  the line search is a backtracking Armijo search from the unit step (with the
+  approximate-Wolfe acceptance of Hager and Zhang near round-off), falling back to a Lloyd
+  step, so the iterates are not the core's (whose strong-Wolfe search differs). What is
+  guaranteed: the run is bitwise the same for any number of workers.
+- Newton is not offered: its truncated CG needs a Hessian product per CG iteration, i.e.
+  one halo exchange of the vector per product (tens per step), each a round trip through
+  the scheduler; not done here.
+- After every step, sites that crossed a plane of the split move, with their per-row
+  state, to the part that now holds their position (the split stays fixed).
+
+**Density.** With ``density=`` (DESIGN §8) each part's cells carry their ρ-weighted
+moments, integrated by the core exactly as in one process (``clipped_cells_weighted``), so
+``mass``, the weighted ``centroid``, ``energy_terms`` and the gradient are bitwise the
+single-process ones; Lloyd moves to the weighted centroids and L-BFGS is preconditioned by
+``1/(2 m_i)`` with ``m_i = ∫ρ``, as the core. The density is scattered to every worker
+with the domain. A callable is called once per part and round, on the quadrature nodes of
+the cells computed there: bitwise equality then needs each value to depend on its point
+alone (numpy's elementwise functions do; a function that normalises by its whole input
+does not). The halo is unchanged: a cell's reach is where its geometry read sites.
+
+**Worker loss.** With ``checkpoint`` (a temporary directory by default), every part is
+written at the end of every iteration; if a task fails because a worker died (or its data
+was lost), the domain and density are scattered again (the only copy may have gone with
+the worker, since dask's active memory manager drops unused replicas) and the iteration is
+run again from the files of the last completed one. The result is the same, since every
+step is deterministic.
+"""
+
+from hcvt.distributed.driver import (
+    DEFAULT_SITES_PER_PARTITION,
+    PartitionedCVTResult,
+    PartitionedDiagram,
+    partitioned_cvt,
+    partitioned_voronoi,
+)
+
+__all__ = [
+    "DEFAULT_SITES_PER_PARTITION",
+    "PartitionedCVTResult",
+    "PartitionedDiagram",
+    "partitioned_cvt",
+    "partitioned_voronoi",
+]

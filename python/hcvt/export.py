@@ -1,0 +1,35 @@
+"""Meshes out, in one place: quality, boundary repairs and writers.
+
+The names users import as ``hcvt.export.*`` (README), gathered from where they live:
+:mod:`hcvt.mesh` (the conforming mesh, its quality, merge and split) and :mod:`hcvt.io`
+(the writers).
+"""
+
+from hcvt.io import as_polymesh, to_pyvista, write_geojson, write_mesh, write_openfoam, write_vtu
+from hcvt.mesh import (
+    MergeReport,
+    MeshQuality,
+    SplitReport,
+    boundary_patches,
+    merged_boundary,
+    mesh_quality,
+    split_boundary,
+    split_failing_cells,
+)
+
+__all__ = [
+    "MergeReport",
+    "MeshQuality",
+    "SplitReport",
+    "as_polymesh",
+    "boundary_patches",
+    "merged_boundary",
+    "mesh_quality",
+    "split_boundary",
+    "split_failing_cells",
+    "to_pyvista",
+    "write_geojson",
+    "write_mesh",
+    "write_openfoam",
+    "write_vtu",
+]

@@ -1,0 +1,32 @@
+"""Files in and out: domains read, cells and conforming meshes written.
+
+| module | owns |
+|--------|------|
+| :mod:`~hcvt.io.readers` | :func:`load_domain`: polygons and triangle meshes |
+| :mod:`~hcvt.io.writers` | :func:`write_mesh` (format by path), :func:`to_pyvista` |
+| :mod:`~hcvt.io.cells` | :func:`write_cells`: a diagram's cells for viewing |
+| :mod:`~hcvt.io.vtu` | the one VTU writer (VTK polyhedra / polygons) |
+| :mod:`~hcvt.io.pvtu` | the index of a VTU written in pieces |
+| :mod:`~hcvt.io.openfoam` | OpenFOAM cases (constant/polyMesh, system/, 0/) |
+| :mod:`~hcvt.io.geojson` | 2D cells on shared vertices |
+"""
+
+from hcvt.io.cells import write_cells
+from hcvt.io.geojson import write_geojson
+from hcvt.io.openfoam import write_openfoam
+from hcvt.io.readers import load_domain, read_mesh, read_polygon
+from hcvt.io.vtu import write_vtu
+from hcvt.io.writers import as_polymesh, to_pyvista, write_mesh
+
+__all__ = [
+    "as_polymesh",
+    "load_domain",
+    "read_mesh",
+    "read_polygon",
+    "to_pyvista",
+    "write_cells",
+    "write_geojson",
+    "write_mesh",
+    "write_openfoam",
+    "write_vtu",
+]
