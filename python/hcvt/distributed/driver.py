@@ -292,7 +292,7 @@ class PartitionedDiagram:
         # The piece also computes the ring of cells across its border (their vertices
         # are shared): two spacings more keep that ring inside the first halo.
         rho = (HALO_SPACINGS[self._cluster.domain.dim] + RING_SPACINGS) * self._cluster.h
-        index, self.piece_rounds = partition_mesh.write_cells(
+        index, self.piece_rounds = partition_mesh.write_pieces(
             self._cluster, self._parts, self._cells, path, rho
         )
         return index

@@ -201,7 +201,7 @@ def cells_paths(path: str | Path) -> tuple[Path, Path]:
     return path / "cells.pvtu", path
 
 
-def write_cells(
+def write_pieces(
     cluster: Any, parts: list[Any], cells: list[Any], path: str | Path, rho: float
 ) -> tuple[Path, list[int]]:
     """Each part's piece written by its worker, then the index by the client.
