@@ -5,9 +5,9 @@ with this checkout's package and once with the other build's (``--old``, a ``pyt
 directory holding an ``hcvt`` package with its compiled ``_core``), alternating, and the
 medians and the ratio new/old are printed. Build the old one with, for instance::
 
-    git worktree add --detach /tmp/old 34a1fc5 && cd /tmp/old && \\
-        maturin build --release -o /tmp/old/dist && \\
-        unzip -o -d /tmp/old/python /tmp/old/dist/*.whl 'hcvt/_core*'
+    git worktree add --detach /tmp/old 34a1fc5
+    (cd /tmp/old && maturin build --release -o /tmp/old/dist)
+    unzip -o -d /tmp/old/python /tmp/old/dist/*.whl 'hcvt/_core*'
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/against_build.py --old /tmp/old/python [--quick]
 """
@@ -57,7 +57,8 @@ print(time.perf_counter() - t)
     "mesh + quality, bunny, 10k": """
 import time, hcvt
 from hcvt.export import mesh_quality
-d = hcvt.load_domain(DATA + "/3d/bunny.off"); v = hcvt.voronoi(d, hcvt.initialise(d, 10_000, seed=0))
+d = hcvt.load_domain(DATA + "/3d/bunny.off")
+v = hcvt.voronoi(d, hcvt.initialise(d, 10_000, seed=0))
 t = time.perf_counter(); mesh_quality(v.mesh())
 print(time.perf_counter() - t)
 """,
