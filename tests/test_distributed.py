@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 import hcvt
+from hcvt import _core
 from hcvt.distributed import partition as pt
-from hcvt.distributed.driver import partitioned_cvt, partitioned_voronoi, two_loop
+from hcvt.distributed import partitioned_cvt, partitioned_voronoi
 from hcvt.geometry import shapes
 
 distributed = pytest.importorskip("dask.distributed")
@@ -203,7 +204,7 @@ def test_two_loop_in_coefficients_matches_the_recursion_on_vectors():
     g = rng.normal(size=n)
     w = rng.random(n) + 0.5
     basis = np.vstack([s, y, g])
-    c, e = two_loop(basis @ basis.T, (basis * w) @ basis.T)
+    c, e = _core.lbfgs_coefficients(basis @ basis.T, (basis * w) @ basis.T)
     got = w * (np.vstack([y, g]).T @ c) + s.T @ e
     # The textbook two-loop recursion with H0 = γ diag(w).
     q, alphas = g.copy(), []

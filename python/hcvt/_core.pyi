@@ -15,10 +15,17 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = [
     "PolygonDomain",
     "SolidDomain",
+    "check_settings",
     "cut_cell_3d",
     "cvt_2d",
     "cvt_3d",
     "get_num_threads",
+    "lbfgs_coefficients",
+    "lbfgs_direction_2d",
+    "lbfgs_direction_3d",
+    "line_search_accepts",
+    "lloyd_step_2d",
+    "lloyd_step_3d",
     "measure_region_3d",
     "mesh_2d",
     "mesh_3d",
@@ -26,7 +33,10 @@ __all__ = [
     "mesh_part_3d",
     "partition_cells_2d",
     "partition_cells_3d",
+    "positive_curvature",
     "set_num_threads",
+    "step_fields_2d",
+    "step_fields_3d",
     "voronoi_2d",
     "voronoi_3d",
 ]
@@ -178,6 +188,48 @@ def cvt_3d(
     function: _Function | None = None,
     quadrature_degree: int = 4,
 ) -> dict[str, Any]: ...
+
+# The optimiser's settings, checked once for every driver: the tol to use.
+def check_settings(
+    method: str, rule: str, tol: float | None, max_iter: int, memory: int
+) -> float: ...
+
+# One part's steps of a partitioned CVT (hcvt.distributed.partition): shift (k, d), pinned (k,),
+# preconditioner (k,); the Lloyd step; the L-BFGS direction from the coefficients of the
+# two-loop recursion on the summed Gram matrices; the line search's acceptance.
+def step_fields_2d(
+    domain: PolygonDomain, sites: _Float2, mass: _Float1, first: _Float2, boundary_measure: _Float1
+) -> tuple[_Float2, NDArray[np.bool_], _Float1]: ...
+def step_fields_3d(
+    domain: SolidDomain, sites: _Float2, mass: _Float1, first: _Float2, boundary_measure: _Float1
+) -> tuple[_Float2, NDArray[np.bool_], _Float1]: ...
+def lloyd_step_2d(domain: PolygonDomain, sites: _Float2, shifts: _Float2) -> _Float2: ...
+def lloyd_step_3d(domain: SolidDomain, sites: _Float2, shifts: _Float2) -> _Float2: ...
+def lbfgs_direction_2d(
+    domain: PolygonDomain,
+    sites: _Float2,
+    gradient: _Float2,
+    s: NDArray[np.float64],
+    y: NDArray[np.float64],
+    preconditioner: _Float1,
+    c: _Float1,
+    e: _Float1,
+) -> _Float2: ...
+def lbfgs_direction_3d(
+    domain: SolidDomain,
+    sites: _Float2,
+    gradient: _Float2,
+    s: NDArray[np.float64],
+    y: NDArray[np.float64],
+    preconditioner: _Float1,
+    c: _Float1,
+    e: _Float1,
+) -> _Float2: ...
+def lbfgs_coefficients(plain: _Float2, weighted: _Float2) -> tuple[_Float1, _Float1]: ...
+def line_search_accepts(
+    phi0: float, slope0: float, t: float, value: float, slope: float
+) -> bool: ...
+def positive_curvature(sy: float, ss: float, yy: float) -> bool: ...
 
 # The split's kernel (hcvt.mesh.cut): indices int64, -1 for "none". A region's
 # measure: bad (f,) bool, badness (f,), volumes (parts,), centroids (parts, 3), or None if

@@ -218,7 +218,6 @@ def cvt(
         "density": density,
         "quadrature_degree": quadrature_degree,
     }
-    optimise.check_method(method)
     if client is None:
         return optimise.cvt(domain, sites, method, **options)
     per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION

@@ -41,7 +41,6 @@ from hcvt.diagram import Diagram, as_sites
 from hcvt.geometry.domain import Domain
 from hcvt.lazy import load
 
-METHODS = ("lbfgs", "lloyd", "newton")
 RULES = ("gap", "paper")
 #: Default tolerance of ``rule="gap"`` on the RMS of ``|x_i - c_i| / V_i^(1/d)``.
 GAP_TOL = 1e-7
@@ -51,20 +50,12 @@ PAPER_TOL = 1e-10
 
 def default_tol(rule: str) -> float:
     """The tolerance used for ``rule`` when none is given: 1e-7 (gap) or 1e-10 (paper)."""
-    check_rule(rule)
-    return GAP_TOL if rule == "gap" else PAPER_TOL
-
-
-def check_method(method: str) -> None:
-    """Raise ``ValueError`` unless ``method`` is one of :data:`METHODS`."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    return float(_core.check_settings("lbfgs", rule, None, 0, 1))
 
 
 def check_rule(rule: str) -> None:
-    """Raise ``ValueError`` unless ``rule`` is ``"gap"`` or ``"paper"``."""
-    if rule not in RULES:
-        raise ValueError(f"rule must be one of {RULES}, got {rule!r}")
+    """Raise ``ValueError`` unless ``rule`` is ``"gap"`` or ``"paper"`` (the core's check)."""
+    default_tol(rule)
 
 
 @dataclass
@@ -143,12 +134,8 @@ def cvt(
 
     :func:`hcvt.cvt` without ``client``, which documents the parameters.
     """
-    check_method(method)
-    tol = default_tol(rule) if tol is None else tol
-    if not tol >= 0:
-        raise ValueError(f"tol must be a number >= 0, got {tol!r}")
-    if max_iter < 0 or memory < 1:
-        raise ValueError(f"need max_iter >= 0 and memory >= 1, got {max_iter}, {memory}")
+    # The core checks the settings for both drivers (and tells the rule's default tol).
+    tol = _core.check_settings(method, rule, tol, max_iter, memory)
     points = as_sites(sites, domain.dim)
     weighted = core_arguments(density, domain.dim, quadrature_degree)
     run = getattr(_core, f"cvt_{domain.dim}d", None)

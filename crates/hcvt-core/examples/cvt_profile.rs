@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use hcvt_core::diagram::PolygonCell;
 use hcvt_core::domain::Polygon;
-use hcvt_core::optimise::{cvt, evaluate_with, Method, Rule, Settings};
+use hcvt_core::optimise::{cvt, evaluate, Method, Request, Rule, Settings};
 use hcvt_core::sample::interior_sites;
 
 fn main() -> Result<(), hcvt_core::CoreError> {
@@ -75,7 +75,14 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let hessian = method == Method::Newton;
     let t = Instant::now();
     for _ in 0..repeats {
-        evaluate_with::<2, PolygonCell>(&domain, out.sites.clone(), hessian)?;
+        evaluate::<2, PolygonCell>(
+            &domain,
+            out.sites.clone(),
+            &Request {
+                hessian,
+                density: None,
+            },
+        )?;
     }
     println!(
         "one diagram alone: {:.3} ms",

@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use hcvt_core::diagram::PolyhedronCell;
 use hcvt_core::domain::Solid;
-use hcvt_core::optimise::{cvt, evaluate_with, Method, Settings};
+use hcvt_core::optimise::{cvt, evaluate, Method, Request, Settings};
 
 /// Rows of whitespace-separated numbers.
 fn read_rows<T: std::str::FromStr, const N: usize>(path: &str) -> Vec<[T; N]> {
@@ -48,7 +48,15 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let t = Instant::now();
     let mut energy = 0.0;
     for _ in 0..repeat {
-        energy = evaluate_with::<3, PolyhedronCell>(&domain, sites.clone(), hessian)?.energy;
+        energy = evaluate::<3, PolyhedronCell>(
+            &domain,
+            sites.clone(),
+            &Request {
+                hessian,
+                density: None,
+            },
+        )?
+        .energy;
     }
     println!(
         "{n} sites: {:.3} ms per diagram, energy {energy:.17e}",

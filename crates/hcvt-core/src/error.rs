@@ -102,6 +102,12 @@ pub enum CoreError {
         /// Actual length.
         got: usize,
     },
+    /// An optimiser setting out of its range, or an unknown method or rule name.
+    #[error("{reason}")]
+    InvalidSettings {
+        /// What is wrong, naming the setting.
+        reason: String,
+    },
     /// The density cannot be used as given (a bad coefficient, degree or option).
     #[error("invalid density: {reason}")]
     InvalidDensity {

@@ -9,7 +9,7 @@ use hcvt_core::density::{Density, Field, Quadratic};
 use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::evaluate_weighted;
+use hcvt_core::optimise::{evaluate, Request};
 use hcvt_core::CoreError;
 
 fn rho_2d() -> Quadratic<2> {
@@ -33,7 +33,15 @@ where
 {
     let density = Density::Polynomial(rho);
     let eval = |s: Vec<[f64; D]>, hessian: bool| {
-        evaluate_weighted::<D, C>(boundary, s, hessian, Some(&density)).unwrap()
+        evaluate::<D, C>(
+            boundary,
+            s,
+            &Request {
+                hessian,
+                density: Some(&density),
+            },
+        )
+        .unwrap()
     };
     let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
     let point = eval(sites.clone(), true);
@@ -113,9 +121,24 @@ fn a_field_sampled_by_a_rule_of_degree_4_equals_the_polynomial() {
         field: &field,
         degree: 4,
     };
-    let a = evaluate_weighted::<3, PolyhedronCell>(&dented, sites.clone(), false, Some(&exact))
-        .unwrap();
-    let b = evaluate_weighted::<3, PolyhedronCell>(&dented, sites, false, Some(&sampled)).unwrap();
+    let a = evaluate::<3, PolyhedronCell>(
+        &dented,
+        sites.clone(),
+        &Request {
+            hessian: false,
+            density: Some(&exact),
+        },
+    )
+    .unwrap();
+    let b = evaluate::<3, PolyhedronCell>(
+        &dented,
+        sites,
+        &Request {
+            hessian: false,
+            density: Some(&sampled),
+        },
+    )
+    .unwrap();
     for (x, y) in a.diagram.weighted.iter().zip(&b.diagram.weighted) {
         assert!((x.mass - y.mass).abs() <= 1e-12 * x.mass, "{x:?} {y:?}");
         assert!(
@@ -128,8 +151,14 @@ fn a_field_sampled_by_a_rule_of_degree_4_equals_the_polynomial() {
         field: &field,
         degree: 6,
     };
-    let err =
-        evaluate_weighted::<3, PolyhedronCell>(&dented, vec![[0.5; 3]], false, Some(&too_high));
+    let err = evaluate::<3, PolyhedronCell>(
+        &dented,
+        vec![[0.5; 3]],
+        &Request {
+            hessian: false,
+            density: Some(&too_high),
+        },
+    );
     assert!(
         matches!(err, Err(CoreError::InvalidDensity { .. })),
         "{err:?}"

@@ -18,7 +18,7 @@ use hcvt_core::diagram::{
 };
 use hcvt_core::domain::{Boundary, Polygon, Solid, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::{cvt, evaluate_with, Method, Point, Rule, Settings};
+use hcvt_core::optimise::{cvt, evaluate, Method, Point, Request, Rule, Settings};
 
 /// FNV-1a over 64-bit words: the same value on every platform and compiler.
 #[derive(Clone, Copy)]
@@ -110,7 +110,15 @@ fn hash_2d(boundary: &Polygon, sites: &[[f64; 2]], options: Options) -> u64 {
         cell.faces().iter().for_each(|&f| h.face(f));
     }
     if !options.allow_outside {
-        let point = evaluate_with::<2, PolygonCell>(boundary, sites.to_vec(), true).unwrap();
+        let point = evaluate::<2, PolygonCell>(
+            boundary,
+            sites.to_vec(),
+            &Request {
+                hessian: true,
+                density: None,
+            },
+        )
+        .unwrap();
         hash_diagram(&mut h, &point.diagram);
         hash_hessian(&mut h, &point);
     }
@@ -129,7 +137,15 @@ fn hash_3d(boundary: &Solid, sites: &[[f64; 3]]) -> u64 {
             polygon.iter().for_each(|v| h.fs(v));
         });
     }
-    let point = evaluate_with::<3, PolyhedronCell>(boundary, sites.to_vec(), true).unwrap();
+    let point = evaluate::<3, PolyhedronCell>(
+        boundary,
+        sites.to_vec(),
+        &Request {
+            hessian: true,
+            density: None,
+        },
+    )
+    .unwrap();
     hash_diagram(&mut h, &point.diagram);
     hash_hessian(&mut h, &point);
     h.0
@@ -297,7 +313,7 @@ fn run<const D: usize, C: ConvexCell<D>>(
     name: &str,
     boundary: &Boundary<D>,
     n: usize,
-    settings: &Settings,
+    settings: &Settings<'_, D>,
 ) -> (String, u64)
 where
     Euclid: Space<D> + WindingNumber<D>,
@@ -321,18 +337,22 @@ fn cvt_runs_match_their_recorded_hashes() {
         (Method::Lbfgs, Rule::Paper),
     ];
     for (method, rule) in runs {
-        let settings = Settings {
-            method,
-            rule,
-            tol: rule.default_tol(),
-            max_iter: if method == Method::Lloyd { 60 } else { 400 },
-            ..Settings::default()
-        };
-        found.push(run::<2, PolygonCell>("star", &star(), 200, &settings));
-        found.push(run::<2, PolygonCell>("holes", &holes(), 150, &settings));
+        fn settings<const D: usize>(method: Method, rule: Rule) -> Settings<'static, D> {
+            Settings {
+                method,
+                rule,
+                tol: rule.default_tol(),
+                max_iter: if method == Method::Lloyd { 60 } else { 400 },
+                ..Settings::default()
+            }
+        }
+        let plane = settings::<2>(method, rule);
+        found.push(run::<2, PolygonCell>("star", &star(), 200, &plane));
+        found.push(run::<2, PolygonCell>("holes", &holes(), 150, &plane));
         if let Some(dir) = data_3d() {
             let ball = read_mesh(&dir.join("sphere.ply"));
-            found.push(run::<3, PolyhedronCell>("ball", &ball, 150, &settings));
+            let space = settings::<3>(method, rule);
+            found.push(run::<3, PolyhedronCell>("ball", &ball, 150, &space));
         }
     }
     check(&found, RUNS);

@@ -11,8 +11,7 @@ use hcvt_core::domain::{Boundary, Polygon, Solid, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
 use hcvt_core::optimise::lloyd::reseed_empty;
 use hcvt_core::optimise::{
-    cvt, evaluate, evaluate_with, Measures, Method, Outcome, Point, Rule, Settings, Step,
-    StopReason,
+    cvt, evaluate, Measures, Method, Outcome, Point, Request, Rule, Settings, Step, StopReason,
 };
 
 /// An L-shaped polygon with a square hole: non-convex, and with a hole.
@@ -53,14 +52,16 @@ where
 {
     let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
     let step = 1e-6 * h;
-    let point = evaluate::<D, C>(boundary, sites.clone()).unwrap();
+    let point = evaluate::<D, C>(boundary, sites.clone(), &Request::default()).unwrap();
     let (mut err2, mut norm2) = (0.0, 0.0);
     for i in (0..sites.len()).step_by(3) {
         for k in 0..D {
             let energy_at = |delta: f64| {
                 let mut moved = sites.clone();
                 moved[i][k] += delta;
-                evaluate::<D, C>(boundary, moved).unwrap().energy
+                evaluate::<D, C>(boundary, moved, &Request::default())
+                    .unwrap()
+                    .energy
             };
             let fd = (energy_at(step) - energy_at(-step)) / (2.0 * step);
             err2 += (fd - point.gradient[i][k]).powi(2);
@@ -90,7 +91,15 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
-    let point = evaluate_with::<D, C>(boundary, sites.clone(), true).unwrap();
+    let point = evaluate::<D, C>(
+        boundary,
+        sites.clone(),
+        &Request {
+            hessian: true,
+            density: None,
+        },
+    )
+    .unwrap();
     // A direction from the sites' own digits: deterministic, in every coordinate.
     let v: Vec<[f64; D]> = sites
         .iter()
@@ -102,7 +111,9 @@ where
             .zip(&v)
             .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
             .collect();
-        evaluate::<D, C>(boundary, moved).unwrap().gradient
+        evaluate::<D, C>(boundary, moved, &Request::default())
+            .unwrap()
+            .gradient
     };
     let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
     let exact = point.hessian_product(&v).unwrap();
@@ -124,11 +135,12 @@ fn hessian_matches_central_differences_of_the_gradient() {
     let dented = dented_cube();
     let err = hessian_error::<3, PolyhedronCell>(&dented, interior_sites(&dented, 60, 2));
     assert!(err < 1e-6, "3D: relative error {err:e}");
-    let without = evaluate::<2, PolygonCell>(&l, interior_sites(&l, 10, 1)).unwrap();
+    let without =
+        evaluate::<2, PolygonCell>(&l, interior_sites(&l, 10, 1), &Request::default()).unwrap();
     assert!(without.hessian_product(&[[0.0; 2]; 10]).is_none());
 }
 
-fn settings(method: Method, tol: f64, max_iter: usize) -> Settings {
+fn settings<const D: usize>(method: Method, tol: f64, max_iter: usize) -> Settings<'static, D> {
     Settings {
         method,
         rule: Rule::Gap,
@@ -139,7 +151,7 @@ fn settings(method: Method, tol: f64, max_iter: usize) -> Settings {
 }
 
 /// [`settings`] under the paper's rule, `‖g‖/‖X‖ < tol` in the input coordinates.
-fn paper(method: Method, tol: f64, max_iter: usize) -> Settings {
+fn paper<const D: usize>(method: Method, tol: f64, max_iter: usize) -> Settings<'static, D> {
     Settings {
         rule: Rule::Paper,
         ..settings(method, tol, max_iter)
@@ -156,14 +168,14 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     assert_eq!(out.history.last().unwrap().measures.pinned, 0);
-    let point = evaluate::<D, C>(boundary, out.sites.clone()).unwrap();
+    let point = evaluate::<D, C>(boundary, out.sites.clone(), &Request::default()).unwrap();
     Measures::of(&point, &vec![false; out.sites.len()])
 }
 
 fn run<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
-    settings: &Settings,
+    settings: &Settings<'_, D>,
 ) -> hcvt_core::optimise::Outcome<D>
 where
     Euclid: Space<D> + WindingNumber<D>,
@@ -199,11 +211,10 @@ fn lattices_are_fixed_points() {
     let cubes = grid([4, 4, 3], [0.5, -1.0, 2.0], [2.5, 1.0, 3.5]);
     for method in [Method::Lbfgs, Method::Lloyd, Method::Newton] {
         // tol = 0: every iteration runs, on gradients that are round-off.
-        let s = settings(method, 0.0, 4);
-        let out = run::<2, PolygonCell>(&rectangle, squares.clone(), &s);
+        let out = run::<2, PolygonCell>(&rectangle, squares.clone(), &settings(method, 0.0, 4));
         let moved = max_move(&out.sites, &squares);
         assert!(moved < 1e-12, "{method:?}: a square moved by {moved:e}");
-        let out = run::<3, PolyhedronCell>(&cube, cubes.clone(), &s);
+        let out = run::<3, PolyhedronCell>(&cube, cubes.clone(), &settings(method, 0.0, 4));
         let moved = max_move(&out.sites, &cubes);
         assert!(moved < 1e-12, "{method:?}: a cube moved by {moved:e}");
     }
@@ -358,7 +369,15 @@ fn the_caller_sees_its_own_order() {
         .unwrap();
         assert_eq!(first.as_deref(), Some(&sites[..]));
         let newton = method == Method::Newton;
-        let fresh = evaluate_with::<2, PolygonCell>(&l, out.sites.clone(), newton).unwrap();
+        let fresh = evaluate::<2, PolygonCell>(
+            &l,
+            out.sites.clone(),
+            &Request {
+                hessian: newton,
+                density: None,
+            },
+        )
+        .unwrap();
         let (a, b) = (&out.diagram, &fresh.diagram);
         assert_eq!(a.neighbor_offsets, b.neighbor_offsets);
         assert_eq!(a.neighbor_sites, b.neighbor_sites);

@@ -1,6 +1,7 @@
 //! The one place where core errors become Python exceptions.
 
 use hcvt_core::CoreError;
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 pyo3::import_exception!(hcvt.errors, InvalidSitesError);
@@ -27,6 +28,7 @@ pub fn to_py_err(err: CoreError) -> PyErr {
         CoreError::InvalidDensity { .. } | CoreError::DensityValue { .. } => {
             InvalidDensityError::new_err(message)
         }
+        CoreError::InvalidSettings { .. } => PyValueError::new_err(message),
         CoreError::InvalidFace { .. }
         | CoreError::InvalidPoint { .. }
         | CoreError::InvalidPlane { .. } => InvalidMeshError::new_err(message),

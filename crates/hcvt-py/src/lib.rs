@@ -38,6 +38,16 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(split::cut_cell_3d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_2d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::step_fields_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::step_fields_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::lloyd_step_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::lloyd_step_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::lbfgs_direction_2d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::lbfgs_direction_3d, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::lbfgs_coefficients, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::line_search_accepts, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::positive_curvature, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::check_settings, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(threads::get_num_threads, m)?)?;
     Ok(())

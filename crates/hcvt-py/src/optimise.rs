@@ -1,6 +1,10 @@
 //! CVTs as numpy arrays: `cvt_2d` and `cvt_3d` run the whole iteration in the core with
 //! the GIL released; the calling thread checks for Ctrl-C meanwhile, and the GIL is taken
 //! once per iteration only when there is a callback to call.
+//!
+//! The steps of one part of a partitioned run (`hcvt.partition`, `hcvt.distributed`) are
+//! the core's too: its Lloyd step and guards, the L-BFGS coefficients, direction and
+//! acceptance, and the check of the settings.
 
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -11,8 +15,12 @@ use std::time::Duration;
 use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::{cvt_with_density, Method, Outcome, Record, Rule, Settings};
-use numpy::{PyArray1, PyReadonlyArray2};
+use hcvt_core::moments::Moments;
+use hcvt_core::optimise::lbfgs::{self, LineSearch};
+use hcvt_core::optimise::{cvt, lloyd, Named, Outcome, Record};
+use numpy::{
+    PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
+};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -21,97 +29,292 @@ use crate::arrays::{rows, to_array2};
 use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
 use crate::domain::{PolygonDomain, SolidDomain};
+use crate::errors::to_py_err;
 
-/// CVT of `sites` (n, 2) in `domain` (see `hcvt.cvt`): a dict with `sites`, `diagram` (the
-/// arrays of `voronoi_2d`), `history` (a dict of per-iterate arrays), `stop_reason`.
-/// `callback(record)`, if given, gets a dict per iterate; a true return value stops.
-#[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
-#[allow(clippy::too_many_arguments)]
-pub fn cvt_2d<'py>(
-    py: Python<'py>,
-    domain: &PolygonDomain,
-    sites: PyReadonlyArray2<'py, f64>,
-    method: &str,
-    rule: &str,
-    tol: Option<f64>,
-    max_iter: usize,
-    memory: usize,
-    callback: Option<Py<PyAny>>,
-    polynomial: Option<Coefficients>,
-    function: Option<Py<PyAny>>,
-    quadrature_degree: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let settings = settings(method, rule, tol, max_iter, memory)?;
-    let points = rows::<f64, 2>(&sites, "sites")?;
-    let given = Given::new(polynomial, function, quadrature_degree)?;
-    run::<2, PolygonCell>(py, &domain.0, points, &settings, callback, &given)
-}
+/// The `_2d` and `_3d` functions of this module, one pair per line of the invocation:
+/// each a thin wrapper of a generic function below.
+macro_rules! by_dimension {
+    ($d:literal, $domain:ty, $cell:ty, $cvt:ident, $fields:ident, $lloyd:ident, $direction:ident) => {
+        /// CVT of `sites` (n, d) in `domain` (see `hcvt.cvt`): a dict with `sites`,
+        /// `diagram` (the arrays of `voronoi_2d`/`_3d`), `history` (a dict of per-iterate
+        /// arrays), `stop_reason`. `callback(record)`, if given, gets a dict per iterate; a
+        /// true return value stops.
+        #[pyfunction]
+        #[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
+        #[allow(clippy::too_many_arguments)]
+        pub fn $cvt<'py>(
+            py: Python<'py>,
+            domain: &$domain,
+            sites: PyReadonlyArray2<'py, f64>,
+            method: &str,
+            rule: &str,
+            tol: Option<f64>,
+            max_iter: i64,
+            memory: i64,
+            callback: Option<Py<PyAny>>,
+            polynomial: Option<Coefficients>,
+            function: Option<Py<PyAny>>,
+            quadrature_degree: usize,
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
+            let points = rows::<f64, $d>(&sites, "sites")?;
+            let given = Given::new(polynomial, function, quadrature_degree)?;
+            run::<$d, $cell>(py, &domain.0, points, &named, callback, &given)
+        }
 
-/// CVT of `sites` (n, 3) in the solid `domain`; as `cvt_2d`.
-#[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
-#[allow(clippy::too_many_arguments)]
-pub fn cvt_3d<'py>(
-    py: Python<'py>,
-    domain: &SolidDomain,
-    sites: PyReadonlyArray2<'py, f64>,
-    method: &str,
-    rule: &str,
-    tol: Option<f64>,
-    max_iter: usize,
-    memory: usize,
-    callback: Option<Py<PyAny>>,
-    polynomial: Option<Coefficients>,
-    function: Option<Py<PyAny>>,
-    quadrature_degree: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let settings = settings(method, rule, tol, max_iter, memory)?;
-    let points = rows::<f64, 3>(&sites, "sites")?;
-    let given = Given::new(polynomial, function, quadrature_degree)?;
-    run::<3, PolyhedronCell>(py, &domain.0, points, &settings, callback, &given)
-}
+        /// What a part's next step needs from its cells (`hcvt.partition.absorb`): the
+        /// shift to the centroid (k, d) (0 for an empty cell), whether each site is pinned
+        /// (k,), and the preconditioner `1/(2 m_i)` (k,), each by the core's Lloyd and
+        /// L-BFGS.
+        #[pyfunction]
+        pub fn $fields<'py>(
+            py: Python<'py>,
+            domain: &$domain,
+            sites: PyReadonlyArray2<'py, f64>,
+            mass: PyReadonlyArray1<'py, f64>,
+            first: PyReadonlyArray2<'py, f64>,
+            boundary_measure: PyReadonlyArray1<'py, f64>,
+        ) -> PyResult<StepFields<'py>> {
+            step_fields::<$d>(py, &domain.0, &sites, &mass, &first, &boundary_measure)
+        }
 
-fn settings(
-    method: &str,
-    rule: &str,
-    tol: Option<f64>,
-    max_iter: usize,
-    memory: usize,
-) -> PyResult<Settings> {
-    let method = match method {
-        "lbfgs" => Method::Lbfgs,
-        "lloyd" => Method::Lloyd,
-        "newton" => Method::Newton,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "method must be 'lbfgs', 'lloyd' or 'newton', got {other:?}"
-            )))
+        /// The core's Lloyd step of `sites` (k, d) by `shifts` (k, d), held inside.
+        #[pyfunction]
+        pub fn $lloyd<'py>(
+            py: Python<'py>,
+            domain: &$domain,
+            sites: PyReadonlyArray2<'py, f64>,
+            shifts: PyReadonlyArray2<'py, f64>,
+        ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+            lloyd_step::<$d>(py, &domain.0, &sites, &shifts)
+        }
+
+        /// One part's rows (k, d) of the L-BFGS direction from the coefficients of
+        /// `lbfgs_coefficients`, held inside: `gradient` (k, d), pairs `s` and `y` (m, k, d)
+        /// oldest first, `preconditioner` (k,).
+        #[pyfunction]
+        #[allow(clippy::too_many_arguments)]
+        pub fn $direction<'py>(
+            py: Python<'py>,
+            domain: &$domain,
+            sites: PyReadonlyArray2<'py, f64>,
+            gradient: PyReadonlyArray2<'py, f64>,
+            s: PyReadonlyArray3<'py, f64>,
+            y: PyReadonlyArray3<'py, f64>,
+            preconditioner: PyReadonlyArray1<'py, f64>,
+            c: PyReadonlyArray1<'py, f64>,
+            e: PyReadonlyArray1<'py, f64>,
+        ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+            let part = PartPairs {
+                sites: &sites,
+                gradient: &gradient,
+                s: &s,
+                y: &y,
+                preconditioner: &preconditioner,
+            };
+            lbfgs_direction::<$d>(py, &domain.0, part, &c, &e)
         }
     };
-    let rule = match rule {
-        "gap" => Rule::Gap,
-        "paper" => Rule::Paper,
-        other => {
-            return Err(PyValueError::new_err(format!(
-                "rule must be 'gap' or 'paper', got {other:?}"
-            )))
-        }
-    };
-    let tol = tol.unwrap_or_else(|| rule.default_tol());
-    if tol.is_nan() || tol < 0.0 {
+}
+
+by_dimension!(
+    2,
+    PolygonDomain,
+    PolygonCell,
+    cvt_2d,
+    step_fields_2d,
+    lloyd_step_2d,
+    lbfgs_direction_2d
+);
+by_dimension!(
+    3,
+    SolidDomain,
+    PolyhedronCell,
+    cvt_3d,
+    step_fields_3d,
+    lloyd_step_3d,
+    lbfgs_direction_3d
+);
+
+/// The settings of a CVT, checked by the core once for every driver (`hcvt.cvt`, the
+/// partitioned run): the tolerance to use, the rule's default when `tol` is None.
+#[pyfunction]
+#[pyo3(signature = (method, rule, tol, max_iter, memory))]
+pub fn check_settings(
+    method: &str,
+    rule: &str,
+    tol: Option<f64>,
+    max_iter: i64,
+    memory: i64,
+) -> PyResult<f64> {
+    let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
+    Ok(named.tol)
+}
+
+/// The coefficients `(c, e)` of the L-BFGS direction from the Gram matrices `plain` and
+/// `weighted` (2m+1, 2m+1) of `[s, y, g]`, summed over the parts: the core's two-loop
+/// recursion in coefficient space.
+#[pyfunction]
+pub fn lbfgs_coefficients<'py>(
+    py: Python<'py>,
+    plain: PyReadonlyArray2<'py, f64>,
+    weighted: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Coefficients2<'py>> {
+    let (c, e) =
+        lbfgs::gram_coefficients(plain.as_slice()?, weighted.as_slice()?).map_err(to_py_err)?;
+    Ok((PyArray1::from_vec(py, c), PyArray1::from_vec(py, e)))
+}
+
+/// Whether the partitioned run's backtracking line search accepts the step `t` with
+/// energy `value` and slope `slope` from `phi0`, `slope0` (the core's acceptance).
+#[pyfunction]
+pub fn line_search_accepts(phi0: f64, slope0: f64, t: f64, value: f64, slope: f64) -> bool {
+    LineSearch::backtracking(1).accepts(phi0, slope0, t, value, slope)
+}
+
+/// Whether an L-BFGS pair with these products is kept (the core's curvature test).
+#[pyfunction]
+pub fn positive_curvature(sy: f64, ss: f64, yy: f64) -> bool {
+    lbfgs::positive_curvature(sy, ss, yy)
+}
+
+/// `c` (m + 1,) and `e` (m,).
+type Coefficients2<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
+
+/// Shifts (k, d), pinned (k,), preconditioner (k,).
+type StepFields<'py> = (
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<f64>>,
+);
+
+fn values(array: &PyReadonlyArray1<'_, f64>, n: usize, what: &str) -> PyResult<Vec<f64>> {
+    let out = array.as_slice()?.to_vec();
+    if out.len() != n {
         return Err(PyValueError::new_err(format!(
-            "tol must be a number >= 0, got {tol}"
+            "{what} must have shape ({n},), got {:?}",
+            array.shape()
         )));
     }
-    Ok(Settings {
-        method,
-        rule,
-        tol,
-        max_iter,
-        memory,
-        ..Settings::default()
-    })
+    Ok(out)
+}
+
+fn step_fields<'py, const D: usize>(
+    py: Python<'py>,
+    boundary: &Boundary<D>,
+    sites: &PyReadonlyArray2<'py, f64>,
+    mass: &PyReadonlyArray1<'py, f64>,
+    first: &PyReadonlyArray2<'py, f64>,
+    boundary_measure: &PyReadonlyArray1<'py, f64>,
+) -> PyResult<StepFields<'py>>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let points = rows::<f64, D>(sites, "sites")?;
+    let n = points.len();
+    let mass = values(mass, n, "mass")?;
+    let first = rows::<f64, D>(first, "first")?;
+    let measure = values(boundary_measure, n, "boundary_measure")?;
+    if first.len() != n {
+        return Err(PyValueError::new_err("first must have one row per site"));
+    }
+    let moments: Vec<Moments<D>> = (mass.iter().zip(&first))
+        .map(|(&mass, &first)| Moments {
+            mass,
+            first,
+            second: 0.0,
+        })
+        .collect();
+    let shifts = lloyd::centroid_shifts(&moments);
+    let pinned = py.detach(|| lloyd::pinned(boundary, &points, &shifts, &measure));
+    let shifts: Vec<[f64; D]> = shifts.iter().map(|s| s.unwrap_or([0.0; D])).collect();
+    Ok((
+        to_array2(py, &shifts)?,
+        PyArray1::from_vec(py, pinned),
+        PyArray1::from_vec(py, lbfgs::preconditioner(mass)),
+    ))
+}
+
+fn lloyd_step<'py, const D: usize>(
+    py: Python<'py>,
+    boundary: &Boundary<D>,
+    sites: &PyReadonlyArray2<'py, f64>,
+    shifts: &PyReadonlyArray2<'py, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let points = rows::<f64, D>(sites, "sites")?;
+    let shifts = rows::<f64, D>(shifts, "shifts")?;
+    if shifts.len() != points.len() {
+        return Err(PyValueError::new_err("shifts must have one row per site"));
+    }
+    let moved = py.detach(|| lloyd::lloyd_step(boundary, &points, &shifts));
+    to_array2(py, &moved)
+}
+
+/// A part's sites and per-row L-BFGS state, as numpy arrays.
+struct PartPairs<'a, 'py> {
+    sites: &'a PyReadonlyArray2<'py, f64>,
+    gradient: &'a PyReadonlyArray2<'py, f64>,
+    s: &'a PyReadonlyArray3<'py, f64>,
+    y: &'a PyReadonlyArray3<'py, f64>,
+    preconditioner: &'a PyReadonlyArray1<'py, f64>,
+}
+
+/// An (m, k, D) array as m vectors of k rows.
+fn pairs<const D: usize>(
+    array: &PyReadonlyArray3<'_, f64>,
+    k: usize,
+    what: &str,
+) -> PyResult<Vec<Vec<[f64; D]>>> {
+    let shape = array.shape();
+    if shape.get(1..) != Some(&[k, D][..]) {
+        return Err(PyValueError::new_err(format!(
+            "{what} must have shape (m, {k}, {D}), got {shape:?}"
+        )));
+    }
+    let flat = array.as_slice()?;
+    Ok(flat
+        .chunks_exact((k * D).max(1))
+        .map(|pair| {
+            pair.chunks_exact(D)
+                .filter_map(|row| <[f64; D]>::try_from(row).ok())
+                .collect()
+        })
+        .collect())
+}
+
+fn lbfgs_direction<'py, const D: usize>(
+    py: Python<'py>,
+    boundary: &Boundary<D>,
+    part: PartPairs<'_, 'py>,
+    c: &PyReadonlyArray1<'py, f64>,
+    e: &PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let points = rows::<f64, D>(part.sites, "sites")?;
+    let k = points.len();
+    let gradient = rows::<f64, D>(part.gradient, "gradient")?;
+    let s = pairs::<D>(part.s, k, "s")?;
+    let y = pairs::<D>(part.y, k, "y")?;
+    if gradient.len() != k {
+        return Err(PyValueError::new_err("gradient must have one row per site"));
+    }
+    let preconditioner = part.preconditioner.as_slice()?;
+    let mut direction = lbfgs::combine(
+        c.as_slice()?,
+        e.as_slice()?,
+        &gradient,
+        &s,
+        &y,
+        preconditioner,
+    )
+    .map_err(to_py_err)?;
+    py.detach(|| lloyd::hold_inside(boundary, &points, &mut direction));
+    to_array2(py, &direction)
 }
 
 /// How often the waiting thread checks for Ctrl-C while the core works.
@@ -126,7 +329,7 @@ fn run<'py, const D: usize, C: ConvexCell<D>>(
     py: Python<'py>,
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
-    settings: &Settings,
+    named: &Named,
     callback: Option<Py<PyAny>>,
     given: &Given,
 ) -> PyResult<Bound<'py, PyDict>>
@@ -134,7 +337,8 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let density = given.density::<D>()?;
-    let density = density.as_ref();
+    let settings = named.settings(density.as_ref());
+    let settings = &settings;
     let stop = AtomicBool::new(false);
     let raised: Mutex<Option<PyErr>> = Mutex::new(None);
     let raise = |err: PyErr| {
@@ -162,9 +366,8 @@ where
             let (done, finished) = mpsc::channel();
             let observer = &mut observer;
             let worker = scope.spawn(move || {
-                let outcome = crate::threads::run(|| {
-                    cvt_with_density::<D, C>(boundary, sites, settings, density, observer)
-                });
+                let outcome =
+                    crate::threads::run(|| cvt::<D, C>(boundary, sites, settings, observer));
                 // The receiver lives until the worker is joined; a send cannot fail.
                 let _ = done.send(outcome);
             });

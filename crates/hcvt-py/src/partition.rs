@@ -14,59 +14,43 @@ use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
 use crate::domain::{PolygonDomain, SolidDomain};
 
-/// Cells of `sites[own]` among `sites` (n, 2), a part of a problem of `total_sites` sites
-/// whose row numbers are `rows` (n,), increasing: a diagram dict with one row per own site
-/// and neighbours in the problem's rows, plus `first` (k, 2), each cell's first moment
-/// about its site (ρ-weighted with a density, as `mass`, `centroid` and `energy_terms`),
-/// and `reach2` (k,) (see `hcvt.distributed`). The density as for `voronoi_2d`.
-#[pyfunction]
-#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
-#[allow(clippy::too_many_arguments)]
-pub fn partition_cells_2d<'py>(
-    py: Python<'py>,
-    domain: &PolygonDomain,
-    sites: PyReadonlyArray2<'py, f64>,
-    rows: PyReadonlyArray1<'py, i64>,
-    own: PyReadonlyArray1<'py, u32>,
-    total_sites: usize,
-    allow_outside: bool,
-    polynomial: Option<Coefficients>,
-    function: Option<Py<PyAny>>,
-    quadrature_degree: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let given = Given::new(polynomial, function, quadrature_degree)?;
-    let job = Part {
-        total_sites,
-        allow_outside,
-        given: &given,
+/// `partition_cells_2d` and `_3d`, thin wrappers of [`cells_dict`].
+macro_rules! partition_cells {
+    ($name:ident, $d:literal, $domain:ty, $cell:ty) => {
+        /// Cells of `sites[own]` among `sites` (n, d), a part of a problem of `total_sites`
+        /// sites whose row numbers are `rows` (n,), increasing: a diagram dict with one row
+        /// per own site and neighbours in the problem's rows, plus `first` (k, d), each
+        /// cell's first moment about its site (ρ-weighted with a density, as `mass`,
+        /// `centroid` and `energy_terms`), and `reach2` (k,) (see `hcvt.distributed`). The
+        /// density as for `voronoi_2d`.
+        #[pyfunction]
+        #[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
+        #[allow(clippy::too_many_arguments)]
+        pub fn $name<'py>(
+            py: Python<'py>,
+            domain: &$domain,
+            sites: PyReadonlyArray2<'py, f64>,
+            rows: PyReadonlyArray1<'py, i64>,
+            own: PyReadonlyArray1<'py, u32>,
+            total_sites: usize,
+            allow_outside: bool,
+            polynomial: Option<Coefficients>,
+            function: Option<Py<PyAny>>,
+            quadrature_degree: usize,
+        ) -> PyResult<Bound<'py, PyDict>> {
+            let given = Given::new(polynomial, function, quadrature_degree)?;
+            let job = Part {
+                total_sites,
+                allow_outside,
+                given: &given,
+            };
+            cells_dict::<$d, $cell>(py, &domain.0, sites, rows, own, job)
+        }
     };
-    cells_dict::<2, PolygonCell>(py, &domain.0, sites, rows, own, job)
 }
 
-/// [`partition_cells_2d`] for sites (n, 3) in a solid.
-#[pyfunction]
-#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
-#[allow(clippy::too_many_arguments)]
-pub fn partition_cells_3d<'py>(
-    py: Python<'py>,
-    domain: &SolidDomain,
-    sites: PyReadonlyArray2<'py, f64>,
-    rows: PyReadonlyArray1<'py, i64>,
-    own: PyReadonlyArray1<'py, u32>,
-    total_sites: usize,
-    allow_outside: bool,
-    polynomial: Option<Coefficients>,
-    function: Option<Py<PyAny>>,
-    quadrature_degree: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let given = Given::new(polynomial, function, quadrature_degree)?;
-    let job = Part {
-        total_sites,
-        allow_outside,
-        given: &given,
-    };
-    cells_dict::<3, PolyhedronCell>(py, &domain.0, sites, rows, own, job)
-}
+partition_cells!(partition_cells_2d, 2, PolygonDomain, PolygonCell);
+partition_cells!(partition_cells_3d, 3, SolidDomain, PolyhedronCell);
 
 /// What a part's computation is told besides its sites.
 struct Part<'a> {

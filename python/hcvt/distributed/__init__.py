@@ -21,16 +21,19 @@ relative) and do not depend on the number of workers.
 **CVT.** Sites, gradients and L-BFGS pairs stay in their parts between iterations; the
 client sees only scalars and the small Gram matrices of the pairs:
 
-- Lloyd moves each site to its centroid with the core's operations, so a partitioned Lloyd
-  run is bitwise the single-process ``hcvt.cvt(..., method="lloyd")`` run, site by site.
-- L-BFGS runs the two-loop recursion on the client in coefficient space (vector-free
-  L-BFGS, Chen et al. 2014): one reduction of the partial Gram matrices of
-  ``[s_k, y_k, g]`` (plain and preconditioned by ``1/(2 m_i)``) per iteration, then each part
-  forms its direction. The preconditioner and its Oren–Luenberger scaling are the core's;
-  the line search is a backtracking Armijo search from the unit step (with the
-  approximate-Wolfe acceptance of Hager and Zhang near round-off), falling back to a Lloyd
-  step, so the iterates are not the core's (whose strong-Wolfe search differs). What is
-  guaranteed: the run is bitwise the same for any number of workers.
+- Lloyd moves each site to its centroid by the core's Lloyd step and guards (called per
+  part: ``step_fields_2d``, ``lloyd_step_2d``), so a partitioned Lloyd run is bitwise the
+  single-process ``hcvt.cvt(..., method="lloyd")`` run, site by site.
+- L-BFGS runs the core's two-loop recursion on the client in coefficient space
+  (vector-free L-BFGS, Chen et al. 2014; ``_core.lbfgs_coefficients``): one reduction of
+  the partial Gram matrices of ``[s_k, y_k, g]`` (plain and preconditioned by
+  ``1/(2 m_i)``) per iteration, then each part forms its direction with the core
+  (``lbfgs_direction_2d``/``_3d``, held inside as the core's). The preconditioner, its
+  Oren–Luenberger scaling, the curvature test and the acceptance of a step are the core's;
+  the line search is a backtracking search from the unit step (Armijo, or Hager and
+  Zhang's approximate Wolfe near round-off: ``LineSearch::accepts``), falling back to a
+  Lloyd step, so the iterates are not the core's (whose strong-Wolfe search differs). What
+  is guaranteed: the run is bitwise the same for any number of workers.
 - Newton is not offered: its truncated CG needs a Hessian product per CG iteration, i.e.
   one halo exchange of the vector per product (tens per step), each a round trip through
   the scheduler; not done here.

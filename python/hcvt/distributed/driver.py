@@ -15,13 +15,14 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hcvt import _core
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
 from hcvt.distributed import partition as pt
 from hcvt.distributed import partition_mesh
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain
-from hcvt.optimise import CVTResult, ProgressBar, chain_observers, default_tol
+from hcvt.optimise import CVTResult, ProgressBar, chain_observers
 
 #: Parts hold at most this many sites unless told otherwise.
 DEFAULT_SITES_PER_PARTITION = 200_000
@@ -33,10 +34,7 @@ HALO_SPACINGS = {2: 3.0, 3: 4.0}
 
 #: Extra first-halo width of a mesh piece, in spacings (PartitionedDiagram.write_cells).
 RING_SPACINGS = 2.0
-#: Energy tolerance of the line search relative to ``|E|`` (as the core's ENERGY_NOISE).
-ENERGY_NOISE = 1e-12
-#: Armijo's sufficient-decrease constant and the number of trials of one line search.
-ARMIJO = 1e-4
+#: Trials of one line search (the core's default ``max_line_evaluations``).
 LINE_TRIALS = 20
 #: Times an iteration is restarted from its checkpoint after a worker loss.
 MAX_RESTARTS = 3
@@ -435,7 +433,7 @@ class _Cvt:
         grams = c.gather([c.submit(pt.lbfgs_gram, p) for p in it.parts])
         plain = _sum_in_order([g[0] for g in grams])
         weighted = _sum_in_order([g[1] for g in grams])
-        wc, sc = two_loop(plain, weighted)
+        wc, sc = _core.lbfgs_coefficients(plain, weighted)
         directed = [c.submit(pt.lbfgs_direction, c.domain_future, p, wc, sc) for p in it.parts]
         parts = [c.item(x, 0) for x in directed]
         slope = math.fsum(c.gather([c.item(x, 1) for x in directed]))
@@ -460,18 +458,14 @@ class _Cvt:
             slope_t = math.fsum(
                 c.gather([c.submit(pt.slope_at, p, k) for p, k in zip(parts, cells, strict=True)])
             )
-            e = sums["energy"]
-            armijo = e <= e0 + ARMIJO * t * slope
-            noise = ENERGY_NOISE * abs(e0)
-            approx_wolfe = e <= e0 + noise and 0.9 * slope <= slope_t <= -(1 - 2 * ARMIJO) * slope
-            if armijo or approx_wolfe:
+            if _core.line_search_accepts(e0, slope, t, sums["energy"], slope_t):
                 accepted = [
                     c.submit(pt.accept, p, q, self.memory)
                     for p, q in zip(parts, trial_parts, strict=True)
                 ]
                 new_parts = [c.item(x, 0) for x in accepted]
                 pair = _reduce(c.gather([c.item(x, 1) for x in accepted]))
-                if not pair["sy"] > np.finfo(np.float64).eps * math.sqrt(pair["ss"] * pair["yy"]):
+                if not _core.positive_curvature(pair["sy"], pair["ss"], pair["yy"]):
                     new_parts = [c.submit(pt.drop_newest_pair, p) for p in new_parts]
                 record = self.record(sums, "lbfgs")
                 return _Iterate(self.rebalance(new_parts), record, trial_parts, cells, rounds)
@@ -544,35 +538,6 @@ def _reduce(partials: list[dict[str, float]]) -> dict[str, float]:
     return out
 
 
-def two_loop(
-    plain: NDArray[np.float64], weighted: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """L-BFGS two-loop recursion on the Gram matrices of ``[s_0..s_{m-1}, y_0..y_{m-1}, g]``.
-
-    ``plain`` holds the dot products, ``weighted`` those with the preconditioner ``P``
-    between. Returns ``(c, e)`` with ``H g = P Σ_j c_j v_j + Σ_k e_k s_k``,
-    ``v = [y_0..y_{m-1}, g]``: the core's ``Memory::direction`` (``H0 = γ P``, ``γ = s·y /
-    yᵀPy`` of the newest pair) with every vector a combination of the basis.
-    """
-    m = (len(plain) - 1) // 2
-    s_idx, y_idx, g_idx = np.arange(m), m + np.arange(m), 2 * m
-    v_idx = np.append(y_idx, g_idx)
-    rho = np.array([1.0 / plain[s_idx[k], y_idx[k]] for k in range(m)])
-    q = np.zeros(m + 1)
-    q[-1] = 1.0  # q = g, in coefficients over v
-    alphas = np.zeros(m)
-    for k in reversed(range(m)):
-        alphas[k] = rho[k] * (plain[s_idx[k], v_idx] @ q)
-        q[k] -= alphas[k]
-    gamma = 1.0 if m == 0 else 1.0 / (rho[m - 1] * weighted[y_idx[m - 1], y_idx[m - 1]])
-    c = gamma * q  # r = γ P q
-    e = np.zeros(m)
-    for k in range(m):
-        beta = rho[k] * (weighted[y_idx[k], v_idx] @ c + plain[y_idx[k], s_idx] @ e)
-        e[k] += alphas[k] - beta
-    return c, e
-
-
 @dataclass
 class PartitionedCVTResult:
     """What :func:`partitioned_cvt` returns: the history and the final diagram on workers."""
@@ -633,16 +598,12 @@ def partitioned_cvt(
     ``quadrature_degree`` as for :func:`hcvt.cvt` (the preconditioner is then ``1/(2 m_i)``
     with ``m_i = ∫ρ``, as the core's).
     """
+    tol = _core.check_settings(method, rule, tol, max_iter, memory)
     if method not in ("lbfgs", "lloyd"):
         raise ValueError(
             f"a partitioned CVT runs 'lbfgs' or 'lloyd' (Newton needs a halo exchange per "
             f"Hessian product), got {method!r}"
         )
-    tol = default_tol(rule) if tol is None else tol
-    if not tol >= 0:
-        raise ValueError(f"tol must be a number >= 0, got {tol!r}")
-    if max_iter < 0 or memory < 1:
-        raise ValueError(f"need max_iter >= 0 and memory >= 1, got {max_iter}, {memory}")
     points = as_sites(sites, domain.dim)
     cluster = _Cluster(client, domain, len(points), False, density, quadrature_degree)
     split = pt.kd_split(points, sites_per_partition)
@@ -723,5 +684,4 @@ __all__ = [
     "PartitionedDiagram",
     "partitioned_cvt",
     "partitioned_voronoi",
-    "two_loop",
 ]

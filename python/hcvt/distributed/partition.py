@@ -43,10 +43,6 @@ COVER_FRACTION = 1.0 - 1e-9
 #: reach: a missing site usually leaves a cell larger, and its reach with it, so the
 #: second try rarely needs a third.
 BALL_FACTOR = 1.5
-#: Halvings of a move that leaves the domain before the site stays (as the core's Lloyd).
-MAX_HALVINGS = 30
-#: Fraction of the way towards its centroid that a pinned site cannot move (as the core).
-PIN_FRACTION = 1.0 / 1_048_576.0
 
 
 @dataclass(frozen=True)
@@ -401,64 +397,33 @@ def inside_or_on(domain: Domain, points: NDArray[np.float64]) -> NDArray[np.bool
     return np.asarray((winding != 0) | on_boundary)
 
 
-def hold_inside(
-    domain: Domain, sites: NDArray[np.float64], moves: NDArray[np.float64]
-) -> NDArray[np.float64]:
-    """Each move shortened to the largest of ``m, m/2, m/4, ...`` ending inside, or 0.
+def _arg(array: NDArray[Any]) -> NDArray[np.float64]:
+    """``array`` as the core takes it: C-contiguous, aligned float64; values unchanged.
 
-    The core's ``lloyd::hold_inside`` with the same floating-point operations
-    (``site + m·t``), so a partitioned Lloyd step moves every site as the core's does.
+    Arrays a task received may be neither (dask unpickles them onto its own buffers).
     """
-    held = np.zeros_like(moves)
-    pending = np.arange(len(sites))
-    t = 1.0
-    for _ in range(MAX_HALVINGS):
-        if pending.size == 0:
-            break
-        scaled = moves[pending] * t
-        ok = inside_or_on(domain, sites[pending] + scaled)
-        held[pending[ok]] = scaled[ok]
-        pending = pending[~ok]
-        t *= 0.5
-    return held
-
-
-def centroid_shift(cells: PartCells) -> NDArray[np.float64]:
-    """``c_i - x_i`` of each cell as the core computes it (``first · (1/mass)``; 0 if empty).
-
-    ρ-weighted with a density (``mass`` is then ``∫ρ``), as the core's Lloyd step.
-    """
-    first, mass = cells.arrays["first"], cells.arrays["mass"]
-    nonzero = mass != 0
-    shift = np.zeros_like(first)
-    shift[nonzero] = first[nonzero] * (1.0 / mass[nonzero])[:, None]
-    return shift
+    return np.require(array, dtype=np.float64, requirements=["C", "A"])
 
 
 def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str, float]]:
     """``part`` with what the next step needs from its cells, and its partial measures.
 
-    Fields set: ``gradient`` (k, d), ``precond`` (k,) = ``1/(2 m_i)``, ``shift`` (k, d)
-    the move to the centroid. Partials (summed by the client in part order): ``energy``,
-    ``sum_G``, ``cells`` (non-empty), ``sum_r2``, ``max_r``, ``counted``, ``g2``, ``x2``,
-    ``pinned`` (the core's ``Measures`` and ``pinned_sites``, DESIGN §7). With a density
-    ``m_i = ∫ρ``, the centroid and gradient are ρ-weighted, and the gap's cell size
-    stays the geometric ``V_i^(1/d)``, as in the core.
+    Fields set, by the core as in one process (``step_fields_2d``/``_3d``): ``gradient``
+    (k, d), ``precond`` (k,) = ``1/(2 m_i)``, ``shift`` (k, d) the move to the centroid
+    (0 for an empty cell); the pinned sites are left out of the measures. Partials (summed
+    by the client in part order): ``energy``, ``sum_G``, ``cells`` (non-empty), ``sum_r2``,
+    ``max_r``, ``counted``, ``g2``, ``x2``, ``pinned`` (the core's ``Measures``, DESIGN §7).
+    With a density ``m_i = ∫ρ``, the centroid and gradient are ρ-weighted, and the gap's
+    cell size stays the geometric ``V_i^(1/d)``, as in the core.
     """
     a = cells.arrays
     volume, mass, first = a["volume"], a["mass"], a["first"]
     gradient = gradient_of(cells)
-    shift = centroid_shift(cells)
     d = domain.dim
-    pinned = np.zeros(len(mass), dtype=bool)
-    touching = np.flatnonzero((a["boundary_measure"] > 0) & (mass != 0))
-    if touching.size:
-        x = part.sites[touching]
-        winding, on_boundary = domain.winding_numbers(x + shift[touching])
-        outside = (winding == 0) & ~on_boundary
-        cand = touching[outside]
-        if cand.size:
-            pinned[cand] = ~inside_or_on(domain, part.sites[cand] + shift[cand] * PIN_FRACTION)
+    fields_of = getattr(_core, f"step_fields_{d}d")
+    shift, pinned, precond = fields_of(
+        domain._core, _arg(part.sites), _arg(mass), _arg(first), _arg(a["boundary_measure"])
+    )
     counted = ~pinned & (volume > 0) & (mass > 0)
     m, v = mass[counted], volume[counted]
     r = np.sqrt((first[counted] ** 2).sum(axis=1)) / m / v ** (1.0 / d)
@@ -477,16 +442,17 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     }
     fields = dict(part.fields)
     fields["gradient"] = gradient
-    fields["precond"] = 0.5 / np.maximum(mass, np.finfo(np.float64).tiny)
+    fields["precond"] = precond
     fields["shift"] = shift
     return Part(part.index, part.rows, part.sites, fields), partials
 
 
 def lloyd_part(domain: Domain, part: Part) -> Part:
-    """Sites moved to their centroids, held inside (the core's ``lloyd_sites``)."""
-    moves = hold_inside(domain, part.sites, part.fields["shift"])
+    """Sites moved to their centroids, held inside: the core's Lloyd step (``lloyd_step``)."""
+    step = getattr(_core, f"lloyd_step_{domain.dim}d")
+    sites = step(domain._core, _arg(part.sites), _arg(part.fields["shift"]))
     fields = {k: v for k, v in part.fields.items() if k in ("s", "y")}
-    return Part(part.index, part.rows, part.sites + moves, fields)
+    return Part(part.index, part.rows, sites, fields)
 
 
 def clear_pairs(part: Part) -> Part:
@@ -530,19 +496,24 @@ def lbfgs_direction(
 ) -> tuple[Part, float]:
     """Set field ``direction`` to ``-(P Σ c_j v_j + Σ e_k s_k)``, held inside the domain.
 
-    ``v = [y_0..y_{m-1}, g]``, ``P = diag(1/(2 m_i))``. Returns the part and its partial
-    slope ``g · direction``.
+    ``v = [y_0..y_{m-1}, g]``, ``P = diag(1/(2 m_i))``, the coefficients from the core's
+    two-loop recursion (``lbfgs_coefficients``); the core forms this part's rows
+    (``lbfgs_direction_2d``/``_3d``). Returns the part and its partial slope
+    ``g · direction``.
     """
     g = part.fields["gradient"]
-    y = part.fields.get("y", np.zeros((0, *g.shape)))
-    s = part.fields.get("s", np.zeros((0, *g.shape)))
-    combo = weighted_coefficients[-1] * g
-    for c, v in zip(weighted_coefficients[:-1], y, strict=True):
-        combo = combo + c * v
-    r = part.fields["precond"][:, None] * combo
-    for e, v in zip(s_coefficients, s, strict=True):
-        r = r + e * v
-    direction = hold_inside(domain, part.sites, -r)
+    empty = np.zeros((0, *g.shape))
+    direction_of = getattr(_core, f"lbfgs_direction_{domain.dim}d")
+    direction = direction_of(
+        domain._core,
+        _arg(part.sites),
+        _arg(g),
+        _arg(part.fields.get("s", empty)),
+        _arg(part.fields.get("y", empty)),
+        _arg(part.fields["precond"]),
+        _arg(weighted_coefficients),
+        _arg(s_coefficients),
+    )
     fields = dict(part.fields)
     fields["direction"] = direction
     return Part(part.index, part.rows, part.sites, fields), _dot(g, direction)

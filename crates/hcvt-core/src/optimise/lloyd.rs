@@ -5,6 +5,8 @@ use rayon::prelude::*;
 use crate::domain::{Boundary, WindingNumber};
 use crate::geometry::{add, scale, Euclid, Space};
 
+use crate::moments::Moments;
+
 use super::Point;
 
 /// Halvings of a move that leaves the domain before the site stays where it is.
@@ -17,19 +19,33 @@ pub fn lloyd_sites<const D: usize>(boundary: &Boundary<D>, point: &Point<D>) -> 
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    let mut moves: Vec<[f64; D]> = point
-        .diagram
-        .mass_moments()
-        .iter()
-        .map(|m| m.centroid().unwrap_or([0.0; D]))
+    let shifts: Vec<[f64; D]> = centroid_shifts(point.diagram.mass_moments())
+        .into_iter()
+        .map(|s| s.unwrap_or([0.0; D]))
         .collect();
-    hold_inside(boundary, &point.sites, &mut moves);
-    point
-        .sites
-        .iter()
-        .zip(&moves)
-        .map(|(&x, &m)| add(x, m))
-        .collect()
+    lloyd_step(boundary, &point.sites, &shifts)
+}
+
+/// The Lloyd step over plain per-site arrays: each site moved by its `shifts[i] = c_i − x_i`
+/// as far as [`hold_inside`] lets it. [`lloyd_sites`] in one process, and each part of a
+/// partitioned run (`hcvt.partition`), call this, so both move every site alike, bit for bit.
+pub fn lloyd_step<const D: usize>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    shifts: &[[f64; D]],
+) -> Vec<[f64; D]>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let mut moves = shifts.to_vec();
+    hold_inside(boundary, sites, &mut moves);
+    sites.iter().zip(&moves).map(|(&x, &m)| add(x, m)).collect()
+}
+
+/// `c_i − x_i = m1_i / m_i` of each cell from its moments about its site (ρ-weighted with a
+/// density), `None` for an empty cell ([`Moments::centroid`]).
+pub fn centroid_shifts<const D: usize>(moments: &[Moments<D>]) -> Vec<Option<[f64; D]>> {
+    moments.iter().map(Moments::centroid).collect()
 }
 
 /// Shorten each site's move `x_i → x_i + d_i` to the largest of `d_i, d_i/2, d_i/4, …`
@@ -72,15 +88,34 @@ pub fn pinned_sites<const D: usize>(boundary: &Boundary<D>, point: &Point<D>) ->
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    let diagram = &point.diagram;
-    (0..point.sites.len())
+    let shifts = centroid_shifts(point.diagram.mass_moments());
+    pinned(
+        boundary,
+        &point.sites,
+        &shifts,
+        &point.diagram.boundary_measure,
+    )
+}
+
+/// [`pinned_sites`] over plain per-site arrays: `shifts` from [`centroid_shifts`], and the
+/// measure of each cell's boundary on the domain's boundary. A partitioned run calls this
+/// per part (`hcvt.partition`).
+pub fn pinned<const D: usize>(
+    boundary: &Boundary<D>,
+    sites: &[[f64; D]],
+    shifts: &[Option<[f64; D]>],
+    boundary_measure: &[f64],
+) -> Vec<bool>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    (sites, shifts, boundary_measure)
         .into_par_iter()
-        .map(|i| {
-            let Some(shift) = diagram.mass_moments()[i].centroid() else {
+        .map(|(&site, &shift, &measure)| {
+            let Some(shift) = shift else {
                 return false;
             };
-            let site = point.sites[i];
-            diagram.boundary_measure[i] > 0.0
+            measure > 0.0
                 && Euclid::winding_number(boundary, &add(site, shift)) == Some(0)
                 && !inside_or_on(boundary, &add(site, scale(shift, PIN_FRACTION)))
         })

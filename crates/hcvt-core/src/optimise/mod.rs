@@ -74,10 +74,31 @@ pub enum Method {
     Newton,
 }
 
+impl Method {
+    /// `"lbfgs"`, `"lloyd"` or `"newton"`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Lbfgs => "lbfgs",
+            Self::Lloyd => "lloyd",
+            Self::Newton => "newton",
+        }
+    }
+
+    /// The method of that name ([`Method::as_str`]).
+    pub fn from_name(name: &str) -> Result<Self, CoreError> {
+        [Self::Lbfgs, Self::Lloyd, Self::Newton]
+            .into_iter()
+            .find(|m| m.as_str() == name)
+            .ok_or_else(|| CoreError::InvalidSettings {
+                reason: format!("method must be 'lbfgs', 'lloyd' or 'newton', got {name:?}"),
+            })
+    }
+}
+
 /// Parameters of [`cvt`].
 #[derive(Debug, Clone, Copy)]
-pub struct Settings {
-    /// [`Method::Lbfgs`] or [`Method::Lloyd`].
+pub struct Settings<'a, const D: usize> {
+    /// [`Method::Lbfgs`], [`Method::Lloyd`] or [`Method::Newton`].
     pub method: Method,
     /// The stopping rule ([`stopping`]).
     pub rule: Rule,
@@ -89,9 +110,11 @@ pub struct Settings {
     pub memory: usize,
     /// Most diagrams one line search may compute.
     pub max_line_evaluations: usize,
+    /// The density ρ of the energy `Σ_i ∫ ρ |x − x_i|²` (DESIGN §8); `None` for ρ = 1.
+    pub density: Option<&'a Density<'a, D>>,
 }
 
-impl Default for Settings {
+impl<const D: usize> Default for Settings<'_, D> {
     fn default() -> Self {
         Self {
             method: Method::Lbfgs,
@@ -100,8 +123,88 @@ impl Default for Settings {
             max_iter: 10_000,
             memory: 7,
             max_line_evaluations: 20,
+            density: None,
         }
     }
+}
+
+/// The settings a caller names (the binding's `cvt_2d`, `hcvt.cvt` and the partitioned
+/// run): checked once, here.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Named {
+    /// The method.
+    pub method: Method,
+    /// The stopping rule.
+    pub rule: Rule,
+    /// Its tolerance, the rule's default when none was given.
+    pub tol: f64,
+    /// Most iterations.
+    pub max_iter: usize,
+    /// L-BFGS pairs kept.
+    pub memory: usize,
+}
+
+impl Named {
+    /// Method and rule by name, `tol` (default by rule) a number `>= 0`, `max_iter >= 0`,
+    /// `memory >= 1`; counts are signed so that a negative one is named, not wrapped.
+    pub fn parse(
+        method: &str,
+        rule: &str,
+        tol: Option<f64>,
+        max_iter: i64,
+        memory: i64,
+    ) -> Result<Self, CoreError> {
+        let method = Method::from_name(method)?;
+        let rule = Rule::from_name(rule)?;
+        let tol = tol.unwrap_or_else(|| rule.default_tol());
+        if tol.is_nan() || tol < 0.0 {
+            return Err(CoreError::InvalidSettings {
+                reason: format!("tol must be a number >= 0, got {tol}"),
+            });
+        }
+        let (Ok(max_iter), Ok(memory @ 1..)) = (usize::try_from(max_iter), usize::try_from(memory))
+        else {
+            return Err(CoreError::InvalidSettings {
+                reason: format!("need max_iter >= 0 and memory >= 1, got {max_iter}, {memory}"),
+            });
+        };
+        Ok(Self {
+            method,
+            rule,
+            tol,
+            max_iter,
+            memory,
+        })
+    }
+
+    /// [`Settings`] with these and the defaults for the rest.
+    pub fn settings<'a, const D: usize>(
+        &self,
+        density: Option<&'a Density<'a, D>>,
+    ) -> Settings<'a, D> {
+        Settings {
+            method: self.method,
+            rule: self.rule,
+            tol: self.tol,
+            max_iter: self.max_iter,
+            memory: self.memory,
+            density,
+            ..Settings::default()
+        }
+    }
+}
+
+/// What [`evaluate`] computes besides the diagram, energy and gradient.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Request<'a, const D: usize> {
+    /// The energy's [`Hessian`] too (for Newton): its face terms are summed in the
+    /// diagram's pass over the faces ([`HessianTerms`]).
+    pub hessian: bool,
+    /// The density ρ (DESIGN §8): energy and gradient from the ρ-weighted moments, and the
+    /// Hessian with `2 m_i` the ρ-weighted mass and its face terms weighted by ρ on each
+    /// face (exact for a polynomial; a sampled field has no Hessian, [`cvt`] refuses Newton
+    /// with one).
+    pub density: Option<&'a Density<'a, D>>,
 }
 
 /// Why [`cvt`] stopped.
@@ -205,7 +308,7 @@ pub struct Point<const D: usize> {
     pub sites: Vec<[f64; D]>,
     /// Their clipped diagram.
     pub diagram: Diagram<D>,
-    /// The energy's Hessian, when asked for ([`evaluate_with`]).
+    /// The energy's Hessian, when asked for ([`Request::hessian`]).
     pub hessian: Option<Hessian<D>>,
     /// `E = Σ_i tr M2_i`, summed in index order, `L^(d+2)`.
     pub energy: f64,
@@ -232,59 +335,33 @@ impl<const D: usize> Point<D> {
     }
 }
 
-/// The diagram of `sites` with its energy and gradient: one diagram computation.
+/// The diagram of `sites` with its energy and gradient, and what `request` asks for: one
+/// diagram computation.
 ///
-/// Errors are the diagram's: a site outside the domain, coinciding or non-finite sites.
+/// Errors are the diagram's: a site outside the domain, coinciding or non-finite sites; a
+/// density not finite and positive where it is sampled.
 pub fn evaluate<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
-) -> Result<Point<D>, CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    evaluate_with::<D, C>(boundary, sites, false)
-}
-
-/// [`evaluate`], with the energy's [`Hessian`] if `hessian` (for Newton): its face terms
-/// are summed in the diagram's pass over the faces ([`HessianTerms`]).
-pub fn evaluate_with<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    sites: Vec<[f64; D]>,
-    hessian: bool,
-) -> Result<Point<D>, CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    evaluate_weighted::<D, C>(boundary, sites, hessian, None)
-}
-
-/// [`evaluate_with`] under a `density` ρ (DESIGN §8): energy and gradient from the
-/// ρ-weighted moments, and the Hessian with `2 m_i` the ρ-weighted mass and its face terms
-/// weighted by ρ on each face (exact for a polynomial; a sampled field has no Hessian,
-/// [`cvt_with_density`] refuses Newton with one).
-pub fn evaluate_weighted<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    sites: Vec<[f64; D]>,
-    hessian: bool,
-    density: Option<&Density<'_, D>>,
+    request: &Request<'_, D>,
 ) -> Result<Point<D>, CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let terms = HessianTerms { sites: &sites };
-    let integrand = hessian.then_some(&terms as &dyn FaceIntegrand<D>);
+    let integrand = request.hessian.then_some(&terms as &dyn FaceIntegrand<D>);
     let (diagram, _, sums) = clipped_diagram_weighted::<D, C>(
         boundary,
         &sites,
         Options::default(),
         false,
         integrand,
-        density,
+        request.density,
     )?;
     Ok(Point {
         energy: diagram.energy(),
         gradient: diagram.gradient(),
-        hessian: hessian.then(|| Hessian::new(&diagram, sums)),
+        hessian: request.hessian.then(|| Hessian::new(&diagram, sums)),
         diagram,
         sites,
     })
@@ -314,14 +391,12 @@ pub type Observer<'a, const D: usize> = dyn FnMut(&Record, &[[f64; D]]) -> Contr
 
 /// Counts diagram computations and tells how far the run has come.
 struct Tracker<'a, const D: usize> {
-    /// The density the energy is weighted by, if any.
-    density: Option<&'a Density<'a, D>>,
+    /// What each evaluation computes: the Hessian for Newton, the density.
+    request: Request<'a, D>,
     /// Mean spacing `h`, `L`.
     h: f64,
     start: Instant,
     evaluations: usize,
-    /// With the Hessian, for Newton.
-    hessian: bool,
     history: Vec<Record>,
 }
 
@@ -335,7 +410,7 @@ impl<const D: usize> Tracker<'_, D> {
         Euclid: Space<D> + WindingNumber<D>,
     {
         self.evaluations += 1;
-        evaluate_weighted::<D, C>(boundary, sites, self.hessian, self.density)
+        evaluate::<D, C>(boundary, sites, &self.request)
     }
 
     /// Record `point` in the history; also returns which sites are pinned
@@ -378,35 +453,24 @@ impl<const D: usize> Tracker<'_, D> {
 /// Errors: those of the first diagram (sites outside the domain, coinciding, non-finite),
 /// naming sites in the caller's order. Later steps keep the sites inside the domain and
 /// distinct, so they do not fail.
-pub fn cvt<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    sites: Vec<[f64; D]>,
-    settings: &Settings,
-    observer: &mut Observer<'_, D>,
-) -> Result<Outcome<D>, CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    cvt_with_density::<D, C>(boundary, sites, settings, None, observer)
-}
-
-/// [`cvt`] of the energy `Σ_i ∫ ρ |x − x_i|²` under a `density` ρ (DESIGN §8): Lloyd
+/// With a density ρ in `settings` (DESIGN §8), the energy is `Σ_i ∫ ρ |x − x_i|²`: Lloyd
 /// moves each site to its ρ-weighted centroid, L-BFGS follows the ρ-weighted gradient
 /// `2 m_i (x_i − c_i)`, and both stopping rules apply unchanged (the gap's `V_i` stays
 /// geometric). Newton's Hessian weighs its face terms by ρ on each face, exactly for a
 /// polynomial; with a sampled field Newton is refused (its face terms would need the field
 /// on every face too).
-pub fn cvt_with_density<const D: usize, C: ConvexCell<D>>(
+pub fn cvt<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
-    settings: &Settings,
-    density: Option<&Density<'_, D>>,
+    settings: &Settings<'_, D>,
     observer: &mut Observer<'_, D>,
 ) -> Result<Outcome<D>, CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
-    if matches!(density, Some(Density::Sampled { .. })) && settings.method == Method::Newton {
+    if matches!(settings.density, Some(Density::Sampled { .. }))
+        && settings.method == Method::Newton
+    {
         return Err(CoreError::InvalidDensity {
             reason: "Newton needs the Hessian, which is weighted exactly only by a polynomial \
                      density: use method 'lbfgs' or 'lloyd' with a function"
@@ -422,7 +486,7 @@ where
         }
         observer(record, &caller_order)
     };
-    match cvt_in_order::<D, C>(boundary, along_curve, settings, density, &mut observe) {
+    match cvt_in_order::<D, C>(boundary, along_curve, settings, &mut observe) {
         Ok(out) => {
             let mut sites = vec![[0.0; D]; out.sites.len()];
             for (&i, &x) in order.iter().zip(&out.sites) {
@@ -449,19 +513,20 @@ where
 fn cvt_in_order<const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
-    settings: &Settings,
-    density: Option<&Density<'_, D>>,
+    settings: &Settings<'_, D>,
     observer: &mut Observer<'_, D>,
 ) -> Result<Outcome<D>, CoreError>
 where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let mut tracker = Tracker {
-        density,
+        request: Request {
+            hessian: settings.method == Method::Newton,
+            density: settings.density,
+        },
         h: mean_spacing(boundary, sites.len()),
         start: Instant::now(),
         evaluations: 0,
-        hessian: settings.method == Method::Newton,
         history: Vec::new(),
     };
     let mut point = tracker.evaluate::<C>(boundary, sites)?;

@@ -18,6 +18,7 @@
 //! sites stay inside; they are counted and reported. (In a convex domain no site is pinned,
 //! so the paper's rule is then exactly the paper's.)
 
+use crate::error::CoreError;
 use crate::geometry::norm2;
 
 use super::Point;
@@ -50,6 +51,16 @@ impl Rule {
             Self::Gap => "gap",
             Self::Paper => "paper",
         }
+    }
+
+    /// The rule of that name ([`Rule::as_str`]).
+    pub fn from_name(name: &str) -> Result<Self, CoreError> {
+        [Self::Gap, Self::Paper]
+            .into_iter()
+            .find(|r| r.as_str() == name)
+            .ok_or_else(|| CoreError::InvalidSettings {
+                reason: format!("rule must be 'gap' or 'paper', got {name:?}"),
+            })
     }
 
     /// The tolerance used when none is given.
