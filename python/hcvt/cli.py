@@ -398,8 +398,9 @@ def _write_meshes(
         f"total {quality['volume_total']:.12g}  non-orthogonality max "
         f"{quality['non_orthogonality_max']:.2f} average "
         f"{quality['non_orthogonality_average']:.2f} deg  skewness max "
-        f"{quality['skewness_max']:.3f}  (checkMesh's limits: {quality['non_orthogonal_faces']} "
-        f"faces > 70 deg, {quality['skew_faces']} skewness > 4, "
+        f"{quality['skewness_max']:.3f}  smallest cell / its neighbour "
+        f"{quality['volume_ratio_min']:.3g}  (checkMesh's limits: "
+        f"{quality['non_orthogonal_faces']} faces > 70 deg, {quality['skew_faces']} skewness > 4, "
         f"{quality['inverted_pyramids']} inverted pyramids, "
         f"{quality['high_aspect_cells']} cells aspect ratio > 1000)"
     )
