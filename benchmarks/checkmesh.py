@@ -15,7 +15,10 @@ case (bunny 50k, cheese 10k by default) it
    non-orthogonality and skewness, and its total volume against the input mesh's volume,
    beside hcvt's own figures for the same mesh (:func:`hcvt.export.mesh_quality`) and,
    for the merged mesh, how much the volumes OpenFOAM computes moved from the exact
-   cells' (total, sum of absolute per-cell changes, largest per-cell change);
+   cells' (total, sum of absolute per-cell changes, largest per-cell change); then
+   laplacianFoam on a linear field (:func:`hcvt.export.solver.laplace_check`, issue 30):
+   converged, last initial residual, RMS and largest error of T (spanning 2) at the
+   cell centres;
 4. for comparison, the same volume figures when every connected region of a cell's
    pieces is merged into one face (where it is one disc), not only the failing pieces;
 5. for each cell whose faces still fail after merging, a search for any other grouping:
@@ -42,6 +45,7 @@ import numpy as np
 
 import hcvt
 from hcvt.export import (
+    laplace_check,
     merged_boundary,
     mesh_quality,
     split_failing_cells,
@@ -277,6 +281,14 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
                 f"{time.perf_counter() - start:.1f} s"
             )
             report(label, log, written, domain.volume)
+            start = time.perf_counter()
+            solved = laplace_check(case)
+            print(
+                f"    laplacianFoam: converged {solved.converged}, residual "
+                f"{solved.residual:.2e} after {len(solved.residuals)} solves, error RMS "
+                f"{solved.rms_error:.3e} max {solved.max_error:.3e} "
+                f"({time.perf_counter() - start:.1f} s)"
+            )
     if len(merge.failing):
         cells = np.unique(merged.owner[merge.failing])
         centroid = merged.cell_geometry.centroid

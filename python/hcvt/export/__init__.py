@@ -18,6 +18,7 @@ from hcvt.export.merge import MergeReport, merged_boundary
 from hcvt.export.openfoam import write_openfoam
 from hcvt.export.patches import boundary_patches
 from hcvt.export.quality import MeshQuality, mesh_quality
+from hcvt.export.solver import LaplaceCheck, OpenFOAMError, laplace_check
 from hcvt.export.split import SplitReport, split_boundary, split_failing_cells
 from hcvt.export.vtu import write_vtu
 from hcvt.polymesh import PolyMesh
@@ -26,11 +27,14 @@ if TYPE_CHECKING:
     from hcvt.domain import Domain
 
 __all__ = [
+    "LaplaceCheck",
     "MergeReport",
     "MeshQuality",
+    "OpenFOAMError",
     "SplitReport",
     "as_polymesh",
     "boundary_patches",
+    "laplace_check",
     "merged_boundary",
     "mesh_quality",
     "split_boundary",
