@@ -215,7 +215,9 @@ def report(label: str, log: str, mesh: PolyMesh, domain_volume: float) -> None:
     )
 
 
-def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
+def run_case(
+    key: str, n: int | None, cache: Path, keep: Path | None, with_split: bool = True
+) -> None:
     name, default_n = CASES[key]
     n = n or default_n
     domain = hcvt.load_domain(DATA / name)
@@ -230,27 +232,29 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     diagram = hcvt.voronoi(domain, sites)
     mesh = diagram.mesh()
     print(f"  diagram + mesh: {time.perf_counter() - start:.2f} s")
-    start = time.perf_counter()
-    cuts_only, site, cut = split_failing_cells(mesh)
-    seconds = time.perf_counter() - start
-    parts = np.bincount(site, weights=cuts_only.cell_geometry.volume, minlength=len(sites))
-    print(
-        f"  split: {seconds:.2f} s, {cut.failing_cells} failing cells, {cut.cuts} cuts, "
-        f"{cut.cells} cells ({cut.cells - n} more than sites, at most "
-        f"{np.bincount(site).max()} per site), {len(cut.failing)} faces still failing; "
-        f"per site, its cells' volumes vs its Voronoi cell's: largest difference "
-        f"{np.max(np.abs(parts - diagram.volume) / diagram.volume):.2e} relative"
-    )
-    # As split_boundary (write_openfoam's "split") makes it: faces no cut fixed merged.
-    split = cuts_only
-    if len(cut.failing):
-        split, rest = merged_boundary(cuts_only, domain)
-        volume_change(
-            f"split, then {rest.merged_faces} faces merged ({len(rest.failing)} still failing)",
-            cuts_only.cell_geometry.volume,
-            split.cell_geometry.volume,
-            domain.volume,
+    split = None
+    if with_split:
+        start = time.perf_counter()
+        cuts_only, site, cut = split_failing_cells(mesh)
+        seconds = time.perf_counter() - start
+        parts = np.bincount(site, weights=cuts_only.cell_geometry.volume, minlength=len(sites))
+        print(
+            f"  split: {seconds:.2f} s, {cut.failing_cells} failing cells, {cut.cuts} cuts, "
+            f"{cut.cells} cells ({cut.cells - n} more than sites, at most "
+            f"{np.bincount(site).max()} per site), {len(cut.failing)} faces still failing; "
+            f"per site, its cells' volumes vs its Voronoi cell's: largest difference "
+            f"{np.max(np.abs(parts - diagram.volume) / diagram.volume):.2e} relative"
         )
+        # As split_boundary (write_openfoam's "split") makes it: faces no cut fixed merged.
+        split = cuts_only
+        if len(cut.failing):
+            split, rest = merged_boundary(cuts_only, domain)
+            volume_change(
+                f"split, then {rest.merged_faces} faces merged ({len(rest.failing)} still failing)",
+                cuts_only.cell_geometry.volume,
+                split.cell_geometry.volume,
+                domain.volume,
+            )
     start = time.perf_counter()
     merged, merge = merged_boundary(mesh, domain)
     seconds = time.perf_counter() - start
@@ -268,11 +272,13 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     volume_change("every region", exact_volume, every.cell_geometry.volume, domain.volume)
     with tempfile.TemporaryDirectory() as tmp:
         root = keep or Path(tmp)
-        for label, written in (("exact", mesh), ("merged", merged), ("split", split)):
+        meshes = [("exact", mesh), ("merged", merged)] + ([("split", split)] if split else [])
+        for label, written in meshes:
             case = root / f"{Path(name).stem}_{n}_{label}"
             shutil.rmtree(case, ignore_errors=True)
             start = time.perf_counter()
-            write_openfoam(written, case, domain=domain, binary=True)
+            # Each mesh as made above ("exact": write_openfoam would merge by default).
+            write_openfoam(written, case, domain=domain, binary=True, boundary_faces="exact")
             seconds = time.perf_counter() - start
             start = time.perf_counter()
             log = check_mesh(case)
@@ -314,9 +320,10 @@ def main() -> None:
     parser.add_argument("-n", type=int, help="sites (default: bunny 50k, cheese 10k)")
     parser.add_argument("--cache", type=Path, default=Path(".cache/checkmesh"))
     parser.add_argument("--keep", type=Path, help="write the cases here and keep them")
+    parser.add_argument("--no-split", action="store_true", help="skip the split (slow)")
     args = parser.parse_args()
     for key in args.cases:
-        run_case(key, args.n, args.cache, args.keep)
+        run_case(key, args.n, args.cache, args.keep, not args.no_split)
 
 
 if __name__ == "__main__":
