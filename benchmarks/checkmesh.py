@@ -15,7 +15,10 @@ case (bunny 50k, cheese 10k by default) it
    non-orthogonality and skewness, and its total volume against the input mesh's volume,
    beside hcvt's own figures for the same mesh (:func:`hcvt.export.mesh_quality`) and,
    for the merged mesh, how much the volumes OpenFOAM computes moved from the exact
-   cells' (total, sum of absolute per-cell changes, largest per-cell change);
+   cells' (total, sum of absolute per-cell changes, largest per-cell change); then
+   laplacianFoam on a linear field (:func:`hcvt.io.solver.laplace_check`, issue 30):
+   converged, last initial residual, RMS and largest error of T (spanning 2) at the
+   cell centres;
 4. for comparison, the same volume figures when every connected region of a cell's
    pieces is merged into one face (where it is one disc), not only the failing pieces;
 5. for each cell whose faces still fail after merging, a search for any other grouping:
@@ -42,6 +45,7 @@ import numpy as np
 
 import hcvt
 from hcvt.export import (
+    laplace_check,
     merged_boundary,
     mesh_quality,
     split_failing_cells,
@@ -211,7 +215,9 @@ def report(label: str, log: str, mesh: PolyMesh, domain_volume: float) -> None:
     )
 
 
-def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
+def run_case(
+    key: str, n: int | None, cache: Path, keep: Path | None, with_split: bool = True
+) -> None:
     name, default_n = CASES[key]
     n = n or default_n
     domain = hcvt.load_domain(DATA / name)
@@ -226,27 +232,29 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     diagram = hcvt.voronoi(domain, sites)
     mesh = diagram.mesh()
     print(f"  diagram + mesh: {time.perf_counter() - start:.2f} s")
-    start = time.perf_counter()
-    cuts_only, site, cut = split_failing_cells(mesh)
-    seconds = time.perf_counter() - start
-    parts = np.bincount(site, weights=cuts_only.cell_geometry.volume, minlength=len(sites))
-    print(
-        f"  split: {seconds:.2f} s, {cut.failing_cells} failing cells, {cut.cuts} cuts, "
-        f"{cut.cells} cells ({cut.cells - n} more than sites, at most "
-        f"{np.bincount(site).max()} per site), {len(cut.failing)} faces still failing; "
-        f"per site, its cells' volumes vs its Voronoi cell's: largest difference "
-        f"{np.max(np.abs(parts - diagram.volume) / diagram.volume):.2e} relative"
-    )
-    # As split_boundary (write_openfoam's "split") makes it: faces no cut fixed merged.
-    split = cuts_only
-    if len(cut.failing):
-        split, rest = merged_boundary(cuts_only, domain)
-        volume_change(
-            f"split, then {rest.merged_faces} faces merged ({len(rest.failing)} still failing)",
-            cuts_only.cell_geometry.volume,
-            split.cell_geometry.volume,
-            domain.volume,
+    split = None
+    if with_split:
+        start = time.perf_counter()
+        cuts_only, site, cut = split_failing_cells(mesh)
+        seconds = time.perf_counter() - start
+        parts = np.bincount(site, weights=cuts_only.cell_geometry.volume, minlength=len(sites))
+        print(
+            f"  split: {seconds:.2f} s, {cut.failing_cells} failing cells, {cut.cuts} cuts, "
+            f"{cut.cells} cells ({cut.cells - n} more than sites, at most "
+            f"{np.bincount(site).max()} per site), {len(cut.failing)} faces still failing; "
+            f"per site, its cells' volumes vs its Voronoi cell's: largest difference "
+            f"{np.max(np.abs(parts - diagram.volume) / diagram.volume):.2e} relative"
         )
+        # As split_boundary (write_openfoam's "split") makes it: faces no cut fixed merged.
+        split = cuts_only
+        if len(cut.failing):
+            split, rest = merged_boundary(cuts_only, domain)
+            volume_change(
+                f"split, then {rest.merged_faces} faces merged ({len(rest.failing)} still failing)",
+                cuts_only.cell_geometry.volume,
+                split.cell_geometry.volume,
+                domain.volume,
+            )
     start = time.perf_counter()
     merged, merge = merged_boundary(mesh, domain)
     seconds = time.perf_counter() - start
@@ -264,11 +272,13 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     volume_change("every region", exact_volume, every.cell_geometry.volume, domain.volume)
     with tempfile.TemporaryDirectory() as tmp:
         root = keep or Path(tmp)
-        for label, written in (("exact", mesh), ("merged", merged), ("split", split)):
+        meshes = [("exact", mesh), ("merged", merged)] + ([("split", split)] if split else [])
+        for label, written in meshes:
             case = root / f"{Path(name).stem}_{n}_{label}"
             shutil.rmtree(case, ignore_errors=True)
             start = time.perf_counter()
-            write_openfoam(written, case, domain=domain, binary=True)
+            # Each mesh as made above ("exact": write_openfoam would merge by default).
+            write_openfoam(written, case, domain=domain, binary=True, boundary_faces="exact")
             seconds = time.perf_counter() - start
             start = time.perf_counter()
             log = check_mesh(case)
@@ -277,6 +287,14 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
                 f"{time.perf_counter() - start:.1f} s"
             )
             report(label, log, written, domain.volume)
+            start = time.perf_counter()
+            solved = laplace_check(case)
+            print(
+                f"    laplacianFoam: converged {solved.converged}, residual "
+                f"{solved.residual:.2e} after {len(solved.residuals)} solves, error RMS "
+                f"{solved.rms_error:.3e} max {solved.max_error:.3e} "
+                f"({time.perf_counter() - start:.1f} s)"
+            )
     if len(merge.failing):
         cells = np.unique(merged.owner[merge.failing])
         centroid = merged.cell_geometry.centroid
@@ -302,9 +320,10 @@ def main() -> None:
     parser.add_argument("-n", type=int, help="sites (default: bunny 50k, cheese 10k)")
     parser.add_argument("--cache", type=Path, default=Path(".cache/checkmesh"))
     parser.add_argument("--keep", type=Path, help="write the cases here and keep them")
+    parser.add_argument("--no-split", action="store_true", help="skip the split (slow)")
     args = parser.parse_args()
     for key in args.cases:
-        run_case(key, args.n, args.cache, args.keep)
+        run_case(key, args.n, args.cache, args.keep, not args.no_split)
 
 
 if __name__ == "__main__":

@@ -501,7 +501,13 @@ def test_write_mesh_picks_the_format(square_cvt, tmp_path):
     with pytest.raises(ValueError, match="for OpenFOAM cases only"):
         hcvt.write_mesh(mesh, tmp_path / "d.vtu", boundary_faces="merged")
     with pytest.raises(ValueError, match="3D meshes only"):
-        hcvt.write_mesh(mesh, tmp_path / "case2", boundary_faces="merged")
+        hcvt.write_mesh(mesh, tmp_path / "case2", boundary_faces="split")
+    # A 2D mesh's boundary faces are its extruded edges: "merged" (the default) writes
+    # them as "exact" does.
+    hcvt.write_mesh(mesh, tmp_path / "case_exact", domain=diagram.domain, boundary_faces="exact")
+    for name in ("points", "faces", "owner", "neighbour", "boundary"):
+        written = (case / "constant" / "polyMesh" / name).read_bytes()
+        assert written == (tmp_path / "case_exact" / "constant" / "polyMesh" / name).read_bytes()
     with pytest.raises(ValueError, match="boundary_faces must be one of"):
         hcvt.write_mesh(mesh, tmp_path / "case3", boundary_faces="planar")
 
@@ -625,9 +631,9 @@ def _converged(name: str, n: int) -> tuple[hcvt.Domain, hcvt.Diagram]:
     return domain, run.diagram
 
 
-def test_cli_refuses_a_merged_boundary_in_2d(tmp_path):
+def test_cli_refuses_a_split_boundary_in_2d(tmp_path):
     args = ["run", str(DATA / "2d" / "unit_square.geojson"), "-n", "10"]
-    args += ["--mesh", str(tmp_path / "case"), "--mesh-boundary", "merged"]
+    args += ["--mesh", str(tmp_path / "case"), "--mesh-boundary", "split"]
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 2 and "is for 3D meshes" in result.output
     assert not (tmp_path / "case").exists()

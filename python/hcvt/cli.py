@@ -3,7 +3,7 @@
 hcvt run star -n 2000 --plot star.png
 hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
 hcvt run bunny.off -n 50000 --mesh case/ --cells cells.vtu
-hcvt run bunny.off -n 50000 --method newton --mesh case/ --mesh-boundary merged
+hcvt run bunny.off -n 50000 --method newton --mesh case/ --mesh-boundary exact
 hcvt run square -n 1033 --method regular --moves 60 --plot square.png
 hcvt run unit-square -n 5000 --density "1 + 99*x^2" --plot graded.png
 hcvt show result.json --plot cells.png
@@ -119,13 +119,13 @@ def _load(input_: str, repair: bool):
 )
 @click.option(
     "--mesh-boundary",
-    type=click.Choice(["exact", "merged", "split"]),
-    default="exact",
+    type=click.Choice(["merged", "exact", "split"]),
+    default="merged",
     show_default=True,
-    help="--mesh, 3D: exact (each piece of an input triangle in a cell is a planar face; "
-    "checkMesh flags small rim pieces as skew), merged (pieces joined into larger, "
-    "non-planar faces until checkMesh's skewness and pyramid checks pass; cell volumes "
-    "as OpenFOAM computes them move slightly) or split (faces exact, failing cells cut "
+    help="--mesh, 3D: merged (boundary pieces joined into larger, non-planar faces until "
+    "checkMesh's skewness and pyramid checks pass; cell volumes as OpenFOAM computes them "
+    "move slightly), exact (each piece of an input triangle in a cell is a planar face; "
+    "checkMesh flags small rim pieces as skew) or split (faces exact, failing cells cut "
     "by planes into parts that pass; a site may own several cells, 0/site says which).",
 )
 @click.option("--summary", type=click.Path(dir_okay=False), help="Summary JSON file.")
@@ -199,7 +199,7 @@ def run(
     if pieces and scheduler is None:
         raise click.UsageError("--cells .pvtu (one piece per part) needs --scheduler")
     domain = _load(input_, repair)
-    if mesh_boundary != "exact" and domain.dim != 3:
+    if mesh_boundary == "split" and domain.dim != 3:
         raise click.UsageError(
             f"--mesh-boundary {mesh_boundary} is for 3D meshes (a 2D mesh's are edges)"
         )
@@ -321,7 +321,7 @@ def run(
 
 
 def _write_meshes(
-    diagram: Any, cells_path: str | None, mesh_dir: str | None, mesh_boundary: str = "exact"
+    diagram: Any, cells_path: str | None, mesh_dir: str | None, mesh_boundary: str = "merged"
 ) -> dict[str, Any]:
     """Write --cells and --mesh, print the mesh's quality; the summary's entries.
 
@@ -366,7 +366,7 @@ def _write_meshes(
             click.echo(f"note: {split.merged_faces} boundary faces no cut fixed were merged")
         if len(split.failing):
             click.echo(f"warning: {len(split.failing)} faces still fail after splitting")
-    if mesh_dir and mesh_boundary == "merged":
+    if mesh_dir and mesh_boundary == "merged" and mesh.dim == 3:
         measured, report = merged_boundary(mesh, diagram.domain)
         exact_total = float(mesh.cell_geometry.volume.sum())
         info["merged_boundary"] = {
@@ -382,7 +382,14 @@ def _write_meshes(
         if len(report.failing):
             click.echo(f"warning: {len(report.failing)} boundary faces still fail after merging")
     if mesh_dir:
-        hcvt.write_mesh(measured, mesh_dir, domain=diagram.domain, cell_data=data, site=site)
+        hcvt.write_mesh(
+            measured,
+            mesh_dir,
+            domain=diagram.domain,
+            cell_data=data,
+            boundary_faces="exact",  # merged or split above already
+            site=site,
+        )
         info["mesh"] = str(mesh_dir)
     info["write_seconds"] = time.perf_counter() - start
     quality = mesh_quality(measured).summary()
@@ -393,8 +400,9 @@ def _write_meshes(
         f"total {quality['volume_total']:.12g}  non-orthogonality max "
         f"{quality['non_orthogonality_max']:.2f} average "
         f"{quality['non_orthogonality_average']:.2f} deg  skewness max "
-        f"{quality['skewness_max']:.3f}  (checkMesh's limits: {quality['non_orthogonal_faces']} "
-        f"faces > 70 deg, {quality['skew_faces']} skewness > 4, "
+        f"{quality['skewness_max']:.3f}  smallest cell / its neighbour "
+        f"{quality['volume_ratio_min']:.3g}  (checkMesh's limits: "
+        f"{quality['non_orthogonal_faces']} faces > 70 deg, {quality['skew_faces']} skewness > 4, "
         f"{quality['inverted_pyramids']} inverted pyramids, "
         f"{quality['high_aspect_cells']} cells aspect ratio > 1000)"
     )

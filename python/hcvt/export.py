@@ -6,6 +6,7 @@ The names users import as ``hcvt.export.*`` (README), gathered from where they l
 """
 
 from hcvt.io import as_polymesh, to_pyvista, write_geojson, write_mesh, write_openfoam, write_vtu
+from hcvt.io.solver import LaplaceCheck, OpenFOAMError, laplace_check
 from hcvt.mesh import (
     MergeReport,
     MeshQuality,
@@ -18,11 +19,14 @@ from hcvt.mesh import (
 )
 
 __all__ = [
+    "LaplaceCheck",
     "MergeReport",
     "MeshQuality",
+    "OpenFOAMError",
     "SplitReport",
     "as_polymesh",
     "boundary_patches",
+    "laplace_check",
     "merged_boundary",
     "mesh_quality",
     "split_boundary",

@@ -9,17 +9,22 @@
 | :mod:`~hcvt.io.pvtu` | the index of a VTU written in pieces |
 | :mod:`~hcvt.io.openfoam` | OpenFOAM cases (constant/polyMesh, system/, 0/) |
 | :mod:`~hcvt.io.geojson` | 2D cells on shared vertices |
+| :mod:`~hcvt.io.solver` | a written case checked by OpenFOAM's laplacianFoam on a linear field |
 """
 
 from hcvt.io.cells import write_cells
 from hcvt.io.geojson import write_geojson
 from hcvt.io.openfoam import write_openfoam
 from hcvt.io.readers import load_domain, read_mesh, read_polygon
+from hcvt.io.solver import LaplaceCheck, OpenFOAMError, laplace_check
 from hcvt.io.vtu import write_vtu
 from hcvt.io.writers import as_polymesh, to_pyvista, write_mesh
 
 __all__ = [
+    "LaplaceCheck",
+    "OpenFOAMError",
     "as_polymesh",
+    "laplace_check",
     "load_domain",
     "read_mesh",
     "read_polygon",

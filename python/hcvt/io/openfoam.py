@@ -45,7 +45,7 @@ def write_openfoam(
     binary: bool = False,
     thickness: float | None = None,
     cell_data: dict[str, ArrayLike] | None = None,
-    boundary_faces: str = "exact",
+    boundary_faces: str = "merged",
     site: ArrayLike | None = None,
 ) -> Path:
     """Write ``mesh`` as the OpenFOAM case directory ``case``.
@@ -72,17 +72,21 @@ def write_openfoam(
     cell_data : dict of str to array_like of shape (n_sites,), optional
         Per-site values (row ``i`` is site ``i``) written as volScalarFields, each cell
         taking its site's value.
-    boundary_faces : {"exact", "merged", "split"}
-        3D only. ``"exact"``: every piece of an input triangle in a cell is its own
-        planar face; the geometry is exact (checkMesh's total volume is the domain's),
-        but checkMesh flags small pieces at a cell's rim as skew and, in a cell wrapping a
-        reflex edge, pieces its centre lies behind (face pyramids). ``"merged"``: those
-        pieces are joined to neighbouring pieces of the same cell and patch until
+    boundary_faces : {"merged", "exact", "split"}
+        How a 3D mesh's boundary is written (a 2D mesh's boundary faces are its extruded
+        edges, written as they are for ``"merged"`` and ``"exact"``). ``"merged"``, the
+        default: the boundary pieces checkMesh would flag (small pieces at a cell's rim
+        are skew; in a cell wrapping a reflex edge, its centre lies behind some pieces:
+        face pyramids) are joined to neighbouring pieces of the same cell and patch until
         checkMesh's skewness and pyramid checks pass (:mod:`hcvt.mesh.merge`); cells
         and interior faces are unchanged, but a merged face is not planar, so the
         volumes OpenFOAM computes for the cells that have one move slightly
-        (``docs/results/checkmesh.txt``). ``"split"``: every face stays exact and
-        planar, and the cells with failing faces are cut by planes into parts that pass
+        (``docs/results/checkmesh.txt``); ``laplacianFoam`` converges on it
+        (:mod:`hcvt.io.solver`). ``"exact"``: every piece of an input triangle in a
+        cell is its own planar face; the geometry is exact (checkMesh's total volume is
+        the domain's) but checkMesh fails its skewness and pyramid checks.
+        ``"split"``: every face stays exact and planar, and the cells with failing faces
+        are cut by planes into parts that pass
         (:mod:`hcvt.mesh.split`): the volumes stay exact, but a site may own several
         cells (``0/site`` says which) and the cut faces are not orthogonal; the few
         faces no cut fixes are merged as with ``"merged"``, with a warning. Faces that
@@ -100,8 +104,8 @@ def write_openfoam(
     Raises
     ------
     ValueError
-        An unknown ``boundary_faces``, or ``"merged"`` or ``"split"`` for a 2D mesh; a
-        ``site`` of the wrong length.
+        An unknown ``boundary_faces``, or ``"split"`` for a 2D mesh; a ``site`` of the
+        wrong length.
     """
     if boundary_faces not in BOUNDARY_FACES:
         raise ValueError(f"boundary_faces must be one of {BOUNDARY_FACES}, got {boundary_faces!r}")
@@ -120,7 +124,7 @@ def write_openfoam(
                 stacklevel=2,
             )
         mesh.check()
-    if boundary_faces == "merged":
+    if boundary_faces == "merged" and mesh.dim == 3:
         mesh, report = merged_boundary(mesh, domain, labels)
         if len(report.failing):
             warnings.warn(

@@ -53,7 +53,7 @@ def write_mesh(
     binary: bool = False,
     thickness: float | None = None,
     cell_data: dict[str, ArrayLike] | None = None,
-    boundary_faces: str = "exact",
+    boundary_faces: str | None = None,
     site: ArrayLike | None = None,
 ) -> Path:
     """Write the conforming mesh of a diagram (or a PolyMesh) to ``path``.
@@ -78,12 +78,14 @@ def write_mesh(
         OpenFOAM, 2D: the extrusion depth.
     cell_data : dict of str to array_like of shape (n,), optional
         More per-cell values to write (beside a diagram's ``volume`` and ``G``).
-    boundary_faces : {"exact", "merged", "split"}
-        OpenFOAM, 3D: ``"merged"`` joins the boundary pieces checkMesh would flag (skew,
-        inverted pyramids) into larger, non-planar faces so that it passes; ``"split"``
-        keeps them and cuts their cells into parts that pass (a site may own several
-        cells); the default ``"exact"`` writes the exact pieces. See
-        :func:`write_openfoam`.
+    boundary_faces : {"merged", "exact", "split"}, optional
+        OpenFOAM, 3D: ``"merged"``, the default, joins the boundary pieces checkMesh
+        would flag (skew, inverted pyramids) into larger, non-planar faces so that it
+        passes and ``laplacianFoam`` converges (:mod:`hcvt.io.solver`); ``"exact"``
+        writes the exact planar pieces (checkMesh fails its skewness and pyramid checks);
+        ``"split"`` keeps them and cuts their cells into parts that pass (a site may own
+        several cells). See :func:`write_openfoam`. Only for OpenFOAM cases (``"exact"``
+        is accepted for other files, which are always exact).
     site : array_like of int, shape (n_cells,), optional
         OpenFOAM: the site of each cell of a mesh split beforehand
         (:func:`hcvt.mesh.split.split_failing_cells`).
@@ -105,7 +107,7 @@ def write_mesh(
     data = {**data, **(cell_data or {})}
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix and (boundary_faces != "exact" or site is not None):
+    if suffix and (boundary_faces not in (None, "exact") or site is not None):
         raise ValueError("boundary_faces and site are for OpenFOAM cases only")
     if suffix == ".vtu":
         return write_vtu(mesh, path, cell_data=data)
@@ -124,7 +126,7 @@ def write_mesh(
         binary=binary,
         thickness=thickness,
         cell_data=data,
-        boundary_faces=boundary_faces,
+        boundary_faces="merged" if boundary_faces is None else boundary_faces,
         site=site,
     )
 

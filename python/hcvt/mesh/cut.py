@@ -78,6 +78,18 @@ class Cut:
         self.failing_sources: frozenset[int] = batch.failing_sources(row)
         """The editor's faces with a failing piece (-1: a section)."""
 
+    @property
+    def part_volumes(self) -> NDArray[np.float64]:
+        """Shape (parts,): the parts' volumes."""
+        p0, p1 = self._batch.out["part_offsets"][self._row : self._row + 2].tolist()
+        return self._batch.out["volumes"][p0:p1]
+
+    @property
+    def part_centroids(self) -> NDArray[np.float64]:
+        """Shape (parts, 3): the parts' centres."""
+        p0, p1 = self._batch.out["part_offsets"][self._row : self._row + 2].tolist()
+        return self._batch.out["centroids"][p0:p1]
+
     @cached_property
     def crossings(self) -> Crossings:
         """The new vertices where the plane crosses the cell's edges."""

@@ -50,7 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 from hcvt.mesh.cut import Cut, Face, Plane, cut_by_planes, measure_region
 from hcvt.mesh.merge import merged_boundary
 from hcvt.mesh.polymesh import PolyMesh
-from hcvt.mesh.quality import face_quality, fails_checkmesh
+from hcvt.mesh.quality import NON_ORTHOGONALITY_LIMIT, face_quality, fails_checkmesh
 
 if TYPE_CHECKING:
     from hcvt.geometry.domain import Domain
@@ -63,6 +63,13 @@ LOOK_AHEAD = 4
 
 #: The look-ahead's width in a last round over the cells the first rounds left failing.
 DEEP_LOOK_AHEAD = 32
+
+#: Guards on every cut (issue 30): a part must hold at least this fraction of its site's
+#: Voronoi cell, and no face of a part with a cell across may be further than
+#: :data:`hcvt.mesh.quality.NON_ORTHOGONALITY_LIMIT` (70°) from orthogonal. Without them
+#: the search cut off slivers (down to 3.5e-3 of the mean cell) with sections at 76-86°,
+#: and laplacianFoam's non-orthogonal correctors diverged on meshes checkMesh passed.
+MIN_PART_FRACTION = 0.1
 
 #: Directions tried through a cell's centre where the aimed planes fail.
 _DIRECTIONS = 24
@@ -207,6 +214,7 @@ class Editor:
         listed = cf.faces.tolist()
         self.cell_faces = [set(listed[bounds[c] : bounds[c + 1]]) for c in range(mesh.n_cells)]
         self.site = list(range(mesh.n_cells))
+        self.site_volume = mesh.cell_geometry.volume.copy()
         self.centroid = [row for row in mesh.cell_geometry.centroid]
         self.vertex_faces: defaultdict[int, set[int]] = defaultdict(set)
         for k, loop in enumerate(self.faces):
@@ -276,9 +284,52 @@ class Editor:
         self, c: int, faces: list[int], loops: list[list[int]], planes: list[Plane]
     ) -> list[Cut]:
         """The cuts of cell ``c`` by ``planes``, best first (``self.rank``, :func:`_rank`)."""
-        tried = cut_by_planes(self, c, faces, loops, planes)
+        # The size guard on every cut (cheap), the angle guard on the best ranked only:
+        # the search reads at most the first DEEP_LOOK_AHEAD + 1 of them.
+        tried = [
+            cut for cut in cut_by_planes(self, c, faces, loops, planes) if self.big_enough(c, cut)
+        ]
         tried.sort(key=self.rank)
-        return tried
+        kept: list[Cut] = []
+        for cut in tried:
+            if self.orthogonal_enough(cut):
+                kept.append(cut)
+                if len(kept) > DEEP_LOOK_AHEAD:
+                    break
+        return kept
+
+    def big_enough(self, c: int, cut: Cut) -> bool:
+        """Whether every part of ``cut`` holds :data:`MIN_PART_FRACTION` of its site's cell."""
+        return bool(cut.part_volumes.min() >= MIN_PART_FRACTION * self.site_volume[self.site[c]])
+
+    def orthogonal_enough(self, cut: Cut) -> bool:
+        """Whether every face of the parts with a cell across is within 70° of orthogonal.
+
+        A section, or a piece of an interior face, measured between the parts' centres and
+        the neighbours' (:data:`NON_ORTHOGONALITY_LIMIT`).
+        """
+        centroids = cut.part_centroids
+        nb = len(self.base)
+        points = {lid: x for lid, x in cut.crossings.values()}
+        cos_limit = np.cos(np.radians(NON_ORTHOGONALITY_LIMIT))
+        for face in cut.faces:
+            if face.across >= 0:
+                other = centroids[face.across]
+            elif face.ghost >= 0:
+                other = self.centroid[face.ghost]
+            else:
+                continue
+            xyz = np.array(
+                [
+                    points[v] if v < 0 else (self.base[v] if v < nb else self.extra[v - nb])
+                    for v in face.loop
+                ]
+            )
+            area = _newell(xyz)
+            d = other - centroids[face.part]
+            if area @ d < cos_limit * np.linalg.norm(area) * np.linalg.norm(d):
+                return False
+        return True
 
     def more_planes(
         self, c: int, faces: list[int], normals: list[NDArray[np.float64]]
