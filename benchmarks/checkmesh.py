@@ -1,4 +1,4 @@
-"""OpenFOAM's checkMesh on converged CVTs of real meshes (issue 19): exact, merged, split.
+"""OpenFOAM's checkMesh and laplacianFoam on converged CVTs of real meshes: exact, merged.
 
 Run ``OPENBLAS_NUM_THREADS=1 python benchmarks/checkmesh.py`` (needs OpenFOAM's
 ``checkMesh``; ``WM_PROJECT_DIR`` defaults to Debian's ``/usr/share/openfoam``). For each
@@ -7,10 +7,9 @@ case (bunny 50k, cheese 10k by default) it
 1. converges a CVT to the default rule (Newton from scrambled Halton sites, seed 0) and
    keeps its sites in ``--cache`` (``<name>_<n>_newton.npy`` and ``.json``): a later run
    reads them and reprints the seconds the converging run took;
-2. writes the conforming mesh as an OpenFOAM case three times, ``boundary_faces="exact"``,
-   ``"merged"`` (:mod:`hcvt.mesh.merge`) and ``"split"`` (:mod:`hcvt.mesh.split`:
-   cells cut by planes, then any face no cut fixed merged), timing the merge, the split
-   and the writing;
+2. writes the conforming mesh as an OpenFOAM case twice, ``boundary_faces="exact"`` and
+   ``"merged"`` (:mod:`hcvt.mesh.merge`, the default), timing the merge and the writing
+   (the split mode, whose parts made laplacianFoam diverge, was removed: issue 30);
 3. runs ``checkMesh`` on each and prints its verdict, its failed checks, its max
    non-orthogonality and skewness, and its total volume against the input mesh's volume,
    beside hcvt's own figures for the same mesh (:func:`hcvt.export.mesh_quality`) and,
@@ -48,7 +47,6 @@ from hcvt.export import (
     laplace_check,
     merged_boundary,
     mesh_quality,
-    split_failing_cells,
     write_openfoam,
 )
 from hcvt.mesh.polymesh import PolyMesh
@@ -215,9 +213,7 @@ def report(label: str, log: str, mesh: PolyMesh, domain_volume: float) -> None:
     )
 
 
-def run_case(
-    key: str, n: int | None, cache: Path, keep: Path | None, with_split: bool = True
-) -> None:
+def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     name, default_n = CASES[key]
     n = n or default_n
     domain = hcvt.load_domain(DATA / name)
@@ -232,29 +228,6 @@ def run_case(
     diagram = hcvt.voronoi(domain, sites)
     mesh = diagram.mesh()
     print(f"  diagram + mesh: {time.perf_counter() - start:.2f} s")
-    split = None
-    if with_split:
-        start = time.perf_counter()
-        cuts_only, site, cut = split_failing_cells(mesh)
-        seconds = time.perf_counter() - start
-        parts = np.bincount(site, weights=cuts_only.cell_geometry.volume, minlength=len(sites))
-        print(
-            f"  split: {seconds:.2f} s, {cut.failing_cells} failing cells, {cut.cuts} cuts, "
-            f"{cut.cells} cells ({cut.cells - n} more than sites, at most "
-            f"{np.bincount(site).max()} per site), {len(cut.failing)} faces still failing; "
-            f"per site, its cells' volumes vs its Voronoi cell's: largest difference "
-            f"{np.max(np.abs(parts - diagram.volume) / diagram.volume):.2e} relative"
-        )
-        # As split_boundary (write_openfoam's "split") makes it: faces no cut fixed merged.
-        split = cuts_only
-        if len(cut.failing):
-            split, rest = merged_boundary(cuts_only, domain)
-            volume_change(
-                f"split, then {rest.merged_faces} faces merged ({len(rest.failing)} still failing)",
-                cuts_only.cell_geometry.volume,
-                split.cell_geometry.volume,
-                domain.volume,
-            )
     start = time.perf_counter()
     merged, merge = merged_boundary(mesh, domain)
     seconds = time.perf_counter() - start
@@ -272,8 +245,7 @@ def run_case(
     volume_change("every region", exact_volume, every.cell_geometry.volume, domain.volume)
     with tempfile.TemporaryDirectory() as tmp:
         root = keep or Path(tmp)
-        meshes = [("exact", mesh), ("merged", merged)] + ([("split", split)] if split else [])
-        for label, written in meshes:
+        for label, written in (("exact", mesh), ("merged", merged)):
             case = root / f"{Path(name).stem}_{n}_{label}"
             shutil.rmtree(case, ignore_errors=True)
             start = time.perf_counter()
@@ -320,10 +292,9 @@ def main() -> None:
     parser.add_argument("-n", type=int, help="sites (default: bunny 50k, cheese 10k)")
     parser.add_argument("--cache", type=Path, default=Path(".cache/checkmesh"))
     parser.add_argument("--keep", type=Path, help="write the cases here and keep them")
-    parser.add_argument("--no-split", action="store_true", help="skip the split (slow)")
     args = parser.parse_args()
     for key in args.cases:
-        run_case(key, args.n, args.cache, args.keep, not args.no_split)
+        run_case(key, args.n, args.cache, args.keep)
 
 
 if __name__ == "__main__":

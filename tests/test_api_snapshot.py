@@ -5,6 +5,11 @@
 recorded parameter must keep its name, kind and default; new names, and new parameters
 with defaults, are allowed. ``HCVT_RECORD_API=1 pytest tests/test_api_snapshot.py``
 records anew (say why in the commit).
+
+Changed on purpose since (issue 30): ``hcvt.export.split_boundary``,
+``split_failing_cells`` and ``SplitReport`` removed with the split mode (its parts made
+laplacianFoam diverge); the default of ``boundary_faces`` is ``"merged"`` (``write_mesh``:
+None, meaning merged for OpenFOAM cases).
 """
 
 from __future__ import annotations

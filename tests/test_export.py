@@ -500,7 +500,7 @@ def test_write_mesh_picks_the_format(square_cvt, tmp_path):
         hcvt.write_mesh(mesh, tmp_path / "x.stl")
     with pytest.raises(ValueError, match="for OpenFOAM cases only"):
         hcvt.write_mesh(mesh, tmp_path / "d.vtu", boundary_faces="merged")
-    with pytest.raises(ValueError, match="3D meshes only"):
+    with pytest.raises(ValueError, match="'split' was removed .issue 30.: its parts made"):
         hcvt.write_mesh(mesh, tmp_path / "case2", boundary_faces="split")
     # A 2D mesh's boundary faces are its extruded edges: "merged" (the default) writes
     # them as "exact" does.
@@ -631,11 +631,11 @@ def _converged(name: str, n: int) -> tuple[hcvt.Domain, hcvt.Diagram]:
     return domain, run.diagram
 
 
-def test_cli_refuses_a_split_boundary_in_2d(tmp_path):
+def test_cli_refuses_the_removed_split_boundary(tmp_path):
     args = ["run", str(DATA / "2d" / "unit_square.geojson"), "-n", "10"]
     args += ["--mesh", str(tmp_path / "case"), "--mesh-boundary", "split"]
     result = CliRunner().invoke(main, args)
-    assert result.exit_code == 2 and "is for 3D meshes" in result.output
+    assert result.exit_code == 2 and "'split' is not one of 'merged', 'exact'" in result.output
     assert not (tmp_path / "case").exists()
 
 

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt.export import merged_boundary, mesh_quality, split_boundary
+from hcvt.export import merged_boundary, mesh_quality
 from helpers import DATA
 
 RECORD = os.environ.get("HCVT_RECORD_FINGERPRINTS") == "1"
@@ -150,13 +150,6 @@ def test_merged_boundary(solid):
     name, domain, result = solid
     merged, report = merged_boundary(result.diagram.mesh(), domain)
     check(f"merged_{name}", {"mesh": _mesh_arrays(merged), "report": tuple(report)})
-
-
-@pytest.mark.slow
-def test_split_boundary(solid):
-    name, domain, result = solid
-    split, site, report = split_boundary(result.diagram.mesh(), domain)
-    check(f"split_{name}", {"mesh": _mesh_arrays(split), "site": site, "report": tuple(report)})
 
 
 @pytest.mark.parametrize("method", ["random", "halton", "hammersley", "lattice"])

@@ -16,7 +16,6 @@ __all__ = [
     "PolygonDomain",
     "SolidDomain",
     "check_settings",
-    "cut_cell_3d",
     "cvt_2d",
     "cvt_3d",
     "get_num_threads",
@@ -26,7 +25,6 @@ __all__ = [
     "line_search_accepts",
     "lloyd_step_2d",
     "lloyd_step_3d",
-    "measure_region_3d",
     "mesh_2d",
     "mesh_3d",
     "mesh_part_2d",
@@ -231,30 +229,6 @@ def line_search_accepts(
 ) -> bool: ...
 def positive_curvature(sy: float, ss: float, yy: float) -> bool: ...
 
-# The split's kernel (hcvt.mesh.cut): indices int64, -1 for "none". A region's
-# measure: bad (f,) bool, badness (f,), volumes (parts,), centroids (parts, 3), or None if
-# a part has no positive volume. A cell cut by each of the planes: a dict of tried (int),
-# per cut made plane, parts, failing, worst, oblique, and flat arrays with per-cut
-# offsets: crossing_offsets / crossing_edges (x, 2) / crossing_points (x, 3), face_offsets
-# / loop_offsets / loop_vertices / source / part / across / ghost / bad / badness, and
-# part_offsets / part_failing / volumes / centroids (P, 3).
-def measure_region_3d(
-    points: _Float2,
-    face_offsets: NDArray[np.int64],
-    face_vertices: NDArray[np.int64],
-    owner: NDArray[np.int64],
-    neighbour: NDArray[np.int64],
-    parts: int,
-    ghost_centroids: _Float2,
-) -> tuple[NDArray[np.bool_], _Float1, _Float1, _Float2] | None: ...
-def cut_cell_3d(
-    points: _Float2,
-    face_offsets: NDArray[np.int64],
-    face_vertices: NDArray[np.int64],
-    ghosts: NDArray[np.int64],
-    ghost_centroids: _Float2,
-    normals: _Float2,
-    origins: _Float2,
-) -> dict[str, Any]: ...
+# The thread pool every computation runs in.
 def set_num_threads(n: int) -> None: ...
 def get_num_threads() -> int: ...

@@ -32,7 +32,7 @@ from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt, parti
 from hcvt.experiments import reproduce as run_experiment
 from hcvt.geometry.shapes import BUILTIN, builtin_domain
 from hcvt.lazy import load
-from hcvt.mesh import merged_boundary, mesh_quality, split_boundary
+from hcvt.mesh import merged_boundary, mesh_quality
 from hcvt.optimise import RULES, default_tol
 
 METHODS = ("hierarchical", "regular", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
@@ -119,14 +119,13 @@ def _load(input_: str, repair: bool):
 )
 @click.option(
     "--mesh-boundary",
-    type=click.Choice(["merged", "exact", "split"]),
+    type=click.Choice(["merged", "exact"]),
     default="merged",
     show_default=True,
     help="--mesh, 3D: merged (boundary pieces joined into larger, non-planar faces until "
     "checkMesh's skewness and pyramid checks pass; cell volumes as OpenFOAM computes them "
     "move slightly), exact (each piece of an input triangle in a cell is a planar face; "
-    "checkMesh flags small rim pieces as skew) or split (faces exact, failing cells cut "
-    "by planes into parts that pass; a site may own several cells, 0/site says which).",
+    "checkMesh flags small rim pieces as skew).",
 )
 @click.option("--summary", type=click.Path(dir_okay=False), help="Summary JSON file.")
 @click.option("--plot", type=click.Path(dir_okay=False), help="PNG of the cells by G.")
@@ -199,10 +198,6 @@ def run(
     if pieces and scheduler is None:
         raise click.UsageError("--cells .pvtu (one piece per part) needs --scheduler")
     domain = _load(input_, repair)
-    if mesh_boundary == "split" and domain.dim != 3:
-        raise click.UsageError(
-            f"--mesh-boundary {mesh_boundary} is for 3D meshes (a 2D mesh's are edges)"
-        )
     density = _density(density_spec, sizing_spec, domain.dim)
     weighted: dict[str, Any] = (
         {} if density is None else {"density": density, "quadrature_degree": quadrature_degree}
@@ -329,8 +324,7 @@ def _write_meshes(
     conforming mesh (``Diagram.mesh()``); a .ply goes through :func:`hcvt.io.write_cells`.
     With ``--mesh-boundary merged`` the case holds the merged mesh, and the quality
     figures are that mesh's (what checkMesh measures), beside ``merged_boundary``: the
-    faces merged and the change of total volume against the exact mesh. With ``split``
-    they are the split mesh's, beside ``split_cells``: the cuts and cells made.
+    faces merged and the change of total volume against the exact mesh.
     """
     info: dict[str, Any] = {}
     suffix = Path(cells_path).suffix.lower() if cells_path else ""
@@ -348,24 +342,7 @@ def _write_meshes(
     if cells_path and cells_from_mesh:
         hcvt.write_mesh(mesh, cells_path, cell_data=data)
         info["cells"] = str(cells_path)
-    measured, site = mesh, None
-    if mesh_dir and mesh_boundary == "split":
-        measured, site, split = split_boundary(mesh, diagram.domain)
-        exact_total = float(mesh.cell_geometry.volume.sum())
-        info["split_cells"] = {
-            "failing_cells": split.failing_cells,
-            "cuts": split.cuts,
-            "cells": split.cells,
-            "faces_merged": split.merged_faces,
-            "still_failing": len(split.failing),
-            "volume_total_relative_change": float(
-                measured.cell_geometry.volume.sum() / exact_total - 1.0
-            ),
-        }
-        if split.merged_faces:
-            click.echo(f"note: {split.merged_faces} boundary faces no cut fixed were merged")
-        if len(split.failing):
-            click.echo(f"warning: {len(split.failing)} faces still fail after splitting")
+    measured = mesh
     if mesh_dir and mesh_boundary == "merged" and mesh.dim == 3:
         measured, report = merged_boundary(mesh, diagram.domain)
         exact_total = float(mesh.cell_geometry.volume.sum())
@@ -387,8 +364,7 @@ def _write_meshes(
             mesh_dir,
             domain=diagram.domain,
             cell_data=data,
-            boundary_faces="exact",  # merged or split above already
-            site=site,
+            boundary_faces="exact",  # merged above already
         )
         info["mesh"] = str(mesh_dir)
     info["write_seconds"] = time.perf_counter() - start

@@ -1,7 +1,7 @@
 """Meshes out, in one place: quality, boundary repairs and writers.
 
 The names users import as ``hcvt.export.*`` (README), gathered from where they live:
-:mod:`hcvt.mesh` (the conforming mesh, its quality, merge and split) and :mod:`hcvt.io`
+:mod:`hcvt.mesh` (the conforming mesh, its quality, the merged boundary) and :mod:`hcvt.io`
 (the writers).
 """
 
@@ -10,12 +10,9 @@ from hcvt.io.solver import LaplaceCheck, OpenFOAMError, laplace_check
 from hcvt.mesh import (
     MergeReport,
     MeshQuality,
-    SplitReport,
     boundary_patches,
     merged_boundary,
     mesh_quality,
-    split_boundary,
-    split_failing_cells,
 )
 
 __all__ = [
@@ -23,14 +20,11 @@ __all__ = [
     "MergeReport",
     "MeshQuality",
     "OpenFOAMError",
-    "SplitReport",
     "as_polymesh",
     "boundary_patches",
     "laplace_check",
     "merged_boundary",
     "mesh_quality",
-    "split_boundary",
-    "split_failing_cells",
     "to_pyvista",
     "write_geojson",
     "write_mesh",

@@ -10,7 +10,6 @@
 //! | [`domain`]  | the oriented boundary of a 2D polygon or 3D solid, its BVH and winding number |
 //! | [`diagram`] | convex Voronoi cells by kNN + half-space clipping, clipped exactly by the domain |
 //! | [`optimise`]| CVT energy, gradient and Hessian from the diagram; Lloyd, L-BFGS and Newton to the stopping rule |
-//! | [`split`]   | a mesh cell cut by a plane and measured as OpenFOAM's checkMesh does (the kernel of `hcvt.export.split`) |
 //!
 //! [`error`] holds [`CoreError`], which every layer returns.
 //!
@@ -34,6 +33,5 @@ pub mod moments;
 pub mod optimise;
 #[cfg(any(test, feature = "sample"))]
 pub mod sample;
-pub mod split;
 
 pub use error::CoreError;

@@ -9,7 +9,6 @@ mod errors;
 mod mesh;
 mod optimise;
 mod partition;
-mod split;
 mod threads;
 
 use pyo3::prelude::*;
@@ -34,8 +33,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mesh::mesh_part_3d, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells_2d, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells_3d, m)?)?;
-    m.add_function(wrap_pyfunction!(split::measure_region_3d, m)?)?;
-    m.add_function(wrap_pyfunction!(split::cut_cell_3d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_2d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt_3d, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::step_fields_2d, m)?)?;

@@ -22,10 +22,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt.mesh.merge import BOUNDARY_FACES, merged_boundary
+from hcvt.mesh.merge import BOUNDARY_FACES, SPLIT_REMOVED, merged_boundary
 from hcvt.mesh.patches import boundary_patches
 from hcvt.mesh.polymesh import PolyMesh
-from hcvt.mesh.split import split_boundary
 
 if TYPE_CHECKING:
     from hcvt.geometry.domain import Domain
@@ -72,7 +71,7 @@ def write_openfoam(
     cell_data : dict of str to array_like of shape (n_sites,), optional
         Per-site values (row ``i`` is site ``i``) written as volScalarFields, each cell
         taking its site's value.
-    boundary_faces : {"merged", "exact", "split"}
+    boundary_faces : {"merged", "exact"}
         How a 3D mesh's boundary is written (a 2D mesh's boundary faces are its extruded
         edges, written as they are for ``"merged"`` and ``"exact"``). ``"merged"``, the
         default: the boundary pieces checkMesh would flag (small pieces at a cell's rim
@@ -84,17 +83,12 @@ def write_openfoam(
         (``docs/results/checkmesh.txt``); ``laplacianFoam`` converges on it
         (:mod:`hcvt.io.solver`). ``"exact"``: every piece of an input triangle in a
         cell is its own planar face; the geometry is exact (checkMesh's total volume is
-        the domain's) but checkMesh fails its skewness and pyramid checks.
-        ``"split"``: every face stays exact and planar, and the cells with failing faces
-        are cut by planes into parts that pass
-        (:mod:`hcvt.mesh.split`): the volumes stay exact, but a site may own several
-        cells (``0/site`` says which) and the cut faces are not orthogonal; the few
-        faces no cut fixes are merged as with ``"merged"``, with a warning. Faces that
-        cannot be fixed are left failing with a warning.
+        the domain's) but checkMesh fails its skewness and pyramid checks. (``"split"``,
+        cells cut by planes into parts that pass checkMesh, was removed: its parts made
+        ``laplacianFoam`` diverge, issue 30.)
     site : array_like of int, shape (mesh.n_cells,), optional
-        The site each cell of ``mesh`` belongs to (default: cell ``i`` is site ``i``), as
-        :func:`hcvt.mesh.split.split_failing_cells` returns it for a mesh split
-        beforehand.
+        The site each cell of ``mesh`` belongs to (default: cell ``i`` is site ``i``),
+        written as ``0/site``.
 
     Returns
     -------
@@ -104,26 +98,17 @@ def write_openfoam(
     Raises
     ------
     ValueError
-        An unknown ``boundary_faces``, or ``"split"`` for a 2D mesh; a ``site`` of the
-        wrong length.
+        An unknown ``boundary_faces`` (``"split"`` says it was removed); a ``site`` of
+        the wrong length.
     """
+    if boundary_faces == "split":
+        raise ValueError(SPLIT_REMOVED)
     if boundary_faces not in BOUNDARY_FACES:
         raise ValueError(f"boundary_faces must be one of {BOUNDARY_FACES}, got {boundary_faces!r}")
     mesh.check()
     site_of = np.arange(mesh.n_cells) if site is None else np.asarray(site, dtype=np.intp)
     if site_of.shape != (mesh.n_cells,):
         raise ValueError(f"site must have one entry per cell ({mesh.n_cells}), got {site_of.shape}")
-    if boundary_faces == "split":
-        mesh, split_site, split = split_boundary(mesh, domain, labels)
-        site_of = site_of[split_site]
-        if split.merged_faces or len(split.failing):
-            warnings.warn(
-                f"{split.merged_faces} boundary faces no cut fixed were merged (the cells "
-                f"holding them lose their exact volume); {len(split.failing)} faces still "
-                "fail checkMesh's skewness or face-pyramid check",
-                stacklevel=2,
-            )
-        mesh.check()
     if boundary_faces == "merged" and mesh.dim == 3:
         mesh, report = merged_boundary(mesh, domain, labels)
         if len(report.failing):

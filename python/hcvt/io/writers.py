@@ -78,17 +78,15 @@ def write_mesh(
         OpenFOAM, 2D: the extrusion depth.
     cell_data : dict of str to array_like of shape (n,), optional
         More per-cell values to write (beside a diagram's ``volume`` and ``G``).
-    boundary_faces : {"merged", "exact", "split"}, optional
+    boundary_faces : {"merged", "exact"}, optional
         OpenFOAM, 3D: ``"merged"``, the default, joins the boundary pieces checkMesh
         would flag (skew, inverted pyramids) into larger, non-planar faces so that it
         passes and ``laplacianFoam`` converges (:mod:`hcvt.io.solver`); ``"exact"``
-        writes the exact planar pieces (checkMesh fails its skewness and pyramid checks);
-        ``"split"`` keeps them and cuts their cells into parts that pass (a site may own
-        several cells). See :func:`write_openfoam`. Only for OpenFOAM cases (``"exact"``
+        writes the exact planar pieces (checkMesh fails its skewness and pyramid checks).
+        See :func:`write_openfoam`. Only for OpenFOAM cases (``"exact"``
         is accepted for other files, which are always exact).
     site : array_like of int, shape (n_cells,), optional
-        OpenFOAM: the site of each cell of a mesh split beforehand
-        (:func:`hcvt.mesh.split.split_failing_cells`).
+        OpenFOAM: the site of each cell, when they are not one per site.
 
     Returns
     -------

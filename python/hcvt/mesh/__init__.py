@@ -7,24 +7,18 @@
 | :mod:`~hcvt.mesh.quality` | quality as OpenFOAM's checkMesh defines it |
 | :mod:`~hcvt.mesh.patches` | the boundary's patches (connected components or labels) |
 | :mod:`~hcvt.mesh.merge` | boundary pieces checkMesh would flag, merged |
-| :mod:`~hcvt.mesh.split` | failing cells cut by planes into parts that pass |
-| :mod:`~hcvt.mesh.cut` | the split's kernel in the core, in the split search's terms |
 """
 
 from hcvt.mesh.merge import MergeReport, merged_boundary
 from hcvt.mesh.patches import boundary_patches
 from hcvt.mesh.polymesh import PolyMesh
 from hcvt.mesh.quality import MeshQuality, mesh_quality
-from hcvt.mesh.split import SplitReport, split_boundary, split_failing_cells
 
 __all__ = [
     "MergeReport",
     "MeshQuality",
     "PolyMesh",
-    "SplitReport",
     "boundary_patches",
     "merged_boundary",
     "mesh_quality",
-    "split_boundary",
-    "split_failing_cells",
 ]

@@ -53,7 +53,12 @@ if TYPE_CHECKING:
     from hcvt.geometry.domain import Domain
 
 #: The ways :func:`hcvt.export.write_openfoam` writes boundary faces.
-BOUNDARY_FACES = ("exact", "merged", "split")
+BOUNDARY_FACES = ("exact", "merged")
+#: Why ``boundary_faces="split"`` is refused.
+SPLIT_REMOVED = (
+    "boundary_faces='split' was removed (issue 30): its parts made OpenFOAM's laplacianFoam "
+    "diverge; 'merged', the default, passes checkMesh and the solver converges"
+)
 
 #: Rounds of :func:`merge_failing_boundary_faces` before it gives up on the faces left.
 MAX_ROUNDS = 60
