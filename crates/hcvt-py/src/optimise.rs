@@ -11,7 +11,7 @@ use std::time::Duration;
 use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
 use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::{cvt_with_density, Method, Outcome, Record, Rule, Settings};
+use hcvt_core::optimise::{cvt_with_density, Frame, Method, Outcome, Record, Rule, Settings};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -26,7 +26,7 @@ use crate::domain::{PolygonDomain, SolidDomain};
 /// arrays of `voronoi_2d`), `history` (a dict of per-iterate arrays), `stop_reason`.
 /// `callback(record)`, if given, gets a dict per iterate; a true return value stops.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt_2d<'py>(
     py: Python<'py>,
@@ -41,8 +41,9 @@ pub fn cvt_2d<'py>(
     polynomial: Option<Coefficients>,
     function: Option<Py<PyAny>>,
     quadrature_degree: usize,
+    frame: Option<(Vec<f64>, f64)>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let settings = settings(method, rule, tol, max_iter, memory)?;
+    let settings = settings(method, rule, tol, max_iter, memory, frame)?;
     let points = rows::<f64, 2>(&sites, "sites")?;
     let given = Given::new(polynomial, function, quadrature_degree)?;
     run::<2, PolygonCell>(py, &domain.0, points, &settings, callback, &given)
@@ -50,7 +51,7 @@ pub fn cvt_2d<'py>(
 
 /// CVT of `sites` (n, 3) in the solid `domain`; as `cvt_2d`.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt_3d<'py>(
     py: Python<'py>,
@@ -65,8 +66,9 @@ pub fn cvt_3d<'py>(
     polynomial: Option<Coefficients>,
     function: Option<Py<PyAny>>,
     quadrature_degree: usize,
+    frame: Option<(Vec<f64>, f64)>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let settings = settings(method, rule, tol, max_iter, memory)?;
+    let settings = settings(method, rule, tol, max_iter, memory, frame)?;
     let points = rows::<f64, 3>(&sites, "sites")?;
     let given = Given::new(polynomial, function, quadrature_degree)?;
     run::<3, PolyhedronCell>(py, &domain.0, points, &settings, callback, &given)
@@ -78,6 +80,7 @@ fn settings(
     tol: Option<f64>,
     max_iter: usize,
     memory: usize,
+    frame: Option<(Vec<f64>, f64)>,
 ) -> PyResult<Settings> {
     let method = match method {
         "lbfgs" => Method::Lbfgs,
@@ -110,8 +113,29 @@ fn settings(
         tol,
         max_iter,
         memory,
+        frame: frame.map_or(Ok(Frame::default()), to_frame)?,
         ..Settings::default()
     })
+}
+
+/// `(centre (d,), scale)` of `hcvt.geometry.frame.Frame`, checked.
+fn to_frame((centre, scale): (Vec<f64>, f64)) -> PyResult<Frame> {
+    if centre.len() > 3
+        || !(scale > 0.0 && scale.is_finite())
+        || !centre.iter().all(|c| c.is_finite())
+    {
+        return Err(PyValueError::new_err(format!(
+            "frame must be (centre of at most 3 finite values, scale > 0), got ({centre:?}, {scale})"
+        )));
+    }
+    let mut out = Frame {
+        scale,
+        ..Frame::default()
+    };
+    for (slot, c) in out.centre.iter_mut().zip(centre) {
+        *slot = c;
+    }
+    Ok(out)
 }
 
 /// How often the waiting thread checks for Ctrl-C while the core works.

@@ -324,15 +324,19 @@ def part_cells(
     own = np.searchsorted(rows, part.rows)
     todo = np.arange(len(part.rows)) if previous is None else np.flatnonzero(~previous.certified)
     compute = getattr(_core, f"partition_cells_{domain.dim}d")
-    out = compute(
-        domain._core,
-        sites,
-        rows,
-        own[todo].astype(np.uint32),
-        int(total_sites),
-        allow_outside=allow_outside,
-        **core_arguments(density, domain.dim, quadrature_degree),
-    )
+    # The core works in the domain's frame; a part's cells are kept in L.
+    frame = domain.frame
+    with frame.input_errors():
+        out = compute(
+            domain._core,
+            frame.to_core(sites),
+            rows,
+            own[todo].astype(np.uint32),
+            int(total_sites),
+            allow_outside=allow_outside,
+            **core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree),
+        )
+    out = {key: frame.to_input(key, value) for key, value in out.items()}
     reach = np.sqrt(out.pop("reach2"))
     # Kept once: the energy is summed by the client, the gradient is -2 first.
     out.pop("energy", None)

@@ -55,7 +55,7 @@ use crate::geometry::{Euclid, Space};
 use hessian::{Hessian, HessianTerms};
 use lbfgs::{LineSearch, Memory};
 use newton::TrustRegion;
-pub use stopping::{Measures, Rule};
+pub use stopping::{Frame, Measures, Rule};
 
 /// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the
 /// energy (translating the domain and 2,000 random sites changed `E` by at most 2.4e-14
@@ -89,6 +89,8 @@ pub struct Settings {
     pub memory: usize,
     /// Most diagrams one line search may compute.
     pub max_line_evaluations: usize,
+    /// Where the sites' coordinates sit in the input's, for the paper's rule ([`Frame`]).
+    pub frame: Frame,
 }
 
 impl Default for Settings {
@@ -100,6 +102,7 @@ impl Default for Settings {
             max_iter: 10_000,
             memory: 7,
             max_line_evaluations: 20,
+            frame: Frame::default(),
         }
     }
 }
@@ -323,6 +326,8 @@ struct Tracker<'a, const D: usize> {
     /// With the Hessian, for Newton.
     hessian: bool,
     history: Vec<Record>,
+    /// For the paper's rule, measured in the input's coordinates.
+    frame: Frame,
 }
 
 impl<const D: usize> Tracker<'_, D> {
@@ -353,7 +358,7 @@ impl<const D: usize> Tracker<'_, D> {
         let record = Record {
             energy: point.energy,
             mean_g: mean_g(&point.diagram),
-            measures: Measures::of(point, &pinned),
+            measures: Measures::of_in(point, &pinned, &self.frame),
             seconds: self.start.elapsed().as_secs_f64(),
             evaluations: self.evaluations,
             step,
@@ -463,6 +468,7 @@ where
         evaluations: 0,
         hessian: settings.method == Method::Newton,
         history: Vec::new(),
+        frame: settings.frame,
     };
     let mut point = tracker.evaluate::<C>(boundary, sites)?;
     let mut solver = Solver {
