@@ -159,7 +159,8 @@ def partition_cells_3d(
 ) -> dict[str, Any]: ...
 
 # CVT dicts: sites, diagram (a diagram dict), history (arrays per field), stop_reason,
-# iterations, evaluations (see hcvt.optimise).
+# iterations, evaluations (see hcvt.optimise). `frame=(centre, scale)`: the sites are in
+# the frame x' = (x - centre) / scale, and grad_norm (the paper's rule) is measured in x.
 def cvt_2d(
     domain: PolygonDomain,
     sites: _Float2,
@@ -172,6 +173,7 @@ def cvt_2d(
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
+    frame: tuple[Sequence[float], float] | None = None,
 ) -> dict[str, Any]: ...
 def cvt_3d(
     domain: SolidDomain,
@@ -185,6 +187,7 @@ def cvt_3d(
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
+    frame: tuple[Sequence[float], float] | None = None,
 ) -> dict[str, Any]: ...
 
 # The optimiser's settings, checked once for every driver: the tol to use.

@@ -156,7 +156,8 @@ def cvt(
         ``callback(info)`` after every iterate (the initial sites first), ``info`` a dict
         with the history fields of that iterate and ``sites`` (n, d). Returning a true
         value, or raising ``StopIteration`` as with scipy.optimize, stops the run
-        (``stop_reason == "interrupted"``).
+        (``stop_reason == "interrupted"``). Sites and energy are in the input's unit
+        (the energy NaN where float64 cannot hold it, :mod:`hcvt.geometry.frame`).
     progress : bool
         Show a progress bar (rich) of the rule's value towards ``tol``.
     client : dask.distributed.Client, optional
@@ -182,7 +183,10 @@ def cvt(
     -------
     CVTResult
         ``sites``, ``diagram``, ``history``, ``rule``, ``tol``, ``converged``,
-        ``stop_reason``, ``iterations``, ``evaluations``, ``seconds``.
+        ``stop_reason``, ``iterations``, ``evaluations``, ``seconds``. The iteration runs
+        in the domain's frame (``domain.frame``, :mod:`hcvt.geometry.frame`) and every
+        result is mapped back; a history column float64 cannot hold in the input's unit
+        (the energy of a domain 1e100 wide) raises UnrepresentableError when read.
 
     Raises
     ------

@@ -13,6 +13,7 @@ from hcvt import _core
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.errors import InvalidSitesError
 from hcvt.geometry.domain import Domain
+from hcvt.geometry.frame import Frame
 from hcvt.io.writers import to_pyvista
 from hcvt.mesh.cells import polygons, triangulated
 from hcvt.mesh.polymesh import PolyMesh
@@ -80,6 +81,11 @@ class Diagram:
 
     Methods ``cell_neighbors(i)``, ``mesh()`` and ``cells()`` give one cell's faces, all
     cells as one conforming mesh, and every cell's geometry.
+
+    The core computes in the domain's frame (:mod:`hcvt.geometry.frame`); ``arrays`` are
+    its results there, and each quantity above is mapped back to L when first read. One
+    that float64 cannot hold in L (the second moments of cells 1e100 wide) raises
+    :class:`hcvt.errors.UnrepresentableError` then, and only then.
     """
 
     def __init__(
@@ -90,24 +96,74 @@ class Diagram:
         density: DensityLike = None,
         *,
         allow_outside: bool = False,
+        core_sites: NDArray[np.float64] | None = None,
+        frame: Frame | None = None,
     ):
         self.domain = domain
         self.sites = sites
         self.density = density
-        self.volume: NDArray[np.float64] = arrays["volume"]
-        self.mass: NDArray[np.float64] = arrays.get("mass", self.volume)
-        self.centroid: NDArray[np.float64] = arrays["centroid"]
-        self.second_moment: NDArray[np.float64] = arrays["second_moment"]
-        self.G: NDArray[np.float64] = arrays["G"]
-        self.energy_terms: NDArray[np.float64] = arrays["energy_terms"]
-        self.energy = float(arrays["energy"])
-        self.gradient: NDArray[np.float64] = arrays["gradient"]
-        self.boundary_measure: NDArray[np.float64] = arrays["boundary_measure"]
+        self._arrays = arrays
+        # The frame `arrays` are in: the domain's, unless the caller mapped them already.
+        self._frame = domain.frame if frame is None else frame
+        # The sites the core computed with (the frame's), for the mesh.
+        self._core_sites = domain.frame.to_core(sites) if core_sites is None else core_sites
         self.neighbor_offsets: NDArray[np.intp] = arrays["neighbor_offsets"]
         self.neighbor_sites: NDArray[np.intp] = arrays["neighbor_sites"]
-        self.neighbor_measures: NDArray[np.float64] = arrays["neighbor_measures"]
         self._allow_outside = allow_outside
         self._mesh: PolyMesh | None = None
+
+    def _in_input(self, name: str) -> Any:
+        return self._frame.to_input(name, self._arrays[name])
+
+    @cached_property
+    def volume(self) -> NDArray[np.float64]:
+        """Cell areas (2D) or volumes (3D), shape (n,), L^d."""
+        return self._in_input("volume")
+
+    @cached_property
+    def mass(self) -> NDArray[np.float64]:
+        """``∫_cell ρ dx``, shape (n,); ``volume`` without a density."""
+        return self._in_input("mass") if "mass" in self._arrays else self.volume
+
+    @cached_property
+    def centroid(self) -> NDArray[np.float64]:
+        """Cell centroids (ρ-weighted with a density), shape (n, d), L."""
+        return self._in_input("centroid")
+
+    @cached_property
+    def second_moment(self) -> NDArray[np.float64]:
+        """``∫ |x - c|² dx`` about each geometric centroid, shape (n,), L^(d+2)."""
+        return self._in_input("second_moment")
+
+    @cached_property
+    def G(self) -> NDArray[np.float64]:  # noqa: N802 (the paper's G)
+        """Dimensionless second moment of each cell (paper eq. 2), shape (n,)."""
+        return self._in_input("G")
+
+    @cached_property
+    def energy_terms(self) -> NDArray[np.float64]:
+        """Each cell's ρ-weighted energy about its site, shape (n,), ρ·L^(d+2)."""
+        return self._in_input("energy_terms")
+
+    @cached_property
+    def energy(self) -> float:
+        """CVT energy ``Σ_i ∫_cell_i ρ |x - x_i|² dx``, ρ·L^(d+2)."""
+        return float(self._in_input("energy"))
+
+    @cached_property
+    def gradient(self) -> NDArray[np.float64]:
+        """``∂E/∂x_i = 2 m_i (x_i - c_i)``, shape (n, d), ρ·L^(d+1)."""
+        return self._in_input("gradient")
+
+    @cached_property
+    def boundary_measure(self) -> NDArray[np.float64]:
+        """Each cell's length (2D) or area (3D) of domain boundary, shape (n,)."""
+        return self._in_input("boundary_measure")
+
+    @cached_property
+    def neighbor_measures(self) -> NDArray[np.float64]:
+        """Length (2D) or area (3D) of each face of ``neighbor_sites``, shape (m,)."""
+        return self._in_input("neighbor_measures")
 
     @property
     def n(self) -> int:
@@ -124,10 +180,16 @@ class Diagram:
         counts = np.diff(self.neighbor_offsets)
         owner = np.repeat(np.arange(self.n, dtype=np.intp), counts)
         other = self.neighbor_sites
-        h = (self.domain.volume / self.n) ** (1.0 / self.domain.dim)
+        # In the frame: h and the measures are representable there at every scale.
+        measures = self._arrays["neighbor_measures"]
+        volume = (
+            self.domain._core.volume if self._frame is self.domain.frame else self.domain.volume
+        )
+        h = (float(volume) / self.n) ** (1.0 / self.domain.dim)
         floor = NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1)
-        keep = (owner < other) & (self.neighbor_measures > floor)
-        return np.column_stack([owner[keep], other[keep]]), self.neighbor_measures[keep]
+        keep = (owner < other) & (measures > floor)
+        pairs = np.column_stack([owner[keep], other[keep]])
+        return pairs, self._frame.to_input("neighbor_measures", measures[keep])
 
     @property
     def neighbors(self) -> NDArray[np.intp]:
@@ -190,9 +252,12 @@ class Diagram:
         """
         if self._mesh is None:
             compute = getattr(_core, f"mesh_{self.domain.dim}d")
-            arrays = compute(self.domain._core, self.sites, allow_outside=self._allow_outside)
+            with self.domain.frame.input_errors():
+                arrays = compute(
+                    self.domain._core, self._core_sites, allow_outside=self._allow_outside
+                )
             self._mesh = PolyMesh(
-                points=arrays["points"],
+                points=self.domain.frame.to_input("points", arrays["points"]),
                 face_offsets=arrays["face_offsets"],
                 face_vertices=arrays["face_vertices"],
                 owner=arrays["owner"],
@@ -247,9 +312,14 @@ def voronoi(
     compute = getattr(_core, f"voronoi_{domain.dim}d", None)
     if compute is None:
         raise NotImplementedError(f"no diagram for dimension {domain.dim} in this build")
-    weighted = core_arguments(density, domain.dim, quadrature_degree)
-    arrays = compute(domain._core, points, allow_outside=allow_outside, **weighted)
-    return Diagram(domain, points, arrays, density, allow_outside=allow_outside)
+    frame = domain.frame
+    weighted = core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree)
+    core_sites = frame.to_core(points)
+    with frame.input_errors():
+        arrays = compute(domain._core, core_sites, allow_outside=allow_outside, **weighted)
+    return Diagram(
+        domain, points, arrays, density, allow_outside=allow_outside, core_sites=core_sites
+    )
 
 
 def as_sites(sites: ArrayLike, dim: int) -> NDArray[np.float64]:

@@ -28,3 +28,13 @@ class InvalidDensityError(ValueError):
     Non-positive or non-finite values, bad coefficients, a bad quadrature degree. The
     message names the point (absolute coordinates) and the value found there.
     """
+
+
+class UnrepresentableError(ValueError):
+    """A result exists but its value in the input's unit is outside float64's range.
+
+    A domain of size 1e-150 has cells whose volumes (3D) underflow, one of size 1e100 has
+    second moments that overflow. The core works in the domain's own frame
+    (:mod:`hcvt.geometry.frame`), so the other results (positions, G, ...) stay available;
+    the message names the quantity and the power of the scale it needed.
+    """

@@ -137,32 +137,35 @@ def cvt(
     # The core checks the settings for both drivers (and tells the rule's default tol).
     tol = _core.check_settings(method, rule, tol, max_iter, memory)
     points = as_sites(sites, domain.dim)
-    weighted = core_arguments(density, domain.dim, quadrature_degree)
+    frame = domain.frame  # the core works in it; sites, energy and history map back
+    weighted = core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree)
     run = getattr(_core, f"cvt_{domain.dim}d", None)
     if run is None:
         raise NotImplementedError(f"no CVT for dimension {domain.dim} in this build")
     bar = ProgressBar(rule, tol) if progress else None
-    observe = chain_observers(callback, bar)
+    observe = frame.observer(chain_observers(callback, bar))
     try:
-        out = run(
-            domain._core,
-            points,
-            method=method,
-            rule=rule,
-            tol=float(tol),
-            max_iter=int(max_iter),
-            memory=int(memory),
-            callback=observe,
-            **weighted,
-        )
+        with frame.input_errors():
+            out = run(
+                domain._core,
+                frame.to_core(points),
+                method=method,
+                rule=rule,
+                tol=float(tol),
+                max_iter=int(max_iter),
+                memory=int(memory),
+                callback=observe,
+                **weighted,
+                **frame.core_arguments(),
+            )
     finally:
         if bar is not None:
             bar.close()
-    history = {key: np.asarray(value) for key, value in out["history"].items()}
-    sites_out = out["sites"]
+    history = frame.history({key: np.asarray(value) for key, value in out["history"].items()})
+    sites_out = frame.to_input("sites", out["sites"])
     return CVTResult(
         sites=sites_out,
-        diagram=Diagram(domain, sites_out, out["diagram"], density),
+        diagram=Diagram(domain, sites_out, out["diagram"], density, core_sites=out["sites"]),
         history=history,
         rule=rule,
         tol=float(tol),

@@ -17,7 +17,7 @@ use hcvt_core::domain::{Boundary, WindingNumber};
 use hcvt_core::geometry::{Euclid, Space};
 use hcvt_core::moments::Moments;
 use hcvt_core::optimise::lbfgs::{self, LineSearch};
-use hcvt_core::optimise::{cvt, lloyd, Named, Outcome, Record};
+use hcvt_core::optimise::{cvt, lloyd, Frame, Named, Outcome, Record, Settings};
 use numpy::{
     PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
 };
@@ -40,7 +40,7 @@ macro_rules! by_dimension {
         /// arrays), `stop_reason`. `callback(record)`, if given, gets a dict per iterate; a
         /// true return value stops.
         #[pyfunction]
-        #[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4))]
+        #[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None))]
         #[allow(clippy::too_many_arguments)]
         pub fn $cvt<'py>(
             py: Python<'py>,
@@ -55,11 +55,13 @@ macro_rules! by_dimension {
             polynomial: Option<Coefficients>,
             function: Option<Py<PyAny>>,
             quadrature_degree: usize,
+            frame: Option<(Vec<f64>, f64)>,
         ) -> PyResult<Bound<'py, PyDict>> {
             let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
+            let frame = frame.map_or(Ok(Frame::default()), to_frame)?;
             let points = rows::<f64, $d>(&sites, "sites")?;
             let given = Given::new(polynomial, function, quadrature_degree)?;
-            run::<$d, $cell>(py, &domain.0, points, &named, callback, &given)
+            run::<$d, $cell>(py, &domain.0, points, &named, frame, callback, &given)
         }
 
         /// What a part's next step needs from its cells (`hcvt.partition.absorb`): the
@@ -317,6 +319,26 @@ where
     to_array2(py, &direction)
 }
 
+/// `(centre (d,), scale)` of `hcvt.geometry.frame.Frame`, checked.
+fn to_frame((centre, scale): (Vec<f64>, f64)) -> PyResult<Frame> {
+    if centre.len() > 3
+        || !(scale > 0.0 && scale.is_finite())
+        || !centre.iter().all(|c| c.is_finite())
+    {
+        return Err(PyValueError::new_err(format!(
+            "frame must be (centre of at most 3 finite values, scale > 0), got ({centre:?}, {scale})"
+        )));
+    }
+    let mut out = Frame {
+        scale,
+        ..Frame::default()
+    };
+    for (slot, c) in out.centre.iter_mut().zip(centre) {
+        *slot = c;
+    }
+    Ok(out)
+}
+
 /// How often the waiting thread checks for Ctrl-C while the core works.
 const SIGNAL_POLL: Duration = Duration::from_millis(50);
 
@@ -330,6 +352,7 @@ fn run<'py, const D: usize, C: ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
     named: &Named,
+    frame: Frame,
     callback: Option<Py<PyAny>>,
     given: &Given,
 ) -> PyResult<Bound<'py, PyDict>>
@@ -337,7 +360,10 @@ where
     Euclid: Space<D> + WindingNumber<D>,
 {
     let density = given.density::<D>()?;
-    let settings = named.settings(density.as_ref());
+    let settings = Settings {
+        frame,
+        ..named.settings(density.as_ref())
+    };
     let settings = &settings;
     let stop = AtomicBool::new(false);
     let raised: Mutex<Option<PyErr>> = Mutex::new(None);

@@ -22,6 +22,7 @@ from hcvt.distributed import partition as pt
 from hcvt.distributed import partition_mesh
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain
+from hcvt.geometry.frame import Frame
 from hcvt.optimise import CVTResult, ProgressBar, chain_observers
 
 #: Parts hold at most this many sites unless told otherwise.
@@ -260,7 +261,14 @@ class PartitionedDiagram:
             neighbor_measures=neighbor_measures,
         )
         allow_outside = self._cluster.allow_outside
-        return Diagram(domain, sites, arrays, self._cluster.density, allow_outside=allow_outside)
+        return Diagram(
+            domain,
+            sites,
+            arrays,
+            self._cluster.density,
+            allow_outside=allow_outside,
+            frame=Frame.identity(d),  # the parts' arrays are in L already
+        )
 
     def write(self, directory: str | Path) -> list[str]:
         """Write every part's rows, sites and per-cell arrays as .npy files, on its worker.

@@ -320,15 +320,19 @@ def part_cells(
     own = np.searchsorted(rows, part.rows)
     todo = np.arange(len(part.rows)) if previous is None else np.flatnonzero(~previous.certified)
     compute = getattr(_core, f"partition_cells_{domain.dim}d")
-    out = compute(
-        domain._core,
-        sites,
-        rows,
-        own[todo].astype(np.uint32),
-        int(total_sites),
-        allow_outside=allow_outside,
-        **core_arguments(density, domain.dim, quadrature_degree),
-    )
+    # The core works in the domain's frame; a part's cells are kept in L.
+    frame = domain.frame
+    with frame.input_errors():
+        out = compute(
+            domain._core,
+            frame.to_core(sites),
+            rows,
+            own[todo].astype(np.uint32),
+            int(total_sites),
+            allow_outside=allow_outside,
+            **core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree),
+        )
+    out = {key: frame.to_input(key, value) for key, value in out.items()}
     reach = np.sqrt(out.pop("reach2"))
     # Kept once: the energy is summed by the client, the gradient is -2 first.
     out.pop("energy", None)
@@ -421,9 +425,16 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     gradient = gradient_of(cells)
     d = domain.dim
     fields_of = getattr(_core, f"step_fields_{d}d")
+    # The core's domain is in its frame: positions and quantities go in and come back.
+    frame = domain.frame
     shift, pinned, precond = fields_of(
-        domain._core, _arg(part.sites), _arg(mass), _arg(first), _arg(a["boundary_measure"])
+        domain._core,
+        _arg(frame.to_core(part.sites)),
+        _arg(frame.quantity_to_core("mass", mass)),
+        _arg(frame.quantity_to_core("first", first)),
+        _arg(frame.quantity_to_core("boundary_measure", a["boundary_measure"])),
     )
+    shift, precond = frame.to_input("shift", shift), frame.to_input("precond", precond)
     counted = ~pinned & (volume > 0) & (mass > 0)
     m, v = mass[counted], volume[counted]
     r = np.sqrt((first[counted] ** 2).sum(axis=1)) / m / v ** (1.0 / d)
@@ -450,7 +461,11 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
 def lloyd_part(domain: Domain, part: Part) -> Part:
     """Sites moved to their centroids, held inside: the core's Lloyd step (``lloyd_step``)."""
     step = getattr(_core, f"lloyd_step_{domain.dim}d")
-    sites = step(domain._core, _arg(part.sites), _arg(part.fields["shift"]))
+    frame = domain.frame
+    shift = frame.quantity_to_core("shift", part.fields["shift"])
+    sites = frame.to_input(
+        "sites", step(domain._core, _arg(frame.to_core(part.sites)), _arg(shift))
+    )
     fields = {k: v for k, v in part.fields.items() if k in ("s", "y")}
     return Part(part.index, part.rows, sites, fields)
 
@@ -504,16 +519,18 @@ def lbfgs_direction(
     g = part.fields["gradient"]
     empty = np.zeros((0, *g.shape))
     direction_of = getattr(_core, f"lbfgs_direction_{domain.dim}d")
+    frame = domain.frame  # P'v' = Pv / s and s' = s / s: the same coefficients serve
     direction = direction_of(
         domain._core,
-        _arg(part.sites),
-        _arg(g),
-        _arg(part.fields.get("s", empty)),
-        _arg(part.fields.get("y", empty)),
-        _arg(part.fields["precond"]),
+        _arg(frame.to_core(part.sites)),
+        _arg(frame.quantity_to_core("gradient", g)),
+        _arg(frame.quantity_to_core("pair_s", part.fields.get("s", empty))),
+        _arg(frame.quantity_to_core("pair_y", part.fields.get("y", empty))),
+        _arg(frame.quantity_to_core("precond", part.fields["precond"])),
         _arg(weighted_coefficients),
         _arg(s_coefficients),
     )
+    direction = frame.to_input("direction", direction)
     fields = dict(part.fields)
     fields["direction"] = direction
     return Part(part.index, part.rows, part.sites, fields), _dot(g, direction)

@@ -102,14 +102,18 @@ def piece_mesh(
     sites = np.ascontiguousarray(sites[first])
     own = np.searchsorted(rows, part.rows)
     compute = getattr(_core, f"mesh_part_{domain.dim}d")
-    out = compute(
-        domain._core,
-        sites,
-        rows.astype(np.int64),
-        own.astype(np.uint32),
-        int(total_sites),
-        allow_outside=allow_outside,
-    )
+    # The core works in the domain's frame; the piece is kept in L.
+    frame = domain.frame
+    with frame.input_errors():
+        out = compute(
+            domain._core,
+            frame.to_core(sites),
+            rows.astype(np.int64),
+            own.astype(np.uint32),
+            int(total_sites),
+            allow_outside=allow_outside,
+        )
+    out = {key: frame.to_input(key, value) for key, value in out.items()}
     computed = out["computed"]
     reach = np.sqrt(out["reach2"])
     halo = len(rows) - len(part.rows)

@@ -20,6 +20,7 @@ from shapely.geometry.polygon import orient
 from hcvt import _core
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry import repair as mesh
+from hcvt.geometry.frame import Frame
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,11 @@ class Domain:
         ``(lo, hi)`` corners of the bounding box, each shape (d,).
     repair_report : RepairReport or None
         What ``repair=True`` changed, when it was asked for.
+    frame : Frame
+        Where the core works: ``x' = (x - frame.centre) / frame.scale``, the domain about
+        its own centre at a size near 1 (:mod:`hcvt.geometry.frame`); every result comes
+        back in the input's coordinates. The identity for a domain near the origin of
+        moderate size.
     """
 
     def __init__(
@@ -73,11 +79,13 @@ class Domain:
         dim: int,
         geometry: Any = None,
         repair_report: RepairReport | None = None,
+        frame: Frame | None = None,
     ) -> None:
         self._core = core
         self.dim = dim
         self.geometry = geometry
         self.repair_report = repair_report
+        self.frame = Frame(np.zeros(dim), 1.0) if frame is None else frame
 
     # ------------------------------------------------------------------ 2D
     @classmethod
@@ -127,7 +135,9 @@ class Domain:
             _check_polygon(geometry)
         geometry = _normalise_polygon(geometry)
         vertices, segments = polygon_boundary(geometry)
-        return cls(_core.PolygonDomain(vertices, segments), 2, geometry, report)
+        frame = Frame.fit(vertices)
+        core = _core.PolygonDomain(frame.to_core(vertices, "vertices"), segments)
+        return cls(core, 2, geometry, report, frame)
 
     # ------------------------------------------------------------------ 3D
     @classmethod
@@ -171,6 +181,10 @@ class Domain:
         0.166666666667
         """
         v, f = mesh.as_mesh_arrays(vertices, faces)
+        # Checks and repairs are free of scale and position: made in the domain's frame,
+        # where volumes are representable for a mesh 1e-150 or 1e150 wide (issue 30).
+        frame = Frame.fit(v)
+        v = frame.to_core(v, "vertices")
         actions: list[str] = []
         before = mesh.signed_volume(v, f)
         if repair:
@@ -193,13 +207,16 @@ class Domain:
                 mesh.refuse(nested, repaired=repair)
         report = None
         if repair:
-            report = RepairReport(bool(actions), actions, before, mesh.signed_volume(v, f))
-        return cls(core, 3, None, report)
+            after = mesh.signed_volume(v, f)
+            report = RepairReport(
+                bool(actions), actions, frame.volume_or_nan(before), frame.volume_or_nan(after)
+            )
+        return cls(core, 3, None, report, frame)
 
     @property
     def vertices(self) -> NDArray[np.float64]:
-        """Boundary vertices as indexed, shape (V, d)."""
-        return np.asarray(self._core.vertices)
+        """Boundary vertices as indexed, shape (V, d), bit for bit the input's."""
+        return self.frame.points_to_input(np.asarray(self._core.vertices))
 
     @property
     def faces(self) -> NDArray[np.intp]:
@@ -216,29 +233,38 @@ class Domain:
         """
         if self.dim != 3:
             raise NotImplementedError("generalised winding numbers are implemented for 3D")
-        return np.asarray(self._core.generalized_winding_numbers(_as_points(points, 3, "points")))
+        pts = self.frame.to_core(_as_points(points, 3, "points"), "points")
+        return np.asarray(self._core.generalized_winding_numbers(pts))
 
     # ------------------------------------------------------------------ queries
     @property
     def volume(self) -> float:
-        """Area (2D) or volume (3D) of the domain, L^d."""
-        return float(self._core.volume)
+        """Area (2D) or volume (3D) of the domain, L^d.
+
+        Raises :class:`hcvt.errors.UnrepresentableError` when it is outside float64's range
+        (a solid of size 1e150); the work in the frame does not need it.
+        """
+        return float(self.frame.to_input("volume", float(self._core.volume)))
 
     @property
     def first_moment(self) -> NDArray[np.float64]:
         """``∫ x dx`` over the domain, shape (d,), L^(d+1)."""
-        return np.asarray(self._core.first_moment, dtype=np.float64)
+        first = np.asarray(self._core.first_moment, dtype=np.float64)
+        return np.asarray(self.frame.first_moment(first, float(self._core.volume)))
 
     @property
     def centroid(self) -> NDArray[np.float64]:
         """Centre of mass of the domain, shape (d,)."""
-        return self.first_moment / self.volume
+        if self.frame.is_identity:
+            return self.first_moment / self.volume
+        first = np.asarray(self._core.first_moment, dtype=np.float64)
+        return self.frame.points_to_input(first / float(self._core.volume))
 
     @property
     def bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(lo, hi)`` corners of the bounding box, each shape (d,)."""
-        lo, hi = self._core.bounds
-        return np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+        lo, hi = (np.asarray(b, dtype=np.float64) for b in self._core.bounds)
+        return self.frame.points_to_input(lo), self.frame.points_to_input(hi)
 
     def winding_numbers(self, points: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.bool_]]:
         """Exact winding number of each point, and whether it lies on the boundary.
@@ -253,7 +279,7 @@ class Domain:
             1 inside, 0 outside (0 as well on the boundary).
         on_boundary : ndarray of bool, shape (m,)
         """
-        pts = _as_points(points, self.dim, "points")
+        pts = self.frame.to_core(_as_points(points, self.dim, "points"), "points")
         return self._core.winding_numbers(pts)
 
     def contains(self, points: ArrayLike) -> NDArray[np.bool_]:
@@ -287,10 +313,12 @@ def _unpickle(
     boundary = _core.PolygonDomain if dim == 2 else _core.SolidDomain
     # Aligned copies: dask hands arrays over as views of its message frames, which may
     # start at any byte.
+    frame = Frame.fit(vertices)
     core = boundary(
-        np.require(vertices, np.float64, ["C", "A"]), np.require(simplices, np.uint32, ["C", "A"])
+        np.require(frame.to_core(np.asarray(vertices), "vertices"), np.float64, ["C", "A"]),
+        np.require(simplices, np.uint32, ["C", "A"]),
     )
-    return Domain(core, dim, geometry, repair_report)
+    return Domain(core, dim, geometry, repair_report, frame)
 
 
 def _as_points(points: ArrayLike, dim: int, name: str) -> NDArray[np.float64]:

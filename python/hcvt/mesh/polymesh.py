@@ -172,13 +172,27 @@ class PolyMesh:
         q = p[following]
         apex = np.repeat(estimate, sizes, axis=0)
         normal = np.cross(q - p, apex - p)
-        weight = np.linalg.norm(normal, axis=1)
+        with np.errstate(over="ignore", under="ignore"):
+            weight = np.linalg.norm(normal, axis=1)
+        # Squares overflow for faces wider than 1e77 and underflow below 1e-77 (a domain
+        # 1e100 or 1e-100 wide, issue 30): those rows again, scaled by their largest entry.
+        odd = ~(np.isfinite(weight) & (weight > _ROOT_VSMALL)) & np.any(normal != 0, axis=1)
+        if odd.any():
+            big = np.max(np.abs(normal[odd]), axis=1)
+            weight[odd] = big * np.linalg.norm(normal[odd] / big[:, None], axis=1)
         area = np.add.reduceat(weight, starts)
-        moment = np.add.reduceat(weight[:, None] * (p + q + apex), starts, axis=0)
-        degenerate = area < _ROOT_VSMALL
-        centre = np.where(
-            degenerate[:, None], estimate, moment / (3.0 * np.maximum(area, _ROOT_VSMALL))[:, None]
-        )
+        with np.errstate(over="ignore", invalid="ignore"):
+            moment = np.add.reduceat(weight[:, None] * (p + q + apex), starts, axis=0)
+            degenerate = area < _ROOT_VSMALL
+            centre = np.where(
+                degenerate[:, None],
+                estimate,
+                moment / (3.0 * np.maximum(area, _ROOT_VSMALL))[:, None],
+            )
+        lost = ~np.isfinite(centre).all(axis=1) & np.isfinite(estimate).all(axis=1)
+        if lost.any():  # area · position overflowed (faces 1e100 wide at 1e109): about the estimate
+            local = np.add.reduceat(weight[:, None] * ((p - apex) + (q - apex)), starts, axis=0)
+            centre[lost] = estimate[lost] + local[lost] / (3.0 * area[lost])[:, None]
         return FaceGeometry(centre, 0.5 * np.add.reduceat(normal, starts, axis=0))
 
     @cached_property
@@ -202,8 +216,12 @@ class PolyMesh:
         cone = np.einsum("ij,ij->i", s, c - apex[cells]) / d
         cone_centroid = (d * c + apex[cells]) / (d + 1)
         volume = np.bincount(cells, weights=cone, minlength=n).astype(np.float64)
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             centroid = _sum_by(cells, cone[:, None] * cone_centroid, n) / volume[:, None]
+            lost = ~np.isfinite(centroid).all(axis=1) & (count > 0)
+            if lost.any():  # volume · position overflowed: about the apex instead
+                local = _sum_by(cells, cone[:, None] * (cone_centroid - apex[cells]), n)
+                centroid[lost] = apex[lost] + local[lost] / volume[lost, None]
         centroid[count == 0] = np.nan
         return CellGeometry(volume, centroid)
 

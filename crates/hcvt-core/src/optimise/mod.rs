@@ -55,7 +55,7 @@ use crate::geometry::{Euclid, Space};
 use hessian::{Hessian, HessianTerms};
 use lbfgs::{LineSearch, Memory};
 use newton::TrustRegion;
-pub use stopping::{Measures, Rule};
+pub use stopping::{Frame, Measures, Rule};
 
 /// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the
 /// energy (translating the domain and 2,000 random sites changed `E` by at most 2.4e-14
@@ -112,6 +112,8 @@ pub struct Settings<'a, const D: usize> {
     pub max_line_evaluations: usize,
     /// The density ρ of the energy `Σ_i ∫ ρ |x − x_i|²` (DESIGN §8); `None` for ρ = 1.
     pub density: Option<&'a Density<'a, D>>,
+    /// Where the sites' coordinates sit in the input's, for the paper's rule ([`Frame`]).
+    pub frame: Frame,
 }
 
 impl<const D: usize> Default for Settings<'_, D> {
@@ -124,6 +126,7 @@ impl<const D: usize> Default for Settings<'_, D> {
             memory: 7,
             max_line_evaluations: 20,
             density: None,
+            frame: Frame::default(),
         }
     }
 }
@@ -398,6 +401,8 @@ struct Tracker<'a, const D: usize> {
     start: Instant,
     evaluations: usize,
     history: Vec<Record>,
+    /// For the paper's rule, measured in the input's coordinates.
+    frame: Frame,
 }
 
 impl<const D: usize> Tracker<'_, D> {
@@ -428,7 +433,7 @@ impl<const D: usize> Tracker<'_, D> {
         let record = Record {
             energy: point.energy,
             mean_g: mean_g(&point.diagram),
-            measures: Measures::of(point, &pinned),
+            measures: Measures::of_in(point, &pinned, &self.frame),
             seconds: self.start.elapsed().as_secs_f64(),
             evaluations: self.evaluations,
             step,
@@ -528,6 +533,7 @@ where
         start: Instant::now(),
         evaluations: 0,
         history: Vec::new(),
+        frame: settings.frame,
     };
     let mut point = tracker.evaluate::<C>(boundary, sites)?;
     let mut solver = Solver {

@@ -80,6 +80,30 @@ impl Rule {
     }
 }
 
+/// Where the core's coordinates sit in the input's: `x = scale · x' + centre`.
+///
+/// The Python package computes every domain in its own frame (`hcvt.geometry.frame`: the
+/// domain about its centre at a size near 1, `scale` a power of two). The paper's rule is
+/// defined in the input coordinates, so [`Measures::of_in`] measures `‖g‖/‖X‖` there;
+/// the gaps are scale-free and need no frame. `centre` has 3 entries; 2D uses the first 2.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    /// `s > 0`, `L`.
+    pub scale: f64,
+    /// `c`, `L`.
+    pub centre: [f64; 3],
+}
+
+impl Default for Frame {
+    /// The identity: the core's coordinates are the input's.
+    fn default() -> Self {
+        Self {
+            scale: 1.0,
+            centre: [0.0; 3],
+        }
+    }
+}
+
 /// How far sites are from their centroids, by every rule; all dimensionless except
 /// `grad_norm`, which is in `L^d` (the paper's rule is not scale-free).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -98,6 +122,14 @@ impl Measures {
     /// The measures of `point`, leaving out the sites marked in `pinned` and empty cells
     /// (an empty cell has no centroid; it is reseeded before the next step).
     pub fn of<const D: usize>(point: &Point<D>, pinned: &[bool]) -> Self {
+        Self::of_in(point, pinned, &Frame::default())
+    }
+
+    /// As [`Measures::of`] for a `point` in the core's coordinates of `frame`, with
+    /// `grad_norm` in the input's: `g = s^(d+1) g'`, `X = s X' + c`, so
+    /// `‖g‖/‖X‖ = s^d · ‖g'‖ / ‖X' + c/s‖` (factor by factor, so that nothing over- or
+    /// underflows unless the result does). Bitwise [`Measures::of`] for the identity.
+    pub fn of_in<const D: usize>(point: &Point<D>, pinned: &[bool], frame: &Frame) -> Self {
         let (mut sum_r2, mut max_r, mut counted, mut g2) = (0.0, 0.0_f64, 0usize, 0.0);
         let diagram = &point.diagram;
         for (((m, w), &g), &p) in (diagram.moments.iter())
@@ -116,7 +148,13 @@ impl Measures {
             counted += 1;
             g2 += norm2(g);
         }
-        let x2: f64 = point.sites.iter().map(|&x| norm2(x)).sum();
+        let shift: [f64; D] =
+            std::array::from_fn(|k| frame.centre.get(k).map_or(0.0, |c| c / frame.scale));
+        let x2: f64 = point
+            .sites
+            .iter()
+            .map(|&x| norm2::<D>(std::array::from_fn(|k| x[k] + shift[k])))
+            .sum();
         Self {
             rms_gap: (sum_r2 / counted.max(1) as f64).sqrt(),
             max_gap: max_r,
@@ -124,7 +162,9 @@ impl Measures {
             grad_norm: if g2 == 0.0 {
                 0.0
             } else {
-                g2.sqrt() / x2.sqrt().max(f64::MIN_POSITIVE)
+                (0..D).fold(g2.sqrt() / x2.sqrt().max(f64::MIN_POSITIVE), |v, _| {
+                    v * frame.scale
+                })
             },
             pinned: pinned.iter().filter(|&&p| p).count(),
         }
@@ -179,6 +219,19 @@ mod tests {
         assert!((moved.rms_gap - unit.rms_gap).abs() < 1e-15 * unit.rms_gap.max(1.0));
         assert!((moved.max_gap - unit.max_gap).abs() < 1e-15);
         assert!(moved.grad_norm > 1e3 * unit.grad_norm);
+
+        // In a frame: the same sites as `moved`, given as x' = (x - c) / s, measure the same.
+        let frame = Frame {
+            scale: 1000.0,
+            centre: [9e5, -4e5, 0.0],
+        };
+        let framed = Measures::of_in(&two_cells(1.0, [0.0; 2]), &pinned, &frame);
+        assert!((framed.grad_norm - moved.grad_norm).abs() <= 1e-14 * moved.grad_norm);
+        assert_eq!(framed.rms_gap, unit.rms_gap);
+        assert_eq!(
+            Measures::of_in(&two_cells(1.0, [0.0; 2]), &pinned, &Frame::default()),
+            unit
+        );
 
         let counted = Measures::of(&two_cells(1.0, [0.0; 2]), &[false, false]);
         assert!((counted.rms_gap - ((0.0025 + 0.0225) / 2.0f64).sqrt()).abs() < 1e-15);
