@@ -31,7 +31,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
 from hcvt.density import DensityLike, evaluate
-from hcvt.errors import InvalidDensityError, InvalidDomainError
+from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain, polygon_boundary
 from hcvt.seeding.cover import Cover, cover
 
@@ -132,6 +132,10 @@ def initialise(
         too thin for any lattice of ``n`` sites clear of its boundary.
     InvalidDensityError
         The density is not finite and positive where evaluated, or not bounded.
+    InvalidSitesError
+        Two sites coincide: ``n`` far above the distinct points of double precision in the
+        domain's box (a million sites in a square of side 1e-12 at (1, 1)); checked only
+        where that can happen (:data:`COINCIDENCE_CHECK`).
 
     Examples
     --------
@@ -145,16 +149,47 @@ def initialise(
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     state = random_state(seed, rng)
     if density is not None:
-        return _graded(domain, n, method, state, density)
+        return _distinct(domain, _graded(domain, n, method, state, density))
     if method == "random":
         generator = np.random.default_rng(state)
-        return _rejection(domain, n, lambda m: generator.random((m, domain.dim)))
-    if method == "halton":
+        sites = _rejection(domain, n, lambda m: generator.random((m, domain.dim)))
+    elif method == "halton":
         engine = qmc.Halton(domain.dim, scramble=True, rng=state)
-        return _rejection(domain, n, engine.random)
-    if method == "hammersley":
-        return hammersley(domain, n)
-    return lattice(domain, n, seed, rng=rng).sites
+        sites = _rejection(domain, n, engine.random)
+    elif method == "hammersley":
+        sites = hammersley(domain, n)
+    else:
+        sites = lattice(domain, n, seed, rng=rng).sites
+    return _distinct(domain, sites)
+
+
+#: Sites are checked for coincidence when two of ``n`` uniform points would share a
+#: double with more than this probability (``n² / 2`` over the doubles in the box).
+COINCIDENCE_CHECK = 1e-9
+
+
+def _distinct(domain: Domain, sites: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``sites``, or InvalidSitesError if two coincide (a box holding too few doubles).
+
+    A box of side ``1e-12`` at ``(1, 1)`` holds about 4500 doubles a side: a million sites
+    drawn in it coincide. The check (a sort) runs only where that can happen.
+    """
+    lo, hi = domain.bounds
+    ulp = np.spacing(np.maximum(np.abs(lo), np.abs(hi)))
+    doubles = float(np.prod(np.maximum((hi - lo) / ulp, 1.0)))
+    n = len(sites)
+    if 0.5 * n * n <= COINCIDENCE_CHECK * doubles:
+        return sites
+    order = np.lexsort(sites.T[::-1])
+    same = np.flatnonzero((sites[order[1:]] == sites[order[:-1]]).all(axis=1))
+    if len(same) == 0:
+        return sites
+    i, j = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+    raise InvalidSitesError(
+        f"sites {i} and {j} coincide at {sites[i].tolist()}: the domain's bounding box "
+        f"{_box_text(domain)} at {lo.tolist()} holds about {doubles:.3g} distinct points at "
+        f"double precision, too few for {n} distinct sites ({len(same)} coincide)"
+    )
 
 
 def check_count(n: object, dim: int) -> int:
