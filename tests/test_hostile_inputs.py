@@ -30,6 +30,8 @@ from typing import Any
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from scipy import stats
+from scipy.spatial.transform import Rotation
 
 import hcvt
 from hcvt.cli import main
@@ -672,3 +674,35 @@ def test_thin_triangle_initialises_in_under_a_second() -> None:
         sites, error, seconds = _run_limited(lambda m=method: hcvt.initialise(domain, 20, m))
         assert error is None and domain.contains(sites).all()
         assert seconds < 1.0, f"{method}: {seconds:.2f} s"
+
+
+def _slab(angles: tuple[float, float, float]) -> tuple[hcvt.Domain, np.ndarray, tuple[float, ...]]:
+    """A 1 x 1 x 0.01 box turned by ``angles``: 0.8% of its bounding box (octree cover)."""
+    rotation = Rotation.from_euler("xyz", angles).as_matrix()
+    sides = (1.0, 1.0, 0.01)
+    return hcvt.Domain.from_mesh((CUBE_VERTICES * sides) @ rotation.T, CUBE_FACES), rotation, sides
+
+
+def _strip(angle: float) -> tuple[hcvt.Domain, np.ndarray, tuple[float, ...]]:
+    """A 1 x 0.01 rectangle turned by ``angle``: 2.7% of its bounding box (triangle cover)."""
+    c, s = np.cos(angle), np.sin(angle)
+    rotation = np.array([[c, -s], [s, c]])
+    sides = (1.0, 0.01)
+    corners = np.array([[0, 0], [1, 0], [1, 0.01], [0, 0.01]]) @ rotation.T
+    return hcvt.Domain.from_polygon(corners), rotation, sides
+
+
+@pytest.mark.parametrize("shape", ["strip", "slab"])
+@pytest.mark.parametrize("method", ["random", "halton", "hammersley"])
+def test_thin_domains_are_sampled_uniformly(shape: str, method: str) -> None:
+    """Drawn in a cover, not the box, the sites are still uniform in the domain.
+
+    In the shape's own frame each coordinate is uniform on its side (Kolmogorov-Smirnov,
+    5000 sites, seed 0: p-values 0.019 to 1.0 measured; refused below 1e-3).
+    """
+    domain, rotation, sides = _strip(0.4) if shape == "strip" else _slab((0.3, 0.5, 0.7))
+    lo, hi = domain.bounds
+    assert domain.volume < 0.05 * np.prod(hi - lo)  # the cover, not the box
+    local = hcvt.initialise(domain, 5000, method=method) @ rotation
+    for k, side in enumerate(sides):
+        assert stats.kstest(local[:, k], "uniform", args=(0.0, side)).pvalue > 1e-3, k
