@@ -460,7 +460,10 @@ def _function(spec: str) -> Any:
     if module_spec is None or module_spec.loader is None or not Path(path).exists():
         raise FileNotFoundError(f"no Python file {path!r}")
     module = importlib.util.module_from_spec(module_spec)
-    module_spec.loader.exec_module(module)
+    try:
+        module_spec.loader.exec_module(module)
+    except Exception as err:  # the user's file: any error it raises, one line, no traceback
+        raise ValueError(f"cannot import {path}: {type(err).__name__}: {err}") from err
     function = getattr(module, name, None)
     if not callable(function):
         raise ValueError(f"{path} has no function {name!r}")
@@ -504,11 +507,14 @@ def show(summary: str, plot: str) -> None:
     if "sites" not in info:
         raise ValueError(f"{summary} has no sites file; run with --out and --summary")
     sites_path = Path(info["sites"])
-    sites = (
-        np.load(sites_path)
-        if sites_path.suffix == ".npy"
-        else np.loadtxt(sites_path, delimiter=",", skiprows=1)
-    )
+    try:
+        sites = (
+            np.load(sites_path)
+            if sites_path.suffix == ".npy"
+            else np.loadtxt(sites_path, delimiter=",", skiprows=1)
+        )
+    except EOFError as err:  # np.load of an empty file; click would say only "Aborted!"
+        raise ValueError(f"{sites_path}: cannot read sites ({err})") from err
     domain = _load(info["input"], False)
     _plot(hcvt.voronoi(domain, sites), plot)
 

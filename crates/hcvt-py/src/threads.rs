@@ -8,13 +8,34 @@ use rayon::{ThreadPool, ThreadPoolBuilder};
 
 static POOL: Mutex<Option<Arc<ThreadPool>>> = Mutex::new(None);
 
-/// Use `n` worker threads from now on (`n >= 1`). Results do not depend on `n`.
+/// Most threads per core `set_num_threads` starts. Results do not depend on the thread
+/// count, so more threads than cores only helps where cores are hidden from the process;
+/// past this a typo (`10**6`) would start a million threads (load average 400 on 2 cores).
+pub const MAX_THREADS_PER_CORE: usize = 64;
+
+/// The most threads `set_num_threads` accepts: `MAX_THREADS_PER_CORE` per core the
+/// process may use (`std::thread::available_parallelism`, 1 if unknown).
+pub fn max_threads() -> usize {
+    MAX_THREADS_PER_CORE * std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Use `n` worker threads from now on (`1 <= n <= 64 x cores`). Results do not depend on `n`.
 #[pyfunction]
-pub fn set_num_threads(n: usize) -> PyResult<()> {
-    if n == 0 {
-        return Err(PyValueError::new_err(
-            "the number of threads must be at least 1",
-        ));
+pub fn set_num_threads(n: i64) -> PyResult<()> {
+    // Signed, so that -1 gets this message rather than pyo3's OverflowError.
+    if n < 1 {
+        return Err(PyValueError::new_err(format!(
+            "the number of threads must be at least 1, got {n}"
+        )));
+    }
+    let limit = max_threads();
+    let n = usize::try_from(n).unwrap_or(usize::MAX);
+    if n > limit {
+        return Err(PyValueError::new_err(format!(
+            "the number of threads must be at most {limit} ({MAX_THREADS_PER_CORE} per core, \
+             {} cores available), got {n}",
+            limit / MAX_THREADS_PER_CORE
+        )));
     }
     let pool = ThreadPoolBuilder::new()
         .num_threads(n)

@@ -202,7 +202,7 @@ class Domain:
             v, f = mesh.unite_shells(v, f, core.crossing_triangles(count)[1], actions)
             core = _core.SolidDomain(v, np.ascontiguousarray(f, dtype=np.uint32))
         else:
-            nested = mesh.nesting_defects(mesh.nesting(v, f))
+            nested = mesh.nesting_defects(mesh.nesting(v, f, crossing_is_error=True))
             if nested:
                 mesh.refuse(nested, repaired=repair)
         report = None

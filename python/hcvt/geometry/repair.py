@@ -459,8 +459,11 @@ class Nesting:
 NESTING_TRIES = 8
 
 
-def nesting(v: Vertices, f: Faces) -> Nesting:
+def nesting(v: Vertices, f: Faces, *, crossing_is_error: bool = False) -> Nesting:
     """Shells of a closed, consistently oriented mesh whose shells do not cross.
+
+    With ``crossing_is_error``, shells found on both sides of each other (crossing along
+    edges, which the core's crossing test does not see) raise InvalidDomainError.
 
     Each shell's signed volume gives its orientation; a point of each shell (the centroid of
     one of its faces not lying on another shell) tested against every other shell, oriented
@@ -478,6 +481,12 @@ def nesting(v: Vertices, f: Faces) -> Nesting:
     tries = [
         m[np.linspace(0, len(m) - 1, min(NESTING_TRIES, len(m))).astype(np.intp)] for m in members
     ]
+    # Vertices too: shells crossing only along edges (no edge through a triangle, which
+    # is all the core's crossing test sees) can have every face centroid on one side.
+    corners = [np.unique(f[m]) for m in members]
+    corners = [
+        c[np.linspace(0, len(c) - 1, min(NESTING_TRIES, len(c))).astype(np.intp)] for c in corners
+    ]
     for j, m in enumerate(members):
         if sign[j] == 0:
             continue  # encloses nothing: the winding number is 0 about it everywhere
@@ -486,8 +495,9 @@ def nesting(v: Vertices, f: Faces) -> Nesting:
         for i in range(count):
             if i == j:
                 continue
-            winding, on = core.winding_numbers(v[f[tries[i]]].mean(axis=1))
-            if on.all():
+            points = np.concatenate([v[f[tries[i]]].mean(axis=1), v[corners[i]]])
+            winding, on = core.winding_numbers(points)
+            if on[: len(tries[i])].all():
                 a, b = min(i, j), max(i, j)
                 refuse(
                     [
@@ -495,7 +505,21 @@ def nesting(v: Vertices, f: Faces) -> Nesting:
                         "along a surface"
                     ]
                 )
-            inside[i, j] = winding[int(np.argmin(on))] != 0
+            off = winding[~on]  # the centroids first: as before for shells that do not cross
+            if crossing_is_error and off.min() != off.max():
+                # Points of shell i on both sides of shell j: they cross, though no edge
+                # passes strictly through a triangle (the core's test): edges meeting
+                # edges or touching faces, as two unit cubes offset by (1/2, 1/2, 1/2).
+                a, b = min(i, j), max(i, j)
+                refuse(
+                    [
+                        f"self-intersection: shells {a} and {b} (faces {members[a][0]} and "
+                        f"{members[b][0]}) cross each other along edges"
+                    ],
+                    advice="repair=True cannot unite them (it unites shells whose edges pass "
+                    "through triangles): unite them before (manifold3d, a CAD boolean)",
+                )
+            inside[i, j] = off[0] != 0
     return Nesting(label, sign, inside)
 
 

@@ -69,6 +69,8 @@ def read_mesh(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
         raise InvalidDomainError(f"{path.name}: cannot read a mesh ({err})") from err
     vertices = np.asarray(loaded.vertices, dtype=np.float64)
     faces = np.asarray(loaded.faces, dtype=np.intp)
+    if len(faces) == 0:  # trimesh reads text, an empty file or a bare header as no mesh
+        raise InvalidDomainError(f"{path.name}: cannot read a mesh (no triangles in the file)")
     if path.suffix.lower() == ".stl":
         vertices, inverse = np.unique(vertices, axis=0, return_inverse=True)
         faces = inverse.ravel()[faces]
@@ -79,11 +81,13 @@ def _read_obj(path: Path) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     vertices: list[list[float]] = []
     faces: list[list[int]] = []
     try:
-        for line in path.read_text(errors="replace").splitlines():
+        for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
             parts = line.split()
             if not parts:
                 continue
             if parts[0] == "v":
+                if len(parts) < 4:
+                    raise ValueError(f"line {number}: a vertex needs 3 coordinates: {line!r}")
                 vertices.append([float(x) for x in parts[1:4]])
             elif parts[0] == "f":
                 idx = [int(p.split("/")[0]) for p in parts[1:]]
@@ -98,13 +102,19 @@ def _read_obj(path: Path) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
 
 def read_polygon(path: Path) -> Polygon | MultiPolygon:
     """Read the polygonal content of a ``.wkt`` or ``.geojson`` file as one geometry."""
-    text = path.read_text()
     try:
+        text = path.read_text(encoding="utf-8")  # UnicodeDecodeError is a ValueError
         if path.suffix.lower() == ".wkt":
             geometries = [shapely.from_wkt(text.strip())]
         else:
             geometries = [shape(g) for g in _geojson_geometries(json.loads(text))]
-    except (ValueError, KeyError, TypeError, shapely.errors.ShapelyError) as err:
+    except (
+        ValueError,
+        KeyError,
+        TypeError,
+        AttributeError,  # shapely's shape() of a mapping without "type"
+        shapely.errors.ShapelyError,
+    ) as err:
         raise InvalidDomainError(f"{path.name}: cannot read a polygon ({err})") from err
     polygons: list[Polygon] = []
     for g in geometries:
@@ -117,7 +127,9 @@ def read_polygon(path: Path) -> Polygon | MultiPolygon:
     return polygons[0] if len(polygons) == 1 else MultiPolygon(polygons)
 
 
-def _geojson_geometries(obj: dict) -> list[dict]:
+def _geojson_geometries(obj: object) -> list[dict]:
+    if not isinstance(obj, dict) or not isinstance(obj.get("type"), str):
+        raise ValueError(f"a GeoJSON object has a string 'type', got {str(obj)[:60]}")
     kind = obj.get("type")
     if kind == "FeatureCollection":
         return [f["geometry"] for f in obj["features"] if f.get("geometry")]

@@ -2,13 +2,20 @@
 
 | method       | what                                                    | seed            |
 |--------------|---------------------------------------------------------|-----------------|
-| ``random``   | uniform in the domain: rejection in the bounding box    | the stream      |
+| ``random``   | uniform in the domain: rejection in a cover             | the stream      |
 | ``halton``   | scrambled Halton in the box, the first ``n`` inside     | the scrambling  |
 | ``hammersley`` | centred Hammersley of ``m`` box points, ``m`` searched | unused          |
 | ``lattice``  | hexagonal (2D) or BCC (3D) lattice, spacing searched    | the pose        |
 
 Every method is deterministic for a seed and returns an ``(n, d)`` float64 array whose
 rows pass :meth:`hcvt.Domain.contains` (strictly inside).
+
+The samplers draw in the bounding box, or, for a domain filling less than 5% of it, in a
+tighter cover (:mod:`hcvt.seeding.cover`: the polygon's triangles, a solid's octree boxes):
+a thin diagonal triangle of 5e-10 of its box gets 20 sites in milliseconds, not hours.
+Every search is bounded and ends with a message: a solid too thin for its octree cover
+(:data:`MIN_ACCEPTANCE`), points that cannot lie strictly inside at double precision, a
+domain too thin for any lattice of ``n`` sites, a density whose bound keeps rising.
 """
 
 from __future__ import annotations
@@ -24,7 +31,9 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
 from hcvt.density import DensityLike, evaluate
+from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain, polygon_boundary
+from hcvt.seeding.cover import Cover, cover
 
 METHODS = ("random", "halton", "hammersley", "lattice")
 # Memory of one site with its diagram, measured order of magnitude (bytes).
@@ -41,6 +50,16 @@ HAMMERSLEY_BUDGET = 200_000
 LATTICE_MARGIN = 0.3
 # Lattice: poses (rotation, offset) tried before falling back to the closest count.
 LATTICE_POSES = 8
+# Lattice: a count may test at most this many rows per site and boundary piece (measured
+# at most 7 on the data set's polygons and meshes, n from 1 to 10025), or this many in all
+# (a thin domain needs a lattice far finer than its pieces: a needle tetrahedron of 1.7e-3
+# of its box, 20 sites, 3e4 rows; 2^20 rows take about 0.3 s and 150 MB a count in 3D):
+# past both the domain is too thin for a lattice of n sites clear of its boundary, and the
+# search says so.
+LATTICE_ROWS_PER_SITE = 256
+LATTICE_MIN_ROWS = 1 << 20
+# Lattice: steps of 1.25 in scale tried each way to bracket n (1.25^200 = 4e19).
+LATTICE_SCALE_STEPS = 200
 # Nearest-neighbour distance of the unit lattices below: hexagonal 1, BCC with cube edge 1.
 UNIT_SPACING = {2: 1.0, 3: np.sqrt(3.0) / 2.0}
 
@@ -73,8 +92,10 @@ def initialise(
         Number of sites, at least 1 (a Python or numpy integer, not a bool).
     method : {"random", "halton", "hammersley", "lattice"}
         ``random``: uniform in the domain, by rejection of uniform points of the bounding
-        box (area/volume weighted, whatever the box). ``halton``: scrambled Halton points
-        of the box (``scipy.stats.qmc.Halton(d, scramble=True, rng=seed)``) kept in
+        box (area/volume weighted, whatever the box), or of a tighter cover when the
+        domain fills less than 5% of its box (:mod:`hcvt.seeding.cover`; uniform all the
+        same). ``halton``: scrambled Halton points of the box or cover
+        (``scipy.stats.qmc.Halton(d, scramble=True, rng=seed)``) kept in
         sequence order until ``n`` lie inside; the sequence is extensible, so the count is
         exact. ``hammersley``: see :func:`hammersley`. ``lattice``: see :func:`lattice`.
     seed : int
@@ -104,6 +125,17 @@ def initialise(
         ``n`` not a positive integer, ``n`` so large that the sites and their diagram
         would not fit in the available memory (the message gives the estimate), or an
         unknown method.
+    InvalidDomainError
+        The domain cannot take ``n`` sites: a solid so thin that under
+        :data:`MIN_ACCEPTANCE` of the draws in its cover would land inside, a domain too
+        small for distinct points strictly inside at double precision, or (``lattice``)
+        too thin for any lattice of ``n`` sites clear of its boundary.
+    InvalidDensityError
+        The density is not finite and positive where evaluated, or not bounded.
+    InvalidSitesError
+        Two sites coincide: ``n`` far above the distinct points of double precision in the
+        domain's box (a million sites in a square of side 1e-12 at (1, 1)); checked only
+        where that can happen (:data:`COINCIDENCE_CHECK`).
 
     Examples
     --------
@@ -117,16 +149,47 @@ def initialise(
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     state = random_state(seed, rng)
     if density is not None:
-        return _graded(domain, n, method, state, density)
+        return _distinct(domain, _graded(domain, n, method, state, density))
     if method == "random":
         generator = np.random.default_rng(state)
-        return _rejection(domain, n, lambda m: generator.random((m, domain.dim)))
-    if method == "halton":
+        sites = _rejection(domain, n, lambda m: generator.random((m, domain.dim)))
+    elif method == "halton":
         engine = qmc.Halton(domain.dim, scramble=True, rng=state)
-        return _rejection(domain, n, engine.random)
-    if method == "hammersley":
-        return hammersley(domain, n)
-    return lattice(domain, n, seed, rng=rng).sites
+        sites = _rejection(domain, n, engine.random)
+    elif method == "hammersley":
+        sites = hammersley(domain, n)
+    else:
+        sites = lattice(domain, n, seed, rng=rng).sites
+    return _distinct(domain, sites)
+
+
+#: Sites are checked for coincidence when two of ``n`` uniform points would share a
+#: double with more than this probability (``n² / 2`` over the doubles in the box).
+COINCIDENCE_CHECK = 1e-9
+
+
+def _distinct(domain: Domain, sites: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``sites``, or InvalidSitesError if two coincide (a box holding too few doubles).
+
+    A box of side ``1e-12`` at ``(1, 1)`` holds about 4500 doubles a side: a million sites
+    drawn in it coincide. The check (a sort) runs only where that can happen.
+    """
+    lo, hi = domain.bounds
+    ulp = np.spacing(np.maximum(np.abs(lo), np.abs(hi)))
+    doubles = float(np.prod(np.maximum((hi - lo) / ulp, 1.0)))
+    n = len(sites)
+    if 0.5 * n * n <= COINCIDENCE_CHECK * doubles:
+        return sites
+    order = np.lexsort(sites.T[::-1])
+    same = np.flatnonzero((sites[order[1:]] == sites[order[:-1]]).all(axis=1))
+    if len(same) == 0:
+        return sites
+    i, j = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+    raise InvalidSitesError(
+        f"sites {i} and {j} coincide at {sites[i].tolist()}: the domain's bounding box "
+        f"{_box_text(domain)} at {lo.tolist()} holds about {doubles:.3g} distinct points at "
+        f"double precision, too few for {n} distinct sites ({len(same)} coincide)"
+    )
 
 
 def check_count(n: object, dim: int) -> int:
@@ -173,28 +236,75 @@ def _available_bytes(meminfo: str = MEMINFO) -> int | None:
 
 
 # ---------------------------------------------------------------------- rejection sampling
+#: Samplers refuse when fewer than this share of their draws would land inside (the
+#: domain's share of its cover, times the density's acceptance): the draws would take
+#: minutes. The message says why.
+MIN_ACCEPTANCE = 1e-4
+#: ... and stop, with a message, after this many times the expected draws (plus this many
+#: batches): points that cannot lie strictly inside at double precision.
+DRAW_ALLOWANCE = 8
+
+
+def _cover(domain: Domain, n: int, acceptance: float = 1.0, why: str = "") -> Cover:
+    """The domain's cover (:func:`hcvt.seeding.cover.cover`), refused if draws would be wasted.
+
+    ``acceptance`` is the share of the points inside that the caller keeps (a density's
+    rejection step), ``why`` its explanation for the message.
+    """
+    where = cover(domain)
+    if where.fraction * acceptance < MIN_ACCEPTANCE:
+        raise InvalidDomainError(
+            f"cannot draw {n} sites in this {domain.dim}D domain: it fills only "
+            f"{where.fraction:.3g} of the {where.kind} it can be sampled in (volume "
+            f"{domain.volume:.3g} L^{domain.dim}, bounding box {_box_text(domain)}){why}, "
+            f"below the {MIN_ACCEPTANCE:g} the samplers accept; a solid much thinner than "
+            "its extent cannot be sampled by rejection: give the sites"
+        )
+    return where
+
+
+def _box_text(domain: Domain) -> str:
+    lo, hi = domain.bounds
+    return "x".join(f"{e:.3g}" for e in hi - lo)
+
+
+def _too_few(domain: Domain, n: int, count: int, drawn: int, expected: float) -> InvalidDomainError:
+    return InvalidDomainError(
+        f"only {count} of {n} sites found strictly inside after {drawn} draws "
+        f"(expected {expected:.3g} of the draws inside): the domain (volume "
+        f"{domain.volume:.3g}, bounding box {_box_text(domain)}) is too small or too thin "
+        "to hold distinct points at double precision"
+    )
+
+
 def _rejection(
     domain: Domain, n: int, draw: Callable[[int], NDArray[np.float64]]
 ) -> NDArray[np.float64]:
     """The first ``n`` points of a stream that lie inside the domain.
 
     ``draw(m)`` returns the next ``m`` points of the stream in the unit cube, shape (m, d);
-    they are mapped to the bounding box.
+    they are mapped to the domain's cover (:func:`hcvt.seeding.cover.cover`: the bounding
+    box unless the domain fills less than 5% of it).
 
-    Batches are sized from the inside fraction ``V / V_box`` so that one or two batches
+    Batches are sized from the inside fraction ``V / V_cover`` so that one or two batches
     usually suffice; the order of the stream is kept, so the result does not depend on
-    the batch sizes and is deterministic.
+    the batch sizes and is deterministic. The draws are bounded by
+    :data:`DRAW_ALLOWANCE` times those expected.
     """
-    lo, hi = domain.bounds
-    fraction = domain.volume / float(np.prod(hi - lo))
+    where = _cover(domain, n)
+    fraction = where.fraction
+    limit = DRAW_ALLOWANCE * (n / fraction + MAX_BATCH)
     found: list[NDArray[np.float64]] = []
-    count = 0
+    count = drawn = 0
     while count < n:
+        if drawn > limit:
+            raise _too_few(domain, n, count, drawn, fraction)
         m = int(min(MAX_BATCH, 1.1 * (n - count) / fraction + 64))
-        points = lo + draw(m) * (hi - lo)
+        points = where.place(draw(m))
         points = points[domain.contains(points)]
         found.append(points)
         count += len(points)
+        drawn += m
     return np.ascontiguousarray(np.concatenate(found)[:n])
 
 
@@ -202,6 +312,8 @@ def _rejection(
 DENSITY_PROBES = 4096
 #: Safety factor of that bound.
 DENSITY_BOUND_FACTOR = 1.25
+#: Restarts with a raised bound (each at least 1.25 times the last) before giving up.
+DENSITY_RESTARTS = 32
 
 
 def _graded(
@@ -223,17 +335,30 @@ def _graded(
     dim = domain.dim
     exponent = dim / (dim + 2.0)
     probes = _rejection(domain, DENSITY_PROBES, qmc.Halton(dim, scramble=True, rng=0).random)
-    bound = DENSITY_BOUND_FACTOR * float(np.max(evaluate(density, probes) ** exponent))
-    lo, hi = domain.bounds
-    while True:
+    g_probes = evaluate(density, probes) ** exponent
+    bound = DENSITY_BOUND_FACTOR * float(np.max(g_probes))
+    for _ in range(DENSITY_RESTARTS):
+        # Share of the points inside kept by the level test, estimated on the probes.
+        keep = float(np.mean(g_probes)) / bound
+        where = _cover(
+            domain,
+            n,
+            keep,
+            f" and the density keeps about {keep:.3g} of the points inside "
+            f"(ρ^(d/(d+2)) peaks at {bound / DENSITY_BOUND_FACTOR:.3g}, "
+            f"{1 / keep:.3g} times its mean)",
+        )
+        fraction = where.fraction
+        limit = DRAW_ALLOWANCE * (n / (fraction * keep) + MAX_BATCH)
         draw = _stream(method, state, dim + 1)
         found: list[NDArray[np.float64]] = []
-        count, peak = 0, 0.0
+        count, peak, drawn = 0, 0.0, 0
         while count < n:
-            fraction = domain.volume / float(np.prod(hi - lo))
+            if drawn > limit:
+                raise _too_few(domain, n, count, drawn, fraction * keep)
             m = int(min(MAX_BATCH, 2.0 * (n - count) / fraction + 64))
             stream = draw(m)
-            points = lo + stream[:, :dim] * (hi - lo)
+            points = where.place(stream)
             inside = domain.contains(points)
             points, level = points[inside], stream[inside, dim]
             g = evaluate(density, points) ** exponent if len(points) else np.zeros(0)
@@ -241,11 +366,17 @@ def _graded(
             points = points[level * bound < g]
             found.append(points)
             count += len(points)
+            drawn += m
         if peak <= bound:
             return np.ascontiguousarray(np.concatenate(found)[:n])
         # A value above the bound: the draws were biased. Raise it and start over (a
         # Generator given as the state goes on from where it is: still deterministic).
         bound = DENSITY_BOUND_FACTOR * peak
+    raise InvalidDensityError(
+        f"the density's ρ^(d/(d+2)) kept rising above its bound over {DENSITY_RESTARTS} "
+        f"restarts of the sampler (last peak {bound / DENSITY_BOUND_FACTOR:.3g}): it is "
+        "not bounded on the domain"
+    )
 
 
 def _stream(
@@ -260,12 +391,16 @@ def _stream(
 
 # ---------------------------------------------------------------------- Hammersley
 def hammersley(domain: Domain, n: int) -> NDArray[np.float64]:
-    """Exactly ``n`` points of a Hammersley set of the bounding box that lie inside.
+    """Exactly ``n`` points of a Hammersley set of the domain's cover that lie inside.
+
+    The cover is the bounding box, or for a domain filling less than 5% of it the
+    polygon's triangles or an octree's boxes (:mod:`hcvt.seeding.cover`), the set mapped
+    into them by :meth:`~hcvt.seeding.cover.Cover.place`.
 
     The set of ``m`` points is ``((i + 1/2) / m, φ_2(i)[, φ_3(i)])`` for ``i < m``, with
     ``φ_b`` the radical inverse in base ``b`` (Quinn et al. 2012; centred so that no
     point sits on the box). Its inside count is not monotone in ``m`` (the paper, §5.3),
-    so ``m`` is searched: secant steps from ``m = n V_box / V`` to the trend, then a scan
+    so ``m`` is searched: secant steps from ``m = n V_cover / V`` to the trend, then a scan
     ``m ± 1, ± 2, ...`` around it, :data:`HAMMERSLEY_TRIES` sets in all (more for small
     ``m``, up to :data:`HAMMERSLEY_BUDGET` points). If no set
     has exactly ``n`` inside, the tried set with the fewest surplus points inside is
@@ -281,12 +416,12 @@ def hammersley(domain: Domain, n: int) -> NDArray[np.float64]:
 
 def _hammersley(domain: Domain, n: int) -> tuple[NDArray[np.float64], int, int]:
     """Sites (n, d), the box count ``m`` taken, and how many inside points were dropped."""
-    lo, hi = domain.bounds
-    ratio = float(np.prod(hi - lo)) / domain.volume
+    where = _cover(domain, n)
+    ratio = 1.0 / where.fraction
     counts: dict[int, int] = {}
 
     def inside(m: int) -> NDArray[np.float64]:
-        points = lo + _hammersley_unit(m, domain.dim) * (hi - lo)
+        points = where.place(_hammersley_unit(m, domain.dim))
         points = points[domain.contains(points)]
         counts[m] = len(points)
         return points
@@ -312,7 +447,7 @@ def _hammersley(domain: Domain, n: int) -> tuple[NDArray[np.float64], int, int]:
     elif above:
         m = min(above, key=lambda k: (counts[k] - n, k))
     else:
-        m = _grow(inside, n, m)
+        m = _grow(domain, inside, n, m, ratio)
     points = inside(m)
     surplus = len(points) - n
     if surplus:
@@ -322,9 +457,17 @@ def _hammersley(domain: Domain, n: int) -> tuple[NDArray[np.float64], int, int]:
     return np.ascontiguousarray(points), m, surplus
 
 
-def _grow(inside: Callable[[int], NDArray[np.float64]], n: int, m: int) -> int:
-    """Smallest of ``m * 1.1^k`` whose set has at least ``n`` points inside."""
-    while len(inside(m)) < n:
+def _grow(
+    domain: Domain, inside: Callable[[int], NDArray[np.float64]], n: int, m: int, ratio: float
+) -> int:
+    """Smallest of ``m * 1.1^k`` whose set has at least ``n`` points inside.
+
+    Up to :data:`DRAW_ALLOWANCE` times the expected ``n * ratio`` points, then an error.
+    """
+    limit = DRAW_ALLOWANCE * (n * ratio + MAX_BATCH)
+    while (count := len(inside(m))) < n:
+        if m > limit:
+            raise _too_few(domain, n, count, m, 1.0 / ratio)
         m = int(m * 1.1) + 1
     return m
 
@@ -438,12 +581,13 @@ def lattice(domain: Domain, n: int, seed: int = 0, *, rng: RandomState = None) -
     # Unit-lattice scale with the lattice's Voronoi cell volume V / n.
     cell_volume = {2: np.sqrt(3.0) / 2.0, 3: 0.5}[dim]
     scale0 = float((domain.volume / n / cell_volume) ** (1.0 / dim))
+    max_rows = max(LATTICE_MIN_ROWS, LATTICE_ROWS_PER_SITE * (n + len(pieces)))
     closest: tuple[int, _Pose, float] | None = None
     for _ in range(LATTICE_POSES):
         pose = _Pose.of(pieces, *_random_pose(domain, scale0, generator))
 
         def count(scale: float, pose: _Pose = pose) -> int:
-            return int(_gaps(domain, pose, scale).count.sum())
+            return int(_gaps(domain, pose, scale, max_rows).count.sum())
 
         scale, found = _search_scale(count, n, scale0)
         if found == n:
@@ -474,9 +618,10 @@ def lattice_at(
     cell_volume = {2: np.sqrt(3.0) / 2.0, 3: 0.5}[domain.dim]
     scale0 = float((domain.volume / n / cell_volume) ** (1.0 / domain.dim))
     pose = _Pose.of(_boundary_pieces(domain) if pieces is None else pieces, offset, rotation)
+    max_rows = max(LATTICE_MIN_ROWS, LATTICE_ROWS_PER_SITE * (n + len(pose.frame)))
 
     def count(scale: float) -> int:
-        return int(_gaps(domain, pose, scale).count.sum())
+        return int(_gaps(domain, pose, scale, max_rows).count.sum())
 
     scale, found = _search_scale(count, n, scale0)
     return _lattice_result(domain, pose, scale, n) if found == n else None
@@ -488,17 +633,43 @@ def _search_scale(count: Callable[[float], int], n: int, scale0: float) -> tuple
     Brackets ``count(lo) ≥ n > count(hi)``, then narrows the bracket alternating a step
     interpolated on the trend ``count ∝ scale^-d`` (taken as linear in ``1/scale²``,
     good enough to aim) with a bisection, which halves it at least every other step.
+
+    The bracket grows by 1.25 at most :data:`LATTICE_SCALE_STEPS` times each way. A domain
+    too thin for a lattice of ``n`` sites clear of its boundary keeps fewer than ``n`` as
+    the scale shrinks until ``count`` refuses the rows it would need
+    (:data:`LATTICE_ROWS_PER_SITE`): InvalidDomainError, with the finest scale tried.
     """
     lo = hi = scale0
-    n_lo = n_hi = count(scale0)
-    while n_hi >= n:
+    try:
+        n_lo = n_hi = count(scale0)
+    except _TooManyRowsError as err:
+        raise _too_thin(n, 1.0, None, err) from None
+    for _ in range(LATTICE_SCALE_STEPS):
+        if n_hi < n:
+            break
         lo, n_lo = hi, n_hi
         hi *= 1.25
         n_hi = count(hi)
-    while n_lo < n:
+    else:
+        raise InvalidDomainError(
+            f"a lattice {1.25**LATTICE_SCALE_STEPS:.3g} times coarser than the domain's "
+            f"mean spacing still has {n_hi} >= n = {n} sites inside: the domain is unbounded "
+            "or degenerate"
+        )
+    for _ in range(LATTICE_SCALE_STEPS):
+        if n_lo >= n:
+            break
         hi, n_hi = lo, n_lo
+        try:
+            n_lo = count(lo / 1.25)
+        except _TooManyRowsError as err:
+            raise _too_thin(n, scale0 / lo, n_lo, err) from None
         lo /= 1.25
-        n_lo = count(lo)
+    else:
+        raise InvalidDomainError(
+            f"a lattice {1.25**LATTICE_SCALE_STEPS:.3g} times finer than the domain's mean "
+            f"spacing still has only {n_lo} < n = {n} sites inside"
+        )
     step = 0
     while n_lo != n and hi - lo > 4 * np.spacing(hi):
         if step % 2 == 0 and n_lo > n_hi:
@@ -514,6 +685,18 @@ def _search_scale(count: Callable[[float], int], n: int, scale0: float) -> tuple
         else:
             hi, n_hi = mid, n_mid
     return lo, n_lo
+
+
+def _too_thin(n: int, finer: float, held: int | None, err: _TooManyRowsError) -> InvalidDomainError:
+    tried = "" if held is None else f"{finer:.3g} times finer it holds {held}, and "
+    return InvalidDomainError(
+        f"no lattice of n = {n} sites fits in the domain clear of its boundary (by "
+        f"{LATTICE_MARGIN} spacings, from the mean spacing (V/n)^(1/d) down): {tried}"
+        f"counting needs {err.rows} lattice rows, more than the {err.limit} allowed "
+        f"(the larger of {LATTICE_MIN_ROWS} and {LATTICE_ROWS_PER_SITE} per site and "
+        "boundary piece); the domain is too thin "
+        "for 'lattice': use method='random' or 'halton'"
+    )
 
 
 def _random_pose(
@@ -550,13 +733,16 @@ def _boundary_pieces(domain: Domain) -> NDArray[np.float64]:
 ROW_STEP = {2: np.sqrt(3.0), 3: 1.0}
 
 
-def _gaps(domain: Domain, pose: _Pose, scale: float) -> _Gaps:
-    """Free runs of lattice rows inside the domain for one pose and scale (unit coordinates)."""
+def _gaps(domain: Domain, pose: _Pose, scale: float, max_rows: float = np.inf) -> _Gaps:
+    """Free runs of lattice rows inside the domain for one pose and scale (unit coordinates).
+
+    Raises :class:`_TooManyRowsError` rather than test more than ``max_rows`` rows.
+    """
     dim = domain.dim
     margin = LATTICE_MARGIN * UNIT_SPACING[dim]
     lo = pose.frame[:, :, 1:].min(axis=1) / scale - margin
     hi = pose.frame[:, :, 1:].max(axis=1) / scale + margin
-    piece, family, index = _candidate_rows(lo, hi, dim)
+    piece, family, index = _candidate_rows(lo, hi, dim, max_rows)
     transverse = (index + 0.5 * family[:, None]) * ROW_STEP[dim]
     # Clip the row (t, transverse) by the piece's half-spaces a . x <= bounds.
     a = pose.normals[piece]  # (K, C, d)
@@ -689,13 +875,26 @@ def _dot(u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.einsum("ij,ij->i", u, v)
 
 
+class _TooManyRowsError(Exception):
+    """A lattice count would test more rows than allowed (a domain too thin for it)."""
+
+    def __init__(self, rows: float, limit: float) -> None:
+        super().__init__(f"{rows:.3g} rows, more than {limit:.3g}")
+        self.rows, self.limit = f"{rows:.3g}", f"{limit:.3g}"
+
+
 def _candidate_rows(
-    lo: NDArray[np.float64], hi: NDArray[np.float64], dim: int
+    lo: NDArray[np.float64], hi: NDArray[np.float64], dim: int, max_rows: float = np.inf
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
     """(piece, family, transverse index (K, d-1)) of every row through a piece's box.
 
     ``lo``, ``hi`` (P, d-1): transverse extent of each piece's grown box, unit coordinates.
+    More than ``max_rows`` rows in all: :class:`_TooManyRowsError`, before any is made (counted
+    in floating point, which does not overflow).
     """
+    rows = 2.0 * np.prod(np.maximum((hi - lo) / ROW_STEP[dim] + 1.0, 0.0), axis=1).sum()
+    if rows > max_rows:
+        raise _TooManyRowsError(rows, max_rows)
     pieces, families, indices = [], [], []
     for family in (0, 1):
         first = np.ceil(lo / ROW_STEP[dim] - 0.5 * family).astype(np.int64)
