@@ -13,6 +13,7 @@ import threading
 
 import numpy as np
 import pytest
+import shapely.affinity
 
 import hcvt
 from hcvt import _core
@@ -547,3 +548,28 @@ def test_cli_run_with_a_density_and_a_scheduler_matches_the_single_process_run(c
     assert "function rho" in parted["density"] and "function rho" in single["density"]
     assert parted["energy"] == pytest.approx(single["energy"], rel=1e-13, abs=0)
     assert parted["mean_G"] == pytest.approx(single["mean_G"], rel=1e-13, abs=0)
+
+
+def test_lloyd_and_lbfgs_in_a_domain_far_from_the_origin(client, holes):
+    # The domain's frame is not the identity there (issue 30): each part's core steps
+    # (step fields, the Lloyd step, the L-BFGS direction) must take their sites and
+    # vectors into the frame, as the single process does. Not bitwise: the parts map
+    # their sites back to L every iteration, the single process once at the end; the
+    # gap allowed is 64 units of the last place of the offset, far below a site's move.
+    domain, sites = holes
+    offset = np.array([1e6, -2e6])
+    far = hcvt.Domain.from_polygon(shapely.affinity.translate(domain.geometry, *offset))
+    assert not far.frame.is_identity
+    sites = sites[:600] + offset
+    ulp = np.spacing(2e6)
+    for method in ("lloyd", "lbfgs"):
+        expected = hcvt.cvt(far, sites, method, tol=0, max_iter=4)
+        got = hcvt.cvt(
+            far, sites, method, tol=0, max_iter=4, client=client, sites_per_partition=200
+        )
+        moved = np.abs(expected.sites - sites).max()
+        assert moved > 1e4 * ulp, f"{method}: the sites hardly moved ({moved})"
+        if method == "lloyd":
+            assert np.abs(got.sites - expected.sites).max() <= 64 * ulp
+        # L-BFGS: the partitioned line search is not the core's; it must still descend
+        assert np.all(np.diff(got.history["energy"]) < 0), method
