@@ -561,7 +561,7 @@ def test_checkmesh_on_a_cvt_of_a_real_mesh(name, n, iterations, tmp_path):
     args = ["run", str(DATA / "3d" / name), "-n", str(n), "--method", "lbfgs"]
     args += ["--init", "halton", "--max-iter", str(iterations), "--tol", "1e-9"]
     args += ["--mesh", str(case), "--cells", str(vtu), "--summary", str(summary)]
-    args += ["--out", str(tmp_path / "sites.npy")]
+    args += ["--out", str(tmp_path / "sites.npy"), "--mesh-boundary", "exact"]
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.output
     print(result.output)

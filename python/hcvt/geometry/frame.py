@@ -136,7 +136,7 @@ class Frame:
         >>> f = Frame.fit([[1e6, 1e6], [1e6 + 1, 1e6 + 1]])
         >>> f.centre.tolist(), f.scale
         ([1000000.0, 1000000.0], 1.0)
-        >>> Frame.fit([[0.0, 0.0], [3e-90, 3e-90]]).scale == 2.0**-297
+        >>> Frame.fit([[0.0, 0.0], [3e-90, 3e-90]]).scale == 2.0**-298
         True
         """
         v = np.asarray(vertices, dtype=np.float64)
