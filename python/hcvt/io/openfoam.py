@@ -232,7 +232,10 @@ def _extrude(
 
 
 # ----------------------------------------------------------------------------- files
-def _header(cls: str, obj: str, fmt: str, location: str, note: str | None = None) -> str:
+def foam_header(
+    cls: str, obj: str, fmt: str = "ascii", location: str = "", note: str | None = None
+) -> str:
+    """The ``FoamFile`` header of a file of class ``cls``, object ``obj``, in ``location``."""
     lines = [
         _BANNER,
         "FoamFile\n{\n",
@@ -257,7 +260,7 @@ def _location(path: Path) -> str:
 
 def _write_list(path: Path, cls: str, values: NDArray, fmt: str, note: str | None = None) -> None:
     """A vectorField (rows of 3) or labelList (ints), text or binary."""
-    head = _header(cls, path.name, fmt, _location(path), note)
+    head = foam_header(cls, path.name, fmt, _location(path), note)
     with path.open("wb") as out:
         out.write(head.encode("ascii"))
         out.write(f"{len(values)}\n(".encode("ascii"))
@@ -294,7 +297,7 @@ def _write_faces(path: Path, faces: tuple[NDArray[np.intp], NDArray[np.intp]], f
     sizes = np.diff(offsets)
     cls = "faceCompactList" if fmt == "binary" else "faceList"
     with path.open("wb") as out:
-        out.write(_header(cls, "faces", fmt, "constant/polyMesh").encode("ascii"))
+        out.write(foam_header(cls, "faces", fmt, "constant/polyMesh").encode("ascii"))
         if fmt == "binary":
             for values in (offsets, vertices):
                 out.write(f"{len(values)}\n(".encode("ascii"))
@@ -328,7 +331,9 @@ def _write_boundary(
         )
         start += size
     body = f"{len(names)}\n(\n" + "".join(entries) + ")\n"
-    path.write_text(_header("polyBoundaryMesh", "boundary", "ascii", "constant/polyMesh") + body)
+    path.write_text(
+        foam_header("polyBoundaryMesh", "boundary", "ascii", "constant/polyMesh") + body
+    )
 
 
 def _write_field(path: Path, name: str, values: NDArray[np.float64], patches: list[str]) -> None:
@@ -351,7 +356,7 @@ def _write_field(path: Path, name: str, values: NDArray[np.float64], patches: li
         + boundary
         + "}\n"
     )
-    path.write_text(_header("volScalarField", name, "ascii", "0") + body)
+    path.write_text(foam_header("volScalarField", name, "ascii", "0") + body)
 
 
 _CONTROL_DICT = """application     checkMesh;
@@ -396,4 +401,4 @@ def _write_system(root: Path) -> None:
         ("fvSchemes", _FV_SCHEMES),
         ("fvSolution", _FV_SOLUTION),
     ):
-        (system / name).write_text(_header("dictionary", name, "ascii", "system") + body)
+        (system / name).write_text(foam_header("dictionary", name, "ascii", "system") + body)

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hcvt.errors import InvalidMeshError
+from hcvt.io.openfoam import foam_header
 
 #: Debian's and Ubuntu's OpenFOAM (``apt install openfoam``), used when ``WM_PROJECT_DIR``
 #: is not set.
@@ -156,7 +157,7 @@ def _run(
             shutil.rmtree(link)
     link.symlink_to((case / "constant" / "polyMesh").resolve(), target_is_directory=True)
     (constant / "transportProperties").write_text(
-        _header("dictionary", "transportProperties", "constant")
+        foam_header("dictionary", "transportProperties", location="constant")
         + "DT              DT [0 2 -1 0 0 0 0] 1;\n"
     )
     system = root / "system"
@@ -165,13 +166,16 @@ def _run(
         if stale.is_dir() and re.fullmatch(r"\d+(\.\d+)?", stale.name) and stale.name != "0":
             shutil.rmtree(stale)
     (system / "controlDict").write_text(
-        _header("dictionary", "controlDict", "system") + _CONTROL_DICT.format(end=steps)
+        foam_header("dictionary", "controlDict", location="system")
+        + _CONTROL_DICT.format(end=steps)
     )
     (system / "fvSchemes").write_text(
-        _header("dictionary", "fvSchemes", "system") + _FV_SCHEMES.format(sn_grad=sn_grad)
+        foam_header("dictionary", "fvSchemes", location="system")
+        + _FV_SCHEMES.format(sn_grad=sn_grad)
     )
     (system / "fvSolution").write_text(
-        _header("dictionary", "fvSolution", "system") + _FV_SOLUTION.format(correctors=correctors)
+        foam_header("dictionary", "fvSolution", location="system")
+        + _FV_SOLUTION.format(correctors=correctors)
     )
     (root / "0").mkdir(exist_ok=True)
     _foam(["postProcess", "-func", "writeCellCentres", "-time", "0"], root)
@@ -274,13 +278,6 @@ def _scalars(entry: str, n: int) -> NDArray[np.float64]:
 
 
 # ----------------------------------------------------------------------------- files
-def _header(cls: str, obj: str, location: str) -> str:
-    return (
-        "// Written by hcvt.\nFoamFile\n{\n    version     2.0;\n    format      ascii;\n"
-        f'    class       {cls};\n    location    "{location}";\n    object      {obj};\n}}\n\n'
-    )
-
-
 def _write_t(path: Path, patches: dict[str, str], values: dict[str, NDArray[np.float64]]) -> None:
     entries = []
     for name, kind in patches.items():
@@ -294,7 +291,7 @@ def _write_t(path: Path, patches: dict[str, str], values: dict[str, NDArray[np.f
             f"        value           nonuniform List<scalar>\n{len(v)}\n(\n{words}\n)\n;\n    }}\n"
         )
     path.write_text(
-        _header("volScalarField", "T", "0")
+        foam_header("volScalarField", "T", location="0")
         + "dimensions      [0 0 0 0 0 0 0];\n\ninternalField   uniform 0;\n\n"
         + "boundaryField\n{\n"
         + "".join(entries)
