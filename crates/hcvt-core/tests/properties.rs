@@ -8,7 +8,8 @@ mod common;
 use common::{data_3d, read_mesh};
 
 use hcvt_core::{
-    clipped_diagram, CoreError, Options, Polygon, PolygonCell, PolyhedronCell, Request, Solid,
+    clipped_diagram, CoreError, Diagram, Options, Polygon, PolygonCell, PolyhedronCell, Request,
+    Solid,
 };
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
@@ -234,19 +235,7 @@ fn cell_touching_the_domain_at_a_point_is_empty_regression() {
             ]);
         }
     }
-    let options = Options {
-        allow_outside: true,
-    };
-    let d = clipped_diagram::<2, PolygonCell, _>(
-        &domain,
-        &sites,
-        &Request {
-            options,
-            ..Request::default()
-        },
-    )
-    .map(|c| c.diagram)
-    .unwrap();
+    let d = allowing_outside(&domain, &sites).unwrap();
     for (i, m) in d.moments.iter().enumerate() {
         let g = m.dimensionless_second_moment();
         assert!(
@@ -272,23 +261,22 @@ fn apex_nudged_along_the_boundary_regression() {
         [0.6, -0.8],
         [0.2, -0.2],
     ];
-    let options = Options {
-        allow_outside: true,
-    };
-    let d = clipped_diagram::<2, PolygonCell, _>(
-        &domain,
-        &sites,
-        &Request {
-            options,
-            ..Request::default()
-        },
-    )
-    .map(|c| c.diagram)
-    .unwrap();
+    let d = allowing_outside(&domain, &sites).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
     assert!((v[2] - 0.12).abs() < 1e-15, "{v:?}");
     let total: f64 = v.iter().sum();
     assert!((total - 2.0).abs() < 1e-14, "{total}");
+}
+
+/// The diagram of `sites` in `domain`, sites outside allowed.
+fn allowing_outside(domain: &Polygon, sites: &[[f64; 2]]) -> Result<Diagram<2>, CoreError> {
+    let request = Request {
+        options: Options {
+            allow_outside: true,
+        },
+        ..Request::default()
+    };
+    clipped_diagram::<2, PolygonCell, _>(domain, sites, &request).map(|c| c.diagram)
 }
 
 /// Found by tests/test_properties.py: an allowed outside site at 1e10 from the unit square
@@ -296,21 +284,12 @@ fn apex_nudged_along_the_boundary_regression() {
 #[test]
 fn site_far_outside_is_refused_regression() {
     let domain = ring(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]).unwrap();
-    let options = Options {
-        allow_outside: true,
-    };
-    let request = Request {
-        options,
-        ..Request::default()
-    };
-    let far = clipped_diagram::<2, PolygonCell, _>(&domain, &[[1e10, 0.5]], &request);
+    let far = allowing_outside(&domain, &[[1e10, 0.5]]);
     assert!(matches!(
         far,
         Err(CoreError::SiteFarOutside { index: 0, .. })
     ));
-    let d = clipped_diagram::<2, PolygonCell, _>(&domain, &[[50.0, 0.5]], &request)
-        .unwrap()
-        .diagram;
+    let d = allowing_outside(&domain, &[[50.0, 0.5]]).unwrap();
     assert!(
         (d.moments[0].mass - 1.0).abs() < 1e-12,
         "{:?}",
@@ -336,19 +315,7 @@ fn degenerate_cell_edge_excludes_nothing_regression() {
     let s = vec![[0, 1], [1, 2], [2, 0], [3, 4], [4, 5], [5, 3]];
     let domain = Polygon::new(v, s).unwrap();
     let sites = [[1.5, -1.55], [2.0, -1.55], [1.5, -1.1], [2.0, -1.1]];
-    let options = Options {
-        allow_outside: true,
-    };
-    let d = clipped_diagram::<2, PolygonCell, _>(
-        &domain,
-        &sites,
-        &Request {
-            options,
-            ..Request::default()
-        },
-    )
-    .map(|c| c.diagram)
-    .unwrap();
+    let d = allowing_outside(&domain, &sites).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
     assert!((v[0] - 0.2278125).abs() < 1e-14, "{v:?}");
     let total: f64 = v.iter().sum();
