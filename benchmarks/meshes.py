@@ -4,7 +4,7 @@ Run ``OPENBLAS_NUM_THREADS=1 python benchmarks/meshes.py`` (``--quick`` for a sh
 For each case it prints the median seconds of, in the same run:
 
 - ``diagram``: ``hcvt.voronoi`` (moments only), the reference;
-- ``mesh``: the conforming mesh in the core (``_core.mesh_3d``, what ``Diagram.mesh()``
+- ``mesh``: the conforming mesh in the core (``_core.mesh``, what ``Diagram.mesh()``
   computes once), and its ratio to the diagram (the issue asks for at most 3x on 100k
   Armadillo cells);
 - ``cells()``: the mesh plus the per-cell triangulations of ``Diagram.cells()``;
@@ -46,7 +46,7 @@ def old_cells(d: hcvt.Diagram) -> list[Any]:
     """The 3D ``Diagram.cells()`` before issue 19: manifold3d boolean per boundary cell."""
     import manifold3d as m3
 
-    arrays = _core.voronoi_3d(d.domain._core, d.sites, keep_cells=True)
+    arrays = _core.voronoi(d.domain._core, d.sites, keep_cells=True)
     vo, vertices = arrays["cell_vertex_offsets"], arrays["cell_vertices"]
     fo, faces = arrays["cell_face_offsets"], arrays["cell_faces"]
     solid = m3.Manifold(
@@ -86,7 +86,7 @@ def main() -> None:
         sites = interior_sites(domain, n, seed=19)
         d = hcvt.voronoi(domain, sites)
         t_diagram = median_seconds(hcvt.voronoi, repeat, domain, sites)
-        t_mesh = median_seconds(_core.mesh_3d, repeat, domain._core, d.sites)
+        t_mesh = median_seconds(_core.mesh, repeat, domain._core, d.sites)
 
         def new_cells(d: hcvt.Diagram = d) -> None:
             d._mesh = None

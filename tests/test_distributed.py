@@ -142,7 +142,7 @@ def test_no_cell_reaches_across_the_domain(name):
     n = 200_000
     sites = hcvt.initialise(domain, n, "random", seed=0)
     rows = np.arange(n, dtype=np.int64)
-    out = hcvt._core.partition_cells_2d(domain._core, sites, rows, rows.astype(np.uint32), n)
+    out = hcvt._core.partition_cells(domain._core, sites, rows, rows.astype(np.uint32), n)
     reach = np.sqrt(out["reach2"]) / (domain.volume / n) ** 0.5
     assert reach.max() < 20  # measured 11.7 (square) and 16.5 (star)
     assert np.percentile(reach, 99.9) < 6  # measured 5.4 and 5.6

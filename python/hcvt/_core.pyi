@@ -12,31 +12,32 @@ from typing import Any, final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hcvt.core_results import (
+    CvtArrays,
+    CvtRecord,
+    DiagramArrays,
+    MeshArrays,
+    MeshPartArrays,
+    PartCellsArrays,
+)
+
 __all__ = [
     "PolygonDomain",
     "SolidDomain",
     "check_settings",
-    "cvt_2d",
-    "cvt_3d",
+    "cvt",
     "get_num_threads",
     "lbfgs_coefficients",
-    "lbfgs_direction_2d",
-    "lbfgs_direction_3d",
+    "lbfgs_direction",
     "line_search_accepts",
-    "lloyd_step_2d",
-    "lloyd_step_3d",
-    "mesh_2d",
-    "mesh_3d",
-    "mesh_part_2d",
-    "mesh_part_3d",
-    "partition_cells_2d",
-    "partition_cells_3d",
+    "lloyd_step",
+    "mesh",
+    "mesh_part",
+    "partition_cells",
     "positive_curvature",
     "set_num_threads",
-    "step_fields_2d",
-    "step_fields_3d",
-    "voronoi_2d",
-    "voronoi_3d",
+    "step_fields",
+    "voronoi",
 ]
 
 _Float1 = NDArray[np.float64]
@@ -85,58 +86,36 @@ class SolidDomain:
 _Coefficients = tuple[float, Sequence[float], Sequence[Sequence[float]]]
 _Function = Callable[[NDArray[np.float64]], ArrayLike]
 
-# Diagram dicts: volume, mass, centroid, second_moment, G, energy_terms, energy, gradient,
-# boundary_measure, neighbor_offsets, neighbor_sites, neighbor_measures; with keep_cells the
-# cells too (see hcvt.diagram).
-def voronoi_2d(
-    domain: PolygonDomain,
+# Each function takes either kind of domain: a polygon (d = 2) or a solid (d = 3); the
+# dicts it returns are typed in hcvt.core_results.
+_Domain = PolygonDomain | SolidDomain
+
+def voronoi(
+    domain: _Domain,
     sites: _Float2,
     allow_outside: bool = False,
     keep_cells: bool = False,
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
-) -> dict[str, Any]: ...
-def voronoi_3d(
-    domain: SolidDomain,
-    sites: _Float2,
-    allow_outside: bool = False,
-    keep_cells: bool = False,
-    polynomial: _Coefficients | None = None,
-    function: _Function | None = None,
-    quadrature_degree: int = 4,
-) -> dict[str, Any]: ...
+) -> DiagramArrays: ...
+def mesh(domain: _Domain, sites: _Float2, allow_outside: bool = False) -> MeshArrays: ...
 
-# Conforming mesh dicts (hcvt.mesh.polymesh.PolyMesh): points (p, d), face_offsets (f+1,),
-# face_vertices, owner, neighbour, boundary_element (intp), open_chains (int).
-def mesh_2d(
-    domain: PolygonDomain, sites: _Float2, allow_outside: bool = False
-) -> dict[str, Any]: ...
-def mesh_3d(domain: SolidDomain, sites: _Float2, allow_outside: bool = False) -> dict[str, Any]: ...
-
-# A part's mesh dicts (hcvt.distributed.partition_mesh): a mesh dict of the own cells' faces,
-# owner and neighbour indexing the sites given, plus computed (c,) intp and reach2 (c,).
-def mesh_part_2d(
-    domain: PolygonDomain,
+# A part's mesh (hcvt.distributed.partition_mesh): the own cells' faces, owner and
+# neighbour indexing the sites given.
+def mesh_part(
+    domain: _Domain,
     sites: _Float2,
     rows: NDArray[np.int64],
     own: NDArray[np.uint32],
     total_sites: int,
     allow_outside: bool = False,
-) -> dict[str, Any]: ...
-def mesh_part_3d(
-    domain: SolidDomain,
-    sites: _Float2,
-    rows: NDArray[np.int64],
-    own: NDArray[np.uint32],
-    total_sites: int,
-    allow_outside: bool = False,
-) -> dict[str, Any]: ...
+) -> MeshPartArrays: ...
 
-# Partition dicts: a diagram dict with one row per own site, neighbor_sites in the
-# problem's rows, first (k, d) moments about the sites, reach2 (k,) (see hcvt.distributed).
-def partition_cells_2d(
-    domain: PolygonDomain,
+# A part's cells (hcvt.distributed): one row per own site, neighbor_sites in the problem's
+# rows.
+def partition_cells(
+    domain: _Domain,
     sites: _Float2,
     rows: NDArray[np.int64],
     own: NDArray[np.uint32],
@@ -145,50 +124,24 @@ def partition_cells_2d(
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
-) -> dict[str, Any]: ...
-def partition_cells_3d(
-    domain: SolidDomain,
-    sites: _Float2,
-    rows: NDArray[np.int64],
-    own: NDArray[np.uint32],
-    total_sites: int,
-    allow_outside: bool = False,
-    polynomial: _Coefficients | None = None,
-    function: _Function | None = None,
-    quadrature_degree: int = 4,
-) -> dict[str, Any]: ...
+) -> PartCellsArrays: ...
 
-# CVT dicts: sites, diagram (a diagram dict), history (arrays per field), stop_reason,
-# iterations, evaluations (see hcvt.optimise). `frame=(centre, scale)`: the sites are in
-# the frame x' = (x - centre) / scale, and grad_norm (the paper's rule) is measured in x.
-def cvt_2d(
-    domain: PolygonDomain,
+# `frame=(centre, scale)`: the sites are in the frame x' = (x - centre) / scale, and
+# grad_norm (the paper's rule) is measured in x.
+def cvt(
+    domain: _Domain,
     sites: _Float2,
     method: str = "lbfgs",
     rule: str = "gap",
     tol: float | None = None,
     max_iter: int = 10_000,
     memory: int = 7,
-    callback: Callable[[dict[str, Any]], Any] | None = None,
+    callback: Callable[[CvtRecord], Any] | None = None,
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
     frame: tuple[Sequence[float], float] | None = None,
-) -> dict[str, Any]: ...
-def cvt_3d(
-    domain: SolidDomain,
-    sites: _Float2,
-    method: str = "lbfgs",
-    rule: str = "gap",
-    tol: float | None = None,
-    max_iter: int = 10_000,
-    memory: int = 7,
-    callback: Callable[[dict[str, Any]], Any] | None = None,
-    polynomial: _Coefficients | None = None,
-    function: _Function | None = None,
-    quadrature_degree: int = 4,
-    frame: tuple[Sequence[float], float] | None = None,
-) -> dict[str, Any]: ...
+) -> CvtArrays: ...
 
 # The optimiser's settings, checked once for every driver: the tol to use.
 def check_settings(
@@ -198,26 +151,12 @@ def check_settings(
 # One part's steps of a partitioned CVT (hcvt.distributed.partition): shift (k, d), pinned (k,),
 # preconditioner (k,); the Lloyd step; the L-BFGS direction from the coefficients of the
 # two-loop recursion on the summed Gram matrices; the line search's acceptance.
-def step_fields_2d(
-    domain: PolygonDomain, sites: _Float2, mass: _Float1, first: _Float2, boundary_measure: _Float1
+def step_fields(
+    domain: _Domain, sites: _Float2, mass: _Float1, first: _Float2, boundary_measure: _Float1
 ) -> tuple[_Float2, NDArray[np.bool_], _Float1]: ...
-def step_fields_3d(
-    domain: SolidDomain, sites: _Float2, mass: _Float1, first: _Float2, boundary_measure: _Float1
-) -> tuple[_Float2, NDArray[np.bool_], _Float1]: ...
-def lloyd_step_2d(domain: PolygonDomain, sites: _Float2, shifts: _Float2) -> _Float2: ...
-def lloyd_step_3d(domain: SolidDomain, sites: _Float2, shifts: _Float2) -> _Float2: ...
-def lbfgs_direction_2d(
-    domain: PolygonDomain,
-    sites: _Float2,
-    gradient: _Float2,
-    s: NDArray[np.float64],
-    y: NDArray[np.float64],
-    preconditioner: _Float1,
-    c: _Float1,
-    e: _Float1,
-) -> _Float2: ...
-def lbfgs_direction_3d(
-    domain: SolidDomain,
+def lloyd_step(domain: _Domain, sites: _Float2, shifts: _Float2) -> _Float2: ...
+def lbfgs_direction(
+    domain: _Domain,
     sites: _Float2,
     gradient: _Float2,
     s: NDArray[np.float64],

@@ -239,7 +239,7 @@ DensityLike = Polynomial | SizingField | Callable[[NDArray[np.float64]], ArrayLi
 def core_arguments(
     density: DensityLike, dim: int, quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE
 ) -> dict[str, Any]:
-    """The keyword arguments of ``_core.voronoi_*d`` / ``cvt_*d`` for ``density``.
+    """The keyword arguments of ``_core.voronoi`` / ``_core.cvt`` for ``density``.
 
     ``{}`` without a density (the uniform path, bitwise as before); a polynomial goes as
     coefficients, a callable or sizing field as a function with its quadrature degree.

@@ -10,6 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
 from hcvt import _core
+from hcvt.core_results import CellField, DiagramArrays
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.errors import InvalidSitesError
 from hcvt.geometry.domain import Domain
@@ -92,7 +93,7 @@ class Diagram:
         self,
         domain: Domain,
         sites: NDArray[np.float64],
-        arrays: dict[str, Any],
+        arrays: DiagramArrays,
         density: DensityLike = None,
         *,
         allow_outside: bool = False,
@@ -112,7 +113,7 @@ class Diagram:
         self._allow_outside = allow_outside
         self._mesh: PolyMesh | None = None
 
-    def _in_input(self, name: str) -> Any:
+    def _in_input(self, name: CellField) -> Any:
         return self._frame.to_input(name, self._arrays[name])
 
     @cached_property
@@ -251,9 +252,8 @@ class Diagram:
             and ``boundary_element``; interior faces first, sorted by (owner, neighbour).
         """
         if self._mesh is None:
-            compute = getattr(_core, f"mesh_{self.domain.dim}d")
             with self.domain.frame.input_errors():
-                arrays = compute(
+                arrays = _core.mesh(
                     self.domain._core, self._core_sites, allow_outside=self._allow_outside
                 )
             self._mesh = PolyMesh(
@@ -309,14 +309,11 @@ def voronoi(
     :func:`hcvt.voronoi` without ``client``, which documents the parameters.
     """
     points = as_sites(sites, domain.dim)
-    compute = getattr(_core, f"voronoi_{domain.dim}d", None)
-    if compute is None:
-        raise NotImplementedError(f"no diagram for dimension {domain.dim} in this build")
     frame = domain.frame
     weighted = core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree)
     core_sites = frame.to_core(points)
     with frame.input_errors():
-        arrays = compute(domain._core, core_sites, allow_outside=allow_outside, **weighted)
+        arrays = _core.voronoi(domain._core, core_sites, allow_outside=allow_outside, **weighted)
     return Diagram(
         domain, points, arrays, density, allow_outside=allow_outside, core_sites=core_sites
     )

@@ -139,14 +139,11 @@ def cvt(
     points = as_sites(sites, domain.dim)
     frame = domain.frame  # the core works in it; sites, energy and history map back
     weighted = core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree)
-    run = getattr(_core, f"cvt_{domain.dim}d", None)
-    if run is None:
-        raise NotImplementedError(f"no CVT for dimension {domain.dim} in this build")
     bar = ProgressBar(rule, tol) if progress else None
     observe = frame.observer(chain_observers(callback, bar))
     try:
         with frame.input_errors():
-            out = run(
+            out = _core.cvt(
                 domain._core,
                 frame.to_core(points),
                 method=method,

@@ -7,10 +7,8 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use hcvt_core::diagram::PolygonCell;
-use hcvt_core::domain::Polygon;
-use hcvt_core::optimise::{cvt, evaluate, Method, Request, Rule, Settings};
 use hcvt_core::sample::interior_sites;
+use hcvt_core::{cvt, evaluate, Method, PointRequest, Polygon, PolygonCell, Rule, Settings};
 
 fn main() -> Result<(), hcvt_core::CoreError> {
     let mut args = std::env::args().skip(1);
@@ -56,7 +54,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
         .build()
         .expect("a thread pool");
     let out = pool.install(|| {
-        cvt::<2, PolygonCell>(&domain, sites, &settings, &mut |_, _| {
+        cvt::<2, PolygonCell, _>(&domain, sites, &settings, &mut |_, _| {
             ControlFlow::Continue(())
         })
     })?;
@@ -75,10 +73,10 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let hessian = method == Method::Newton;
     let t = Instant::now();
     for _ in 0..repeats {
-        evaluate::<2, PolygonCell>(
+        evaluate::<2, PolygonCell, _>(
             &domain,
             out.sites.clone(),
-            &Request {
+            &PointRequest {
                 hessian,
                 density: None,
             },

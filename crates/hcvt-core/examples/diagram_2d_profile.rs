@@ -3,10 +3,8 @@
 
 use std::time::Instant;
 
-use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, SiteIndex};
-use hcvt_core::domain::{Polygon, WindingNumber};
-use hcvt_core::geometry::Euclid;
 use hcvt_core::sample::Lcg;
+use hcvt_core::{clipped_diagram, DomainKind, Polygon, PolygonCell, Request, SiteIndex};
 use rayon::prelude::*;
 
 fn main() -> Result<(), hcvt_core::CoreError> {
@@ -23,7 +21,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let t = Instant::now();
     let w: Vec<_> = sites
         .par_iter()
-        .map(|s| Euclid::winding_number(&square, s))
+        .map(|s| DomainKind::locate(&square, s))
         .collect();
     println!(
         "winding numbers {:.3} s ({})",
@@ -38,7 +36,8 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     println!("kNN 17          {:.3} s ({k})", t.elapsed().as_secs_f64());
     for _ in 0..6 {
         let t = Instant::now();
-        let (d, _) = clipped_diagram::<2, PolygonCell>(&square, &sites, Options::default(), false)?;
+        let d = clipped_diagram::<2, PolygonCell, _>(&square, &sites, &Request::default())
+            .map(|c| c.diagram)?;
         println!(
             "full diagram    {:.3} s (area {})",
             t.elapsed().as_secs_f64(),

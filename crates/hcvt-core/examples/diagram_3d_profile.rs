@@ -11,9 +11,7 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use hcvt_core::diagram::PolyhedronCell;
-use hcvt_core::domain::Solid;
-use hcvt_core::optimise::{cvt, evaluate, Method, Request, Settings};
+use hcvt_core::{cvt, evaluate, Method, PointRequest, PolyhedronCell, Settings, Solid};
 
 /// Rows of whitespace-separated numbers.
 fn read_rows<T: std::str::FromStr, const N: usize>(path: &str) -> Vec<[T; N]> {
@@ -48,10 +46,10 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let t = Instant::now();
     let mut energy = 0.0;
     for _ in 0..repeat {
-        energy = evaluate::<3, PolyhedronCell>(
+        energy = evaluate::<3, PolyhedronCell, _>(
             &domain,
             sites.clone(),
-            &Request {
+            &PointRequest {
                 hessian,
                 density: None,
             },
@@ -72,7 +70,7 @@ fn main() -> Result<(), hcvt_core::CoreError> {
             ..Settings::default()
         };
         let t = Instant::now();
-        let out = cvt::<3, PolyhedronCell>(&domain, sites, &settings, &mut |_, _| {
+        let out = cvt::<3, PolyhedronCell, _>(&domain, sites, &settings, &mut |_, _| {
             ControlFlow::Continue(())
         })?;
         let seconds = t.elapsed().as_secs_f64();

@@ -47,7 +47,7 @@ pub fn norm2<const D: usize>(a: [f64; D]) -> f64 {
 /// A box cut into equal cells, indexed with axis 0 varying fastest: the buckets of the
 /// nearest-site grid and of the winding-number grid.
 #[derive(Debug, Clone)]
-pub struct Lattice<const D: usize> {
+pub(crate) struct Lattice<const D: usize> {
     /// Lower corner of the box.
     pub lo: [f64; D],
     /// Cell side along each axis.
@@ -83,11 +83,6 @@ impl<const D: usize> Lattice<D> {
     /// Number of cells.
     pub fn len(&self) -> usize {
         self.cells.iter().product()
-    }
-
-    /// No cells (never: a lattice has at least one).
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
     }
 
     /// Coordinates of the cell holding `p`, clamped to the lattice.

@@ -1,20 +1,21 @@
 //! Exact clipped Voronoi diagrams and regular centroidal Voronoi tessellations.
 //!
-//! Module map (DESIGN §2), each layer using only those above it:
+//! Module map (DESIGN §2), each layer using only those above it; the modules are private
+//! and the names users need are re-exported below (spade's layout):
 //!
 //! | module      | owns                                                                 |
 //! |-------------|----------------------------------------------------------------------|
-//! | [`geometry`]| small vector helpers and the per-dimension primitives ([`geometry::Space`]) |
-//! | [`moments`] | closed-form mass, first and second moments of simplices; `G`          |
-//! | [`density`] | a density ρ: polynomials of degree ≤ 2 (exact) and sampled functions; simplex quadrature rules |
-//! | [`domain`]  | the oriented boundary of a 2D polygon or 3D solid, its BVH and winding number |
-//! | [`diagram`] | convex Voronoi cells by kNN + half-space clipping, clipped exactly by the domain |
-//! | [`optimise`]| CVT energy, gradient and Hessian from the diagram; Lloyd, L-BFGS and Newton to the stopping rule |
+//! | `geometry`  | small vector helpers and the per-dimension primitives ([`Space`]) |
+//! | `moments`   | closed-form mass, first and second moments of simplices; `G` ([`Moments`]) |
+//! | `density`   | a density ρ ([`Density`]): polynomials of degree ≤ 2 (exact) and sampled functions; simplex quadrature rules |
+//! | `domain`    | the oriented boundary of a 2D polygon or 3D solid ([`Boundary`]), its BVH and winding number |
+//! | `diagram`   | convex Voronoi cells by kNN + half-space clipping ([`ConvexCell`]), restricted exactly to a domain through the seam [`DomainKind`] ([`clipped_diagram`], [`clipped_cells`]); the conforming mesh ([`conforming_mesh`]) |
+//! | `optimise`  | CVT energy, gradient and Hessian from the diagram ([`evaluate`]); Lloyd, L-BFGS and Newton to the stopping rule ([`cvt`]) |
 //!
-//! [`error`] holds [`CoreError`], which every layer returns.
+//! `error` holds [`CoreError`], which every layer returns.
 //!
 //! With the cargo feature `sample` (on for this crate's tests and examples, off for the
-//! binding), `sample` gives deterministic pseudo-random points for tests and examples: not
+//! binding), [`sample`] gives deterministic pseudo-random points for tests and examples: not
 //! part of the API.
 //!
 //! Units: every length is in the unit of the input coordinates (`L`); volumes are `L^d`,
@@ -24,14 +25,28 @@
 //! cells runs in index order, so the output does not depend on the number of threads.
 #![forbid(unsafe_code)]
 
-pub mod density;
-pub mod diagram;
-pub mod domain;
-pub mod error;
-pub mod geometry;
-pub mod moments;
-pub mod optimise;
+mod density;
+mod diagram;
+mod domain;
+mod error;
+mod geometry;
+mod moments;
+mod optimise;
 #[cfg(any(test, feature = "sample"))]
 pub mod sample;
 
+pub use density::{Density, Field, Quadratic};
+pub use diagram::{
+    clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, morton_order, BoxDomain,
+    Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals, FaceIntegrand, Matrix,
+    MeshDomain, MeshPart, Options, PartCells, PolyMesh, PolygonCell, PolyhedronCell, Request,
+    SiteIndex,
+};
+pub use domain::{generalized_winding_number, Boundary, Polygon, Solid};
 pub use error::CoreError;
+pub use geometry::{Aabb, Euclid, Space};
+pub use moments::{tetra_moments, triangle_moments, FaceMoments, Moments};
+pub use optimise::{
+    cvt, evaluate, lbfgs, lloyd, Frame, Measures, Method, Named, Outcome, Point, PointRequest,
+    Record, Rule, Settings, Step, StopReason,
+};

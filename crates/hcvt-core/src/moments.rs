@@ -84,7 +84,7 @@ impl<const D: usize> Moments<D> {
 /// # Example
 ///
 /// ```
-/// use hcvt_core::moments::triangle_moments;
+/// use hcvt_core::triangle_moments;
 ///
 /// // Unit right triangle, counter-clockwise: area 1/2, centroid (1/3, 1/3).
 /// let m = triangle_moments([1.0, 0.0], [0.0, 1.0]);
@@ -112,7 +112,7 @@ pub fn triangle_moments(a: [f64; 2], b: [f64; 2]) -> Moments<2> {
 /// # Example
 ///
 /// ```
-/// use hcvt_core::moments::tetra_moments;
+/// use hcvt_core::tetra_moments;
 ///
 /// let m = tetra_moments([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
 /// assert!((m.mass - 1.0 / 6.0).abs() < 1e-16);
@@ -193,7 +193,7 @@ impl<const D: usize> FaceMoments<D> {
     /// # Example
     ///
     /// ```
-    /// use hcvt_core::moments::FaceMoments;
+    /// use hcvt_core::FaceMoments;
     ///
     /// // The segment from (0, 0) to (2, 0): ∫ x² ds = 8/3.
     /// let m = FaceMoments::simplex(&[[0.0, 0.0], [2.0, 0.0]], 2.0);

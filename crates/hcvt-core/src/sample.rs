@@ -5,8 +5,7 @@
 //! `sample`, which the integration tests and examples turn on through the crate's
 //! dev-dependency on itself.
 
-use crate::domain::{Boundary, WindingNumber};
-use crate::geometry::{Euclid, Space};
+use crate::diagram::DomainKind;
 
 /// Knuth's 64-bit linear congruential generator (MMIX constants).
 ///
@@ -43,16 +42,17 @@ impl Lcg {
 
 /// `n` points strictly inside `boundary` (winding number 1), uniform by rejection in its
 /// bounding box, drawn from [`Lcg::new`]`(seed)`.
-pub fn interior_sites<const D: usize>(boundary: &Boundary<D>, n: usize, seed: u64) -> Vec<[f64; D]>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
+pub fn interior_sites<const D: usize, K: DomainKind<D>>(
+    boundary: &K,
+    n: usize,
+    seed: u64,
+) -> Vec<[f64; D]> {
     let mut rng = Lcg::new(seed);
     let b = boundary.bounds();
     let mut sites = Vec::with_capacity(n);
     while sites.len() < n {
         let p: [f64; D] = std::array::from_fn(|k| b.lo[k] + rng.unit() * (b.hi[k] - b.lo[k]));
-        if Euclid::winding_number(boundary, &p) == Some(1) {
+        if boundary.locate(&p) == Some(1) {
             sites.push(p);
         }
     }

@@ -5,12 +5,11 @@
 mod common;
 use common::{dented_cube, interior_sites, polygon};
 
-use hcvt_core::density::{Density, Field, Quadratic};
-use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
-use hcvt_core::domain::{Boundary, WindingNumber};
-use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::{evaluate, Request};
 use hcvt_core::CoreError;
+use hcvt_core::{
+    evaluate, Boundary, ConvexCell, Density, DomainKind, Euclid, Field, PointRequest, PolygonCell,
+    PolyhedronCell, Quadratic, Space,
+};
 
 fn rho_2d() -> Quadratic<2> {
     Quadratic::new(2.0, [0.3, -0.2], [[0.4, 0.1], [0.1, 0.6]]).unwrap()
@@ -29,14 +28,15 @@ fn errors<const D: usize, C: ConvexCell<D>>(
     rho: Quadratic<D>,
 ) -> (f64, f64)
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let density = Density::Polynomial(rho);
     let eval = |s: Vec<[f64; D]>, hessian: bool| {
-        evaluate::<D, C>(
+        evaluate::<D, C, _>(
             boundary,
             s,
-            &Request {
+            &PointRequest {
                 hessian,
                 density: Some(&density),
             },
@@ -121,19 +121,19 @@ fn a_field_sampled_by_a_rule_of_degree_4_equals_the_polynomial() {
         field: &field,
         degree: 4,
     };
-    let a = evaluate::<3, PolyhedronCell>(
+    let a = evaluate::<3, PolyhedronCell, _>(
         &dented,
         sites.clone(),
-        &Request {
+        &PointRequest {
             hessian: false,
             density: Some(&exact),
         },
     )
     .unwrap();
-    let b = evaluate::<3, PolyhedronCell>(
+    let b = evaluate::<3, PolyhedronCell, _>(
         &dented,
         sites,
-        &Request {
+        &PointRequest {
             hessian: false,
             density: Some(&sampled),
         },
@@ -151,10 +151,10 @@ fn a_field_sampled_by_a_rule_of_degree_4_equals_the_polynomial() {
         field: &field,
         degree: 6,
     };
-    let err = evaluate::<3, PolyhedronCell>(
+    let err = evaluate::<3, PolyhedronCell, _>(
         &dented,
         vec![[0.5; 3]],
-        &Request {
+        &PointRequest {
             hessian: false,
             density: Some(&too_high),
         },

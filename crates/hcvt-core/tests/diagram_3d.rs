@@ -4,8 +4,7 @@
 mod common;
 use common::{data_3d, dented_cube, interior_sites, read_mesh};
 
-use hcvt_core::diagram::{clipped_diagram, Diagram, Options, PolyhedronCell};
-use hcvt_core::domain::Solid;
+use hcvt_core::{clipped_diagram, Diagram, PolyhedronCell, Request, Solid};
 
 /// Axis-aligned box `[0, s]³` as 12 outward triangles.
 fn cube(s: f64) -> Solid {
@@ -13,9 +12,9 @@ fn cube(s: f64) -> Solid {
 }
 
 fn diagram(solid: &Solid, sites: &[[f64; 3]]) -> Diagram<3> {
-    clipped_diagram::<3, PolyhedronCell>(solid, sites, Options::default(), false)
+    clipped_diagram::<3, PolyhedronCell, _>(solid, sites, &Request::default())
         .unwrap()
-        .0
+        .diagram
 }
 
 #[test]

@@ -13,12 +13,11 @@ use common::{data_3d, interior_sites, polygon, read_mesh};
 
 use std::ops::ControlFlow;
 
-use hcvt_core::diagram::{
-    clipped_diagram, ConvexCell, Diagram, Face, Options, PolygonCell, PolyhedronCell,
+use hcvt_core::{
+    clipped_diagram, cvt, evaluate, Boundary, ConvexCell, Diagram, DomainKind, Euclid, Face,
+    Method, Options, Point, PointRequest, Polygon, PolygonCell, PolyhedronCell, Request, Rule,
+    Settings, Solid, Space,
 };
-use hcvt_core::domain::{Boundary, Polygon, Solid, WindingNumber};
-use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::{cvt, evaluate, Method, Point, Request, Rule, Settings};
 
 /// FNV-1a over 64-bit words: the same value on every platform and compiler.
 #[derive(Clone, Copy)]
@@ -103,17 +102,27 @@ fn holes() -> Polygon {
 /// The diagram with and without the Hessian, and with the cells kept.
 fn hash_2d(boundary: &Polygon, sites: &[[f64; 2]], options: Options) -> u64 {
     let mut h = Hash::new();
-    let (d, cells) = clipped_diagram::<2, PolygonCell>(boundary, sites, options, true).unwrap();
+    let (d, cells) = clipped_diagram::<2, PolygonCell, _>(
+        boundary,
+        sites,
+        &Request {
+            options,
+            keep_cells: true,
+            ..Request::default()
+        },
+    )
+    .map(|c| (c.diagram, c.cells))
+    .unwrap();
     hash_diagram(&mut h, &d);
     for cell in &cells {
         cell.vertices().iter().for_each(|v| h.fs(v));
         cell.faces().iter().for_each(|&f| h.face(f));
     }
     if !options.allow_outside {
-        let point = evaluate::<2, PolygonCell>(
+        let point = evaluate::<2, PolygonCell, _>(
             boundary,
             sites.to_vec(),
-            &Request {
+            &PointRequest {
                 hessian: true,
                 density: None,
             },
@@ -127,8 +136,17 @@ fn hash_2d(boundary: &Polygon, sites: &[[f64; 2]], options: Options) -> u64 {
 
 fn hash_3d(boundary: &Solid, sites: &[[f64; 3]]) -> u64 {
     let mut h = Hash::new();
-    let (d, cells) =
-        clipped_diagram::<3, PolyhedronCell>(boundary, sites, Options::default(), true).unwrap();
+    let (d, cells) = clipped_diagram::<3, PolyhedronCell, _>(
+        boundary,
+        sites,
+        &Request {
+            options: Options::default(),
+            keep_cells: true,
+            ..Request::default()
+        },
+    )
+    .map(|c| (c.diagram, c.cells))
+    .unwrap();
     hash_diagram(&mut h, &d);
     for cell in &cells {
         cell.vertices().iter().for_each(|v| h.fs(v));
@@ -137,10 +155,10 @@ fn hash_3d(boundary: &Solid, sites: &[[f64; 3]]) -> u64 {
             polygon.iter().for_each(|v| h.fs(v));
         });
     }
-    let point = evaluate::<3, PolyhedronCell>(
+    let point = evaluate::<3, PolyhedronCell, _>(
         boundary,
         sites.to_vec(),
-        &Request {
+        &PointRequest {
             hessian: true,
             density: None,
         },
@@ -290,7 +308,7 @@ const RUNS: &[(&str, u64)] = &[
 ];
 
 /// Iterations, diagrams, stop reason, every record but its seconds, and the final sites.
-fn hash_run<const D: usize>(out: &hcvt_core::optimise::Outcome<D>) -> u64 {
+fn hash_run<const D: usize>(out: &hcvt_core::Outcome<D>) -> u64 {
     let mut h = Hash::new();
     h.word(out.iterations() as u64);
     h.word(out.evaluations() as u64);
@@ -316,11 +334,12 @@ fn run<const D: usize, C: ConvexCell<D>>(
     settings: &Settings<'_, D>,
 ) -> (String, u64)
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let sites = interior_sites(boundary, n, 3);
     let go = &mut |_: &_, _: &_| ControlFlow::Continue(());
-    let out = cvt::<D, C>(boundary, sites, settings, go).unwrap();
+    let out = cvt::<D, C, _>(boundary, sites, settings, go).unwrap();
     let (iterations, diagrams) = (out.iterations(), out.evaluations());
     let (method, rule) = (settings.method, settings.rule);
     let name = format!("{method:?} {rule:?} {name}: {iterations} iterations, {diagrams} diagrams");

@@ -6,12 +6,11 @@ use common::{dented_cube, interior_sites, polygon};
 
 use std::ops::ControlFlow;
 
-use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, PolyhedronCell};
-use hcvt_core::domain::{Boundary, Polygon, Solid, WindingNumber};
-use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::optimise::lloyd::reseed_empty;
-use hcvt_core::optimise::{
-    cvt, evaluate, Measures, Method, Outcome, Point, Request, Rule, Settings, Step, StopReason,
+use hcvt_core::lloyd::reseed_empty;
+use hcvt_core::{
+    clipped_diagram, cvt, evaluate, Boundary, DomainKind, Euclid, Measures, Method, Options,
+    Outcome, Point, PointRequest, Polygon, PolygonCell, PolyhedronCell, Request, Rule, Settings,
+    Solid, Space, Step, StopReason,
 };
 
 /// An L-shaped polygon with a square hole: non-convex, and with a hole.
@@ -43,23 +42,24 @@ fn grid<const D: usize>(counts: [usize; D], lo: [f64; D], hi: [f64; D]) -> Vec<[
 
 /// Relative error of central differences of the energy against the exact gradient, over
 /// the coordinates of every third site.
-fn gradient_error<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+fn gradient_error<const D: usize, C: hcvt_core::ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
 ) -> f64
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
     let step = 1e-6 * h;
-    let point = evaluate::<D, C>(boundary, sites.clone(), &Request::default()).unwrap();
+    let point = evaluate::<D, C, _>(boundary, sites.clone(), &PointRequest::default()).unwrap();
     let (mut err2, mut norm2) = (0.0, 0.0);
     for i in (0..sites.len()).step_by(3) {
         for k in 0..D {
             let energy_at = |delta: f64| {
                 let mut moved = sites.clone();
                 moved[i][k] += delta;
-                evaluate::<D, C>(boundary, moved, &Request::default())
+                evaluate::<D, C, _>(boundary, moved, &PointRequest::default())
                     .unwrap()
                     .energy
             };
@@ -83,18 +83,19 @@ fn gradient_matches_central_differences() {
 
 /// Relative error of central differences of the gradient along a random direction
 /// against the exact Hessian product.
-fn hessian_error<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+fn hessian_error<const D: usize, C: hcvt_core::ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
 ) -> f64
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
-    let point = evaluate::<D, C>(
+    let point = evaluate::<D, C, _>(
         boundary,
         sites.clone(),
-        &Request {
+        &PointRequest {
             hessian: true,
             density: None,
         },
@@ -111,7 +112,7 @@ where
             .zip(&v)
             .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
             .collect();
-        evaluate::<D, C>(boundary, moved, &Request::default())
+        evaluate::<D, C, _>(boundary, moved, &PointRequest::default())
             .unwrap()
             .gradient
     };
@@ -136,7 +137,8 @@ fn hessian_matches_central_differences_of_the_gradient() {
     let err = hessian_error::<3, PolyhedronCell>(&dented, interior_sites(&dented, 60, 2));
     assert!(err < 1e-6, "3D: relative error {err:e}");
     let without =
-        evaluate::<2, PolygonCell>(&l, interior_sites(&l, 10, 1), &Request::default()).unwrap();
+        evaluate::<2, PolygonCell, _>(&l, interior_sites(&l, 10, 1), &PointRequest::default())
+            .unwrap();
     assert!(without.hessian_product(&[[0.0; 2]; 10]).is_none());
 }
 
@@ -160,27 +162,29 @@ fn paper<const D: usize>(method: Method, tol: f64, max_iter: usize) -> Settings<
 
 /// The measures of `out.sites` recomputed from a fresh diagram, independent of the run's
 /// history (no site is pinned in these domains' runs: checked).
-fn fresh_measures<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+fn fresh_measures<const D: usize, C: hcvt_core::ConvexCell<D>>(
     boundary: &Boundary<D>,
     out: &Outcome<D>,
 ) -> Measures
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     assert_eq!(out.history.last().unwrap().measures.pinned, 0);
-    let point = evaluate::<D, C>(boundary, out.sites.clone(), &Request::default()).unwrap();
+    let point = evaluate::<D, C, _>(boundary, out.sites.clone(), &PointRequest::default()).unwrap();
     Measures::of(&point, &vec![false; out.sites.len()])
 }
 
-fn run<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+fn run<const D: usize, C: hcvt_core::ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
     settings: &Settings<'_, D>,
-) -> hcvt_core::optimise::Outcome<D>
+) -> hcvt_core::Outcome<D>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
-    cvt::<D, C>(boundary, sites, settings, &mut |_, _| {
+    cvt::<D, C, _>(boundary, sites, settings, &mut |_, _| {
         ControlFlow::Continue(())
     })
     .unwrap()
@@ -238,7 +242,7 @@ fn lbfgs_converges_in_a_non_convex_polygon_and_beats_lloyd() {
     assert!(lbfgs
         .sites
         .iter()
-        .all(|p| Euclid::winding_number(&l, p) != Some(0)));
+        .all(|p| DomainKind::locate(&l, p) != Some(0)));
     let lloyd = run::<2, PolygonCell>(&l, sites, &settings(Method::Lloyd, 1e-4, 2000));
     assert_eq!(lloyd.stop_reason, StopReason::Converged);
     let to_1e4 = lbfgs
@@ -258,7 +262,7 @@ fn lbfgs_converges_in_a_non_convex_polygon_and_beats_lloyd() {
 fn observer_can_stop_the_run() {
     let l = l_shape();
     let mut seen = 0;
-    let out = cvt::<2, PolygonCell>(
+    let out = cvt::<2, PolygonCell, _>(
         &l,
         interior_sites(&l, 30, 5),
         &Settings::default(),
@@ -284,7 +288,17 @@ fn empty_cells_are_reseeded_deterministically_inside() {
     let options = Options {
         allow_outside: true,
     };
-    let (diagram, _) = clipped_diagram::<2, PolygonCell>(&l, &sites, options, false).unwrap();
+    let diagram = clipped_diagram::<2, PolygonCell, _>(
+        &l,
+        &sites,
+        &Request {
+            options,
+            keep_cells: false,
+            ..Request::default()
+        },
+    )
+    .map(|c| c.diagram)
+    .unwrap();
     assert_eq!(diagram.moments[7].mass, 0.0);
     let point = Point {
         energy: diagram.energy(),
@@ -300,7 +314,7 @@ fn empty_cells_are_reseeded_deterministically_inside() {
         "deterministic"
     );
     assert_ne!(reseeded[7], sites[7]);
-    assert_eq!(Euclid::winding_number(&l, &reseeded[7]), Some(1));
+    assert_eq!(DomainKind::locate(&l, &reseeded[7]), Some(1));
     assert!((0..20).filter(|&i| i != 7).all(|i| reseeded[i] == sites[i]));
     let out = run::<2, PolygonCell>(&l, reseeded, &settings(Method::Lbfgs, 1e-6, 500));
     assert_eq!(out.stop_reason, StopReason::Converged);
@@ -310,11 +324,12 @@ fn empty_cells_are_reseeded_deterministically_inside() {
 /// Newton from `sites` reaches the paper's rule with fewer diagrams than L-BFGS (both
 /// reach it: checked on a fresh diagram), its sites stay in the domain and its energy
 /// never rises beyond round-off.
-fn newton_beats_lbfgs<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
+fn newton_beats_lbfgs<const D: usize, C: hcvt_core::ConvexCell<D>>(
     boundary: &Boundary<D>,
     sites: Vec<[f64; D]>,
 ) where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let newton = run::<D, C>(boundary, sites.clone(), &paper(Method::Newton, 1e-10, 2000));
     let lbfgs = run::<D, C>(boundary, sites, &paper(Method::Lbfgs, 1e-10, 2000));
@@ -333,7 +348,7 @@ fn newton_beats_lbfgs<const D: usize, C: hcvt_core::diagram::ConvexCell<D>>(
     assert!(newton
         .sites
         .iter()
-        .all(|p| Euclid::winding_number(boundary, p) != Some(0)));
+        .all(|p| DomainKind::locate(boundary, p) != Some(0)));
     for pair in newton.history.windows(2) {
         assert!(pair[1].energy <= pair[0].energy * (1.0 + 1e-12), "{D}D");
     }
@@ -357,7 +372,7 @@ fn the_caller_sees_its_own_order() {
     let sites = interior_sites(&l, 200, 9);
     for method in [Method::Lbfgs, Method::Newton] {
         let mut first: Option<Vec<[f64; 2]>> = None;
-        let out = cvt::<2, PolygonCell>(
+        let out = cvt::<2, PolygonCell, _>(
             &l,
             sites.clone(),
             &settings(method, 1e-6, 50),
@@ -369,10 +384,10 @@ fn the_caller_sees_its_own_order() {
         .unwrap();
         assert_eq!(first.as_deref(), Some(&sites[..]));
         let newton = method == Method::Newton;
-        let fresh = evaluate::<2, PolygonCell>(
+        let fresh = evaluate::<2, PolygonCell, _>(
             &l,
             out.sites.clone(),
-            &Request {
+            &PointRequest {
                 hessian: newton,
                 density: None,
             },
@@ -403,7 +418,7 @@ fn the_caller_sees_its_own_order() {
     let mut bad = sites.clone();
     bad[150] = [3.0, 3.0]; // outside the L
     bad[7] = [3.5, 3.5];
-    let err = cvt::<2, PolygonCell>(&l, bad, &settings(Method::Lbfgs, 1e-6, 5), &mut |_, _| {
+    let err = cvt::<2, PolygonCell, _>(&l, bad, &settings(Method::Lbfgs, 1e-6, 5), &mut |_, _| {
         ControlFlow::Continue(())
     })
     .unwrap_err();

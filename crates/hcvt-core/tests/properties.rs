@@ -7,9 +7,10 @@
 mod common;
 use common::{data_3d, read_mesh};
 
-use hcvt_core::diagram::{clipped_diagram, Options, PolygonCell, PolyhedronCell};
-use hcvt_core::domain::{Polygon, Solid};
-use hcvt_core::error::CoreError;
+use hcvt_core::{
+    clipped_diagram, CoreError, Diagram, Options, Polygon, PolygonCell, PolyhedronCell, Request,
+    Solid,
+};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
 
@@ -54,7 +55,7 @@ fn star(parts: &[(f64, f64)], scale: f64, offset: [f64; 2]) -> Vec<[f64; 2]> {
 /// Σ volume = V to 1e-12 relative plus 1e-14 diag^d (sliver round-off, see
 /// tests/test_properties.py), and every moment finite.
 fn check<const D: usize>(
-    result: Result<hcvt_core::diagram::Diagram<D>, CoreError>,
+    result: Result<hcvt_core::Diagram<D>, CoreError>,
     volume: f64,
     box_measure: f64,
 ) -> Result<(), TestCaseError> {
@@ -117,15 +118,15 @@ proptest! {
         }
         let measure = b.diagonal().powi(2);
         let options = Options { allow_outside: true };
-        let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
+        let result = clipped_diagram::<2, PolygonCell, _>(&domain, &sites, &Request { options, ..Request::default() }).map(|c| c.diagram);
         if duplicate {
             let is_duplicate_error = matches!(result, Err(CoreError::DuplicateSites { .. }));
             prop_assert!(is_duplicate_error);
         }
-        check(result.map(|r| r.0), domain.volume(), measure)?;
+        check(result, domain.volume(), measure)?;
         // Without allow_outside: the same or SiteOutsideDomain.
-        let strict = clipped_diagram::<2, PolygonCell>(&domain, &sites, Options::default(), false);
-        check(strict.map(|r| r.0), domain.volume(), measure)?;
+        let strict = clipped_diagram::<2, PolygonCell, _>(&domain, &sites, &Request::default()).map(|c| c.diagram);
+        check(strict, domain.volume(), measure)?;
     }
 
     /// Any finite or non-finite coordinates for the boundary and the sites: an answer.
@@ -138,7 +139,7 @@ proptest! {
             let b = domain.bounds();
             let measure = (b.hi[0] - b.lo[0]) * (b.hi[1] - b.lo[1]);
             let options = Options { allow_outside: true };
-            let result = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false);
+            let result = clipped_diagram::<2, PolygonCell, _>(&domain, &sites, &Request { options, ..Request::default() }).map(|c| c.diagram);
             // Self-intersecting rings are the front end's to refuse: only no panic here.
             let _ = (result, measure);
         }
@@ -167,8 +168,8 @@ proptest! {
             sites.push([2.5, 0.5, 0.5]);
         }
         let options = Options { allow_outside: true };
-        let result = clipped_diagram::<3, PolyhedronCell>(&solid, &sites, options, false);
-        check(result.map(|r| r.0), 2.0, 6.0f64.powf(1.5))?;
+        let result = clipped_diagram::<3, PolyhedronCell, _>(&solid, &sites, &Request { options, ..Request::default() }).map(|c| c.diagram);
+        check(result, 2.0, 6.0f64.powf(1.5))?;
     }
 }
 
@@ -198,7 +199,16 @@ fn site_within_round_off_of_a_face_regression() {
     for t in [0u32, 1, 199, 500, 1000] {
         let tri = solid.simplex(t);
         let site: [f64; 3] = std::array::from_fn(|k| (tri[0][k] + tri[1][k] + tri[2][k]) / 3.0);
-        let (d, _) = clipped_diagram::<3, PolyhedronCell>(&solid, &[site], options, false).unwrap();
+        let d = clipped_diagram::<3, PolyhedronCell, _>(
+            &solid,
+            &[site],
+            &Request {
+                options,
+                ..Request::default()
+            },
+        )
+        .map(|c| c.diagram)
+        .unwrap();
         let v = d.moments[0].mass;
         assert!(
             (v - solid.volume()).abs() <= 1e-12 * solid.volume(),
@@ -225,10 +235,7 @@ fn cell_touching_the_domain_at_a_point_is_empty_regression() {
             ]);
         }
     }
-    let options = Options {
-        allow_outside: true,
-    };
-    let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
+    let d = allowing_outside(&domain, &sites).unwrap();
     for (i, m) in d.moments.iter().enumerate() {
         let g = m.dimensionless_second_moment();
         assert!(
@@ -254,14 +261,22 @@ fn apex_nudged_along_the_boundary_regression() {
         [0.6, -0.8],
         [0.2, -0.2],
     ];
-    let options = Options {
-        allow_outside: true,
-    };
-    let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
+    let d = allowing_outside(&domain, &sites).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
     assert!((v[2] - 0.12).abs() < 1e-15, "{v:?}");
     let total: f64 = v.iter().sum();
     assert!((total - 2.0).abs() < 1e-14, "{total}");
+}
+
+/// The diagram of `sites` in `domain`, sites outside allowed.
+fn allowing_outside(domain: &Polygon, sites: &[[f64; 2]]) -> Result<Diagram<2>, CoreError> {
+    let request = Request {
+        options: Options {
+            allow_outside: true,
+        },
+        ..Request::default()
+    };
+    clipped_diagram::<2, PolygonCell, _>(domain, sites, &request).map(|c| c.diagram)
 }
 
 /// Found by tests/test_properties.py: an allowed outside site at 1e10 from the unit square
@@ -269,16 +284,12 @@ fn apex_nudged_along_the_boundary_regression() {
 #[test]
 fn site_far_outside_is_refused_regression() {
     let domain = ring(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]).unwrap();
-    let options = Options {
-        allow_outside: true,
-    };
-    let far = clipped_diagram::<2, PolygonCell>(&domain, &[[1e10, 0.5]], options, false);
+    let far = allowing_outside(&domain, &[[1e10, 0.5]]);
     assert!(matches!(
         far,
         Err(CoreError::SiteFarOutside { index: 0, .. })
     ));
-    let (d, _) =
-        clipped_diagram::<2, PolygonCell>(&domain, &[[50.0, 0.5]], options, false).unwrap();
+    let d = allowing_outside(&domain, &[[50.0, 0.5]]).unwrap();
     assert!(
         (d.moments[0].mass - 1.0).abs() < 1e-12,
         "{:?}",
@@ -304,10 +315,7 @@ fn degenerate_cell_edge_excludes_nothing_regression() {
     let s = vec![[0, 1], [1, 2], [2, 0], [3, 4], [4, 5], [5, 3]];
     let domain = Polygon::new(v, s).unwrap();
     let sites = [[1.5, -1.55], [2.0, -1.55], [1.5, -1.1], [2.0, -1.1]];
-    let options = Options {
-        allow_outside: true,
-    };
-    let (d, _) = clipped_diagram::<2, PolygonCell>(&domain, &sites, options, false).unwrap();
+    let d = allowing_outside(&domain, &sites).unwrap();
     let v: Vec<f64> = d.moments.iter().map(|m| m.mass).collect();
     assert!((v[0] - 0.2278125).abs() < 1e-14, "{v:?}");
     let total: f64 = v.iter().sum();

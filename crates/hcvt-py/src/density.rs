@@ -4,8 +4,7 @@
 
 use std::sync::Mutex;
 
-use hcvt_core::density::{Density, Field, Quadratic};
-use hcvt_core::CoreError;
+use hcvt_core::{CoreError, Density, Field, Quadratic};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;

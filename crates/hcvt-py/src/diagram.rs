@@ -1,23 +1,30 @@
 //! The clipped Voronoi diagram as numpy arrays.
 
-use hcvt_core::diagram::{clipped_diagram_weighted, Diagram, Options, PolygonCell, PolyhedronCell};
+use hcvt_core::{
+    clipped_diagram, Boundary, ConvexCell, Diagram, DomainKind, Euclid, Options, PolygonCell,
+    PolyhedronCell, Request, Space,
+};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{rows, to_array2, to_intp, to_intp2};
 use crate::density::{Coefficients, Given};
-use crate::domain::{PolygonDomain, SolidDomain};
+use crate::domain::{by_kind, AnyDomain};
 
-/// Clipped diagram of `sites` (n, 2) in `domain`: a dict of arrays, row i = site i
-/// (see `hcvt.voronoi`). With `keep_cells`, also `cell_offsets` (n+1,) and
-/// `cell_vertices` (m, 2): each site's unclipped convex cell, counter-clockwise, absolute.
+/// Clipped diagram of `sites` (n, d) in `domain` (a polygon, d = 2, or a solid, d = 3): a
+/// dict of arrays, row i = site i (see `hcvt.voronoi`). With `keep_cells`, also each
+/// site's convex cell from the core (the Voronoi cell in the domain's box, already cut to
+/// the domain for most boundary cells of a convex domain, see `clipped_diagram`),
+/// absolute: in 2D `cell_offsets` (n+1,) and `cell_vertices` (m, 2), counter-clockwise;
+/// in 3D a closed outward triangle mesh per cell, `cell_vertex_offsets` (n+1,),
+/// `cell_vertices` (m, 3), `cell_face_offsets` (n+1,), `cell_faces` (f, 3) local.
 #[pyfunction]
 #[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false, polynomial=None, function=None, quadrature_degree=4))]
 #[allow(clippy::too_many_arguments)]
-pub fn voronoi_2d<'py>(
+pub fn voronoi<'py>(
     py: Python<'py>,
-    domain: &PolygonDomain,
+    domain: AnyDomain<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
     keep_cells: bool,
@@ -25,80 +32,95 @@ pub fn voronoi_2d<'py>(
     function: Option<Py<PyAny>>,
     quadrature_degree: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let points = rows::<f64, 2>(&sites, "sites")?;
-    let options = Options { allow_outside };
     let given = Given::new(polynomial, function, quadrature_degree)?;
-    let density = given.density::<2>()?;
-    let (diagram, cells, _) = py
-        .detach(|| {
-            crate::threads::run(|| {
-                clipped_diagram_weighted::<2, PolygonCell>(
-                    &domain.0,
-                    &points,
-                    options,
-                    keep_cells,
-                    None,
-                    density.as_ref(),
-                )
-            })
-        })
-        .map_err(|e| given.error(e))?;
-    let out = diagram_dict(py, &diagram, &points)?;
-    if keep_cells {
-        let mut offsets = vec![0usize];
-        let mut vertices: Vec<[f64; 2]> = Vec::new();
-        for (cell, s) in cells.iter().zip(&points) {
-            vertices.extend(cell.vertices().iter().map(|v| [v[0] + s[0], v[1] + s[1]]));
-            offsets.push(vertices.len());
-        }
-        out.set_item("cell_offsets", to_intp(py, &offsets)?)?;
-        out.set_item("cell_vertices", to_array2(py, &vertices)?)?;
+    let asked = Asked {
+        allow_outside,
+        keep_cells,
+        given: &given,
+    };
+    by_kind!(domain, voronoi_in(py, sites, asked))
+}
+
+/// What a diagram is asked for besides its domain and sites.
+struct Asked<'a> {
+    allow_outside: bool,
+    keep_cells: bool,
+    given: &'a Given,
+}
+
+fn voronoi_in<'py, const D: usize, C: ConvexCell<D> + CellArrays<D>>(
+    boundary: &Boundary<D>,
+    py: Python<'py>,
+    sites: PyReadonlyArray2<'py, f64>,
+    asked: Asked<'_>,
+) -> PyResult<Bound<'py, PyDict>>
+where
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
+{
+    let points = rows::<f64, D>(&sites, "sites")?;
+    let density = asked.given.density::<D>()?;
+    let request = Request {
+        options: Options {
+            allow_outside: asked.allow_outside,
+        },
+        keep_cells: asked.keep_cells,
+        density: density.as_ref(),
+        ..Request::default()
+    };
+    let clipped = py
+        .detach(|| crate::threads::run(|| clipped_diagram::<D, C, _>(boundary, &points, &request)))
+        .map_err(|e| asked.given.error(e))?;
+    let out = diagram_dict(py, &clipped.diagram, &points)?;
+    if asked.keep_cells {
+        C::cell_arrays(py, &clipped.cells, &points, &out)?;
     }
     Ok(out)
 }
 
-/// Clipped diagram of `sites` (n, 3) in the solid `domain`: a dict of arrays, row i =
-/// site i (see `hcvt.voronoi`). With `keep_cells`, also each site's convex cell from the
-/// core (the Voronoi cell in the domain's box, already cut to the domain for most boundary
-/// cells of a convex domain, see `clipped_diagram`) as a closed outward triangle mesh: `cell_vertex_offsets` (n+1,), `cell_vertices` (m, 3)
-/// absolute, `cell_face_offsets` (n+1,), `cell_faces` (f, 3) indices local to the cell.
-#[pyfunction]
-#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false, polynomial=None, function=None, quadrature_degree=4))]
-#[allow(clippy::too_many_arguments)]
-pub fn voronoi_3d<'py>(
-    py: Python<'py>,
-    domain: &SolidDomain,
-    sites: PyReadonlyArray2<'py, f64>,
-    allow_outside: bool,
-    keep_cells: bool,
-    polynomial: Option<Coefficients>,
-    function: Option<Py<PyAny>>,
-    quadrature_degree: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let points = rows::<f64, 3>(&sites, "sites")?;
-    let options = Options { allow_outside };
-    let given = Given::new(polynomial, function, quadrature_degree)?;
-    let density = given.density::<3>()?;
-    let (diagram, cells, _) = py
-        .detach(|| {
-            crate::threads::run(|| {
-                clipped_diagram_weighted::<3, PolyhedronCell>(
-                    &domain.0,
-                    &points,
-                    options,
-                    keep_cells,
-                    None,
-                    density.as_ref(),
-                )
-            })
-        })
-        .map_err(|e| given.error(e))?;
-    let out = diagram_dict(py, &diagram, &points)?;
-    if keep_cells {
+/// The kept convex cells as arrays, per kind of cell.
+trait CellArrays<const D: usize>: Sized {
+    /// Add the cells (each relative to its site in `sites`) to `out`, absolute.
+    fn cell_arrays(
+        py: Python<'_>,
+        cells: &[Self],
+        sites: &[[f64; D]],
+        out: &Bound<'_, PyDict>,
+    ) -> PyResult<()>;
+}
+
+impl CellArrays<2> for PolygonCell {
+    /// `cell_offsets` (n+1,) and `cell_vertices` (m, 2), counter-clockwise.
+    fn cell_arrays(
+        py: Python<'_>,
+        cells: &[Self],
+        sites: &[[f64; 2]],
+        out: &Bound<'_, PyDict>,
+    ) -> PyResult<()> {
+        let mut offsets = vec![0usize];
+        let mut vertices: Vec<[f64; 2]> = Vec::new();
+        for (cell, s) in cells.iter().zip(sites) {
+            vertices.extend(cell.vertices().iter().map(|v| [v[0] + s[0], v[1] + s[1]]));
+            offsets.push(vertices.len());
+        }
+        out.set_item("cell_offsets", to_intp(py, &offsets)?)?;
+        out.set_item("cell_vertices", to_array2(py, &vertices)?)
+    }
+}
+
+impl CellArrays<3> for PolyhedronCell {
+    /// A closed outward triangle mesh per cell: `cell_vertex_offsets` (n+1,),
+    /// `cell_vertices` (m, 3), `cell_face_offsets` (n+1,), `cell_faces` (f, 3) local.
+    fn cell_arrays(
+        py: Python<'_>,
+        cells: &[Self],
+        sites: &[[f64; 3]],
+        out: &Bound<'_, PyDict>,
+    ) -> PyResult<()> {
         let (mut vertex_offsets, mut face_offsets) = (vec![0usize], vec![0usize]);
         let mut vertices: Vec<[f64; 3]> = Vec::new();
         let mut faces: Vec<[u32; 3]> = Vec::new();
-        for (cell, s) in cells.iter().zip(&points) {
+        for (cell, s) in cells.iter().zip(sites) {
             vertices.extend(
                 cell.vertices()
                     .iter()
@@ -111,9 +133,8 @@ pub fn voronoi_3d<'py>(
         out.set_item("cell_vertex_offsets", to_intp(py, &vertex_offsets)?)?;
         out.set_item("cell_vertices", to_array2(py, &vertices)?)?;
         out.set_item("cell_face_offsets", to_intp(py, &face_offsets)?)?;
-        out.set_item("cell_faces", to_intp2(py, &faces)?)?;
+        out.set_item("cell_faces", to_intp2(py, &faces)?)
     }
-    Ok(out)
 }
 
 /// The arrays every diagram carries, in any dimension.

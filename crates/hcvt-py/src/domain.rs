@@ -1,7 +1,6 @@
 //! Domains: a checked, indexed boundary held by Python.
 
-use hcvt_core::domain::{generalized_winding_number, Boundary, Polygon, Solid, WindingNumber};
-use hcvt_core::geometry::Euclid;
+use hcvt_core::{generalized_winding_number, Boundary, DomainKind, Polygon, Solid};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
@@ -19,15 +18,12 @@ fn winding_numbers<'py, const D: usize>(
     points: &[[f64; D]],
 ) -> Windings<'py>
 where
-    Euclid: WindingNumber<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let w: Vec<Option<i32>> = py.detach(|| {
         crate::threads::run(|| {
             use rayon::prelude::*;
-            points
-                .par_iter()
-                .map(|q| Euclid::winding_number(boundary, q))
-                .collect()
+            points.par_iter().map(|q| boundary.locate(q)).collect()
         })
     });
     let on = w.iter().map(Option::is_none).collect::<Vec<_>>();
@@ -35,149 +31,145 @@ where
     (PyArray1::from_vec(py, w), PyArray1::from_vec(py, on))
 }
 
-/// A polygonal domain: `vertices` (V, 2) float64 and `segments` (S, 2) uint32, outer rings
-/// counter-clockwise and holes clockwise (interior on the left of every segment).
-#[pyclass(frozen, module = "hcvt._core")]
-pub struct PolygonDomain(pub Polygon);
+/// A domain class held by Python: the methods every kind of boundary shares, and
+/// `$extra` (methods of that kind alone).
+macro_rules! domain_class {
+    (
+        $(#[$doc:meta])*
+        $name:ident($inner:ty, $d:literal, $simplices:ident, $measure:literal) { $($extra:tt)* }
+    ) => {
+        $(#[$doc])*
+        #[pyclass(frozen, module = "hcvt._core")]
+        pub struct $name(pub $inner);
 
-#[pymethods]
-impl PolygonDomain {
-    #[new]
-    fn new(
-        vertices: PyReadonlyArray2<'_, f64>,
-        segments: PyReadonlyArray2<'_, u32>,
-    ) -> PyResult<Self> {
-        let v = rows::<f64, 2>(&vertices, "vertices")?;
-        let s = rows::<u32, 2>(&segments, "segments")?;
-        Polygon::new(v, s).map(Self).map_err(to_py_err)
-    }
+        #[pymethods]
+        impl $name {
+            #[new]
+            fn new(
+                vertices: PyReadonlyArray2<'_, f64>,
+                $simplices: PyReadonlyArray2<'_, u32>,
+            ) -> PyResult<Self> {
+                let v = rows::<f64, $d>(&vertices, "vertices")?;
+                let s = rows::<u32, $d>(&$simplices, stringify!($simplices))?;
+                <$inner>::new(v, s).map(Self).map_err(to_py_err)
+            }
 
-    /// Area of the domain.
-    #[getter]
-    fn volume(&self) -> f64 {
-        self.0.volume()
-    }
+            #[doc = concat!($measure, " of the domain.")]
+            #[getter]
+            fn volume(&self) -> f64 {
+                self.0.volume()
+            }
 
-    /// First moment `∫ x dx` (2,) about the coordinate origin.
-    #[getter]
-    fn first_moment(&self) -> [f64; 2] {
-        self.0.first_moment()
-    }
+            #[doc = concat!("First moment `∫ x dx` (", $d, ",) about the coordinate origin.")]
+            #[getter]
+            fn first_moment(&self) -> [f64; $d] {
+                self.0.first_moment()
+            }
 
-    /// `(lo, hi)` corners of the bounding box.
-    #[getter]
-    fn bounds(&self) -> ([f64; 2], [f64; 2]) {
-        let b = self.0.bounds();
-        (b.lo, b.hi)
-    }
+            /// `(lo, hi)` corners of the bounding box.
+            #[getter]
+            fn bounds(&self) -> ([f64; $d], [f64; $d]) {
+                let b = self.0.bounds();
+                (b.lo, b.hi)
+            }
 
-    /// `vertices` (V, 2) as indexed.
-    #[getter]
-    fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-        to_array2(py, self.0.vertices())
-    }
+            #[doc = concat!("`vertices` (V, ", $d, ") as indexed.")]
+            #[getter]
+            fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+                to_array2(py, self.0.vertices())
+            }
 
-    /// `segments` (S, 2) as indexed, `np.intp`.
-    #[getter]
-    fn segments<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
-        to_intp2(py, self.0.simplices())
-    }
+            #[doc = concat!("`", stringify!($simplices), "` (S, ", $d, ") as indexed, `np.intp`.")]
+            #[getter]
+            fn $simplices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
+                to_intp2(py, self.0.simplices())
+            }
 
-    /// Winding number of each point (m,), exact; `on_boundary` marks points on a segment
-    /// (their winding number is reported as 0).
-    fn winding_numbers<'py>(
-        &self,
-        py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
-    ) -> PyResult<Windings<'py>> {
-        let p = rows::<f64, 2>(&points, "points")?;
-        Ok(winding_numbers(py, &self.0, &p))
+            /// Exact winding number of each point (m,); `on_boundary` marks points on the
+            /// boundary (their winding number is reported as 0).
+            fn winding_numbers<'py>(
+                &self,
+                py: Python<'py>,
+                points: PyReadonlyArray2<'py, f64>,
+            ) -> PyResult<Windings<'py>> {
+                let p = rows::<f64, $d>(&points, "points")?;
+                Ok(winding_numbers(py, &self.0, &p))
+            }
+
+            $($extra)*
+        }
+    };
+}
+
+domain_class! {
+    /// A polygonal domain: `vertices` (V, 2) float64 and `segments` (S, 2) uint32, outer
+    /// rings counter-clockwise and holes clockwise (interior on the left of every segment).
+    PolygonDomain(Polygon, 2, segments, "Area") {}
+}
+
+domain_class! {
+    /// A solid: `vertices` (V, 3) float64 and `faces` (F, 3) uint32, a closed triangle mesh
+    /// with every face counter-clockwise seen from outside (checked: every directed edge has
+    /// its reverse, positive volume).
+    SolidDomain(Solid, 3, faces, "Volume") {
+        /// Pairs of triangles sharing no vertex whose interiors cross: `(count, pairs)`, at
+        /// most `max` pairs `(s, t)`, `s < t`, in index order.
+        #[pyo3(signature = (max=10))]
+        fn crossing_triangles(&self, py: Python<'_>, max: usize) -> (usize, Vec<(u32, u32)>) {
+            py.detach(|| crate::threads::run(|| self.0.crossing_triangles(max)))
+        }
+
+        /// Generalised winding number of each point (m,): the solid angle of the surface
+        /// over 4π, robust to small holes and overlaps.
+        fn generalized_winding_numbers<'py>(
+            &self,
+            py: Python<'py>,
+            points: PyReadonlyArray2<'py, f64>,
+        ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+            let p = rows::<f64, 3>(&points, "points")?;
+            let w: Vec<f64> = py.detach(|| {
+                crate::threads::run(|| {
+                    use rayon::prelude::*;
+                    p.par_iter()
+                        .map(|q| generalized_winding_number(&self.0, q))
+                        .collect()
+                })
+            });
+            Ok(PyArray1::from_vec(py, w))
+        }
     }
 }
 
-/// A solid: `vertices` (V, 3) float64 and `faces` (F, 3) uint32, a closed triangle mesh
-/// with every face counter-clockwise seen from outside (checked: every directed edge has
-/// its reverse, positive volume).
-#[pyclass(frozen, module = "hcvt._core")]
-pub struct SolidDomain(pub Solid);
-
-#[pymethods]
-impl SolidDomain {
-    #[new]
-    fn new(
-        vertices: PyReadonlyArray2<'_, f64>,
-        faces: PyReadonlyArray2<'_, u32>,
-    ) -> PyResult<Self> {
-        let v = rows::<f64, 3>(&vertices, "vertices")?;
-        let f = rows::<u32, 3>(&faces, "faces")?;
-        Solid::new(v, f).map(Self).map_err(to_py_err)
-    }
-
-    /// Volume of the solid.
-    #[getter]
-    fn volume(&self) -> f64 {
-        self.0.volume()
-    }
-
-    /// First moment `∫ x dx` (3,) about the coordinate origin.
-    #[getter]
-    fn first_moment(&self) -> [f64; 3] {
-        self.0.first_moment()
-    }
-
-    /// `(lo, hi)` corners of the bounding box.
-    #[getter]
-    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        let b = self.0.bounds();
-        (b.lo, b.hi)
-    }
-
-    /// `vertices` (V, 3) as indexed.
-    #[getter]
-    fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-        to_array2(py, self.0.vertices())
-    }
-
-    /// `faces` (F, 3) as indexed, `np.intp`.
-    #[getter]
-    fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
-        to_intp2(py, self.0.simplices())
-    }
-
-    /// Exact winding number of each point (m,); `on_boundary` marks points on a triangle
-    /// (their winding number is reported as 0).
-    fn winding_numbers<'py>(
-        &self,
-        py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
-    ) -> PyResult<Windings<'py>> {
-        let p = rows::<f64, 3>(&points, "points")?;
-        Ok(winding_numbers(py, &self.0, &p))
-    }
-
-    /// Pairs of triangles sharing no vertex whose interiors cross: `(count, pairs)`, at
-    /// most `max` pairs `(s, t)`, `s < t`, in index order.
-    #[pyo3(signature = (max=10))]
-    fn crossing_triangles(&self, py: Python<'_>, max: usize) -> (usize, Vec<(u32, u32)>) {
-        py.detach(|| crate::threads::run(|| self.0.crossing_triangles(max)))
-    }
-
-    /// Generalised winding number of each point (m,): the solid angle of the surface over
-    /// 4π, robust to small holes and overlaps.
-    fn generalized_winding_numbers<'py>(
-        &self,
-        py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
-    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let p = rows::<f64, 3>(&points, "points")?;
-        let w: Vec<f64> = py.detach(|| {
-            crate::threads::run(|| {
-                use rayon::prelude::*;
-                p.par_iter()
-                    .map(|q| generalized_winding_number(&self.0, q))
-                    .collect()
-            })
-        });
-        Ok(PyArray1::from_vec(py, w))
-    }
+/// Either kind of domain, as the binding's functions take it: one Python function per job,
+/// dispatched by [`by_kind`] to the core's generic code in the domain's dimension (the
+/// only place where the 2D and 3D paths part).
+#[derive(FromPyObject)]
+pub enum AnyDomain<'py> {
+    /// A polygon with holes: dimension 2, [`hcvt_core::PolygonCell`]s.
+    Polygon(PyRef<'py, PolygonDomain>),
+    /// A solid: dimension 3, [`hcvt_core::PolyhedronCell`]s.
+    Solid(PyRef<'py, SolidDomain>),
 }
+
+/// `by_kind!(domain, f(args…))` calls `f::<D, Cell>(&boundary, args…)` and
+/// `by_kind!(domain, dim f(args…))` calls `f::<D>(&boundary, args…)` for the dimension
+/// `D`, convex cell type and boundary of `domain` (an [`AnyDomain`]).
+macro_rules! by_kind {
+    ($domain:expr, dim $f:ident($($arg:expr),* $(,)?)) => {
+        match &$domain {
+            $crate::domain::AnyDomain::Polygon(d) => $f::<2>(&d.0, $($arg),*),
+            $crate::domain::AnyDomain::Solid(d) => $f::<3>(&d.0, $($arg),*),
+        }
+    };
+    ($domain:expr, $f:ident($($arg:expr),* $(,)?)) => {
+        match &$domain {
+            $crate::domain::AnyDomain::Polygon(d) => {
+                $f::<2, hcvt_core::PolygonCell>(&d.0, $($arg),*)
+            }
+            $crate::domain::AnyDomain::Solid(d) => {
+                $f::<3, hcvt_core::PolyhedronCell>(&d.0, $($arg),*)
+            }
+        }
+    };
+}
+pub(crate) use by_kind;

@@ -1,17 +1,15 @@
 //! The conforming mesh of a diagram's cells as numpy arrays (`hcvt.polymesh.PolyMesh`).
 
-use hcvt_core::diagram::mesh::{
-    conforming_mesh_2d, conforming_mesh_3d, conforming_mesh_part_2d, conforming_mesh_part_3d,
-    MeshPart, PolyMesh,
+use hcvt_core::{
+    conforming_mesh, conforming_mesh_part, Boundary, CoreError, MeshDomain, MeshPart, Options,
+    PolyMesh,
 };
-use hcvt_core::diagram::Options;
-use hcvt_core::error::CoreError;
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::arrays::{increasing_rows, rows as site_rows, to_array2, to_intp};
-use crate::domain::{PolygonDomain, SolidDomain};
+use crate::domain::{by_kind, AnyDomain};
 use crate::errors::to_py_err;
 
 /// The mesh as a dict: `points` (p, D), `face_offsets` (f+1,), `face_vertices`, `owner`,
@@ -32,89 +30,82 @@ fn mesh_dict<'py, const D: usize>(
     Ok(out)
 }
 
-/// Conforming polygon mesh of the clipped diagram of `sites` (n, 2) in `domain` (see
-/// `hcvt.Diagram.mesh`).
+/// Conforming mesh of the clipped diagram of `sites` (n, d) in `domain`: polygons in a
+/// polygon, polyhedra in a solid (see `hcvt.Diagram.mesh`).
 #[pyfunction]
 #[pyo3(signature = (domain, sites, allow_outside=false))]
-pub fn mesh_2d<'py>(
+pub fn mesh<'py>(
     py: Python<'py>,
-    domain: &PolygonDomain,
+    domain: AnyDomain<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let points = site_rows::<f64, 2>(&sites, "sites")?;
-    let options = Options { allow_outside };
-    let mesh = py
-        .detach(|| crate::threads::run(|| conforming_mesh_2d(&domain.0, &points, options)))
-        .map_err(to_py_err)?;
-    mesh_dict(py, &mesh)
+    by_kind!(domain, dim mesh_in(py, &sites, Options { allow_outside }))
 }
 
-/// Conforming polyhedral mesh of the clipped diagram of `sites` (n, 3) in the solid
-/// `domain` (see `hcvt.Diagram.mesh`).
-#[pyfunction]
-#[pyo3(signature = (domain, sites, allow_outside=false))]
-pub fn mesh_3d<'py>(
-    py: Python<'py>,
-    domain: &SolidDomain,
-    sites: PyReadonlyArray2<'py, f64>,
-    allow_outside: bool,
-) -> PyResult<Bound<'py, PyDict>> {
-    let points = site_rows::<f64, 3>(&sites, "sites")?;
-    let options = Options { allow_outside };
-    let mesh = py
-        .detach(|| crate::threads::run(|| conforming_mesh_3d(&domain.0, &points, options)))
-        .map_err(to_py_err)?;
-    mesh_dict(py, &mesh)
-}
-
-/// The faces of the cells `sites[own]` (n, 2) in the conforming mesh of a problem of
-/// `total_sites` sites, of which `sites` are those of rows `rows` (n,), increasing: a
-/// mesh dict whose `owner` and `neighbour` index `sites` (every face owned by an own
-/// cell; see `hcvt.partition_mesh`), plus `computed` (c,) the cells computed and `reach2`
-/// (c,) their reach squared. Errors name problem rows.
+/// The faces of the cells `sites[own]` (n, d) in the conforming mesh of a problem of
+/// `total_sites` sites, of which `sites` are those of rows `rows` (n,), increasing: a mesh
+/// dict whose `owner` and `neighbour` index `sites` (every face owned by an own cell; see
+/// `hcvt.distributed`), plus `computed` (c,) the cells computed and `reach2` (c,) their
+/// reach squared. Errors name problem rows.
 #[pyfunction]
 #[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
-pub fn mesh_part_2d<'py>(
+pub fn mesh_part<'py>(
     py: Python<'py>,
-    domain: &PolygonDomain,
+    domain: AnyDomain<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     rows: PyReadonlyArray1<'py, i64>,
     own: PyReadonlyArray1<'py, u32>,
     total_sites: usize,
     allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let points = site_rows::<f64, 2>(&sites, "sites")?;
-    let global = increasing_rows(&rows, points.len())?;
-    let own = own.as_slice()?.to_vec();
-    let options = Options { allow_outside };
-    let part = py.detach(|| {
-        crate::threads::run(|| {
-            conforming_mesh_part_2d(&domain.0, &points, &own, total_sites, options)
-        })
-    });
-    part_dict(py, named_by_rows(part, &global)?)
+    let part = Part {
+        rows: &rows,
+        own: own.as_slice()?,
+        total_sites,
+        options: Options { allow_outside },
+    };
+    by_kind!(domain, dim mesh_part_in(py, &sites, part))
 }
 
-/// [`mesh_part_2d`] for sites (n, 3) in a solid.
-#[pyfunction]
-#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false))]
-pub fn mesh_part_3d<'py>(
+fn mesh_in<'py, const D: usize>(
+    domain: &Boundary<D>,
     py: Python<'py>,
-    domain: &SolidDomain,
-    sites: PyReadonlyArray2<'py, f64>,
-    rows: PyReadonlyArray1<'py, i64>,
-    own: PyReadonlyArray1<'py, u32>,
+    sites: &PyReadonlyArray2<'py, f64>,
+    options: Options,
+) -> PyResult<Bound<'py, PyDict>>
+where
+    Boundary<D>: MeshDomain<D>,
+{
+    let points = site_rows::<f64, D>(sites, "sites")?;
+    let mesh = py
+        .detach(|| crate::threads::run(|| conforming_mesh(domain, &points, options)))
+        .map_err(to_py_err)?;
+    mesh_dict(py, &mesh)
+}
+
+/// Which cells of which problem a mesh part is.
+struct Part<'a, 'py> {
+    rows: &'a PyReadonlyArray1<'py, i64>,
+    own: &'a [u32],
     total_sites: usize,
-    allow_outside: bool,
-) -> PyResult<Bound<'py, PyDict>> {
-    let points = site_rows::<f64, 3>(&sites, "sites")?;
-    let global = increasing_rows(&rows, points.len())?;
-    let own = own.as_slice()?.to_vec();
-    let options = Options { allow_outside };
+    options: Options,
+}
+
+fn mesh_part_in<'py, const D: usize>(
+    domain: &Boundary<D>,
+    py: Python<'py>,
+    sites: &PyReadonlyArray2<'py, f64>,
+    job: Part<'_, 'py>,
+) -> PyResult<Bound<'py, PyDict>>
+where
+    Boundary<D>: MeshDomain<D>,
+{
+    let points = site_rows::<f64, D>(sites, "sites")?;
+    let global = increasing_rows(job.rows, points.len())?;
     let part = py.detach(|| {
         crate::threads::run(|| {
-            conforming_mesh_part_3d(&domain.0, &points, &own, total_sites, options)
+            conforming_mesh_part(domain, &points, job.own, job.total_sites, job.options)
         })
     });
     part_dict(py, named_by_rows(part, &global)?)

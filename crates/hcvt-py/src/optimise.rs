@@ -1,4 +1,4 @@
-//! CVTs as numpy arrays: `cvt_2d` and `cvt_3d` run the whole iteration in the core with
+//! CVTs as numpy arrays: `cvt` runs the whole iteration in the core with
 //! the GIL released; the calling thread checks for Ctrl-C meanwhile, and the GIL is taken
 //! once per iteration only when there is a callback to call.
 //!
@@ -12,12 +12,11 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use hcvt_core::diagram::{ConvexCell, PolygonCell, PolyhedronCell};
-use hcvt_core::domain::{Boundary, WindingNumber};
-use hcvt_core::geometry::{Euclid, Space};
-use hcvt_core::moments::Moments;
-use hcvt_core::optimise::lbfgs::{self, LineSearch};
-use hcvt_core::optimise::{cvt, lloyd, Frame, Named, Outcome, Record, Settings};
+use hcvt_core::lbfgs::{self, LineSearch};
+use hcvt_core::{
+    cvt as core_cvt, lloyd, Boundary, ConvexCell, DomainKind, Euclid, Frame, Moments, Named,
+    Outcome, Record, Settings, Space,
+};
 use numpy::{
     PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
 };
@@ -28,115 +27,91 @@ use pyo3::types::PyDict;
 use crate::arrays::{rows, to_array2};
 use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
-use crate::domain::{PolygonDomain, SolidDomain};
+use crate::domain::{by_kind, AnyDomain};
 use crate::errors::to_py_err;
 
-/// The `_2d` and `_3d` functions of this module, one pair per line of the invocation:
-/// each a thin wrapper of a generic function below.
-macro_rules! by_dimension {
-    ($d:literal, $domain:ty, $cell:ty, $cvt:ident, $fields:ident, $lloyd:ident, $direction:ident) => {
-        /// CVT of `sites` (n, d) in `domain` (see `hcvt.cvt`): a dict with `sites`,
-        /// `diagram` (the arrays of `voronoi_2d`/`_3d`), `history` (a dict of per-iterate
-        /// arrays), `stop_reason`. `callback(record)`, if given, gets a dict per iterate; a
-        /// true return value stops.
-        #[pyfunction]
-        #[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None))]
-        #[allow(clippy::too_many_arguments)]
-        pub fn $cvt<'py>(
-            py: Python<'py>,
-            domain: &$domain,
-            sites: PyReadonlyArray2<'py, f64>,
-            method: &str,
-            rule: &str,
-            tol: Option<f64>,
-            max_iter: i64,
-            memory: i64,
-            callback: Option<Py<PyAny>>,
-            polynomial: Option<Coefficients>,
-            function: Option<Py<PyAny>>,
-            quadrature_degree: usize,
-            frame: Option<(Vec<f64>, f64)>,
-        ) -> PyResult<Bound<'py, PyDict>> {
-            let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
-            let frame = frame.map_or(Ok(Frame::default()), to_frame)?;
-            let points = rows::<f64, $d>(&sites, "sites")?;
-            let given = Given::new(polynomial, function, quadrature_degree)?;
-            run::<$d, $cell>(py, &domain.0, points, &named, frame, callback, &given)
-        }
-
-        /// What a part's next step needs from its cells (`hcvt.partition.absorb`): the
-        /// shift to the centroid (k, d) (0 for an empty cell), whether each site is pinned
-        /// (k,), and the preconditioner `1/(2 m_i)` (k,), each by the core's Lloyd and
-        /// L-BFGS.
-        #[pyfunction]
-        pub fn $fields<'py>(
-            py: Python<'py>,
-            domain: &$domain,
-            sites: PyReadonlyArray2<'py, f64>,
-            mass: PyReadonlyArray1<'py, f64>,
-            first: PyReadonlyArray2<'py, f64>,
-            boundary_measure: PyReadonlyArray1<'py, f64>,
-        ) -> PyResult<StepFields<'py>> {
-            step_fields::<$d>(py, &domain.0, &sites, &mass, &first, &boundary_measure)
-        }
-
-        /// The core's Lloyd step of `sites` (k, d) by `shifts` (k, d), held inside.
-        #[pyfunction]
-        pub fn $lloyd<'py>(
-            py: Python<'py>,
-            domain: &$domain,
-            sites: PyReadonlyArray2<'py, f64>,
-            shifts: PyReadonlyArray2<'py, f64>,
-        ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-            lloyd_step::<$d>(py, &domain.0, &sites, &shifts)
-        }
-
-        /// One part's rows (k, d) of the L-BFGS direction from the coefficients of
-        /// `lbfgs_coefficients`, held inside: `gradient` (k, d), pairs `s` and `y` (m, k, d)
-        /// oldest first, `preconditioner` (k,).
-        #[pyfunction]
-        #[allow(clippy::too_many_arguments)]
-        pub fn $direction<'py>(
-            py: Python<'py>,
-            domain: &$domain,
-            sites: PyReadonlyArray2<'py, f64>,
-            gradient: PyReadonlyArray2<'py, f64>,
-            s: PyReadonlyArray3<'py, f64>,
-            y: PyReadonlyArray3<'py, f64>,
-            preconditioner: PyReadonlyArray1<'py, f64>,
-            c: PyReadonlyArray1<'py, f64>,
-            e: PyReadonlyArray1<'py, f64>,
-        ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-            let part = PartPairs {
-                sites: &sites,
-                gradient: &gradient,
-                s: &s,
-                y: &y,
-                preconditioner: &preconditioner,
-            };
-            lbfgs_direction::<$d>(py, &domain.0, part, &c, &e)
-        }
+/// CVT of `sites` (n, d) in `domain` (see `hcvt.cvt`): a dict with `sites`, `diagram` (the
+/// arrays of `voronoi`), `history` (a dict of per-iterate arrays), `stop_reason`.
+/// `callback(record)`, if given, gets a dict per iterate; a true return value stops.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn cvt<'py>(
+    py: Python<'py>,
+    domain: AnyDomain<'py>,
+    sites: PyReadonlyArray2<'py, f64>,
+    method: &str,
+    rule: &str,
+    tol: Option<f64>,
+    max_iter: i64,
+    memory: i64,
+    callback: Option<Py<PyAny>>,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
+    frame: Option<(Vec<f64>, f64)>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
+    let job = Job {
+        named: &named,
+        frame: frame.map_or(Ok(Frame::default()), to_frame)?,
+        callback,
+        given: &Given::new(polynomial, function, quadrature_degree)?,
     };
+    by_kind!(domain, run(py, &sites, job))
 }
 
-by_dimension!(
-    2,
-    PolygonDomain,
-    PolygonCell,
-    cvt_2d,
-    step_fields_2d,
-    lloyd_step_2d,
-    lbfgs_direction_2d
-);
-by_dimension!(
-    3,
-    SolidDomain,
-    PolyhedronCell,
-    cvt_3d,
-    step_fields_3d,
-    lloyd_step_3d,
-    lbfgs_direction_3d
-);
+/// What a part's next step needs from its cells (`hcvt.distributed.partition`): the shift
+/// to the centroid (k, d) (0 for an empty cell), whether each site is pinned (k,), and the
+/// preconditioner `1/(2 m_i)` (k,), each by the core's Lloyd and L-BFGS.
+#[pyfunction]
+pub fn step_fields<'py>(
+    py: Python<'py>,
+    domain: AnyDomain<'py>,
+    sites: PyReadonlyArray2<'py, f64>,
+    mass: PyReadonlyArray1<'py, f64>,
+    first: PyReadonlyArray2<'py, f64>,
+    boundary_measure: PyReadonlyArray1<'py, f64>,
+) -> PyResult<StepFields<'py>> {
+    by_kind!(domain, dim step_fields_in(py, &sites, &mass, &first, &boundary_measure))
+}
+
+/// The core's Lloyd step of `sites` (k, d) by `shifts` (k, d), held inside.
+#[pyfunction]
+pub fn lloyd_step<'py>(
+    py: Python<'py>,
+    domain: AnyDomain<'py>,
+    sites: PyReadonlyArray2<'py, f64>,
+    shifts: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    by_kind!(domain, dim lloyd_step_in(py, &sites, &shifts))
+}
+
+/// One part's rows (k, d) of the L-BFGS direction from the coefficients of
+/// `lbfgs_coefficients`, held inside: `gradient` (k, d), pairs `s` and `y` (m, k, d) oldest
+/// first, `preconditioner` (k,).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+pub fn lbfgs_direction<'py>(
+    py: Python<'py>,
+    domain: AnyDomain<'py>,
+    sites: PyReadonlyArray2<'py, f64>,
+    gradient: PyReadonlyArray2<'py, f64>,
+    s: PyReadonlyArray3<'py, f64>,
+    y: PyReadonlyArray3<'py, f64>,
+    preconditioner: PyReadonlyArray1<'py, f64>,
+    c: PyReadonlyArray1<'py, f64>,
+    e: PyReadonlyArray1<'py, f64>,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let part = PartPairs {
+        sites: &sites,
+        gradient: &gradient,
+        s: &s,
+        y: &y,
+        preconditioner: &preconditioner,
+    };
+    by_kind!(domain, dim lbfgs_direction_in(py, part, &c, &e))
+}
 
 /// The settings of a CVT, checked by the core once for every driver (`hcvt.cvt`, the
 /// partitioned run): the tolerance to use, the rule's default when `tol` is None.
@@ -201,16 +176,17 @@ fn values(array: &PyReadonlyArray1<'_, f64>, n: usize, what: &str) -> PyResult<V
     Ok(out)
 }
 
-fn step_fields<'py, const D: usize>(
-    py: Python<'py>,
+fn step_fields_in<'py, const D: usize>(
     boundary: &Boundary<D>,
+    py: Python<'py>,
     sites: &PyReadonlyArray2<'py, f64>,
     mass: &PyReadonlyArray1<'py, f64>,
     first: &PyReadonlyArray2<'py, f64>,
     boundary_measure: &PyReadonlyArray1<'py, f64>,
 ) -> PyResult<StepFields<'py>>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(sites, "sites")?;
     let n = points.len();
@@ -237,14 +213,15 @@ where
     ))
 }
 
-fn lloyd_step<'py, const D: usize>(
-    py: Python<'py>,
+fn lloyd_step_in<'py, const D: usize>(
     boundary: &Boundary<D>,
+    py: Python<'py>,
     sites: &PyReadonlyArray2<'py, f64>,
     shifts: &PyReadonlyArray2<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(sites, "sites")?;
     let shifts = rows::<f64, D>(shifts, "shifts")?;
@@ -287,15 +264,16 @@ fn pairs<const D: usize>(
         .collect())
 }
 
-fn lbfgs_direction<'py, const D: usize>(
-    py: Python<'py>,
+fn lbfgs_direction_in<'py, const D: usize>(
     boundary: &Boundary<D>,
+    py: Python<'py>,
     part: PartPairs<'_, 'py>,
     c: &PyReadonlyArray1<'py, f64>,
     e: &PyReadonlyArray1<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(part.sites, "sites")?;
     let k = points.len();
@@ -339,6 +317,14 @@ fn to_frame((centre, scale): (Vec<f64>, f64)) -> PyResult<Frame> {
     Ok(out)
 }
 
+/// What a CVT is asked besides its domain and sites.
+struct Job<'a> {
+    named: &'a Named,
+    frame: Frame,
+    callback: Option<Py<PyAny>>,
+    given: &'a Given,
+}
+
 /// How often the waiting thread checks for Ctrl-C while the core works.
 const SIGNAL_POLL: Duration = Duration::from_millis(50);
 
@@ -348,17 +334,22 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// a pool worker would never see Ctrl-C. A signal (or an error in the callback) stops the
 /// loop at the next iterate and is raised here.
 fn run<'py, const D: usize, C: ConvexCell<D>>(
-    py: Python<'py>,
     boundary: &Boundary<D>,
-    sites: Vec<[f64; D]>,
-    named: &Named,
-    frame: Frame,
-    callback: Option<Py<PyAny>>,
-    given: &Given,
+    py: Python<'py>,
+    sites: &PyReadonlyArray2<'py, f64>,
+    job: Job<'_>,
 ) -> PyResult<Bound<'py, PyDict>>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
+    let Job {
+        named,
+        frame,
+        callback,
+        given,
+    } = job;
+    let sites = rows::<f64, D>(sites, "sites")?;
     let density = given.density::<D>()?;
     let settings = Settings {
         frame,
@@ -392,8 +383,9 @@ where
             let (done, finished) = mpsc::channel();
             let observer = &mut observer;
             let worker = scope.spawn(move || {
-                let outcome =
-                    crate::threads::run(|| cvt::<D, C>(boundary, sites, settings, observer));
+                let outcome = crate::threads::run(|| {
+                    core_cvt::<D, C, _>(boundary, sites, settings, observer)
+                });
                 // The receiver lives until the worker is joined; a send cannot fail.
                 let _ = done.send(outcome);
             });

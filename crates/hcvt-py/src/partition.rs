@@ -1,10 +1,8 @@
 //! One partition's cells among its own sites and a halo (`hcvt.distributed`).
 
-use hcvt_core::diagram::{
-    clipped_cells_weighted, ConvexCell, Options, PartCells, PolygonCell, PolyhedronCell,
+use hcvt_core::{
+    clipped_cells, Boundary, ConvexCell, DomainKind, Euclid, Options, PartCells, Request, Space,
 };
-use hcvt_core::domain::{Boundary, WindingNumber};
-use hcvt_core::geometry::{Euclid, Space};
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -12,45 +10,36 @@ use pyo3::types::PyDict;
 use crate::arrays::{increasing_rows, rows, to_array2, to_intp};
 use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
-use crate::domain::{PolygonDomain, SolidDomain};
+use crate::domain::{by_kind, AnyDomain};
 
-/// `partition_cells_2d` and `_3d`, thin wrappers of [`cells_dict`].
-macro_rules! partition_cells {
-    ($name:ident, $d:literal, $domain:ty, $cell:ty) => {
-        /// Cells of `sites[own]` among `sites` (n, d), a part of a problem of `total_sites`
-        /// sites whose row numbers are `rows` (n,), increasing: a diagram dict with one row
-        /// per own site and neighbours in the problem's rows, plus `first` (k, d), each
-        /// cell's first moment about its site (ρ-weighted with a density, as `mass`,
-        /// `centroid` and `energy_terms`), and `reach2` (k,) (see `hcvt.distributed`). The
-        /// density as for `voronoi_2d`.
-        #[pyfunction]
-        #[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
-        #[allow(clippy::too_many_arguments)]
-        pub fn $name<'py>(
-            py: Python<'py>,
-            domain: &$domain,
-            sites: PyReadonlyArray2<'py, f64>,
-            rows: PyReadonlyArray1<'py, i64>,
-            own: PyReadonlyArray1<'py, u32>,
-            total_sites: usize,
-            allow_outside: bool,
-            polynomial: Option<Coefficients>,
-            function: Option<Py<PyAny>>,
-            quadrature_degree: usize,
-        ) -> PyResult<Bound<'py, PyDict>> {
-            let given = Given::new(polynomial, function, quadrature_degree)?;
-            let job = Part {
-                total_sites,
-                allow_outside,
-                given: &given,
-            };
-            cells_dict::<$d, $cell>(py, &domain.0, sites, rows, own, job)
-        }
+/// Cells of `sites[own]` among `sites` (n, d), a part of a problem of `total_sites` sites
+/// whose row numbers are `rows` (n,), increasing: a diagram dict with one row per own site
+/// and neighbours in the problem's rows, plus `first` (k, d), each cell's first moment
+/// about its site (ρ-weighted with a density, as `mass`, `centroid` and `energy_terms`),
+/// and `reach2` (k,) (see `hcvt.distributed`). The density as for `voronoi`.
+#[pyfunction]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
+#[allow(clippy::too_many_arguments)]
+pub fn partition_cells<'py>(
+    py: Python<'py>,
+    domain: AnyDomain<'py>,
+    sites: PyReadonlyArray2<'py, f64>,
+    rows: PyReadonlyArray1<'py, i64>,
+    own: PyReadonlyArray1<'py, u32>,
+    total_sites: usize,
+    allow_outside: bool,
+    polynomial: Option<Coefficients>,
+    function: Option<Py<PyAny>>,
+    quadrature_degree: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let given = Given::new(polynomial, function, quadrature_degree)?;
+    let job = Part {
+        total_sites,
+        allow_outside,
+        given: &given,
     };
+    by_kind!(domain, cells_dict(py, sites, rows, own, job))
 }
-
-partition_cells!(partition_cells_2d, 2, PolygonDomain, PolygonCell);
-partition_cells!(partition_cells_3d, 3, SolidDomain, PolyhedronCell);
 
 /// What a part's computation is told besides its sites.
 struct Part<'a> {
@@ -60,35 +49,33 @@ struct Part<'a> {
 }
 
 fn cells_dict<'py, const D: usize, C: ConvexCell<D>>(
-    py: Python<'py>,
     boundary: &Boundary<D>,
+    py: Python<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     rows_in: PyReadonlyArray1<'py, i64>,
     own: PyReadonlyArray1<'py, u32>,
     job: Part<'_>,
 ) -> PyResult<Bound<'py, PyDict>>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
+    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(&sites, "sites")?;
     let global = increasing_rows(&rows_in, points.len())?;
     let own: Vec<u32> = own.as_slice()?.to_vec();
-    let options = Options {
-        allow_outside: job.allow_outside,
-    };
     let density = job.given.density::<D>()?;
+    let request = Request {
+        options: Options {
+            allow_outside: job.allow_outside,
+        },
+        density: density.as_ref(),
+        ..Request::default()
+    };
     let total_sites = job.total_sites;
     let part: PartCells<D> = py
         .detach(|| {
             crate::threads::run(|| {
-                clipped_cells_weighted::<D, C>(
-                    boundary,
-                    &points,
-                    &own,
-                    total_sites,
-                    options,
-                    density.as_ref(),
-                )
+                clipped_cells::<D, C, _>(boundary, &points, &own, total_sites, &request)
             })
         })
         .map_err(|e| {

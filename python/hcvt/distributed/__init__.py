@@ -22,13 +22,13 @@ relative) and do not depend on the number of workers.
 client sees only scalars and the small Gram matrices of the pairs:
 
 - Lloyd moves each site to its centroid by the core's Lloyd step and guards (called per
-  part: ``step_fields_2d``, ``lloyd_step_2d``), so a partitioned Lloyd run is bitwise the
+  part: ``step_fields``, ``lloyd_step``), so a partitioned Lloyd run is bitwise the
   single-process ``hcvt.cvt(..., method="lloyd")`` run, site by site.
 - L-BFGS runs the core's two-loop recursion on the client in coefficient space
   (vector-free L-BFGS, Chen et al. 2014; ``_core.lbfgs_coefficients``): one reduction of
   the partial Gram matrices of ``[s_k, y_k, g]`` (plain and preconditioned by
   ``1/(2 m_i)``) per iteration, then each part forms its direction with the core
-  (``lbfgs_direction_2d``/``_3d``, held inside as the core's). The preconditioner, its
+  (``lbfgs_direction``, held inside as the core's). The preconditioner, its
   Oren–Luenberger scaling, the curvature test and the acceptance of a step are the core's;
   the line search is a backtracking search from the unit step (Armijo, or Hager and
   Zhang's approximate Wolfe near round-off: ``LineSearch::accepts``), falling back to a

@@ -10,12 +10,13 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt import _core
+from hcvt.core_results import DiagramArrays
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
 from hcvt.distributed import partition as pt
@@ -264,7 +265,7 @@ class PartitionedDiagram:
         return Diagram(
             domain,
             sites,
-            arrays,
+            cast(DiagramArrays, arrays),  # the parts' rows of every DiagramArrays field
             self._cluster.density,
             allow_outside=allow_outside,
             frame=Frame.identity(d),  # the parts' arrays are in L already
@@ -345,6 +346,8 @@ class _Iterate:
     point_parts: list[Any] | None
     point_cells: list[Any] | None
     rounds: Rounds
+    #: Cells left empty (a partitioned run does not reseed them: it stops).
+    empty: int = 0
 
 
 class _Cvt:
@@ -394,7 +397,6 @@ class _Cvt:
             "evaluations": self.evaluations,
             "step": step,
             "migrated": 0,
-            "_empty": int(sums["empty"]),
         }
 
     def rebalance(self, parts: list[Any]) -> list[Any]:
@@ -434,7 +436,8 @@ class _Cvt:
             parts = [c.submit(pt.clear_pairs, p) for p in parts]
         moved = self.rebalance(self.lloyd(parts))
         new_parts, sums, cells, rounds = self.evaluate(moved)
-        return _Iterate(new_parts, self.record(sums, "lloyd"), new_parts, cells, rounds)
+        record = self.record(sums, "lloyd")
+        return _Iterate(new_parts, record, new_parts, cells, rounds, int(sums["empty"]))
 
     def lbfgs(self, it: _Iterate) -> _Iterate | None:
         c = self.cluster
@@ -476,7 +479,8 @@ class _Cvt:
                 if not _core.positive_curvature(pair["sy"], pair["ss"], pair["yy"]):
                     new_parts = [c.submit(pt.drop_newest_pair, p) for p in new_parts]
                 record = self.record(sums, "lbfgs")
-                return _Iterate(self.rebalance(new_parts), record, trial_parts, cells, rounds)
+                moved = self.rebalance(new_parts)
+                return _Iterate(moved, record, trial_parts, cells, rounds, int(sums["empty"]))
             t *= 0.5
         return None
 
@@ -634,7 +638,8 @@ def partitioned_cvt(
         # The first parts are scattered from the sites held here: after a loss, again.
         parts = client.scatter(pt.make_parts(sites, split), hash=False)
         new_parts, sums, cells, rounds = run.evaluate(parts)
-        first = _Iterate(new_parts, run.record(sums, "start"), new_parts, cells, rounds)
+        record = run.record(sums, "start")
+        first = _Iterate(new_parts, record, new_parts, cells, rounds, int(sums["empty"]))
         return first, run.save(first, 0)
 
     def step(current: _Iterate) -> tuple[_Iterate, list[str] | None]:
@@ -646,13 +651,14 @@ def partitioned_cvt(
     def reload(current: _Iterate) -> _Iterate | None:
         if saved is None:
             return None
-        return _Iterate(run.load(saved), current.record, None, None, current.rounds)
+        parts = run.load(saved)
+        return _Iterate(parts, current.record, None, None, current.rounds, current.empty)
 
     try:
         it, saved = restarts.run(start, points, lambda sites: sites)
         history = [it.record]
         while True:
-            if observe is not None and observe(_info(it.record)):
+            if observe is not None and observe(dict(it.record)):
                 stop = "interrupted"
                 break
             if it.record[field_name] < tol:
@@ -661,9 +667,9 @@ def partitioned_cvt(
             if len(history) > max_iter:
                 stop = "max_iter"
                 break
-            if it.record["_empty"]:
+            if it.empty:
                 raise InvalidSitesError(
-                    f"{it.record['_empty']} empty cells: a partitioned CVT does not reseed"
+                    f"{it.empty} empty cells: a partitioned CVT does not reseed"
                 )
             it, saved = restarts.run(step, it, reload)
             history.append(it.record)
@@ -677,13 +683,8 @@ def partitioned_cvt(
             bar.close()
         if temporary is not None:
             shutil.rmtree(temporary, ignore_errors=True)
-    fields = [k for k in history[0] if not k.startswith("_")]
-    out = {k: np.asarray([r[k] for r in history]) for k in fields}
+    out = {k: np.asarray([r[k] for r in history]) for k in history[0]}
     return PartitionedCVTResult(diagram, out, rule, float(tol), stop, restarts.count)
-
-
-def _info(record: dict[str, Any]) -> dict[str, Any]:
-    return {k: v for k, v in record.items() if not k.startswith("_")}
 
 
 __all__ = [

@@ -319,11 +319,10 @@ def part_cells(
     rows, sites = np.ascontiguousarray(rows[order]), np.ascontiguousarray(sites[order])
     own = np.searchsorted(rows, part.rows)
     todo = np.arange(len(part.rows)) if previous is None else np.flatnonzero(~previous.certified)
-    compute = getattr(_core, f"partition_cells_{domain.dim}d")
     # The core works in the domain's frame; a part's cells are kept in L.
     frame = domain.frame
     with frame.input_errors():
-        out = compute(
+        out = _core.partition_cells(
             domain._core,
             frame.to_core(sites),
             rows,
@@ -332,20 +331,22 @@ def part_cells(
             allow_outside=allow_outside,
             **core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree),
         )
-    out = {key: frame.to_input(key, value) for key, value in out.items()}
-    reach = np.sqrt(out.pop("reach2"))
     # Kept once: the energy is summed by the client, the gradient is -2 first.
-    out.pop("energy", None)
-    out.pop("gradient", None)
+    cells = {
+        key: frame.to_input(key, value)
+        for key, value in out.items()
+        if key not in ("reach2", "energy", "gradient")
+    }
+    reach = np.sqrt(frame.to_input("reach2", out["reach2"]))
     complete = len(rows) == total_sites
     certified = np.full(len(todo), True) if complete else reach < COVER_FRACTION * cover
     halo = len(rows) - len(part.rows)
     if previous is None:
-        return PartCells(out, reach, certified, halo, len(todo), part.sites)
+        return PartCells(cells, reach, certified, halo, len(todo), part.sites)
     # In place: the earlier round is superseded, and a part's cells are held once (twice
     # for all parts at a time was the peak of a 20M-site run). Running this again on the
     # updated object finds nothing to do, so a retried task gives the same cells.
-    previous.arrays = _replace_rows(previous.arrays, todo, out)
+    previous.arrays = _replace_rows(previous.arrays, todo, cells)
     previous.reach[todo] = reach
     previous.certified[todo] = certified
     previous.halo, previous.computed = halo, len(todo)
@@ -412,7 +413,7 @@ def _arg(array: NDArray[Any]) -> NDArray[np.float64]:
 def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str, float]]:
     """``part`` with what the next step needs from its cells, and its partial measures.
 
-    Fields set, by the core as in one process (``step_fields_2d``/``_3d``): ``gradient``
+    Fields set, by the core as in one process (``_core.step_fields``): ``gradient``
     (k, d), ``precond`` (k,) = ``1/(2 m_i)``, ``shift`` (k, d) the move to the centroid
     (0 for an empty cell); the pinned sites are left out of the measures. Partials (summed
     by the client in part order): ``energy``, ``sum_G``, ``cells`` (non-empty), ``sum_r2``,
@@ -424,10 +425,9 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     volume, mass, first = a["volume"], a["mass"], a["first"]
     gradient = gradient_of(cells)
     d = domain.dim
-    fields_of = getattr(_core, f"step_fields_{d}d")
     # The core's domain is in its frame: positions and quantities go in and come back.
     frame = domain.frame
-    shift, pinned, precond = fields_of(
+    shift, pinned, precond = _core.step_fields(
         domain._core,
         _arg(frame.to_core(part.sites)),
         _arg(frame.quantity_to_core("mass", mass)),
@@ -460,11 +460,10 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
 
 def lloyd_part(domain: Domain, part: Part) -> Part:
     """Sites moved to their centroids, held inside: the core's Lloyd step (``lloyd_step``)."""
-    step = getattr(_core, f"lloyd_step_{domain.dim}d")
     frame = domain.frame
     shift = frame.quantity_to_core("shift", part.fields["shift"])
     sites = frame.to_input(
-        "sites", step(domain._core, _arg(frame.to_core(part.sites)), _arg(shift))
+        "sites", _core.lloyd_step(domain._core, _arg(frame.to_core(part.sites)), _arg(shift))
     )
     fields = {k: v for k, v in part.fields.items() if k in ("s", "y")}
     return Part(part.index, part.rows, sites, fields)
@@ -513,14 +512,13 @@ def lbfgs_direction(
 
     ``v = [y_0..y_{m-1}, g]``, ``P = diag(1/(2 m_i))``, the coefficients from the core's
     two-loop recursion (``lbfgs_coefficients``); the core forms this part's rows
-    (``lbfgs_direction_2d``/``_3d``). Returns the part and its partial slope
+    (``_core.lbfgs_direction``). Returns the part and its partial slope
     ``g · direction``.
     """
     g = part.fields["gradient"]
     empty = np.zeros((0, *g.shape))
-    direction_of = getattr(_core, f"lbfgs_direction_{domain.dim}d")
     frame = domain.frame  # P'v' = Pv / s and s' = s / s: the same coefficients serve
-    direction = direction_of(
+    direction = _core.lbfgs_direction(
         domain._core,
         _arg(frame.to_core(part.sites)),
         _arg(frame.quantity_to_core("gradient", g)),

@@ -4,7 +4,7 @@ Each part's piece is made and written on the worker that holds the part; the cli
 moves halo sites between workers and writes the index, so no process ever holds all
 cells (:meth:`hcvt.distributed.PartitionedDiagram.write_cells`).
 
-**A piece is the whole mesh's.** The core's ``mesh_part_2d/3d`` (``conforming_mesh_part``
+**A piece is the whole mesh's.** The core's ``mesh_part`` (``conforming_mesh_part``
 in ``hcvt-core/src/diagram/mesh/mod.rs``) makes the faces of a part's own cells among its
 sites and a halo, as :meth:`hcvt.Diagram.mesh` of the whole problem makes them: a vertex
 takes its name and position from the first cell in row order that has it, so the core also
@@ -101,11 +101,10 @@ def piece_mesh(
     rows, first = np.unique(rows, return_index=True)
     sites = np.ascontiguousarray(sites[first])
     own = np.searchsorted(rows, part.rows)
-    compute = getattr(_core, f"mesh_part_{domain.dim}d")
     # The core works in the domain's frame; the piece is kept in L.
     frame = domain.frame
     with frame.input_errors():
-        out = compute(
+        out = _core.mesh_part(
             domain._core,
             frame.to_core(sites),
             rows.astype(np.int64),
@@ -113,9 +112,9 @@ def piece_mesh(
             int(total_sites),
             allow_outside=allow_outside,
         )
-    out = {key: frame.to_input(key, value) for key, value in out.items()}
-    computed = out["computed"]
-    reach = np.sqrt(out["reach2"])
+    mapped: dict[str, Any] = {key: frame.to_input(key, value) for key, value in out.items()}
+    computed = mapped["computed"]
+    reach = np.sqrt(mapped["reach2"])
     halo = len(rows) - len(part.rows)
     covered = _covered(sites[computed], rows[computed], reach, lo, hi, ball_rows, ball_radii)
     if len(rows) < total_sites and not covered.all():
@@ -124,15 +123,15 @@ def piece_mesh(
         return None, PieceStatus(None, balls, len(computed), halo)
     local = np.full(len(rows), -1, dtype=np.intp)
     local[own] = np.arange(len(own))
-    owner, neighbour = out["owner"], out["neighbour"]
+    owner, neighbour = mapped["owner"], mapped["neighbour"]
     across = np.where(neighbour >= 0, rows[neighbour], -1).astype(np.int64)
     mesh = PolyMesh(
-        points=out["points"],
-        face_offsets=out["face_offsets"],
-        face_vertices=out["face_vertices"],
+        points=mapped["points"],
+        face_offsets=mapped["face_offsets"],
+        face_vertices=mapped["face_vertices"],
         owner=local[owner],
         neighbour=np.where(neighbour >= 0, local[neighbour], -1),
-        boundary_element=out["boundary_element"],
+        boundary_element=mapped["boundary_element"],
         n_cells=len(own),
     )
     return PieceMesh(mesh, part.rows, across), PieceStatus(None, None, len(computed), halo)

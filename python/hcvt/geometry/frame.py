@@ -322,7 +322,7 @@ class Frame:
             ) from err
 
     def core_arguments(self) -> dict[str, Any]:
-        """``frame=`` for ``_core.cvt_*d``: its paper rule ``‖g‖/‖X‖`` is in L (DESIGN §7)."""
+        """``frame=`` for ``_core.cvt``: its paper rule ``‖g‖/‖X‖`` is in L (DESIGN §7)."""
         if self.is_identity:
             return {}
         return {"frame": (self.centre.tolist(), self.scale)}

@@ -19,7 +19,7 @@
 //! | `quadrature.rs` | the simplex rules and their sources |
 //! | `sums.rs` | the moments over one cone simplex: a polynomial by face averages, a field from its nodes; weighted face moments |
 
-pub mod quadrature;
+pub(crate) mod quadrature;
 mod sums;
 
 pub use sums::{cone_node, polynomial_cone, polynomial_face_moments, sum_sampled, Cone};

@@ -12,10 +12,11 @@ use crate::moments::Moments;
 use super::convex_cell::{ConvexCell, Face};
 use super::faces::{FaceRow, FaceSums};
 
-/// Buffers of [`clip_by_domain`], reused from cell to cell.
-pub(super) struct MeasureScratch<const D: usize, C> {
+/// Buffers of [`clip_by_domain`] (and of every [`super::DomainKind::clip`]), reused from
+/// cell to cell; opaque outside the diagram.
+pub struct MeasureScratch<const D: usize, C> {
     pub(super) faces: FaceSums<D>,
-    piece: Option<C>,
+    pub(super) piece: Option<C>,
     candidates: Vec<u32>,
 }
 
@@ -340,6 +341,46 @@ where
     fallback.unwrap_or((mean, 0))
 }
 
+/// An upper bound on `|x|²` over the part of `cell` (relative to `site`) inside the domain.
+///
+/// The farthest point of that part is one of its vertices: a vertex of the cell inside
+/// the domain, or a point where the boundary meets the cell, which lies on a boundary
+/// simplex that the cell does not exclude. Exact winding numbers decide the first kind;
+/// the farthest vertex of each simplex bounds the second.
+pub(super) fn domain_radius2<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+) -> f64
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    let mut r2: f64 = 0.0;
+    let mut candidates = Vec::new();
+    boundary_candidates(boundary, cell, site, &mut candidates);
+    for t in candidates {
+        let rel = boundary.simplex(t).map(|v| sub(v, site));
+        if let Some(d2) = cell.farthest_on(&rel) {
+            r2 = r2.max(d2);
+        }
+    }
+    // Only vertices beyond the simplices' bound can raise it: test them farthest first
+    // and stop at the first inside the domain (each test is a ray cast).
+    let mut far: Vec<(f64, [f64; D])> = cell
+        .vertices()
+        .iter()
+        .map(|&v| (norm2(v), v))
+        .filter(|&(d2, _)| d2 > r2)
+        .collect();
+    far.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    for (d2, v) in far {
+        if Euclid::winding_number(boundary, &add(v, site)) != Some(0) {
+            return d2;
+        }
+    }
+    r2
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -361,14 +402,28 @@ mod tests {
             let h = (solid.volume() / sites.len() as f64).cbrt();
             let mut cut_early = 0;
             for (i, &site) in sites.iter().enumerate() {
-                let (cell, inside) =
-                    voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, false, &mut late)
-                        .unwrap();
+                let (cell, inside) = voronoi_cell::<3, PolyhedronCell, Solid>(
+                    &solid,
+                    &index,
+                    &sites,
+                    sites.len(),
+                    i,
+                    false,
+                    &mut late,
+                )
+                .unwrap();
                 assert!(!inside);
                 let ma = clip_by_domain(&solid, cell, site, Some(1), None, &mut a);
-                let (cell, inside) =
-                    voronoi_cell::<3, PolyhedronCell>(&solid, &index, &sites, i, true, &mut early)
-                        .unwrap();
+                let (cell, inside) = voronoi_cell::<3, PolyhedronCell, Solid>(
+                    &solid,
+                    &index,
+                    &sites,
+                    sites.len(),
+                    i,
+                    true,
+                    &mut early,
+                )
+                .unwrap();
                 let mb = if inside {
                     measure(cell, None, &mut b.faces)
                 } else {

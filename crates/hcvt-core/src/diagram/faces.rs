@@ -40,9 +40,10 @@ pub struct FaceIntegrals<const D: usize> {
     pub faces: Vec<Matrix<D>>,
 }
 
-/// The integrand of a cell's row: the caller's [`FaceIntegrand`] and the cell's site.
+/// The integrand of a cell's row: the caller's [`FaceIntegrand`] and the cell's site;
+/// opaque outside the diagram.
 #[derive(Clone, Copy)]
-pub(super) struct FaceRow<'a, const D: usize> {
+pub struct FaceRow<'a, const D: usize> {
     pub(super) integrand: &'a dyn FaceIntegrand<D>,
     pub(super) site: usize,
 }
@@ -50,7 +51,7 @@ pub(super) struct FaceRow<'a, const D: usize> {
 /// Signed face measures of a cell, summed over its pieces, and with a [`FaceRow`] its face
 /// integrals; buffers reused from cell to cell.
 #[derive(Debug)]
-pub(super) struct FaceSums<const D: usize> {
+pub struct FaceSums<const D: usize> {
     pub(super) neighbors: Vec<(u32, f64)>,
     /// With a [`FaceRow`]: the integral over each face of `neighbors`; else empty.
     pub(super) integrals: Vec<Matrix<D>>,

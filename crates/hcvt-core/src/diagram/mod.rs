@@ -13,43 +13,48 @@
 //!
 //! | file | owns |
 //! |------|------|
-//! | `mod.rs` | [`Options`], the result [`Diagram`] and the driver [`clipped_diagram`]: validation, batches of cells in Morton order, assembly in index order |
+//! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |\n//! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
+//! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
 //! | `faces.rs` | each cell's face measures (neighbours, boundary share) and a caller's [`FaceIntegrand`] over them |
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
-//! | [`convex_cell`], [`polygon_cell`], [`polyhedron_cell`] | the convex cell in 2D and 3D |
+//! | `convex_cell.rs`, `polygon_cell.rs`, `polyhedron_cell/` | the convex cell ([`ConvexCell`]) in 2D and 3D |
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
 //! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
-//! | [`mesh`] | cell geometry and the conforming mesh of all cells ([`mesh::PolyMesh`], DESIGN §9) |
+//! | `mesh/` | cell geometry and the conforming mesh of all cells ([`PolyMesh`], DESIGN §9) |
 
+mod box_domain;
 mod clip;
-pub mod convex_cell;
+mod convex_cell;
+mod domain_kind;
 mod faces;
 mod knn;
-pub mod mesh;
+mod mesh;
 mod order;
-pub mod polygon_cell;
-pub mod polyhedron_cell;
+mod polygon_cell;
+mod polyhedron_cell;
 mod voronoi_cell;
 mod weighted;
 
 use rayon::prelude::*;
 
 use crate::density::{Cone, Density};
-use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{add, norm2, scale, Euclid, Space};
 use crate::moments::Moments;
-use clip::{clip_by_domain, measure, MeasureScratch};
+pub use box_domain::BoxDomain;
+use clip::{measure, MeasureScratch};
 pub use convex_cell::{ConvexCell, Face};
+pub use domain_kind::DomainKind;
 pub use faces::{FaceIntegrals, FaceIntegrand, Matrix};
 use faces::{FaceRow, FaceSums};
-pub use knn::{NearScratch, NearSites, SiteIndex};
+pub use knn::SiteIndex;
+pub use mesh::{conforming_mesh, conforming_mesh_part, MeshDomain, MeshPart, PolyMesh};
 pub use order::morton_order;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
-pub use voronoi_cell::{voronoi_cell, voronoi_cell_among, CellScratch};
+use voronoi_cell::{voronoi_cell, CellScratch};
 
 /// How to treat unusual input.
 #[derive(Debug, Clone, Copy, Default)]
@@ -155,77 +160,72 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
     }
 }
 
-/// The clipped Voronoi diagram of `sites` in `boundary`, and, if `keep_cells`, each site's
-/// convex cell from [`voronoi_cell`] (relative to its site) for pictures and export: the
-/// Voronoi cell in the domain's box, cut to a box around the domain's part for some cells
-/// of sites near the boundary, and in a convex domain already cut to the domain for
-/// cells that needed more than `PRECLIP_K` neighbours (most cells at its boundary).
+/// What [`clipped_diagram`] computes besides the diagram, and how it treats unusual input.
+#[derive(Clone, Copy, Default)]
+pub struct Request<'a, const D: usize> {
+    /// How to treat unusual input.
+    pub options: Options,
+    /// Keep each site's convex cell ([`Clipped::cells`]), for pictures and export.
+    pub keep_cells: bool,
+    /// Sum this integrand over the faces between cells, in the pass that measures them
+    /// ([`Clipped::face_integrals`]).
+    pub integrand: Option<&'a dyn FaceIntegrand<D>>,
+    /// With a density ρ (DESIGN §8): each cell's ρ-weighted moments in
+    /// [`Diagram::weighted`], integrated over the same signed pieces. A sampled density is
+    /// asked for its values once, at every node of the diagram.
+    pub density: Option<&'a Density<'a, D>>,
+}
+
+/// What [`clipped_diagram`] returns.
+#[derive(Debug, Clone, Default)]
+pub struct Clipped<const D: usize, C> {
+    /// The clipped diagram, row `i` the cell of site `i`.
+    pub diagram: Diagram<D>,
+    /// With [`Request::keep_cells`], each site's convex cell from [`voronoi_cell`]
+    /// (relative to its site): the Voronoi cell in the domain's box, cut to a box around
+    /// the domain's part for some cells of sites near the boundary, and in a convex domain
+    /// already cut to the domain for cells that needed more than `PRECLIP_K` neighbours
+    /// (most cells at its boundary). Empty otherwise.
+    pub cells: Vec<C>,
+    /// With [`Request::integrand`], its sums over the faces between cells; empty otherwise.
+    pub face_integrals: FaceIntegrals<D>,
+}
+
+/// The clipped Voronoi diagram of `sites` in `domain`, with what `request` asks for.
 ///
 /// Errors name the first offending site in index order: non-finite coordinates, a site
-/// outside the domain (unless allowed), two coinciding sites.
-pub fn clipped_diagram<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+/// outside the domain (unless allowed), two coinciding sites; with a density also a point
+/// where it is not finite and positive: a site or a boundary vertex (a polynomial; also a
+/// cell whose mean density is not positive), or a node (a field).
+pub fn clipped_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     sites: &[[f64; D]],
-    options: Options,
-    keep_cells: bool,
-) -> Result<(Diagram<D>, Vec<C>), CoreError>
+    request: &Request<'_, D>,
+) -> Result<Clipped<D, C>, CoreError>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
-    let (diagram, cells, _) =
-        clipped_diagram_with::<D, C>(boundary, sites, options, keep_cells, None)?;
-    Ok((diagram, cells))
-}
-
-/// [`clipped_diagram`], and the sums of `integrand` over the faces between cells (empty
-/// without one), taken in the pass that measures the faces.
-pub fn clipped_diagram_with<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    sites: &[[f64; D]],
-    options: Options,
-    keep_cells: bool,
-    integrand: Option<&dyn FaceIntegrand<D>>,
-) -> Result<(Diagram<D>, Vec<C>, FaceIntegrals<D>), CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    clipped_diagram_weighted(boundary, sites, options, keep_cells, integrand, None)
-}
-
-/// [`clipped_diagram_with`], and with a `density` each cell's ρ-weighted moments in
-/// [`Diagram::weighted`], integrated over the same signed pieces (DESIGN §8). A sampled
-/// density is asked for its values once, at every node of the diagram.
-///
-/// Errors also name a point where the density is not finite and positive: a site or a
-/// boundary vertex (a polynomial; also a cell whose mean density is not positive), or a
-/// node (a field).
-pub fn clipped_diagram_weighted<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    sites: &[[f64; D]],
-    options: Options,
-    keep_cells: bool,
-    integrand: Option<&dyn FaceIntegrand<D>>,
-    density: Option<&Density<'_, D>>,
-) -> Result<(Diagram<D>, Vec<C>, FaceIntegrals<D>), CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
+    let density = request.density;
     if let Some(Density::Polynomial(q)) = density {
-        weighted::check_polynomial(q, boundary, sites)?;
+        weighted::check_polynomial(q, domain, sites)?;
         if q.is_constant() {
             // ρ = c weighs every moment by c: exact, and for ρ = 1 the uniform diagram
             // bit for bit, at the uniform cost.
-            let (mut diagram, cells, mut sums) =
-                clipped_diagram_weighted(boundary, sites, options, keep_cells, integrand, None)?;
+            let uniform = Request {
+                density: None,
+                ..*request
+            };
+            let mut out = clipped_diagram::<D, C, K>(domain, sites, &uniform)?;
+            let sums = &mut out.face_integrals;
             for m in sums.cells.iter_mut().chain(sums.faces.iter_mut()) {
                 *m = m.map(|row| scale(row, q.constant));
             }
-            diagram.weighted = weighted::scaled(&diagram.moments, q.constant);
-            return Ok((diagram, cells, sums));
+            out.diagram.weighted = weighted::scaled(&out.diagram.moments, q.constant);
+            return Ok(out);
         }
     }
     let weighted_sums = weighted::WeightedSums::new(density)?;
-    let windings = checked_windings(boundary, sites, options)?;
+    let windings = checked_windings(domain, sites, request.options)?;
     let index = SiteIndex::new(sites)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
@@ -236,29 +236,38 @@ where
         windings: &windings,
         total_sites: sites.len(),
     };
-    let batches = visit.batches::<C>(boundary, &order, integrand, keep_cells, &weighted_sums);
+    let integrand = request.integrand;
+    let batches = visit.batches::<C, K>(
+        domain,
+        &order,
+        integrand,
+        request.keep_cells,
+        &weighted_sums,
+    );
     let mut batches = without_errors(batches)?;
     if let Some(d @ Density::Sampled { field, .. }) = density {
         weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
     }
-    let out = assemble(sites.len(), batches, integrand.is_some(), keep_cells);
+    let out = assemble(
+        sites.len(),
+        batches,
+        integrand.is_some(),
+        request.keep_cells,
+    );
     if density.is_some() {
-        weighted::check_masses(&out.0, sites)?;
+        weighted::check_masses(&out.diagram, sites)?;
     }
     Ok(out)
 }
 
-/// Check `sites` against `boundary` (finite, inside unless allowed, not too far outside)
+/// Check `sites` against `domain` (finite, inside unless allowed, not too far outside)
 /// and return the winding number of each (`None` on the boundary). Errors name the first
 /// offending site in index order.
-pub(crate) fn checked_windings<const D: usize>(
-    boundary: &Boundary<D>,
+pub(crate) fn checked_windings<const D: usize, K: DomainKind<D>>(
+    domain: &K,
     sites: &[[f64; D]],
     options: Options,
-) -> Result<Vec<Option<i32>>, CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
+) -> Result<Vec<Option<i32>>, CoreError> {
     if sites.is_empty() {
         return Err(CoreError::NoSites);
     }
@@ -268,7 +277,7 @@ where
         }
     }
     if options.allow_outside {
-        let b = boundary.bounds();
+        let b = domain.bounds();
         let size = (0..D).fold(f64::INFINITY, |m, k| m.min(b.hi[k] - b.lo[k]));
         for (index, s) in sites.iter().enumerate() {
             let distance = norm2::<D>(std::array::from_fn(|k| {
@@ -285,10 +294,7 @@ where
             }
         }
     }
-    let windings: Vec<Option<i32>> = sites
-        .par_iter()
-        .map(|s| Euclid::winding_number(boundary, s))
-        .collect();
+    let windings: Vec<Option<i32>> = sites.par_iter().map(|s| domain.locate(s)).collect();
     if !options.allow_outside {
         if let Some(index) = windings.iter().position(|w| *w == Some(0)) {
             return Err(CoreError::SiteOutsideDomain {
@@ -303,15 +309,12 @@ where
 /// A part's sites checked (all finite, `own` in range, the own sites as a whole
 /// problem's; the others are other parts' own): the own sites' winding numbers indexed
 /// like `sites` (`None` elsewhere), and which sites are own.
-pub(crate) fn checked_part<const D: usize>(
-    boundary: &Boundary<D>,
+pub(crate) fn checked_part<const D: usize, K: DomainKind<D>>(
+    domain: &K,
     sites: &[[f64; D]],
     own: &[u32],
     options: Options,
-) -> Result<(Vec<Option<i32>>, Vec<bool>), CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
+) -> Result<(Vec<Option<i32>>, Vec<bool>), CoreError> {
     let n = sites.len();
     if let Some(&bad) = own.iter().find(|&&i| i as usize >= n) {
         return Err(CoreError::SiteIndex {
@@ -324,7 +327,7 @@ where
         }
     }
     let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
-    let own_windings = checked_windings(boundary, &own_sites, options)
+    let own_windings = checked_windings(domain, &own_sites, options)
         .map_err(|e| e.with_site_rows(|k| own.get(k).map_or(k, |&i| i as usize)))?;
     let mut windings = vec![None; n];
     let mut is_own = vec![false; n];
@@ -348,19 +351,19 @@ struct Visit<'a, const D: usize> {
 
 impl<const D: usize> Visit<'_, D>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     /// The cells of the sites `visit`, in that order, measured in batches of [`BATCH`] in
     /// parallel; errors are kept in their batch.
-    fn batches<C: ConvexCell<D>>(
+    fn batches<C: ConvexCell<D>, K: DomainKind<D>>(
         &self,
-        boundary: &Boundary<D>,
+        domain: &K,
         visit: &[u32],
         integrand: Option<&dyn FaceIntegrand<D>>,
         keep_cells: bool,
         weighted: &weighted::WeightedSums<D>,
     ) -> Vec<Batch<D, C>> {
-        let convex = boundary.is_convex();
+        let convex = domain.is_convex();
         visit
             .par_chunks(BATCH)
             .map_init(
@@ -375,8 +378,8 @@ where
                         let i = i as usize;
                         let winding = self.windings[i];
                         let convex_inside = convex && winding == Some(1);
-                        let (cell, inside) = match voronoi_cell_among::<D, C>(
-                            boundary,
+                        let (cell, inside) = match voronoi_cell::<D, C, K>(
+                            domain,
                             self.index,
                             self.sites,
                             self.total_sites,
@@ -395,7 +398,7 @@ where
                         let moments = if inside {
                             measure(cell, row, &mut measuring.faces)
                         } else {
-                            clip_by_domain(boundary, cell, self.sites[i], winding, row, measuring)
+                            domain.clip(cell, self.sites[i], winding, row, measuring)
                         };
                         batch.push(i, moments, &mut measuring.faces, integrand.is_some());
                         if keep_cells {
@@ -443,7 +446,8 @@ pub struct PartCells<const D: usize> {
 
 /// The cells of the sites `own` (indices into `sites`), as [`clipped_diagram`] computes
 /// them for a problem of `total_sites` sites of which `sites` is a part, with each cell's
-/// reach ([`PartCells::reach2`]).
+/// reach ([`PartCells::reach2`]), under `request`'s options and density (its
+/// `keep_cells` and `integrand` are for whole diagrams: asking for them here is an error).
 ///
 /// A cell is the domain's box clipped by the bisectors of the sites streamed in increasing
 /// distance (ties by index) until the next is beyond twice the cell's radius, or, once
@@ -455,53 +459,45 @@ pub struct PartCells<const D: usize> {
 /// (On clustered sites the index falls back to a kd-tree, whose order among sites at
 /// exactly equal distance is its own: bitwise equality then needs no such ties.)
 ///
+/// With a density, each row's ρ-weighted moments are in [`Diagram::weighted`], integrated
+/// over the same signed pieces as [`clipped_diagram`] does, so a certified cell's weighted
+/// moments are the whole problem's bit for bit (a sampled density is asked once for the
+/// nodes of the own cells; each node's value must depend on the node alone). The reach
+/// does not depend on ρ: it is where the cell's *geometry* read sites.
+///
 /// Errors are [`clipped_diagram`]'s, for the own sites (all sites are checked finite),
 /// naming indices into `sites`.
-pub fn clipped_cells<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+pub fn clipped_cells<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     sites: &[[f64; D]],
     own: &[u32],
     total_sites: usize,
-    options: Options,
+    request: &Request<'_, D>,
 ) -> Result<PartCells<D>, CoreError>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
-    clipped_cells_weighted::<D, C>(boundary, sites, own, total_sites, options, None)
-}
-
-/// [`clipped_cells`] under a `density` (DESIGN §8): each row's ρ-weighted moments in
-/// [`Diagram::weighted`], integrated over the same signed pieces as
-/// [`clipped_diagram_weighted`] does, so a certified cell's weighted moments are the whole
-/// problem's bit for bit (a sampled density is asked once for the nodes of the own cells;
-/// each node's value must depend on the node alone). The reach does not depend on ρ: it
-/// is where the cell's *geometry* read sites.
-///
-/// Errors also name a point where the density is not finite and positive, as
-/// [`clipped_diagram_weighted`]'s do, among the own sites' cells (a polynomial is checked
-/// at the own sites and the boundary vertices).
-pub fn clipped_cells_weighted<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    sites: &[[f64; D]],
-    own: &[u32],
-    total_sites: usize,
-    options: Options,
-    density: Option<&Density<'_, D>>,
-) -> Result<PartCells<D>, CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
+    if request.keep_cells || request.integrand.is_some() {
+        return Err(CoreError::InvalidSettings {
+            reason: "the cells of a part keep no convex cells and sum no face integrand"
+                .to_string(),
+        });
+    }
+    let (options, density) = (request.options, request.density);
     if sites.is_empty() || own.is_empty() {
         return Ok(PartCells::default());
     }
-    let (windings, _) = checked_part(boundary, sites, own, options)?;
+    let (windings, _) = checked_part(domain, sites, own, options)?;
     let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
     if let Some(Density::Polynomial(q)) = density {
-        weighted::check_polynomial(q, boundary, &own_sites)?;
+        weighted::check_polynomial(q, domain, &own_sites)?;
         if q.is_constant() {
             // As the whole diagram does: the uniform cells, every moment times c.
-            let mut part =
-                clipped_cells_weighted::<D, C>(boundary, sites, own, total_sites, options, None)?;
+            let uniform = Request {
+                density: None,
+                ..*request
+            };
+            let mut part = clipped_cells::<D, C, K>(domain, sites, own, total_sites, &uniform)?;
             part.diagram.weighted = weighted::scaled(&part.diagram.moments, q.constant);
             return Ok(part);
         }
@@ -515,7 +511,7 @@ where
         total_sites: total_sites.max(sites.len()),
     };
     let mut batches =
-        without_errors(visit.batches::<C>(boundary, own, None, false, &weighted_sums))?;
+        without_errors(visit.batches::<C, K>(domain, own, None, false, &weighted_sums))?;
     if let Some(d @ Density::Sampled { field, .. }) = density {
         weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
     }
@@ -556,7 +552,7 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
     batches: Vec<Batch<D, C>>,
     integrals: bool,
     keep_cells: bool,
-) -> (Diagram<D>, Vec<C>, FaceIntegrals<D>) {
+) -> Clipped<D, C> {
     let mut diagram = Diagram {
         moments: vec![Moments::zero(); n],
         boundary_measure: vec![0.0; n],
@@ -612,7 +608,11 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
             cells[i as usize] = Some(cell);
         }
     }
-    (diagram, cells.into_iter().flatten().collect(), sums)
+    Clipped {
+        diagram,
+        cells: cells.into_iter().flatten().collect(),
+        face_integrals: sums,
+    }
 }
 
 /// How far outside the domain's box an allowed outside site may lie, in units of the
@@ -718,8 +718,8 @@ mod tests {
         let mut sites = interior_sites(&square, 3 * BATCH, 5);
         sites[2 * BATCH + 1] = sites[2 * BATCH];
         sites[BATCH + 7] = sites[10];
-        let error = clipped_diagram::<2, PolygonCell>(&square, &sites, Options::default(), false)
-            .unwrap_err();
+        let error =
+            clipped_diagram::<2, PolygonCell, _>(&square, &sites, &Request::default()).unwrap_err();
         match error {
             CoreError::DuplicateSites { first, second, .. } => {
                 assert_eq!((first, second), (10, BATCH + 7))
@@ -740,8 +740,9 @@ mod tests {
         ])
         .unwrap();
         let sites = interior_sites(&holed, 2000, 11);
-        let (whole, _) =
-            clipped_diagram::<2, PolygonCell>(&holed, &sites, Options::default(), false).unwrap();
+        let whole = clipped_diagram::<2, PolygonCell, _>(&holed, &sites, &Request::default())
+            .unwrap()
+            .diagram;
         let mut certified = 0;
         for (left, rho) in [(true, 0.05), (false, 0.05), (true, 2.0)] {
             let own_rows: Vec<usize> = (0..sites.len())
@@ -764,12 +765,12 @@ mod tests {
                 .iter()
                 .map(|i| rows.binary_search(i).unwrap() as u32)
                 .collect();
-            let part = clipped_cells::<2, PolygonCell>(
+            let part = clipped_cells::<2, PolygonCell, _>(
                 &holed,
                 &local,
                 &own,
                 sites.len(),
-                Options::default(),
+                &Request::default(),
             )
             .unwrap();
             let mut here = 0;
@@ -847,30 +848,22 @@ mod tests {
             },
         ];
         for density in &densities {
-            let (whole, _, _) = clipped_diagram_weighted::<2, PolygonCell>(
-                &square,
-                &sites,
-                Options::default(),
-                false,
-                None,
-                Some(density),
-            )
-            .unwrap();
+            let request = Request {
+                density: Some(density),
+                ..Request::default()
+            };
+            let whole = clipped_diagram::<2, PolygonCell, _>(&square, &sites, &request)
+                .unwrap()
+                .diagram;
             // Part: the sites left of x = 0.4; halo: everything within 0.1 of x = 0.4.
             let rows: Vec<usize> = (0..sites.len()).filter(|&i| sites[i][0] < 0.5).collect();
             let local: Vec<[f64; 2]> = rows.iter().map(|&i| sites[i]).collect();
             let own: Vec<u32> = (0..rows.len() as u32)
                 .filter(|&k| local[k as usize][0] < 0.4)
                 .collect();
-            let part = clipped_cells_weighted::<2, PolygonCell>(
-                &square,
-                &local,
-                &own,
-                sites.len(),
-                Options::default(),
-                Some(density),
-            )
-            .unwrap();
+            let part =
+                clipped_cells::<2, PolygonCell, _>(&square, &local, &own, sites.len(), &request)
+                    .unwrap();
             assert_eq!(part.diagram.weighted.len(), own.len());
             let mut exact = 0;
             for (k, &o) in own.iter().enumerate() {

@@ -5,19 +5,18 @@
 //! domain cut early by the boundary planes near it. Owns [`voronoi_cell`] and its buffers;
 //! the clip by the domain that follows is `clip.rs`'s.
 
-use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{add, norm2, scale, sub, Euclid, HalfSpace, Space};
 
-use super::clip::{boundary_candidates, cut_by_boundary};
 use super::convex_cell::{ConvexCell, Face};
+use super::domain_kind::DomainKind;
 use super::knn::{NearScratch, SiteIndex};
 
 /// Margin of the starting box around the domain, relative to the domain's diagonal.
 const BOX_MARGIN: f64 = 1e-3;
 
 /// Neighbour count, per dimension, after which a cell that has not reached its security
-/// radius is localised to the domain (see [`domain_radius2`]). 16 in 2D: a CVT of the star
+/// radius is localised to the domain (see [`DomainKind::local_radius2`]). 16 in 2D: a CVT of the star
 /// spends 23% less per diagram than with 64 (2.36 against 3.05 ms at 2,000 sites), the unit
 /// square the same, and with the bucket grid 8 and 32 cost 1% and 3% more instructions per
 /// diagram than 16; 3D cells need about 31 neighbours, so 64 there.
@@ -32,7 +31,7 @@ const LOCAL_REACH2: f64 = 16.0;
 
 /// Neighbour count, per dimension, after which the cell of a site inside a convex domain
 /// that has not reached its security radius is cut by the domain's boundary planes near it
-/// ([`cut_by_boundary`]). A cell at the boundary otherwise reaches out to the corners of
+/// ([`DomainKind::cut_convex`]). A cell at the boundary otherwise reaches out to the corners of
 /// the starting box and never meets its security radius: in a ball of 5,000 sites it
 /// streamed 64 neighbours, then [`localise`] and [`validate_vertices`].
 const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
@@ -52,22 +51,8 @@ const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
 /// it then lies in the domain, its radius shrinks to the domain's scale there, and the
 /// security radius stays valid (a site beyond twice the radius of any region holding the
 /// cell cannot cut it). The cell returned is then the clipped cell itself, `true`.
-pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    index: &SiteIndex<D>,
-    sites: &[[f64; D]],
-    i: usize,
-    convex_inside: bool,
-    scratch: &'a mut CellScratch<C>,
-) -> Result<(&'a C, bool), CoreError>
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    let total = sites.len();
-    voronoi_cell_among(boundary, index, sites, total, i, convex_inside, scratch)
-}
-
-/// [`voronoi_cell`] when `sites` is part of a problem of `total_sites` sites (a partition
+///
+/// When `sites` is part of a problem of `total_sites` sites (a partition
 /// and its halo), computed as the whole problem would; [`CellScratch::reach2`] then tells
 /// how far from the site the cell depended on the sites present.
 ///
@@ -76,8 +61,8 @@ where
 /// been clipped), and for a localised cell the nearest site of each vertex `v` it checks,
 /// found at some distance `δ` from `v`: the answer only depends on the sites within
 /// `|v| + δ` of the site. Its reach is the largest of these distances.
-pub fn voronoi_cell_among<'a, const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
     total_sites: usize,
@@ -86,12 +71,12 @@ pub fn voronoi_cell_among<'a, const D: usize, C: ConvexCell<D>>(
     scratch: &'a mut CellScratch<C>,
 ) -> Result<(&'a C, bool), CoreError>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     let site = sites[i];
     // Start a little outside the domain's box: a cell face lying on the domain boundary
     // would otherwise be a box face, and the boundary pieces that measure it would be flat.
-    let bounds = boundary.bounds();
+    let bounds = domain.bounds();
     let start = bounds
         .expanded(BOX_MARGIN * bounds.diagonal())
         .relative_to(site);
@@ -118,7 +103,7 @@ where
         }
         clipped += 1;
         if clipped == preclip_after && clipped < total_sites {
-            cut_by_boundary(boundary, cell, site, &mut scratch.candidates);
+            domain.cut_convex(cell, site, &mut scratch.candidates);
             radius2 = cell.max_dist2();
             inside = true;
         }
@@ -127,7 +112,7 @@ where
             // cell still open into the domain (its nearest sites all on one side) would be
             // validated out to the domain's far side, and its reach, the sites it depends
             // on, with it. Such a cell streams on and is tried again.
-            let local2 = domain_radius2(boundary, cell, site);
+            let local2 = domain.local_radius2(cell, site);
             if local2 <= LOCAL_REACH2 * last2 {
                 localise(cell, local2.sqrt());
                 let reach = validate_vertices(cell, index, sites, i)?;
@@ -183,7 +168,7 @@ fn offset_to<const D: usize>(sites: &[[f64; D]], i: usize, j: u32) -> Result<[f6
 }
 
 /// Cut `cell` (relative to its site) to the box of half-width `r` around the site, `r` a
-/// bound on the distance of its part inside the domain ([`domain_radius2`]): nothing of the domain is lost, and
+/// bound on the distance of its part inside the domain ([`DomainKind::local_radius2`]): nothing of the domain is lost, and
 /// the far reaches of the cell outside it stop costing neighbours and boundary pieces.
 fn localise<const D: usize, C: ConvexCell<D>>(cell: &mut C, r: f64) {
     for axis in 0..D {
@@ -247,44 +232,4 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
         }
     }
     Ok(reach)
-}
-
-/// An upper bound on `|x|²` over the part of `cell` (relative to `site`) inside the domain.
-///
-/// The farthest point of that part is one of its vertices: a vertex of the cell inside
-/// the domain, or a point where the boundary meets the cell, which lies on a boundary
-/// simplex that the cell does not exclude. Exact winding numbers decide the first kind;
-/// the farthest vertex of each simplex bounds the second.
-fn domain_radius2<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    cell: &C,
-    site: [f64; D],
-) -> f64
-where
-    Euclid: Space<D> + WindingNumber<D>,
-{
-    let mut r2: f64 = 0.0;
-    let mut candidates = Vec::new();
-    boundary_candidates(boundary, cell, site, &mut candidates);
-    for t in candidates {
-        let rel = boundary.simplex(t).map(|v| sub(v, site));
-        if let Some(d2) = cell.farthest_on(&rel) {
-            r2 = r2.max(d2);
-        }
-    }
-    // Only vertices beyond the simplices' bound can raise it: test them farthest first
-    // and stop at the first inside the domain (each test is a ray cast).
-    let mut far: Vec<(f64, [f64; D])> = cell
-        .vertices()
-        .iter()
-        .map(|&v| (norm2(v), v))
-        .filter(|&(d2, _)| d2 > r2)
-        .collect();
-    far.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
-    for (d2, v) in far {
-        if Euclid::winding_number(boundary, &add(v, site)) != Some(0) {
-            return d2;
-        }
-    }
-    r2
 }

@@ -9,11 +9,11 @@ use crate::density::{
     check_value, cone_node, polynomial_cone, polynomial_face_moments, sum_sampled, Cone, Density,
     Field, Quadratic, POLYNOMIAL_DEGREE,
 };
-use crate::domain::Boundary;
 use crate::error::CoreError;
-use crate::geometry::{add, scale, Euclid, Space};
+use crate::geometry::{add, scale};
 use crate::moments::{FaceMoments, Moments};
 
+use super::domain_kind::DomainKind;
 use super::{Batch, ConvexCell, Diagram};
 
 /// What is summed.
@@ -270,15 +270,12 @@ pub(super) fn scaled<const D: usize>(moments: &[Moments<D>], c: f64) -> Vec<Mome
 }
 
 /// A polynomial must be finite and positive at every site and boundary vertex.
-pub(super) fn check_polynomial<const D: usize>(
+pub(super) fn check_polynomial<const D: usize, K: DomainKind<D>>(
     q: &Quadratic<D>,
-    boundary: &Boundary<D>,
+    domain: &K,
     sites: &[[f64; D]],
-) -> Result<(), CoreError>
-where
-    Euclid: Space<D>,
-{
-    for &x in sites.iter().chain(boundary.vertices()) {
+) -> Result<(), CoreError> {
+    for &x in sites.iter().chain(domain.density_checkpoints()) {
         check_value(x, q.value(x))?;
     }
     Ok(())

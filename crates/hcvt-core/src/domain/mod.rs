@@ -5,9 +5,9 @@
 //! it is a closed, oriented `(d-1)`-cycle, which is all the exact clipping of DESIGN §3
 //! needs: the signed cones from any point sum to the indicator of the domain.
 
-pub mod bvh;
+mod bvh;
 mod winding;
-pub mod winding_grid;
+mod winding_grid;
 
 use std::collections::HashMap;
 

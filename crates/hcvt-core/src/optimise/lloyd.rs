@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use crate::domain::{Boundary, WindingNumber};
+use crate::diagram::DomainKind;
 use crate::geometry::{add, scale, Euclid, Space};
 
 use crate::moments::Moments;
@@ -15,30 +15,30 @@ const MAX_HALVINGS: usize = 30;
 /// Lloyd's update `x_i ← c_i`, held inside the domain by [`hold_inside`]. Any move towards
 /// `c_i` lowers `∫_{Ω_i} |x − x_i|²` for the old cells, and the new cells lower it again, so
 /// the energy never increases. Empty cells keep their site.
-pub fn lloyd_sites<const D: usize>(boundary: &Boundary<D>, point: &Point<D>) -> Vec<[f64; D]>
+pub fn lloyd_sites<const D: usize, K: DomainKind<D>>(domain: &K, point: &Point<D>) -> Vec<[f64; D]>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     let shifts: Vec<[f64; D]> = centroid_shifts(point.diagram.mass_moments())
         .into_iter()
         .map(|s| s.unwrap_or([0.0; D]))
         .collect();
-    lloyd_step(boundary, &point.sites, &shifts)
+    lloyd_step(domain, &point.sites, &shifts)
 }
 
 /// The Lloyd step over plain per-site arrays: each site moved by its `shifts[i] = c_i − x_i`
 /// as far as [`hold_inside`] lets it. [`lloyd_sites`] in one process, and each part of a
 /// partitioned run (`hcvt.partition`), call this, so both move every site alike, bit for bit.
-pub fn lloyd_step<const D: usize>(
-    boundary: &Boundary<D>,
+pub fn lloyd_step<const D: usize, K: DomainKind<D>>(
+    domain: &K,
     sites: &[[f64; D]],
     shifts: &[[f64; D]],
 ) -> Vec<[f64; D]>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     let mut moves = shifts.to_vec();
-    hold_inside(boundary, sites, &mut moves);
+    hold_inside(domain, sites, &mut moves);
     sites.iter().zip(&moves).map(|(&x, &m)| add(x, m)).collect()
 }
 
@@ -54,17 +54,17 @@ pub fn centroid_shifts<const D: usize>(moments: &[Moments<D>]) -> Vec<Option<[f6
 /// In a non-convex domain a centroid, or an L-BFGS step, can lie across a notch or a thin
 /// wall. Shortening only the moves that leave keeps one site from throttling the step of
 /// all the others (a line search would shorten them all alike).
-pub fn hold_inside<const D: usize>(
-    boundary: &Boundary<D>,
+pub fn hold_inside<const D: usize, K: DomainKind<D>>(
+    domain: &K,
     sites: &[[f64; D]],
     moves: &mut [[f64; D]],
 ) where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     moves.par_iter_mut().zip(sites).for_each(|(m, &site)| {
         let mut t = 1.0;
         for _ in 0..MAX_HALVINGS {
-            if inside_or_on(boundary, &add(site, scale(*m, t))) {
+            if inside_or_on(domain, &add(site, scale(*m, t))) {
                 *m = scale(*m, t);
                 return;
             }
@@ -84,13 +84,13 @@ const PIN_FRACTION: f64 = 1.0 / 1_048_576.0;
 /// across a notch, a site sits on the boundary with a gradient that never vanishes; the
 /// stopping rule leaves such sites out. Only cells that touch the boundary can have their
 /// centroid outside (the others are convex and inside), so only they are tested.
-pub fn pinned_sites<const D: usize>(boundary: &Boundary<D>, point: &Point<D>) -> Vec<bool>
+pub fn pinned_sites<const D: usize, K: DomainKind<D>>(domain: &K, point: &Point<D>) -> Vec<bool>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     let shifts = centroid_shifts(point.diagram.mass_moments());
     pinned(
-        boundary,
+        domain,
         &point.sites,
         &shifts,
         &point.diagram.boundary_measure,
@@ -100,14 +100,14 @@ where
 /// [`pinned_sites`] over plain per-site arrays: `shifts` from [`centroid_shifts`], and the
 /// measure of each cell's boundary on the domain's boundary. A partitioned run calls this
 /// per part (`hcvt.partition`).
-pub fn pinned<const D: usize>(
-    boundary: &Boundary<D>,
+pub fn pinned<const D: usize, K: DomainKind<D>>(
+    domain: &K,
     sites: &[[f64; D]],
     shifts: &[Option<[f64; D]>],
     boundary_measure: &[f64],
 ) -> Vec<bool>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     (sites, shifts, boundary_measure)
         .into_par_iter()
@@ -116,19 +116,16 @@ where
                 return false;
             };
             measure > 0.0
-                && Euclid::winding_number(boundary, &add(site, shift)) == Some(0)
-                && !inside_or_on(boundary, &add(site, scale(shift, PIN_FRACTION)))
+                && domain.locate(&add(site, shift)) == Some(0)
+                && !inside_or_on(domain, &add(site, scale(shift, PIN_FRACTION)))
         })
         .collect()
 }
 
 /// Not strictly outside: winding number non-zero, or on the boundary (`None`), where the
 /// diagram accepts a site.
-fn inside_or_on<const D: usize>(boundary: &Boundary<D>, p: &[f64; D]) -> bool
-where
-    Euclid: WindingNumber<D>,
-{
-    Euclid::winding_number(boundary, p) != Some(0)
+fn inside_or_on<const D: usize, K: DomainKind<D>>(domain: &K, p: &[f64; D]) -> bool {
+    domain.locate(p) != Some(0)
 }
 
 /// New sites when some cells are empty, `None` when none is.
@@ -139,13 +136,13 @@ where
 /// again (ALGORITHMS §3). Deterministic rule: the `k`-th empty site in index order goes to
 /// the `k`-th largest cell (ties by index), a quarter spacing `h` from that cell's site
 /// along the first of `+e_1, −e_1, +e_2, …` that ends strictly inside the domain.
-pub fn reseed_empty<const D: usize>(
-    boundary: &Boundary<D>,
+pub fn reseed_empty<const D: usize, K: DomainKind<D>>(
+    domain: &K,
     point: &Point<D>,
     h: f64,
 ) -> Option<Vec<[f64; D]>>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     let moments = &point.diagram.moments;
     let empty: Vec<usize> = (0..moments.len())
@@ -171,8 +168,7 @@ where
             let sign = if r % 2 == 0 { 1.0 } else { -1.0 };
             let mut candidate = donor;
             candidate[r / 2] += sign * 0.25 * h;
-            (Euclid::winding_number(boundary, &candidate).is_some_and(|w| w != 0))
-                .then_some(candidate)
+            (domain.locate(&candidate).is_some_and(|w| w != 0)).then_some(candidate)
         });
         if let Some(p) = placed {
             sites[i] = p;

@@ -35,21 +35,20 @@
 //! Every step is sequential over the sites in index order and the diagram does not depend
 //! on the thread count, so neither does the result.
 
-pub mod hessian;
+mod hessian;
 pub mod lbfgs;
 pub mod lloyd;
-pub mod newton;
-pub mod stopping;
+mod newton;
+mod stopping;
 
 use std::ops::ControlFlow;
 use std::time::Instant;
 
 use crate::density::Density;
 use crate::diagram::{
-    clipped_diagram, clipped_diagram_weighted, morton_order, ConvexCell, Diagram, FaceIntegrand,
-    Options,
+    clipped_diagram, morton_order, ConvexCell, Diagram, DomainKind, FaceIntegrand,
+    Request as DiagramRequest,
 };
-use crate::domain::{Boundary, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{Euclid, Space};
 use hessian::{Hessian, HessianTerms};
@@ -199,7 +198,7 @@ impl Named {
 
 /// What [`evaluate`] computes besides the diagram, energy and gradient.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Request<'a, const D: usize> {
+pub struct PointRequest<'a, const D: usize> {
     /// The energy's [`Hessian`] too (for Newton): its face terms are summed in the
     /// diagram's pass over the faces ([`HessianTerms`]).
     pub hessian: bool,
@@ -343,28 +342,32 @@ impl<const D: usize> Point<D> {
 ///
 /// Errors are the diagram's: a site outside the domain, coinciding or non-finite sites; a
 /// density not finite and positive where it is sampled.
-pub fn evaluate<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+pub fn evaluate<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     sites: Vec<[f64; D]>,
-    request: &Request<'_, D>,
+    request: &PointRequest<'_, D>,
 ) -> Result<Point<D>, CoreError>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     let terms = HessianTerms { sites: &sites };
     let integrand = request.hessian.then_some(&terms as &dyn FaceIntegrand<D>);
-    let (diagram, _, sums) = clipped_diagram_weighted::<D, C>(
-        boundary,
+    let clipped = clipped_diagram::<D, C, K>(
+        domain,
         &sites,
-        Options::default(),
-        false,
-        integrand,
-        request.density,
+        &DiagramRequest {
+            integrand,
+            density: request.density,
+            ..DiagramRequest::default()
+        },
     )?;
+    let diagram = clipped.diagram;
     Ok(Point {
         energy: diagram.energy(),
         gradient: diagram.gradient(),
-        hessian: request.hessian.then(|| Hessian::new(&diagram, sums)),
+        hessian: request
+            .hessian
+            .then(|| Hessian::new(&diagram, clipped.face_integrals)),
         diagram,
         sites,
     })
@@ -372,11 +375,11 @@ where
 
 /// The mean spacing `h = (V/n)^{1/d}` of `n` sites in `boundary`, `L`: how far a reseeded
 /// site moves ([`lloyd::reseed_empty`]).
-fn mean_spacing<const D: usize>(boundary: &Boundary<D>, n: usize) -> f64
+fn mean_spacing<const D: usize, K: DomainKind<D>>(domain: &K, n: usize) -> f64
 where
     Euclid: Space<D>,
 {
-    (boundary.volume() / n.max(1) as f64).powf(1.0 / D as f64)
+    (domain.volume() / n.max(1) as f64).powf(1.0 / D as f64)
 }
 
 /// Mean of `G` over the non-empty cells (paper eq. 3).
@@ -395,7 +398,7 @@ pub type Observer<'a, const D: usize> = dyn FnMut(&Record, &[[f64; D]]) -> Contr
 /// Counts diagram computations and tells how far the run has come.
 struct Tracker<'a, const D: usize> {
     /// What each evaluation computes: the Hessian for Newton, the density.
-    request: Request<'a, D>,
+    request: PointRequest<'a, D>,
     /// Mean spacing `h`, `L`.
     h: f64,
     start: Instant,
@@ -406,30 +409,30 @@ struct Tracker<'a, const D: usize> {
 }
 
 impl<const D: usize> Tracker<'_, D> {
-    fn evaluate<C: ConvexCell<D>>(
+    fn evaluate<C: ConvexCell<D>, K: DomainKind<D>>(
         &mut self,
-        boundary: &Boundary<D>,
+        domain: &K,
         sites: Vec<[f64; D]>,
     ) -> Result<Point<D>, CoreError>
     where
-        Euclid: Space<D> + WindingNumber<D>,
+        Euclid: Space<D>,
     {
         self.evaluations += 1;
-        evaluate::<D, C>(boundary, sites, &self.request)
+        evaluate::<D, C, K>(domain, sites, &self.request)
     }
 
     /// Record `point` in the history; also returns which sites are pinned
     /// ([`lloyd::pinned_sites`]), which Newton's next step holds still.
-    fn record(
+    fn record<K: DomainKind<D>>(
         &mut self,
-        boundary: &Boundary<D>,
+        domain: &K,
         point: &Point<D>,
         step: Step,
     ) -> (Record, Vec<bool>)
     where
-        Euclid: Space<D> + WindingNumber<D>,
+        Euclid: Space<D>,
     {
-        let pinned = lloyd::pinned_sites(boundary, point);
+        let pinned = lloyd::pinned_sites(domain, point);
         let record = Record {
             energy: point.energy,
             mean_g: mean_g(&point.diagram),
@@ -464,14 +467,14 @@ impl<const D: usize> Tracker<'_, D> {
 /// geometric). Newton's Hessian weighs its face terms by ρ on each face, exactly for a
 /// polynomial; with a sampled field Newton is refused (its face terms would need the field
 /// on every face too).
-pub fn cvt<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+pub fn cvt<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     sites: Vec<[f64; D]>,
     settings: &Settings<'_, D>,
     observer: &mut Observer<'_, D>,
 ) -> Result<Outcome<D>, CoreError>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     if matches!(settings.density, Some(Density::Sampled { .. }))
         && settings.method == Method::Newton
@@ -491,7 +494,7 @@ where
         }
         observer(record, &caller_order)
     };
-    match cvt_in_order::<D, C>(boundary, along_curve, settings, &mut observe) {
+    match cvt_in_order::<D, C, K>(domain, along_curve, settings, &mut observe) {
         Ok(out) => {
             let mut sites = vec![[0.0; D]; out.sites.len()];
             for (&i, &x) in order.iter().zip(&out.sites) {
@@ -507,7 +510,7 @@ where
             })
         }
         // The first offending site in the caller's order, as a diagram of them names it.
-        Err(e) => match clipped_diagram::<D, C>(boundary, &sites, Options::default(), false) {
+        Err(e) => match clipped_diagram::<D, C, K>(domain, &sites, &DiagramRequest::default()) {
             Err(first) => Err(first),
             Ok(_) => Err(e),
         },
@@ -515,34 +518,34 @@ where
 }
 
 /// [`cvt`] with the sites in the order given.
-fn cvt_in_order<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+fn cvt_in_order<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     sites: Vec<[f64; D]>,
     settings: &Settings<'_, D>,
     observer: &mut Observer<'_, D>,
 ) -> Result<Outcome<D>, CoreError>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     let mut tracker = Tracker {
-        request: Request {
+        request: PointRequest {
             hessian: settings.method == Method::Newton,
             density: settings.density,
         },
-        h: mean_spacing(boundary, sites.len()),
+        h: mean_spacing(domain, sites.len()),
         start: Instant::now(),
         evaluations: 0,
         history: Vec::new(),
         frame: settings.frame,
     };
-    let mut point = tracker.evaluate::<C>(boundary, sites)?;
+    let mut point = tracker.evaluate::<C, K>(domain, sites)?;
     let mut solver = Solver {
         method: settings.method,
         memory: Memory::new(settings.memory),
         region: TrustRegion::default(),
         search: LineSearch::new(settings.max_line_evaluations),
     };
-    let (mut record, mut pinned) = tracker.record(boundary, &point, Step::Start);
+    let (mut record, mut pinned) = tracker.record(domain, &point, Step::Start);
     let stop = loop {
         if observer(&record, &point.sites).is_break() {
             break StopReason::Interrupted;
@@ -554,13 +557,13 @@ where
             break StopReason::MaxIter;
         }
         let h = tracker.h;
-        let (next, step) = match lloyd::reseed_empty(boundary, &point, h) {
+        let (next, step) = match lloyd::reseed_empty(domain, &point, h) {
             Some(sites) => {
                 solver.memory.clear();
-                (tracker.evaluate::<C>(boundary, sites)?, Step::Reseed)
+                (tracker.evaluate::<C, K>(domain, sites)?, Step::Reseed)
             }
-            None => iterate::<D, C>(
-                boundary,
+            None => iterate::<D, C, K>(
+                domain,
                 &point,
                 &mut solver,
                 &record.measures,
@@ -569,7 +572,7 @@ where
             )?,
         };
         point = next;
-        (record, pinned) = tracker.record(boundary, &point, step);
+        (record, pinned) = tracker.record(domain, &point, step);
     };
     Ok(Outcome {
         sites: point.sites,
@@ -591,8 +594,8 @@ struct Solver<const D: usize> {
 /// One iteration of the solver's method from `point`: an L-BFGS or Newton step, or a Lloyd
 /// step when that is the method or when no step was found (module docs, "Round-off").
 /// `measures` and `pinned` are those of `point`.
-fn iterate<const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+fn iterate<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     point: &Point<D>,
     solver: &mut Solver<D>,
     measures: &Measures,
@@ -600,15 +603,15 @@ fn iterate<const D: usize, C: ConvexCell<D>>(
     tracker: &mut Tracker<'_, D>,
 ) -> Result<(Point<D>, Step), CoreError>
 where
-    Euclid: Space<D> + WindingNumber<D>,
+    Euclid: Space<D>,
 {
     if solver.method != Method::Lloyd {
-        let mut eval = |sites: Vec<[f64; D]>| match tracker.evaluate::<C>(boundary, sites) {
+        let mut eval = |sites: Vec<[f64; D]>| match tracker.evaluate::<C, K>(domain, sites) {
             Ok(p) => Ok(Some(p)),
             Err(CoreError::SiteOutsideDomain { .. } | CoreError::DuplicateSites { .. }) => Ok(None),
             Err(e) => Err(e),
         };
-        let hold = |moves: &mut [[f64; D]]| lloyd::hold_inside(boundary, &point.sites, moves);
+        let hold = |moves: &mut [[f64; D]]| lloyd::hold_inside(domain, &point.sites, moves);
         let next = if solver.method == Method::Newton {
             let forcing = newton::forcing(measures);
             let trials = solver.search.max_evaluations;
@@ -632,6 +635,6 @@ where
         }
         solver.memory.clear();
     }
-    let sites = lloyd::lloyd_sites(boundary, point);
-    Ok((tracker.evaluate::<C>(boundary, sites)?, Step::Lloyd))
+    let sites = lloyd::lloyd_sites(domain, point);
+    Ok((tracker.evaluate::<C, K>(domain, sites)?, Step::Lloyd))
 }

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use hcvt_core::domain::{Polygon, Solid};
+use hcvt_core::{Polygon, Solid};
 
 #[allow(unused_imports)] // not every test file uses it
 pub use hcvt_core::sample::interior_sites;

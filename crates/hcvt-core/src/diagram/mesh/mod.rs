@@ -5,7 +5,7 @@
 //!
 //! | file | owns |
 //! |------|------|
-//! | `mod.rs` | [`PolyMesh`], the drivers [`conforming_mesh_2d`] / [`conforming_mesh_3d`] (and for a partition's own cells among its sites and halo, [`conforming_mesh_part_2d`] / [`conforming_mesh_part_3d`], DESIGN §10) and the global assembly: names to one vertex index, degenerate names merged, each interior face once |
+//! | `mod.rs` | [`PolyMesh`], [`MeshDomain`], the drivers [`conforming_mesh`] (and for a partition's own cells among its sites and halo, [`conforming_mesh_part`], DESIGN §10) and the global assembly: names to one vertex index, degenerate names merged, each interior face once |
 //! | `key.rs` | the combinatorial vertex names |
 //! | `planar.rs` | a convex polygon restricted to the domain in its plane (2D cells, 3D bisector faces) |
 //! | `cell2.rs` | one 2D cell's edges |
@@ -29,10 +29,10 @@ use std::hash::{BuildHasherDefault, Hasher};
 use rayon::prelude::*;
 
 use super::convex_cell::{ConvexCell, Face};
-use super::{checked_part, checked_windings, morton_order, voronoi_cell_among};
+use super::knn::{NearScratch, SiteIndex};
+use super::{checked_part, checked_windings, morton_order, voronoi_cell};
 use super::{CellScratch, Options};
-use super::{NearScratch, SiteIndex};
-use super::{PolygonCell, PolyhedronCell};
+use super::{DomainKind, PolygonCell, PolyhedronCell};
 use crate::domain::{Boundary, Polygon, Solid, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{add, dot, norm2, scale, sub, Euclid, Space};
@@ -146,30 +146,59 @@ pub(crate) const MERGE_REL: f64 = 1e-10;
 /// Cells per parallel task.
 const BATCH: usize = 256;
 
-/// The conforming polygon mesh of the clipped diagram of `sites` in `boundary`.
-///
-/// Errors as [`super::clipped_diagram`]: the first offending site in index order.
-pub fn conforming_mesh_2d(
-    boundary: &Polygon,
-    sites: &[[f64; 2]],
-    options: Options,
-) -> Result<PolyMesh<2>, CoreError> {
-    conforming_mesh::<2, PolygonCell>(boundary, sites, None, options).map(|part| part.mesh)
+/// A kind of domain whose clipped cells the conforming mesh can build (DESIGN §11 (d)):
+/// the cell type that gives the faces, and the boundary pieces they are cut from. A
+/// polygon ([`PolygonCell`]s) and a solid ([`PolyhedronCell`]s) today.
+pub trait MeshDomain<const D: usize>: DomainKind<D> {
+    /// The whole mesh (`subset` None), or the cells `own` of a part of a problem of
+    /// `total_sites` sites among `sites` ([`MeshPart`]).
+    #[doc(hidden)]
+    fn mesh_cells(
+        &self,
+        sites: &[[f64; D]],
+        subset: Option<(&[u32], usize)>,
+        options: Options,
+    ) -> Result<MeshPart<D>, CoreError>;
 }
 
-/// The conforming polyhedral mesh of the clipped diagram of `sites` in `boundary`.
+impl MeshDomain<2> for Polygon {
+    fn mesh_cells(
+        &self,
+        sites: &[[f64; 2]],
+        subset: Option<(&[u32], usize)>,
+        options: Options,
+    ) -> Result<MeshPart<2>, CoreError> {
+        mesh_cells::<2, PolygonCell>(self, sites, subset, options)
+    }
+}
+
+impl MeshDomain<3> for Solid {
+    fn mesh_cells(
+        &self,
+        sites: &[[f64; 3]],
+        subset: Option<(&[u32], usize)>,
+        options: Options,
+    ) -> Result<MeshPart<3>, CoreError> {
+        mesh_cells::<3, PolyhedronCell>(self, sites, subset, options)
+    }
+}
+
+/// The conforming mesh of the clipped diagram of `sites` in `domain`: polygons in 2D,
+/// polyhedra in 3D.
 ///
 /// Errors as [`super::clipped_diagram`]: the first offending site in index order.
-pub fn conforming_mesh_3d(
-    boundary: &Solid,
-    sites: &[[f64; 3]],
+pub fn conforming_mesh<const D: usize, K: MeshDomain<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
     options: Options,
-) -> Result<PolyMesh<3>, CoreError> {
-    conforming_mesh::<3, PolyhedronCell>(boundary, sites, None, options).map(|part| part.mesh)
+) -> Result<PolyMesh<D>, CoreError> {
+    domain
+        .mesh_cells(sites, None, options)
+        .map(|part| part.mesh)
 }
 
 /// The cells of a partition's sites in the conforming mesh of the whole problem (DESIGN
-/// §10): what [`conforming_mesh_part_2d`] / [`conforming_mesh_part_3d`] return.
+/// §10): what [`conforming_mesh_part`] returns.
 #[derive(Debug, Clone, Default)]
 pub struct MeshPart<const D: usize> {
     /// Every face of the own cells, cells numbered as the `sites` given: a face between
@@ -186,7 +215,7 @@ pub struct MeshPart<const D: usize> {
 }
 
 /// The own cells `own` (indices into `sites`) of a partition of a problem of
-/// `total_sites` sites, as they are in [`conforming_mesh_2d`] of the whole problem
+/// `total_sites` sites, as they are in [`conforming_mesh`] of the whole problem
 /// ([`MeshPart`]).
 ///
 /// A vertex of the whole mesh takes its name and position from the first cell, in index
@@ -197,25 +226,14 @@ pub struct MeshPart<const D: usize> {
 /// lists the problem's sites in their relative order (as [`super::clipped_cells`]).
 ///
 /// Errors as [`super::clipped_cells`], naming indices into `sites`.
-pub fn conforming_mesh_part_2d(
-    boundary: &Polygon,
-    sites: &[[f64; 2]],
+pub fn conforming_mesh_part<const D: usize, K: MeshDomain<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
     own: &[u32],
     total_sites: usize,
     options: Options,
-) -> Result<MeshPart<2>, CoreError> {
-    conforming_mesh::<2, PolygonCell>(boundary, sites, Some((own, total_sites)), options)
-}
-
-/// [`conforming_mesh_part_2d`] in a solid.
-pub fn conforming_mesh_part_3d(
-    boundary: &Solid,
-    sites: &[[f64; 3]],
-    own: &[u32],
-    total_sites: usize,
-    options: Options,
-) -> Result<MeshPart<3>, CoreError> {
-    conforming_mesh::<3, PolyhedronCell>(boundary, sites, Some((own, total_sites)), options)
+) -> Result<MeshPart<D>, CoreError> {
+    domain.mesh_cells(sites, Some((own, total_sites)), options)
 }
 
 /// A vertex of a cell is shared with every cell whose site is within its distance from
@@ -227,7 +245,7 @@ type Made<const D: usize> = (u32, Result<(CellFaces<D>, f64), CoreError>);
 
 /// The whole mesh (`subset` None), or the cells `own` of a part of a problem of
 /// `total_sites` sites among `sites` ([`MeshPart`]).
-fn conforming_mesh<const D: usize, C: CellGeometry<D>>(
+fn mesh_cells<const D: usize, C: CellGeometry<D>>(
     boundary: &Boundary<D>,
     sites: &[[f64; D]],
     subset: Option<(&[u32], usize)>,
@@ -306,7 +324,7 @@ where
                         let i = i as usize;
                         // Without the early cut of a convex domain's boundary cells: the
                         // faces are made here, from the bisectors and triangles alone.
-                        let made = voronoi_cell_among::<D, C>(
+                        let made = voronoi_cell::<D, C, Boundary<D>>(
                             boundary,
                             index,
                             sites,
@@ -927,9 +945,9 @@ mod tests {
         ])
         .unwrap();
         let sites = interior_sites(&holed, 1500, 5);
-        let whole = conforming_mesh_2d(&holed, &sites, Options::default()).unwrap();
+        let whole = conforming_mesh(&holed, &sites, Options::default()).unwrap();
         parts_match_the_whole(&sites, 0.1, &whole, |local, own, total| {
-            conforming_mesh_part_2d(&holed, local, own, total, Options::default()).unwrap()
+            conforming_mesh_part(&holed, local, own, total, Options::default()).unwrap()
         });
     }
 
@@ -937,9 +955,9 @@ mod tests {
     fn a_parts_cells_are_the_whole_meshs_bit_for_bit_3d() {
         let cube = Solid::cuboid([0.0; 3], [2.0; 3]).unwrap();
         let sites = interior_sites(&cube, 600, 7);
-        let whole = conforming_mesh_3d(&cube, &sites, Options::default()).unwrap();
+        let whole = conforming_mesh(&cube, &sites, Options::default()).unwrap();
         parts_match_the_whole(&sites, 0.5, &whole, |local, own, total| {
-            conforming_mesh_part_3d(&cube, local, own, total, Options::default()).unwrap()
+            conforming_mesh_part(&cube, local, own, total, Options::default()).unwrap()
         });
     }
 
@@ -953,7 +971,7 @@ mod tests {
         .unwrap();
         let sites = [[0.2, 0.2], [0.8, 0.8], [1.5, 0.5], [0.5, 0.5]];
         let err =
-            conforming_mesh_part_2d(&square, &sites, &[3, 2], 10, Options::default()).unwrap_err();
+            conforming_mesh_part(&square, &sites, &[3, 2], 10, Options::default()).unwrap_err();
         assert!(
             matches!(err, CoreError::SiteOutsideDomain { index: 2, .. }),
             "{err:?}"

@@ -1,0 +1,118 @@
+//! The seam between the diagram driver and the kinds of domain (DESIGN §11).
+//!
+//! The driver ([`super::clipped_diagram`], [`super::clipped_cells`]) and the optimisers
+//! above it know a domain only through [`DomainKind`]: where a site's convex cell starts,
+//! which points are inside, and the exact moments of a convex cell restricted to the
+//! domain. The kNN, the convex clipping, the moments, the optimisers, the hierarchy, the
+//! densities and the partitions are shared by every kind; a kind is one implementation of
+//! this trait, not a copy of the driver.
+//!
+//! Today's kind is the region bounded by simplices ([`Boundary`]: a polygon with holes in
+//! 2D, a solid bounded by triangles in 3D), measured through signed cones (`clip.rs`). A
+//! periodic box (no boundary; the cell itself, its neighbours' images), the sphere and a
+//! triangle surface (great-circle and triangle pieces, cells of dimension 2) implement the
+//! same methods. The conforming mesh (`mesh`) still reads a [`Boundary`]'s simplices: the
+//! boundary pieces a mesh needs join this trait with the first kind that meshes otherwise.
+
+use crate::domain::{Boundary, WindingNumber};
+use crate::geometry::{Aabb, Euclid, Space};
+use crate::moments::Moments;
+
+use super::clip::{clip_by_domain, cut_by_boundary, domain_radius2, MeasureScratch};
+use super::convex_cell::ConvexCell;
+use super::faces::FaceRow;
+
+/// What the diagram driver asks of a domain. Lengths in the input's unit `L`; a cell is
+/// given relative to its site (absolute coordinates `site + v`).
+pub trait DomainKind<const D: usize>: Sync {
+    /// (a) A box holding the domain: every convex cell starts as this box (a little
+    /// larger), before the bisectors cut it.
+    fn bounds(&self) -> Aabb<D>;
+
+    /// The domain's measure (area in 2D, volume in 3D), `L^d`: what the mean spacing of the
+    /// sites is taken from.
+    fn volume(&self) -> f64;
+
+    /// (c) The inside test: the winding number of `point` (0 outside, 1 inside a simple
+    /// domain), `None` on the boundary itself.
+    fn locate(&self, point: &[f64; D]) -> Option<i32>;
+
+    /// Points besides the sites where a polynomial density must be finite and positive
+    /// (where its extremes over the domain can lie: the boundary's vertices).
+    fn density_checkpoints(&self) -> &[[f64; D]];
+
+    /// The domain is convex: a cell of a site strictly inside may be cut to the domain
+    /// early ([`DomainKind::cut_convex`]) and then measured as it is.
+    fn is_convex(&self) -> bool;
+
+    /// Cut `cell` (of a site strictly inside a convex domain) to the domain, tagging the
+    /// new faces `Face::Boundary`; `candidates` is a buffer.
+    fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], candidates: &mut Vec<u32>);
+
+    /// An upper bound on `|x|²` over the part of `cell` inside the domain, `L²`: how far a
+    /// localised cell must be validated.
+    fn local_radius2<C: ConvexCell<D>>(&self, cell: &C, site: [f64; D]) -> f64;
+
+    /// (b) The exact moments of `cell ∩ Ω` about the site, its faces measured into
+    /// `scratch` (and the integrand of `row` summed over them). `winding` is the site's
+    /// [`DomainKind::locate`].
+    fn clip<C: ConvexCell<D>>(
+        &self,
+        cell: &C,
+        site: [f64; D],
+        winding: Option<i32>,
+        row: Option<FaceRow<'_, D>>,
+        scratch: &mut MeasureScratch<D, C>,
+    ) -> Moments<D>;
+}
+
+/// A polygon with holes (2D) or a solid bounded by triangles (3D): cells clipped through
+/// signed cones from an apex (`clip.rs`), the inside test a winding number.
+impl<const D: usize> DomainKind<D> for Boundary<D>
+where
+    Euclid: Space<D> + WindingNumber<D>,
+{
+    fn bounds(&self) -> Aabb<D> {
+        Boundary::bounds(self)
+    }
+
+    fn volume(&self) -> f64 {
+        Boundary::volume(self)
+    }
+
+    fn locate(&self, point: &[f64; D]) -> Option<i32> {
+        Euclid::winding_number(self, point)
+    }
+
+    fn density_checkpoints(&self) -> &[[f64; D]] {
+        self.vertices()
+    }
+
+    fn is_convex(&self) -> bool {
+        Boundary::is_convex(self)
+    }
+
+    fn cut_convex<C: ConvexCell<D>>(
+        &self,
+        cell: &mut C,
+        site: [f64; D],
+        candidates: &mut Vec<u32>,
+    ) {
+        cut_by_boundary(self, cell, site, candidates);
+    }
+
+    fn local_radius2<C: ConvexCell<D>>(&self, cell: &C, site: [f64; D]) -> f64 {
+        domain_radius2(self, cell, site)
+    }
+
+    fn clip<C: ConvexCell<D>>(
+        &self,
+        cell: &C,
+        site: [f64; D],
+        winding: Option<i32>,
+        row: Option<FaceRow<'_, D>>,
+        scratch: &mut MeasureScratch<D, C>,
+    ) -> Moments<D> {
+        clip_by_domain(self, cell, site, winding, row, scratch)
+    }
+}

@@ -1,0 +1,136 @@
+"""What the binding returns: the dicts of arrays built by ``hcvt._core``, typed.
+
+Each dict is built in one place of the binding (crates/hcvt-py/src): a diagram's arrays by
+``diagram_dict`` (diagram.rs), a mesh's by ``mesh_dict`` (mesh.rs), a CVT's by
+``outcome_dict`` and its per-iterate record by ``call`` (optimise.rs). The stubs
+(``_core.pyi``) return these types, so that mypy checks every key the package reads.
+
+Shapes: ``n`` sites, dimension ``d``; ``k`` neighbour entries; float arrays are float64 in
+the core's frame (``hcvt.geometry.frame``), index arrays ``np.intp``.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, NotRequired, TypedDict
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "CellField",
+    "CvtArrays",
+    "CvtHistory",
+    "CvtRecord",
+    "DiagramArrays",
+    "MeshArrays",
+    "MeshPartArrays",
+    "PartCellsArrays",
+]
+
+Floats = NDArray[np.float64]
+Indices = NDArray[np.intp]
+
+
+class DiagramArrays(TypedDict):
+    """A clipped diagram, row ``i`` the cell of site ``i`` (``_core.voronoi``)."""
+
+    volume: Floats  # (n,) L^d
+    mass: Floats  # (n,) ∫ρ, the volume without a density
+    centroid: Floats  # (n, d) L, ρ-weighted with a density
+    second_moment: Floats  # (n,) ∫|x − c_i|², L^(d+2)
+    G: Floats  # (n,) dimensionless second moment
+    energy_terms: Floats  # (n,) ∫ρ|x − x_i|²
+    energy: float
+    gradient: Floats  # (n, d)
+    boundary_measure: Floats  # (n,) share of the domain boundary, L^(d−1)
+    neighbor_offsets: Indices  # (n + 1,)
+    neighbor_sites: Indices  # (k,)
+    neighbor_measures: Floats  # (k,) L^(d−1)
+    # With keep_cells: 2D, each site's convex cell counter-clockwise, absolute.
+    cell_offsets: NotRequired[Indices]  # (n + 1,)
+    cell_vertices: NotRequired[Floats]  # (m, d)
+    # With keep_cells: 3D, each cell a closed outward triangle mesh (local indices).
+    cell_vertex_offsets: NotRequired[Indices]  # (n + 1,)
+    cell_face_offsets: NotRequired[Indices]  # (n + 1,)
+    cell_faces: NotRequired[Indices]  # (f, 3)
+
+
+#: The per-cell fields of a :class:`DiagramArrays` (and ``energy``), as names to read.
+CellField = Literal[
+    "volume",
+    "mass",
+    "centroid",
+    "second_moment",
+    "G",
+    "energy_terms",
+    "energy",
+    "gradient",
+    "boundary_measure",
+    "neighbor_measures",
+]
+
+
+class PartCellsArrays(DiagramArrays):
+    """A part's own cells (``_core.partition_cells``): neighbours in the problem's rows."""
+
+    first: Floats  # (n_own, d) first moments about the sites
+    reach2: Floats  # (n_own,) L²
+
+
+class MeshArrays(TypedDict):
+    """The conforming mesh (``_core.mesh``), OpenFOAM's layout (``hcvt.mesh.PolyMesh``)."""
+
+    points: Floats  # (p, d)
+    face_offsets: Indices  # (f + 1,)
+    face_vertices: Indices
+    owner: Indices  # (f,)
+    neighbour: Indices  # (f,), −1 on the boundary
+    boundary_element: Indices  # (f,), −1 inside
+    open_chains: int
+
+
+class MeshPartArrays(MeshArrays):
+    """A part's faces (``_core.mesh_part``): the cells computed and their reach."""
+
+    computed: Indices  # (c,)
+    reach2: Floats  # (c,) L²
+
+
+class CvtRecord(TypedDict):
+    """One iterate of a CVT, as the callback of ``_core.cvt`` sees it."""
+
+    energy: float
+    mean_G: float
+    rms_gap: float
+    max_gap: float
+    grad_norm: float
+    pinned: int
+    seconds: float
+    evaluations: int
+    step: str
+    sites: Floats  # (n, d)
+
+
+class CvtHistory(TypedDict):
+    """Every iterate's record, one array per field."""
+
+    energy: Floats
+    mean_G: Floats
+    rms_gap: Floats
+    max_gap: Floats
+    grad_norm: Floats
+    pinned: Indices
+    seconds: Floats
+    evaluations: Indices
+    step: list[str]
+
+
+class CvtArrays(TypedDict):
+    """A CVT (``_core.cvt``): the final sites, their diagram, the history, why it stopped."""
+
+    sites: Floats  # (n, d)
+    diagram: DiagramArrays
+    history: CvtHistory
+    stop_reason: str
+    iterations: int
+    evaluations: int
