@@ -1,8 +1,9 @@
-"""OpenFOAM's checkMesh and laplacianFoam on converged CVTs of real meshes: exact, merged.
+"""OpenFOAM's checkMesh and laplacianFoam on converged CVTs of real meshes, beside OpenFOAM's route.
 
 Run ``OPENBLAS_NUM_THREADS=1 python benchmarks/checkmesh.py`` (needs OpenFOAM's
-``checkMesh``; ``WM_PROJECT_DIR`` defaults to Debian's ``/usr/share/openfoam``). For each
-case (bunny 50k, cheese 10k by default) it
+``checkMesh``, ``gmshToFoam`` and ``polyDualMesh``, and ``pip install gmsh``;
+``WM_PROJECT_DIR`` defaults to Debian's ``/usr/share/openfoam``). For each case (bunny 50k,
+cheese 10k by default; ``--cases bunny fandisk cheese -n 1000`` for the 1k table) it
 
 1. converges a CVT to the default rule (Newton from scrambled Halton sites, seed 0) and
    keeps its sites in ``--cache`` (``<name>_<n>_newton.npy`` and ``.json``): a later run
@@ -23,7 +24,17 @@ case (bunny 50k, cheese 10k by default) it
 5. for each cell whose faces still fail after merging, a search for any other grouping:
    random partitions of all its pieces into 2 to 4 connected groups (seed 0), counting
    those whose groups are all simple loops and those whose faces all pass (against the
-   exact cell's centroid).
+   exact cell's centroid);
+6. OpenFOAM's own route on the same shape (``--no-gmsh`` leaves it out): gmsh
+   tetrahedra (the surface remeshed by gmsh's ``classifySurfaces``/``createGeometry``,
+   element size set so that the tetrahedra have about ``n`` vertices, each of which
+   becomes one dual cell), written as a version 2.2 ``.msh``, ``gmshToFoam``, then
+   ``polyDualMesh -overwrite <feature angle>`` (60 degrees by default); checkMesh and
+   laplacianFoam on it as on hcvt's meshes.
+
+At the end a table: per shape and mesh, the cells, checkMesh's verdict, the total volume
+checkMesh computes against the input mesh's, and laplacianFoam's last residual and RMS
+error.
 
 ``docs/results/checkmesh.txt`` holds the output of one run.
 """
@@ -49,12 +60,21 @@ from hcvt.export import (
     mesh_quality,
     write_openfoam,
 )
+from hcvt.io.openfoam import write_system
+from hcvt.io.solver import LaplaceCheck
 from hcvt.mesh.polymesh import PolyMesh
 from hcvt.seeding.initialisation import initialise
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
 NUM = r"([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)"
-CASES = {"bunny": ("bunny.off", 50_000), "cheese": ("cheese.off", 10_000)}
+CASES = {
+    "bunny": ("bunny.off", 50_000),
+    "fandisk": ("fandisk.off", 10_000),
+    "cheese": ("cheese.off", 10_000),
+}
+#: One line of the final table: shape, mesh, cells, checkMesh, volume error, residual, RMS.
+Row = tuple[str, str, int, str, float, float, float]
+ROWS: list[Row] = []
 
 
 def converged_sites(name: str, n: int, cache: Path) -> tuple[np.ndarray, dict]:
@@ -213,6 +233,148 @@ def report(label: str, log: str, mesh: PolyMesh, domain_volume: float) -> None:
     )
 
 
+def verdict(log: str) -> str:
+    """``Mesh OK``, or how many checks failed and how each failure begins."""
+    if "Mesh OK." in log:
+        return "Mesh OK"
+    failures = [" ".join(f.split()[:6]) for f in re.findall(r"\*\*\*(.*)", log)]
+    return f"failed {len(failures)}: " + "; ".join(failures)
+
+
+def solve(case: Path) -> LaplaceCheck:
+    """Run laplacianFoam on ``case`` (:func:`laplace_check`) and print its figures."""
+    start = time.perf_counter()
+    solved = laplace_check(case)
+    print(
+        f"    laplacianFoam: converged {solved.converged}, residual "
+        f"{solved.residual:.2e} after {len(solved.residuals)} solves, error RMS "
+        f"{solved.rms_error:.3e} max {solved.max_error:.3e} "
+        f"({time.perf_counter() - start:.1f} s)"
+    )
+    return solved
+
+
+def row(shape: str, mesh: str, log: str, domain_volume: float, solved: LaplaceCheck) -> Row:
+    total = figure(log, rf"Total volume = {NUM}")
+    cells = int(figure(log, r"cells:\s+(\d+)"))
+    return (
+        shape,
+        mesh,
+        cells,
+        verdict(log),
+        total / domain_volume - 1,
+        solved.residual,
+        solved.rms_error,
+    )
+
+
+def gmsh_dual(name: str, n: int, case: Path, feature_angle: float) -> str:
+    """OpenFOAM's route: gmsh tetrahedra with about ``n`` vertices, their dual mesh.
+
+    Returns checkMesh's log of the case left in ``case`` (module docs, step 6).
+    """
+    domain = hcvt.load_domain(DATA / name)
+    shutil.rmtree(case, ignore_errors=True)
+    case.mkdir(parents=True)
+    write_system(case)
+    stl = case / "surface.stl"
+    vertices, faces = np.asarray(domain.vertices), np.asarray(domain.faces)
+    with stl.open("w") as out:
+        out.write("solid surface\n")
+        for tri in vertices[faces]:
+            normal = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+            out.write(f"facet normal {normal[0]:.17g} {normal[1]:.17g} {normal[2]:.17g}\n")
+            out.write(" outer loop\n")
+            for v in tri:
+                out.write(f"  vertex {v[0]:.17g} {v[1]:.17g} {v[2]:.17g}\n")
+            out.write(" endloop\nendfacet\n")
+        out.write("endsolid surface\n")
+    size = (domain.volume / n) ** (1 / 3)
+    start = time.perf_counter()
+    surface = "remeshed"
+    try:
+        nodes, size = _gmsh_tetrahedra(stl, case / "mesh.msh", n, size, remesh=True)
+    except Exception:  # "Wrong topology of boundary mesh for parametrization" (bunny)
+        surface = "input triangles kept"
+        nodes, size = _gmsh_tetrahedra(stl, case / "mesh.msh", n, size, remesh=False)
+    env = {**os.environ}
+    env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
+    for command in (
+        ["gmshToFoam", "-case", str(case), str(case / "mesh.msh")],
+        ["polyDualMesh", "-case", str(case), "-overwrite", f"{feature_angle:g}"],
+    ):
+        subprocess.run(command, capture_output=True, text=True, env=env, check=True)
+    print(
+        f"  gmsh + polyDualMesh: surface {surface}, {nodes} tetrahedron vertices (element "
+        f"size {size:.3g}), "
+        f"{time.perf_counter() - start:.1f} s"
+    )
+    return check_mesh(case)
+
+
+def _gmsh_tetrahedra(stl: Path, msh: Path, n: int, size: float, remesh: bool) -> tuple[int, float]:
+    """Tetrahedra inside the surface ``stl`` written to ``msh``: vertices, element size.
+
+    ``remesh``: the surface remeshed at the element size (patches split at 40-degree
+    creases, reparametrised); else its triangles kept as the boundary mesh.
+    """
+    import gmsh
+
+    gmsh.initialize(["gmsh", "-nt", "1"])
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.merge(str(stl))
+        gmsh.model.mesh.classifySurfaces(np.radians(40.0), True, remesh, np.pi)
+        gmsh.model.mesh.createGeometry()
+        surfaces = [tag for _, tag in gmsh.model.getEntities(2)]
+        loop = gmsh.model.geo.addSurfaceLoop(surfaces)
+        volume = gmsh.model.geo.addVolume([loop])
+        gmsh.model.geo.synchronize()
+        gmsh.model.addPhysicalGroup(2, surfaces, name="wall")
+        gmsh.model.addPhysicalGroup(3, [volume], name="solid")
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+        nodes = 0
+        for attempt in range(3):  # the element size that gives about n vertices
+            gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+            gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+            gmsh.model.mesh.clear()
+            gmsh.model.mesh.generate(3)
+            nodes = len(gmsh.model.mesh.getNodes()[0])
+            if abs(nodes / n - 1) < 0.1 or attempt == 2 or not remesh:
+                break
+            size *= (nodes / n) ** (1 / 3)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 2.2)
+        gmsh.write(str(msh))
+    finally:
+        gmsh.finalize()
+    return nodes, size
+
+
+def run_gmsh(key: str, n: int | None, root: Path, feature_angle: float) -> None:
+    name, default_n = CASES[key]
+    n = n or default_n
+    domain = hcvt.load_domain(DATA / name)
+    case = root / f"{Path(name).stem}_{n}_gmsh_dual"
+    try:
+        log = gmsh_dual(name, n, case, feature_angle)
+    except Exception as err:  # gmsh raises Exception; OpenFOAM's tools CalledProcessError
+        print(f"  gmsh + polyDualMesh: failed ({err})")
+        ROWS.append((key, "gmsh + polyDualMesh", 0, f"not made: {err}", *[float("nan")] * 3))
+        return
+    print(f"  gmsh + polyDualMesh: checkMesh: {verdict(log)}")
+    ROWS.append(row(key, "gmsh + polyDualMesh", log, domain.volume, solve(case)))
+
+
+def print_table() -> None:
+    print()
+    print(
+        f"{'shape':8} {'mesh':20} {'cells':>6} {'volume error':>12} {'residual':>9} "
+        f"{'RMS error':>9}  checkMesh"
+    )
+    for shape, mesh, cells, check, volume, residual, rms in ROWS:
+        print(f"{shape:8} {mesh:20} {cells:6d} {volume:+12.2e} {residual:9.1e} {rms:9.2e}  {check}")
+
+
 def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
     name, default_n = CASES[key]
     n = n or default_n
@@ -259,14 +421,8 @@ def run_case(key: str, n: int | None, cache: Path, keep: Path | None) -> None:
                 f"{time.perf_counter() - start:.1f} s"
             )
             report(label, log, written, domain.volume)
-            start = time.perf_counter()
-            solved = laplace_check(case)
-            print(
-                f"    laplacianFoam: converged {solved.converged}, residual "
-                f"{solved.residual:.2e} after {len(solved.residuals)} solves, error RMS "
-                f"{solved.rms_error:.3e} max {solved.max_error:.3e} "
-                f"({time.perf_counter() - start:.1f} s)"
-            )
+            solved = solve(case)
+            ROWS.append(row(key, f"hcvt {label}", log, domain.volume, solved))
     if len(merge.failing):
         cells = np.unique(merged.owner[merge.failing])
         centroid = merged.cell_geometry.centroid
@@ -292,9 +448,15 @@ def main() -> None:
     parser.add_argument("-n", type=int, help="sites (default: bunny 50k, cheese 10k)")
     parser.add_argument("--cache", type=Path, default=Path(".cache/checkmesh"))
     parser.add_argument("--keep", type=Path, help="write the cases here and keep them")
+    parser.add_argument("--no-gmsh", action="store_true", help="leave out gmsh + polyDualMesh")
+    parser.add_argument("--feature-angle", type=float, default=60.0, help="polyDualMesh's")
     args = parser.parse_args()
     for key in args.cases:
         run_case(key, args.n, args.cache, args.keep)
+        if not args.no_gmsh:
+            with tempfile.TemporaryDirectory() as tmp:
+                run_gmsh(key, args.n, args.keep or Path(tmp), args.feature_angle)
+    print_table()
 
 
 if __name__ == "__main__":

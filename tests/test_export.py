@@ -33,7 +33,8 @@ from hcvt.export import (
     write_vtu,
 )
 from hcvt.io.vtu import _split_for_vtk
-from hcvt.mesh.merge import merge_boundary_faces, outlines
+from hcvt.mesh.merge import merge_boundary_faces, merge_failing_boundary_faces, outlines
+from hcvt.mesh.parts import cell_parts, join_detached_parts
 from hcvt.mesh.polymesh import PolyMesh
 from helpers import DATA, random_inside
 
@@ -595,6 +596,65 @@ def test_merged_boundary_leaves_a_passing_mesh_alone(sphere_cvt, sphere):
     assert merged is mesh
 
 
+def _boxes_with_a_detached_part(shape, cell, gone):
+    """``meshes.hex_grid(shape)`` with the last layer of boxes along x half as thick and
+    box ``gone`` renamed ``cell``: cell ``cell`` in two parts, the second half as big."""
+    grid = meshes.hex_grid(shape, hi=shape)
+    points = grid.points.copy()
+    points[points[:, 0] == shape[0], 0] = shape[0] - 0.5
+    rename = np.arange(grid.n_cells)
+    rename[gone] = cell
+    neighbour = np.where(grid.neighbour >= 0, rename[np.maximum(grid.neighbour, 0)], -1)
+    return PolyMesh(
+        points,
+        grid.face_offsets,
+        grid.face_vertices,
+        rename[grid.owner],
+        neighbour,
+        grid.boundary_element,
+        grid.n_cells,
+    )
+
+
+def test_a_detached_part_touching_one_cell_joins_it():
+    # Boxes 0, 1, 2 in a row; box 2 (half as thick) renamed 0: cell 0 in two parts.
+    mesh = _boxes_with_a_detached_part((3, 1, 1), cell=0, gone=2)
+    assert np.bincount(cell_parts(mesh).of_cell).tolist() == [2, 1]
+    joined_mesh, joined = join_detached_parts(mesh)
+    joined_mesh.check()
+    assert joined.cells.tolist() == [0] and joined.to.tolist() == [1]
+    assert joined.shared_with.tolist() == [-1] and joined.volume == pytest.approx([0.5])
+    assert joined_mesh.cell_geometry.volume == pytest.approx([1.0, 1.5, 0.0])
+    assert joined_mesh.n_faces == mesh.n_faces - 1  # the face between box 1 and box 2
+    assert np.bincount(cell_parts(joined_mesh).of_cell).tolist() == [1, 1]
+    # A mesh of connected cells comes back as it was.
+    again, none = join_detached_parts(joined_mesh)
+    assert again is joined_mesh and len(none.cells) == 0
+
+
+def test_a_detached_part_touching_two_cells_is_shared_and_stays_exact():
+    # A 3 x 2 grid, the last column half as thick; box 5 (top right) renamed 0: the part
+    # touches box 4 (its left, face area 1) and box 2 (below it, area 0.5).
+    mesh = _boxes_with_a_detached_part((3, 2, 1), cell=0, gone=5)
+    volume = mesh.cell_geometry.volume
+    joined_mesh, joined = join_detached_parts(mesh)
+    joined_mesh.check()
+    assert joined.cells.tolist() == [0] and joined.volume == pytest.approx([0.5])
+    assert {joined.to[0], joined.shared_with[0]} <= {4, 2, -1}
+    after = joined_mesh.cell_geometry.volume
+    assert after[0] == pytest.approx(1.0) and after[5] == 0.0
+    assert after.sum() == pytest.approx(volume.sum(), rel=1e-14)
+    assert after[2] + after[4] == pytest.approx(volume[2] + volume[4] + 0.5, rel=1e-14)
+    assert np.bincount(cell_parts(joined_mesh).of_cell, minlength=6).max() == 1
+
+
+def test_merged_boundary_joins_detached_parts_first():
+    mesh = _boxes_with_a_detached_part((3, 1, 1), cell=0, gone=2)
+    merged, report = merged_boundary(mesh)
+    assert report.joined_parts == 1 and len(report.failing) == 0
+    assert merged.cell_geometry.volume == pytest.approx([1.0, 1.5, 0.0])
+
+
 def test_outlines_of_pieces_join_discs_and_refuse_annuli_and_pinches():
     # A 3 x 3 grid of unit squares in the plane z = 0, counter-clockwise from +z.
     xy = np.array([(x, y, 0.0) for y in range(4) for x in range(4)], dtype=float)
@@ -698,32 +758,31 @@ def test_merged_boundary_passes_checkmesh_on_a_converged_bunny_cvt(tmp_path):
 
 
 @pytest.mark.slow
-def test_merged_boundary_on_a_converged_cheese_cvt_fails_only_where_no_disc(tmp_path):
+def test_merged_boundary_passes_checkmesh_on_a_converged_cheese_cvt(tmp_path):
     # The cheese (genus 133) at 1000 sites (about 30 s): merging fixes every skew piece
-    # (6,745 exact) and every inverted pyramid (327) but two, in cells that wrap a thin
-    # tunnel: their pieces form no single disc (an annulus), and no join of a failing
-    # piece with neighbours puts the cell's centre in front of it.
+    # (6,745 exact) and every inverted pyramid (327). Merging alone left two faces with
+    # an inverted pyramid (cells 333 and 594); this CVT also has two cells in two parts
+    # (412 and 733: a thin tunnel crossing their convex regions), whose small parts are
+    # joined to neighbours first (hcvt.mesh.parts), after which merging leaves none.
+    # (Merging alone is not blind to face numbering: with the two parts joined, cells
+    # 333 and 594 pass too. On the L-BFGS CVT of tests/test_solver.py the three failing
+    # cells were the cells in parts.)
     domain, diagram = _converged("cheese.off", 1000)
     mesh = diagram.mesh()
     exact = mesh_quality(mesh).summary()
     assert exact["skew_faces"] > 1000 and exact["inverted_pyramids"] > 100
+    patch, _ = boundary_patches(mesh, domain)
+    _, alone = merge_failing_boundary_faces(mesh, patch)
+    in_parts = np.flatnonzero(np.bincount(cell_parts(mesh).of_cell) > 1)
+    assert len(alone.failing) > 0 and len(in_parts) > 0
     merged, report = merged_boundary(mesh, domain)
+    assert report.joined_parts == len(in_parts) and len(report.failing) == 0
     quality = mesh_quality(merged).summary()
-    assert quality["skew_faces"] == 0
-    assert quality["inverted_pyramids"] == len(report.failing) > 0
-    for cell in np.unique(merged.owner[report.failing]).tolist():
-        pieces = np.flatnonzero((mesh.owner == cell) & ~mesh.interior)
-        *_, simple = outlines(mesh, pieces, np.zeros(len(pieces), dtype=np.intp))
-        assert not simple[0], f"cell {cell}: its pieces make one disc, yet it fails"
-    with pytest.warns(UserWarning, match="still fail"):
-        case = write_openfoam(mesh, tmp_path / "case", domain=domain, boundary_faces="merged")
+    assert quality["skew_faces"] == 0 and quality["inverted_pyramids"] == 0
+    case = write_openfoam(mesh, tmp_path / "case", domain=domain, boundary_faces="merged")
     log = _check_mesh(case)
-    assert "Max skewness" in log and "highly skew" not in log
+    assert "Mesh OK." in log and "***" not in log, re.findall(r"\*\*\*(.*)", log)
     assert "ok (closed singly connected)" in log
-    failures = re.findall(r"\*\*\*(.*)", log)
-    assert failures == [
-        f"Error in face pyramids: {len(report.failing)} faces are incorrectly oriented."
-    ]
     assert abs(_figure(log, rf"Max skewness = {NUM}") - quality["skewness_max"]) < 1e-9
     total = _figure(log, rf"Total volume = {NUM}")
     assert abs(total - quality["volume_total"]) < 1e-12 * total

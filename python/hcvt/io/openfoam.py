@@ -77,8 +77,10 @@ def write_openfoam(
         default: the boundary pieces checkMesh would flag (small pieces at a cell's rim
         are skew; in a cell wrapping a reflex edge, its centre lies behind some pieces:
         face pyramids) are joined to neighbouring pieces of the same cell and patch until
-        checkMesh's skewness and pyramid checks pass (:mod:`hcvt.mesh.merge`); cells
-        and interior faces are unchanged, but a merged face is not planar, so the
+        checkMesh's skewness and pyramid checks pass (:mod:`hcvt.mesh.merge`), after
+        each cell in several parts (a thin tunnel crossing it) has given all but its
+        largest to neighbours (:mod:`hcvt.mesh.parts`); other cells and interior faces
+        are unchanged, but a merged face is not planar, so the
         volumes OpenFOAM computes for the cells that have one move slightly
         (``docs/results/checkmesh.txt``); ``laplacianFoam`` converges on it
         (:mod:`hcvt.io.solver`). ``"exact"``: every piece of an input triangle in a
@@ -114,8 +116,7 @@ def write_openfoam(
         if len(report.failing):
             warnings.warn(
                 f"{len(report.failing)} boundary faces still fail checkMesh's skewness or "
-                "face-pyramid check after merging (a cell whose boundary pieces make no "
-                "single disc, such as a cell wrapping a thin tunnel)",
+                "face-pyramid check after merging",
                 stacklevel=2,
             )
         mesh.check()  # still closed cells of positive volume
@@ -142,7 +143,7 @@ def write_openfoam(
     _write_list(poly / "owner", "labelList", owner, fmt, note)
     _write_list(poly / "neighbour", "labelList", neighbour, fmt, note)
     _write_boundary(poly / "boundary", names, types, sizes, len(neighbour))
-    _write_system(root)
+    write_system(root)
     for name, values in fields.items():
         _write_field(root / "0" / name, name, values, names)
     return root
@@ -389,7 +390,7 @@ SIMPLE { nNonOrthogonalCorrectors 0; }
 """
 
 
-def _write_system(root: Path) -> None:
+def write_system(root: Path) -> None:
     """Minimal ``system/`` dictionaries, enough for checkMesh, foamToVTK and paraFoam.
 
     A solver needs its own schemes and solvers.

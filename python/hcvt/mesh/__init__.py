@@ -6,6 +6,7 @@
 | :mod:`~hcvt.mesh.cells` | each cell's own geometry (triangles, polygons) read off the mesh |
 | :mod:`~hcvt.mesh.quality` | quality as OpenFOAM's checkMesh defines it |
 | :mod:`~hcvt.mesh.patches` | the boundary's patches (connected components or labels) |
+| :mod:`~hcvt.mesh.parts` | cells in several parts: all but the largest joined to neighbours |
 | :mod:`~hcvt.mesh.merge` | boundary pieces checkMesh would flag, merged |
 """
 
