@@ -14,6 +14,7 @@ from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.errors import InvalidSitesError
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.frame import Frame
+from hcvt.io.geo import to_geodataframe
 from hcvt.io.writers import to_pyvista
 from hcvt.mesh.cells import polygons, triangulated
 from hcvt.mesh.polymesh import PolyMesh
@@ -288,6 +289,22 @@ class Diagram:
         and ``Diagram.mesh()``. See :func:`hcvt.io.to_pyvista`.
         """
         return to_pyvista(self)
+
+    def to_geopandas(self) -> Any:
+        """The 2D cells as a ``geopandas.GeoDataFrame``: row ``i`` the cell of site ``i``.
+
+        Columns ``site_x``, ``site_y``, ``centroid_x``, ``centroid_y``, ``volume`` (the
+        area, L²), ``mass`` (with a density), ``second_moment``, ``G``, ``energy``,
+        ``boundary_measure``, ``neighbors`` (count) and the cell as ``geometry``; index
+        ``site``; CRS the domain's (``domain.crs``). Needs geopandas
+        (``pip install 'hcvt[geo]'``). See :func:`hcvt.io.geo.to_geodataframe`.
+
+        Raises
+        ------
+        ValueError
+            A 3D diagram.
+        """
+        return to_geodataframe(self)
 
     def __repr__(self) -> str:
         return (

@@ -18,6 +18,9 @@ LAZY = {
     "dask.distributed": None,  # scale-out
     "matplotlib": None,  # pictures: hcvt.plot
     "pyvista": "viz",  # interactive viewing: Diagram.to_pyvista()
+    "pyproj": "geo",  # coordinate reference systems of GIS input: Domain.crs
+    "geopandas": "geo",  # GIS files and GeoDataFrames: load_domain, Diagram.to_geopandas()
+    "pandas": "geo",  # the index of Diagram.to_geopandas()
 }
 
 
