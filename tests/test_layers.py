@@ -29,7 +29,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcvt.seeding",),
     ("hcvt.distributed",),
     ("hcvt.api",),
-    ("hcvt.export", "hcvt.plot"),
+    ("hcvt.export", "hcvt.plot", "hcvt.accessor"),
     ("hcvt",),  # the public face: __init__'s names
     ("hcvt.cli", "hcvt.experiments"),  # its users
 ]

@@ -23,6 +23,9 @@ from hcvt.geometry import repair as mesh
 from hcvt.geometry.crs import projected_crs
 from hcvt.geometry.frame import Frame
 
+# VTK's cell type of a triangle (vtkCellType.h).
+_VTK_TRIANGLE = 5
+
 
 @dataclass(frozen=True)
 class RepairReport:
@@ -230,6 +233,81 @@ class Domain:
             )
         return cls(core, 3, None, report, frame)
 
+    @classmethod
+    def from_trimesh(cls, mesh: Any, *, repair: bool = False) -> Domain:
+        """Solid bounded by a ``trimesh.Trimesh``, its vertices and faces as indexed.
+
+        Parameters
+        ----------
+        mesh : trimesh.Trimesh
+            A closed triangle mesh (``mesh.vertices`` (V, 3), ``mesh.faces`` (F, 3)). A
+            ``trimesh.Scene`` is refused: join its geometry first (``scene.to_mesh()``).
+        repair : bool, default False
+            As in :meth:`from_mesh`.
+
+        Raises
+        ------
+        TypeError
+            ``mesh`` has no vertices and faces.
+        InvalidDomainError
+            As :meth:`from_mesh`.
+
+        Examples
+        --------
+        >>> import hcvt, trimesh
+        >>> round(hcvt.Domain.from_trimesh(trimesh.creation.box((1, 2, 3))).volume, 12)
+        6.0
+        """
+        if not (hasattr(mesh, "vertices") and hasattr(mesh, "faces")):
+            raise TypeError(
+                f"expected a trimesh.Trimesh, got {type(mesh).__name__}"
+                + (
+                    "; join a Scene's geometry with scene.to_mesh()"
+                    if hasattr(mesh, "dump")
+                    else ""
+                )
+            )
+        return cls.from_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), repair=repair)
+
+    @classmethod
+    def from_pyvista(cls, dataset: Any, *, repair: bool = False) -> Domain:
+        """Solid bounded by the triangles of a PyVista dataset.
+
+        Parameters
+        ----------
+        dataset : pyvista.PolyData or pyvista.UnstructuredGrid
+            A closed surface. Triangles are taken as indexed (``pv.read("bunny.off")`` is
+            the file's mesh, bit for bit); other polygons are fanned into triangles
+            (``triangulate()``); a volume mesh (tetrahedra, hexahedra ...) stands for the
+            solid it fills, bounded by its ``extract_surface()``.
+        repair : bool, default False
+            As in :meth:`from_mesh`.
+
+        Raises
+        ------
+        TypeError
+            Not a PyVista dataset.
+        InvalidDomainError
+            As :meth:`from_mesh`.
+
+        Examples
+        --------
+        >>> import hcvt, pyvista
+        >>> round(hcvt.Domain.from_pyvista(pyvista.Cube(x_length=2.0)).volume, 12)
+        2.0
+        """
+        if not hasattr(dataset, "extract_surface"):
+            raise TypeError(f"expected a pyvista dataset, got {type(dataset).__name__}")
+        celltypes = getattr(dataset, "celltypes", None)
+        if celltypes is not None and len(celltypes) and np.all(celltypes == _VTK_TRIANGLE):
+            faces = dataset.cells_dict[_VTK_TRIANGLE]
+        else:
+            surface = dataset if hasattr(dataset, "is_all_triangles") else _surface(dataset)
+            if not surface.is_all_triangles:
+                surface = surface.triangulate()
+            dataset, faces = surface, surface.regular_faces
+        return cls.from_mesh(np.asarray(dataset.points), np.asarray(faces), repair=repair)
+
     @property
     def vertices(self) -> NDArray[np.float64]:
         """Boundary vertices as indexed, shape (V, d), bit for bit the input's."""
@@ -328,6 +406,14 @@ class Domain:
             authority = self.crs.to_authority()
             crs = f", crs={authority[0]}:{authority[1]}" if authority else f", crs={self.crs.name}"
         return f"<hcvt.Domain {kind}, volume={self.volume:.6g}{crs}>"
+
+
+def _surface(dataset: Any) -> Any:
+    """The boundary surface of a PyVista volume mesh (``extract_surface``)."""
+    try:  # pyvista >= 0.47 picks VTK's filter itself; the default is to change
+        return dataset.extract_surface(pass_pointid=False, pass_cellid=False, algorithm=None)
+    except TypeError:
+        return dataset.extract_surface(pass_pointid=False, pass_cellid=False)
 
 
 def _unpickle(
