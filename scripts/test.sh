@@ -7,7 +7,21 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export OPENBLAS_NUM_THREADS=1
 
-python -m pip install --quiet --disable-pip-version-check -e '.[test,docs]'
+pip_() { python -m pip install --quiet --disable-pip-version-check "$@"; }
+
+# One release build of the core, as the wheel users install (abi3, Python >= 3.11). Every
+# test below runs against that same wheel, installed here instead of an editable build,
+# and tests/test_wheel.py installs it again into a fresh venv with no Rust on PATH.
+echo "== wheel (maturin build --release)"
+pip_ 'maturin>=1.7,<2'
+rm -rf target/wheels
+python -m maturin build --release --out target/wheels
+wheel=$(ls target/wheels/hcvt-*-abi3-*.whl)
+pip_ --force-reinstall --no-deps "$wheel"
+pip_ "${wheel}[test,docs]"
+export HCVT_WHEEL="$PWD/$wheel" HCVT_REQUIRE_WHEEL=1
+# The installed package cannot see ../shared/data from site-packages: name it.
+if [ -d ../shared/data ]; then export HCVT_DATA="${HCVT_DATA:-$(cd ../shared/data && pwd)}"; fi
 
 # OpenFOAM's checkMesh judges the meshes hcvt writes (tests/test_export.py): Debian's
 # package (OpenFOAM 1912), installed when missing; its tools need WM_PROJECT_DIR.
@@ -38,7 +52,8 @@ echo "== cargo test"; cargo test --workspace --release
 echo "== ruff";     python -m ruff check python tests benchmarks examples docs/conf.py
 python -m ruff format --check python tests benchmarks examples docs/conf.py
 echo "== mypy";     python -m mypy && python -m mypy.stubtest hcvt._core
-echo "== pytest";   python -m pytest python tests
+# Doctests from the installed package (--pyargs): the source tree has no compiled core.
+echo "== pytest";   python -m pytest --pyargs hcvt tests
 # A miscompilation seen once with one codegen unit (crates/hcvt-core/src/moments.rs,
 # FaceMoments::simplex): the Hessian's finite-difference test, built that way too.
 echo "== cargo test, one codegen unit"

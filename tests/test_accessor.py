@@ -21,12 +21,12 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt.experiments.base import data_dir
+from helpers import DATA
 
 pv = pytest.importorskip("pyvista")
 trimesh = pytest.importorskip("trimesh")
 
-BUNNY = data_dir() / "3d" / "bunny.off"
+BUNNY = DATA / "3d" / "bunny.off"
 PYPROJECT = Path(__file__).resolve().parents[1] / "pyproject.toml"
 
 

@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 import hcvt
+from helpers import DATA
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples").glob("plot_*.py"))
@@ -48,7 +49,10 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     command = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html"]
     command += ["-d", str(work / "doctrees"), str(work / "docs"), str(html)]
     start = time.perf_counter()
-    done = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    # The examples find ../shared/data through hcvt (experiments.base.data_dir), which an
+    # installed wheel cannot see from site-packages: name it.
+    env = {**os.environ, "HCVT_DATA": os.environ.get("HCVT_DATA", str(DATA))}
+    done = subprocess.run(command, capture_output=True, text=True, timeout=600, env=env)
     seconds = time.perf_counter() - start
     assert done.returncode == 0, f"sphinx-build -W failed:\n{done.stderr[-6000:]}"
     print(f"docs built in {seconds:.1f} s")

@@ -16,11 +16,11 @@ import shapely
 
 import hcvt
 from hcvt.errors import InvalidDomainError
-from hcvt.experiments.base import data_dir
+from helpers import DATA
 
 gpd = pytest.importorskip("geopandas")
 
-ISLAND = data_dir() / "2d" / "nybb_staten_island_main.geojson"
+ISLAND = DATA / "2d" / "nybb_staten_island_main.geojson"
 STATE_PLANE = "EPSG:2263"
 
 
@@ -104,7 +104,7 @@ def test_series_and_feature_choice(island) -> None:
     with pytest.raises(InvalidDomainError, match="no feature 1; there are 1"):
         hcvt.load_domain(island, feature=1)
     with pytest.raises(ValueError, match="for polygon data only"):
-        hcvt.load_domain(data_dir() / "3d" / "bunny.off", crs=STATE_PLANE)
+        hcvt.load_domain(DATA / "3d" / "bunny.off", crs=STATE_PLANE)
 
 
 def test_geographic_crs_is_refused(island) -> None:
