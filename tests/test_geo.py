@@ -83,6 +83,10 @@ def test_geojson_cells_carry_the_crs(tmp_path, island, diagram) -> None:
     path = hcvt.write_cells(diagram, tmp_path / "cells.geojson")
     assert gpd.read_file(path).crs == island.crs
     assert hcvt.load_domain(path, feature=0).crs == island.crs
+    mesh = hcvt.write_mesh(diagram, tmp_path / "mesh.geojson")  # on shared vertices
+    back = gpd.read_file(mesh)
+    assert back.crs == island.crs
+    assert back.area.sum() == pytest.approx(diagram.domain.volume, rel=1e-12)
 
 
 def test_formats_geopandas_writes(tmp_path, island) -> None:
@@ -96,13 +100,16 @@ def test_formats_geopandas_writes(tmp_path, island) -> None:
     assert plain.crs == island.crs
 
 
-def test_series_and_feature_choice(island) -> None:
+def test_series_and_feature_choice(tmp_path, island) -> None:
     assert hcvt.load_domain(island.geometry).crs == island.crs
     assert hcvt.load_domain(island, query="name == 'nybb_staten_island_main'").crs is not None
     with pytest.raises(InvalidDomainError, match="kept none of 1 features"):
         hcvt.load_domain(island, query="name == 'Bronx'")
     with pytest.raises(InvalidDomainError, match="no feature 1; there are 1"):
         hcvt.load_domain(island, feature=1)
+    (tmp_path / "island.txt").write_text(ISLAND.read_text())
+    with pytest.raises(InvalidDomainError, match=r"unknown file type '\.txt'.*\.gpkg"):
+        hcvt.load_domain(tmp_path / "island.txt")
     with pytest.raises(ValueError, match="for polygon data only"):
         hcvt.load_domain(DATA / "3d" / "bunny.off", crs=STATE_PLANE)
 

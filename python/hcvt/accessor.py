@@ -56,12 +56,11 @@ class HcvtAccessor:
     def _sites(
         self, domain: Domain, n: int | None, sites: ArrayLike | None, init: str, seed: int
     ) -> ArrayLike:
-        if (n is None) == (sites is None):
-            raise ValueError("give either n (sites made by hcvt.initialise) or sites")
-        if sites is not None:
+        if sites is None and n is not None:
+            return initialise(domain, n, method=init, seed=seed)
+        if sites is not None and n is None:
             return sites
-        assert n is not None  # for mypy: one of the two is given
-        return initialise(domain, n, method=init, seed=seed)
+        raise ValueError("give either n (sites made by hcvt.initialise) or sites")
 
     def voronoi(
         self,

@@ -18,6 +18,12 @@ from hcvt.lazy import load
 
 POLYGON_SUFFIXES = {".wkt", ".geojson", ".json"}
 MESH_SUFFIXES = {".obj", ".off", ".ply", ".stl"}
+#: Vector formats read through GeoPandas (pyogrio, GDAL); a folder (a File Geodatabase,
+#: a folder of Shapefiles) too.
+GIS_SUFFIXES = {
+    ".gpkg", ".shp", ".fgb", ".gml", ".kml", ".gpx", ".sqlite", ".tab", ".mif", ".zip",
+    ".geojsonl", ".geojsons", ".topojson",
+}  # fmt: skip
 
 
 def load_domain(
@@ -39,9 +45,10 @@ def load_domain(
         A polygon: ``.wkt``; ``.geojson`` / ``.json`` (a Polygon, MultiPolygon, Feature or
         FeatureCollection of them: every polygonal part becomes part of the domain; the
         CRS of its ``crs`` member kept, and none assumed without one, since hcvt's GeoJSON
-        is planar); any other vector file GeoPandas reads (GeoPackage ``.gpkg``,
-        Shapefile ``.shp``, FlatGeobuf ...), or a GeoDataFrame or GeoSeries itself, their
-        CRS kept as ``domain.crs``.
+        is planar); a vector file GeoPandas reads (:data:`GIS_SUFFIXES`: GeoPackage
+        ``.gpkg``, Shapefile ``.shp``, FlatGeobuf ``.fgb`` ..., or a folder such as a File
+        Geodatabase), or a GeoDataFrame or GeoSeries itself, their CRS kept as
+        ``domain.crs``.
     repair : bool, default False
         Passed on to :meth:`Domain.from_polygon` or :meth:`Domain.from_mesh`.
     layer : str or int, optional
@@ -102,7 +109,12 @@ def load_domain(
         )
     if suffix == ".wkt":
         raise ValueError("layer, feature and query are for GIS files, not .wkt")
-    return read_geo(path, layer=layer, feature=feature, query=query, crs=crs, repair=repair)
+    if suffix in GIS_SUFFIXES | POLYGON_SUFFIXES or path.is_dir():
+        return read_geo(path, layer=layer, feature=feature, query=query, crs=crs, repair=repair)
+    raise InvalidDomainError(
+        f"{path.name}: unknown file type {suffix!r}; polygons: .wkt, .geojson, or a GIS file "
+        f"GeoPandas reads ({', '.join(sorted(GIS_SUFFIXES))}); meshes: .obj, .off, .ply, .stl"
+    )
 
 
 def read_mesh(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
