@@ -49,7 +49,6 @@ numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 
 myst_heading_anchors = 3
-suppress_warnings = ["myst.header"]  # results.md starts at its own level
 
 sphinx_gallery_conf = {
     "examples_dirs": str(HERE.parent / "examples"),
