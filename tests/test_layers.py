@@ -21,7 +21,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "python" / "hcvt"
 #: Bottom to top. A module is in the layer of its longest listed prefix.
 LAYERS: list[tuple[str, ...]] = [
     ("hcvt.core_results", "hcvt._core", "hcvt.errors", "hcvt.lazy"),
-    ("hcvt.density", "hcvt.geometry"),
+    ("hcvt.density", "hcvt.geometry", "hcvt.draw"),
     ("hcvt.mesh",),
     ("hcvt.io",),
     ("hcvt.diagram",),
@@ -29,7 +29,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcvt.seeding",),
     ("hcvt.distributed",),
     ("hcvt.api",),
-    ("hcvt.export", "hcvt.plot"),
+    ("hcvt.export", "hcvt.plot", "hcvt.accessor"),
     ("hcvt",),  # the public face: __init__'s names
     ("hcvt.cli", "hcvt.experiments"),  # its users
 ]

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-HEAVY = ("matplotlib", "trimesh", "dask", "distributed", "rich")
+HEAVY = ("matplotlib", "trimesh", "dask", "distributed", "rich", "geopandas", "pyproj", "pandas")
 
 
 def run(code: str) -> str:

@@ -12,9 +12,11 @@ from scipy import sparse
 from hcvt import _core
 from hcvt.core_results import CellField, DiagramArrays
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
+from hcvt.draw import Shows
 from hcvt.errors import InvalidSitesError
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.frame import Frame
+from hcvt.io.geo import to_geodataframe
 from hcvt.io.writers import to_pyvista
 from hcvt.mesh.cells import polygons, triangulated
 from hcvt.mesh.polymesh import PolyMesh
@@ -24,7 +26,7 @@ from hcvt.mesh.polymesh import PolyMesh
 NEIGHBOR_REL_TOL = 1e-9
 
 
-class Diagram:
+class Diagram(Shows):
     """A clipped Voronoi diagram; row ``i`` of every array is site ``i``.
 
     Integer arrays are ``np.intp``, the dtype numpy indexes with.
@@ -81,7 +83,9 @@ class Diagram:
         ``neighbors`` as a symmetric sparse matrix whose entries are ``face_measures``.
 
     Methods ``cell_neighbors(i)``, ``mesh()`` and ``cells()`` give one cell's faces, all
-    cells as one conforming mesh, and every cell's geometry.
+    cells as one conforming mesh, and every cell's geometry. In Jupyter a diagram shows
+    its cells coloured by G (a cut view in 3D) beside a summary (``_repr_html_``,
+    ``_repr_png_``; up to :data:`hcvt.draw.INLINE_LIMIT` cells).
 
     The core computes in the domain's frame (:mod:`hcvt.geometry.frame`); ``arrays`` are
     its results there, and each quantity above is mapped back to L when first read. One
@@ -289,11 +293,30 @@ class Diagram:
         """
         return to_pyvista(self)
 
+    def to_geopandas(self) -> Any:
+        """The 2D cells as a ``geopandas.GeoDataFrame``: row ``i`` the cell of site ``i``.
+
+        Columns ``site_x``, ``site_y``, ``centroid_x``, ``centroid_y``, ``volume`` (the
+        area, L²), ``mass`` (with a density), ``second_moment``, ``G``, ``energy``,
+        ``boundary_measure``, ``neighbors`` (count) and the cell as ``geometry``; index
+        ``site``; CRS the domain's (``domain.crs``). Needs geopandas
+        (``pip install 'hcvt[geo]'``). See :func:`hcvt.io.geo.to_geodataframe`.
+
+        Raises
+        ------
+        ValueError
+            A 3D diagram.
+        """
+        return to_geodataframe(self)
+
     def __repr__(self) -> str:
         return (
             f"<hcvt.Diagram n={self.n} d={self.domain.dim} "
             f"mean G={self.mean_G:.6f} energy={self.energy:.6g}>"
         )
+
+    def _shown(self) -> Diagram:
+        return self
 
 
 def voronoi(

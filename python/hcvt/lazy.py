@@ -16,8 +16,16 @@ LAZY = {
     "manifold3d": None,  # uniting overlapping shells when repairing a mesh
     "rich.progress": None,  # progress bars
     "dask.distributed": None,  # scale-out
-    "matplotlib": None,  # pictures: hcvt.plot
+    "matplotlib": None,  # pictures: hcvt.plot, hcvt.draw (Jupyter)
+    "matplotlib.cm": None,
+    "matplotlib.collections": None,
+    "matplotlib.colors": None,
+    "matplotlib.figure": None,
+    "mpl_toolkits.mplot3d.art3d": None,
     "pyvista": "viz",  # interactive viewing: Diagram.to_pyvista()
+    "pyproj": "geo",  # coordinate reference systems of GIS input: Domain.crs
+    "geopandas": "geo",  # GIS files and GeoDataFrames: load_domain, Diagram.to_geopandas()
+    "pandas": "geo",  # the index of Diagram.to_geopandas()
 }
 
 

@@ -38,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 from hcvt import _core
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
+from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
 from hcvt.lazy import load
 
@@ -58,9 +59,12 @@ def check_rule(rule: str) -> None:
     default_tol(rule)
 
 
-@dataclass
-class CVTResult:
+@dataclass(repr=False)
+class CVTResult(Shows):
     """The outcome of :func:`cvt`.
+
+    ``repr`` is one line (sites, how it stopped, cost, mean G); in Jupyter the final
+    diagram's picture shows beside a summary (:class:`hcvt.draw.Shows`).
 
     Attributes
     ----------
@@ -114,6 +118,23 @@ class CVTResult:
     def energy(self) -> float:
         """CVT energy of the final sites, L^(d+2)."""
         return self.diagram.energy
+
+    def __repr__(self) -> str:
+        return (
+            f"<hcvt.CVTResult n={len(self.sites)} d={self.sites.shape[1]} {self.stop_reason} "
+            f"({self.rule} rule, tol {self.tol:.3g}) after {self.iterations} iterations, "
+            f"{self.evaluations} diagrams, {self.seconds:.3g} s; mean G={self.mean_G:.6f}>"
+        )
+
+    def _summary_rows(self) -> dict[str, str]:
+        gap = self.history.get("rms_gap")
+        rows = {
+            "stopped": f"{self.stop_reason} ({self.rule} rule, tol {self.tol:.3g})",
+            "iterations": f"{self.iterations} ({self.evaluations} diagrams, {self.seconds:.3g} s)",
+        }
+        if gap is not None and len(gap):
+            rows["RMS gap"] = f"{float(gap[0]):.3g} -> {float(gap[-1]):.3g}"
+        return rows | super()._summary_rows()
 
 
 def cvt(

@@ -13,26 +13,28 @@ from typing import Any
 import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
-import shapely
-from matplotlib.collections import PolyCollection
-from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 from numpy.typing import ArrayLike
 
 from hcvt.density import grading_slope
 from hcvt.diagram import Diagram, voronoi
+from hcvt.draw import CMAP, G_OPTIMUM, draw_cells, draw_cut, g_colour_range
 from hcvt.seeding.regular import defects
 
-G_OPTIMUM = {2: 5.0 / (36.0 * np.sqrt(3.0)), 3: 19.0 / (192.0 * 2.0 ** (1.0 / 3.0))}
-CMAP = "RdYlBu_r"
-
-
-def g_colour_range(G: ArrayLike, dim: int) -> tuple[float, float]:
-    """Default colour range: the optimum G of the dimension up to the 98th percentile."""
-    values = np.asarray(G, dtype=float)
-    values = values[np.isfinite(values)]
-    low = G_OPTIMUM[dim]
-    high = float(np.percentile(values, 98)) if len(values) else low * 1.2
-    return low, max(high, low * 1.05)
+__all__ = [
+    "CMAP",
+    "G_OPTIMUM",
+    "comparison_figure",
+    "convergence_figure",
+    "g_colour_range",
+    "grading_figure",
+    "levels_figure",
+    "plot_cells",
+    "plot_convergence",
+    "plot_cut",
+    "plot_histogram",
+    "save",
+    "shared_range",
+]
 
 
 def plot_cells(
@@ -69,44 +71,13 @@ def plot_cells(
     low, high = g_colour_range(diagram.G, 2)
     vmin = low if vmin is None else vmin
     vmax = high if vmax is None else vmax
-    ax = _draw_cells(diagram, diagram.G, ax, (vmin, vmax), CMAP, "G" if colorbar else None)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 7))
+    ax = draw_cells(diagram, diagram.G, ax, (vmin, vmax), CMAP, "G" if colorbar else None)
     if show_sites:
         ax.plot(diagram.sites[:, 0], diagram.sites[:, 1], "k.", markersize=1)
     suffix = _mark_defects(ax, diagram) if show_defects else ""
     ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}{suffix}")
-    return ax
-
-
-def _draw_cells(
-    diagram: Diagram,
-    values: ArrayLike,
-    ax: Any,
-    clim: tuple[float, float],
-    cmap: str,
-    label: str | None,
-) -> Any:
-    """The clipped cells of a 2D diagram filled by ``values`` (n,), a colour bar if labelled."""
-    if ax is None:
-        _, ax = plt.subplots(figsize=(7, 7))
-    polygons, colours = [], []
-    for cell, value in zip(diagram.cells(), np.asarray(values), strict=True):
-        for part in shapely.get_parts(cell):
-            if part.is_empty or part.geom_type != "Polygon":
-                continue
-            polygons.append(np.asarray(part.exterior.coords))
-            colours.append(value)
-    collection = PolyCollection(
-        polygons, array=np.asarray(colours), cmap=cmap, edgecolors="k", linewidths=0.2
-    )
-    collection.set_clim(*clim)
-    ax.add_collection(collection)
-    lo, hi = diagram.domain.bounds
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_aspect("equal")
-    ax.set_axis_off()
-    if label is not None:
-        plt.colorbar(collection, ax=ax, shrink=0.7, label=label)
     return ax
 
 
@@ -171,34 +142,7 @@ def plot_cut(
     low, high = g_colour_range(diagram.G, 3)
     vmin = low if vmin is None else vmin
     vmax = high if vmax is None else vmax
-    at = float(np.median(diagram.centroid[:, axis])) if at is None else at
-    keep = np.flatnonzero((diagram.centroid[:, axis] >= at) & (diagram.volume > 0))
-    triangles, values = [], []
-    cells = diagram.cells()
-    for i in keep:
-        vertices, faces = cells[i]
-        if len(faces):
-            triangles.append(vertices[faces])
-            values.append(np.full(len(faces), diagram.G[i]))
-    norm = matplotlib.colors.Normalize(vmin, vmax)
-    colours = matplotlib.colormaps[CMAP](norm(np.concatenate(values)))
-    ax.add_collection3d(
-        Poly3DCollection(
-            np.concatenate(triangles), facecolors=colours, edgecolors=colours, linewidths=0.1
-        )
-    )
-    lo, hi = diagram.domain.bounds
-    ax.set_xlim(lo[0], hi[0])
-    ax.set_ylim(lo[1], hi[1])
-    ax.set_zlim(lo[2], hi[2])
-    ax.set_box_aspect(np.asarray(hi) - np.asarray(lo))
-    # Look along +axis, from the cut side.
-    ax.view_init(elev=20 if axis != 2 else -90, azim={0: 180, 1: -90, 2: -90}[axis], roll=0)
-    ax.set_axis_off()
-    if colorbar:
-        # A ScalarMappable: a 3D collection has no colours before it is projected.
-        mappable = plt.cm.ScalarMappable(cmap=CMAP, norm=norm)
-        plt.colorbar(mappable, ax=ax, shrink=0.6, label="G")
+    draw_cut(diagram, ax, (vmin, vmax), axis=axis, at=at, colorbar=colorbar)
     ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}")
     return ax
 
@@ -309,7 +253,7 @@ def grading_figure(diagram: Diagram, path: Any) -> float:
     axes = np.atleast_1d(axes)
     if dim == 2:
         sizes = diagram.volume**0.5
-        _draw_cells(diagram, sizes, axes[0], (sizes.min(), sizes.max()), "viridis", "V^(1/2)")
+        draw_cells(diagram, sizes, axes[0], (sizes.min(), sizes.max()), "viridis", "V^(1/2)")
         axes[0].set_title(f"n = {diagram.n}, cells by size")
     ax = axes[-1]
     ax.loglog(rho[interior], size[interior], ".", markersize=2, alpha=0.5, label="cells")

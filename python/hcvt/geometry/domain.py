@@ -20,7 +20,11 @@ from shapely.geometry.polygon import orient
 from hcvt import _core
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry import repair as mesh
+from hcvt.geometry.crs import projected_crs
 from hcvt.geometry.frame import Frame
+
+# VTK's cell type of a triangle (vtkCellType.h).
+_VTK_TRIANGLE = 5
 
 
 @dataclass(frozen=True)
@@ -71,7 +75,13 @@ class Domain:
         its own centre at a size near 1 (:mod:`hcvt.geometry.frame`); every result comes
         back in the input's coordinates. The identity for a domain near the origin of
         moderate size.
+    crs : pyproj.CRS or None
+        2D: the projected coordinate reference system of the input (GIS data read by
+        :func:`hcvt.load_domain`, or ``crs=`` given to :meth:`from_polygon`); carried on to
+        :meth:`hcvt.Diagram.to_geopandas` and the cells written. None when unknown.
     """
+
+    crs: Any = None
 
     def __init__(
         self,
@@ -95,6 +105,7 @@ class Domain:
         holes: Sequence[ArrayLike] | None = None,
         *,
         repair: bool = False,
+        crs: Any = None,
     ) -> Domain:
         """Domain bounded by a polygon with any number of holes (non-convex allowed).
 
@@ -112,12 +123,16 @@ class Domain:
             Without it invalid input raises. Repeated consecutive vertices are always
             removed (zero-length edges change nothing), and a hole touching the outline at a
             single vertex is valid (OGC) and accepted: the domain is pinched there.
+        crs : pyproj.CRS, str or int, optional
+            The coordinates' reference system (``"EPSG:2263"``, ...), kept as
+            ``domain.crs``; it must be projected (needs pyproj, ``pip install 'hcvt[geo]'``).
 
         Raises
         ------
         InvalidDomainError
             Non-finite coordinates, a ring with fewer than 3 distinct vertices, a
             self-intersection (with its location), zero area; each message names the ring.
+            A geographic (longitude/latitude) ``crs``: project the data first.
 
         Examples
         --------
@@ -128,6 +143,9 @@ class Domain:
         3.875
         """
         geometry = _as_shapely(polygon, holes)
+        parsed_crs = None
+        if crs is not None:
+            parsed_crs = projected_crs(crs, shapely.get_coordinates(geometry))
         report = None
         if repair:
             geometry, report = _repair_polygon(geometry)
@@ -137,7 +155,9 @@ class Domain:
         vertices, segments = polygon_boundary(geometry)
         frame = Frame.fit(vertices)
         core = _core.PolygonDomain(frame.to_core(vertices, "vertices"), segments)
-        return cls(core, 2, geometry, report, frame)
+        domain = cls(core, 2, geometry, report, frame)
+        domain.crs = parsed_crs
+        return domain
 
     # ------------------------------------------------------------------ 3D
     @classmethod
@@ -212,6 +232,81 @@ class Domain:
                 bool(actions), actions, frame.volume_or_nan(before), frame.volume_or_nan(after)
             )
         return cls(core, 3, None, report, frame)
+
+    @classmethod
+    def from_trimesh(cls, mesh: Any, *, repair: bool = False) -> Domain:
+        """Solid bounded by a ``trimesh.Trimesh``, its vertices and faces as indexed.
+
+        Parameters
+        ----------
+        mesh : trimesh.Trimesh
+            A closed triangle mesh (``mesh.vertices`` (V, 3), ``mesh.faces`` (F, 3)). A
+            ``trimesh.Scene`` is refused: join its geometry first (``scene.to_mesh()``).
+        repair : bool, default False
+            As in :meth:`from_mesh`.
+
+        Raises
+        ------
+        TypeError
+            ``mesh`` has no vertices and faces.
+        InvalidDomainError
+            As :meth:`from_mesh`.
+
+        Examples
+        --------
+        >>> import hcvt, trimesh
+        >>> round(hcvt.Domain.from_trimesh(trimesh.creation.box((1, 2, 3))).volume, 12)
+        6.0
+        """
+        if not (hasattr(mesh, "vertices") and hasattr(mesh, "faces")):
+            raise TypeError(
+                f"expected a trimesh.Trimesh, got {type(mesh).__name__}"
+                + (
+                    "; join a Scene's geometry with scene.to_mesh()"
+                    if hasattr(mesh, "dump")
+                    else ""
+                )
+            )
+        return cls.from_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), repair=repair)
+
+    @classmethod
+    def from_pyvista(cls, dataset: Any, *, repair: bool = False) -> Domain:
+        """Solid bounded by the triangles of a PyVista dataset.
+
+        Parameters
+        ----------
+        dataset : pyvista.PolyData or pyvista.UnstructuredGrid
+            A closed surface. Triangles are taken as indexed (``pv.read("bunny.off")`` is
+            the file's mesh, bit for bit); other polygons are fanned into triangles
+            (``triangulate()``); a volume mesh (tetrahedra, hexahedra ...) stands for the
+            solid it fills, bounded by its ``extract_surface()``.
+        repair : bool, default False
+            As in :meth:`from_mesh`.
+
+        Raises
+        ------
+        TypeError
+            Not a PyVista dataset.
+        InvalidDomainError
+            As :meth:`from_mesh`.
+
+        Examples
+        --------
+        >>> import hcvt, pyvista
+        >>> round(hcvt.Domain.from_pyvista(pyvista.Cube(x_length=2.0)).volume, 12)
+        2.0
+        """
+        if not hasattr(dataset, "extract_surface"):
+            raise TypeError(f"expected a pyvista dataset, got {type(dataset).__name__}")
+        celltypes = getattr(dataset, "celltypes", None)
+        if celltypes is not None and len(celltypes) and np.all(celltypes == _VTK_TRIANGLE):
+            faces = dataset.cells_dict[_VTK_TRIANGLE]
+        else:
+            surface = dataset if hasattr(dataset, "is_all_triangles") else _surface(dataset)
+            if not surface.is_all_triangles:
+                surface = surface.triangulate()
+            dataset, faces = surface, surface.regular_faces
+        return cls.from_mesh(np.asarray(dataset.points), np.asarray(faces), repair=repair)
 
     @property
     def vertices(self) -> NDArray[np.float64]:
@@ -295,11 +390,30 @@ class Domain:
         # Pickled as its checked boundary (dask, joblib, multiprocessing); the core rebuilds
         # its index from the same arrays, so diagrams in another process are bitwise equal.
         simplices = self._core.segments if self.dim == 2 else self._core.faces
-        return _unpickle, (self.dim, self.vertices, simplices, self.geometry, self.repair_report)
+        return _unpickle, (
+            self.dim,
+            self.vertices,
+            simplices,
+            self.geometry,
+            self.repair_report,
+            self.crs,
+        )
 
     def __repr__(self) -> str:
         kind = "polygon" if self.dim == 2 else "solid"
-        return f"<hcvt.Domain {kind}, volume={self.volume:.6g}>"
+        crs = ""
+        if self.crs is not None:
+            authority = self.crs.to_authority()
+            crs = f", crs={authority[0]}:{authority[1]}" if authority else f", crs={self.crs.name}"
+        return f"<hcvt.Domain {kind}, volume={self.volume:.6g}{crs}>"
+
+
+def _surface(dataset: Any) -> Any:
+    """The boundary surface of a PyVista volume mesh (``extract_surface``)."""
+    try:  # pyvista >= 0.47 picks VTK's filter itself; the default is to change
+        return dataset.extract_surface(pass_pointid=False, pass_cellid=False, algorithm=None)
+    except TypeError:
+        return dataset.extract_surface(pass_pointid=False, pass_cellid=False)
 
 
 def _unpickle(
@@ -308,6 +422,7 @@ def _unpickle(
     simplices: NDArray[np.intp],
     geometry: Any,
     repair_report: RepairReport | None,
+    crs: Any = None,
 ) -> Domain:
     """A Domain from the arrays :meth:`Domain.__reduce__` saved, checked anew by the core."""
     boundary = _core.PolygonDomain if dim == 2 else _core.SolidDomain
@@ -318,7 +433,9 @@ def _unpickle(
         np.require(frame.to_core(np.asarray(vertices), "vertices"), np.float64, ["C", "A"]),
         np.require(simplices, np.uint32, ["C", "A"]),
     )
-    return Domain(core, dim, geometry, repair_report, frame)
+    domain = Domain(core, dim, geometry, repair_report, frame)
+    domain.crs = crs
+    return domain
 
 
 def _as_points(points: ArrayLike, dim: int, name: str) -> NDArray[np.float64]:

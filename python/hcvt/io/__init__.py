@@ -1,15 +1,23 @@
 """Files in and out: domains read, cells and conforming meshes written.
 
-| module | owns |
-|--------|------|
-| :mod:`~hcvt.io.readers` | :func:`load_domain`: polygons and triangle meshes |
-| :mod:`~hcvt.io.writers` | :func:`write_mesh` (format by path), :func:`to_pyvista` |
-| :mod:`~hcvt.io.cells` | :func:`write_cells`: a diagram's cells for viewing |
-| :mod:`~hcvt.io.vtu` | the one VTU writer (VTK polyhedra / polygons) |
-| :mod:`~hcvt.io.pvtu` | the index of a VTU written in pieces |
-| :mod:`~hcvt.io.openfoam` | OpenFOAM cases (constant/polyMesh, system/, 0/) |
-| :mod:`~hcvt.io.geojson` | 2D cells on shared vertices |
-| :mod:`~hcvt.io.solver` | a written case checked by OpenFOAM's laplacianFoam on a linear field |
+:mod:`~hcvt.io.readers`
+    :func:`load_domain`: polygons, GIS data and triangle meshes
+:mod:`~hcvt.io.geo`
+    GeoPandas: GIS files and GeoDataFrames in, cells as a GeoDataFrame or GeoPackage out
+:mod:`~hcvt.io.writers`
+    :func:`write_mesh` (format by path), :func:`to_pyvista`
+:mod:`~hcvt.io.cells`
+    :func:`write_cells`: a diagram's cells for viewing
+:mod:`~hcvt.io.vtu`
+    the one VTU writer (VTK polyhedra / polygons)
+:mod:`~hcvt.io.pvtu`
+    the index of a VTU written in pieces
+:mod:`~hcvt.io.openfoam`
+    OpenFOAM cases (constant/polyMesh, system/, 0/)
+:mod:`~hcvt.io.geojson`
+    2D cells on shared vertices
+:mod:`~hcvt.io.solver`
+    a written case checked by OpenFOAM's laplacianFoam on a linear field
 """
 
 from hcvt.io.cells import write_cells

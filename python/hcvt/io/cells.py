@@ -1,4 +1,4 @@
-"""A diagram's cells written for viewing: GeoJSON (2D), VTU or PLY (3D).
+"""A diagram's cells written for viewing: GeoJSON or GeoPackage (2D), VTU or PLY (3D).
 
 The VTU is the conforming mesh's (:func:`hcvt.io.vtu.write_vtu`, the one VTU writer):
 each cell a VTK polyhedron with its planar faces. PLY and the 2D GeoJSON are a cell soup:
@@ -10,34 +10,25 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import shapely
 from numpy.typing import NDArray
 
-from hcvt.geometry.domain import Domain
+from hcvt.geometry.crs import geojson_crs_member
+from hcvt.io.geo import Diagram, write_geopackage
 from hcvt.io.vtu import write_vtu
-from hcvt.mesh.polymesh import PolyMesh
-
-
-class Diagram(Protocol):
-    """What :func:`write_cells` reads of a :class:`hcvt.Diagram`."""
-
-    domain: Domain
-    G: NDArray[np.float64]  # noqa: N815 (the paper's G)
-    volume: NDArray[np.float64]
-
-    def cells(self) -> list[Any]: ...  # noqa: D102
-
-    def mesh(self) -> PolyMesh: ...  # noqa: D102
 
 
 def write_cells(diagram: Diagram, path: str | Path) -> Path:
     """Write the clipped cells with per-cell ``G`` and ``volume``.
 
     2D: ``.geojson`` (or ``.json``), a FeatureCollection with one Feature per cell and the
-    properties ``id`` (the site's row), ``G`` and ``volume``.
+    properties ``id`` (the site's row), ``G`` and ``volume``, and a ``crs`` member naming
+    the domain's CRS when it has one (as GDAL writes projected GeoJSON); or ``.gpkg``, a
+    GeoPackage layer ``cells`` with every column of :meth:`hcvt.Diagram.to_geopandas`
+    (``site`` the row) in the domain's CRS (needs geopandas, ``pip install 'hcvt[geo]'``).
     3D: ``.vtu``, an UnstructuredGrid for ParaView with one VTK polyhedron per non-empty
     cell, its faces those of the conforming mesh (``Diagram.mesh()``), and cell data
     ``site`` (the site's row), ``G`` and ``volume``; or ``.ply``, binary PLY of every
@@ -51,8 +42,10 @@ def write_cells(diagram: Diagram, path: str | Path) -> Path:
     path = Path(path)
     suffix = path.suffix.lower()
     if diagram.domain.dim == 2:
+        if suffix == ".gpkg":
+            return write_geopackage(diagram, path)
         if suffix not in (".geojson", ".json"):
-            raise ValueError(f"2D cells are written as .geojson, got {path.name}")
+            raise ValueError(f"2D cells are written as .geojson or .gpkg, got {path.name}")
         _write_geojson(path, diagram)
         return path
     if suffix == ".vtu":
@@ -75,7 +68,11 @@ def _write_geojson(path: Path, diagram: Diagram) -> None:
             zip(diagram.cells(), diagram.G, diagram.volume, strict=True)
         )
     ]
-    path.write_text(json.dumps({"type": "FeatureCollection", "features": features}))
+    collection: dict[str, Any] = {"type": "FeatureCollection"}
+    if diagram.domain.crs is not None:
+        collection["crs"] = geojson_crs_member(diagram.domain.crs)
+    collection["features"] = features
+    path.write_text(json.dumps(collection))
 
 
 def _finite(x: float) -> float | None:

@@ -10,22 +10,29 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import shapely
 from numpy.typing import ArrayLike
 
+from hcvt.geometry.crs import geojson_crs_member
 from hcvt.mesh.polymesh import PolyMesh
 
 
 def write_geojson(
-    mesh: PolyMesh, path: str | Path, *, cell_data: dict[str, ArrayLike] | None = None
+    mesh: PolyMesh,
+    path: str | Path,
+    *,
+    cell_data: dict[str, ArrayLike] | None = None,
+    crs: Any = None,
 ) -> Path:
     """Write a 2D ``mesh`` as a GeoJSON FeatureCollection, one Feature per cell.
 
     Feature ``i`` is cell ``i``: a Polygon, a MultiPolygon (a cell the domain cuts in
     pieces), or null geometry for an empty cell; properties ``id`` and one per
-    ``cell_data`` entry (shape (n,) each; NaN becomes null).
+    ``cell_data`` entry (shape (n,) each; NaN becomes null). ``crs`` (a ``pyproj.CRS``,
+    e.g. a domain's ``crs``) is named in a ``crs`` member, as GDAL writes projected data.
 
     Raises
     ------
@@ -43,8 +50,12 @@ def write_geojson(
             properties[name] = float(values[i]) if np.isfinite(values[i]) else None
         geometry = _geometry([mesh.points[r] for r in loops])
         features.append({"type": "Feature", "geometry": geometry, "properties": properties})
+    collection: dict[str, Any] = {"type": "FeatureCollection"}
+    if crs is not None:
+        collection["crs"] = geojson_crs_member(crs)
+    collection["features"] = features
     path = Path(path)
-    path.write_text(json.dumps({"type": "FeatureCollection", "features": features}))
+    path.write_text(json.dumps(collection))
     return path
 
 

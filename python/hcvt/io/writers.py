@@ -110,7 +110,9 @@ def write_mesh(
     if suffix == ".vtu":
         return write_vtu(mesh, path, cell_data=data)
     if suffix in (".geojson", ".json"):
-        return write_geojson(mesh, path, cell_data=data)
+        owner = domain if domain is not None else own_domain
+        crs = owner.crs if owner is not None else None
+        return write_geojson(mesh, path, cell_data=data, crs=crs)
     if suffix:
         raise ValueError(
             f"{path.name}: meshes are written as .vtu, .geojson (2D) or an OpenFOAM case "

@@ -29,15 +29,16 @@ from numpy.typing import ArrayLike, NDArray
 
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike
 from hcvt.diagram import Diagram
+from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
 from hcvt.lazy import load
 from hcvt.optimise import cvt
 from hcvt.seeding.initialisation import RandomState, random_state
 
 
-@dataclass
-class MonteCarloResult:
-    """Outcome of :func:`global_monte_carlo`."""
+@dataclass(repr=False)
+class MonteCarloResult(Shows):
+    """Outcome of :func:`global_monte_carlo`; shows its diagram in Jupyter."""
 
     sites: NDArray[np.float64]  # (n, d) the best sites found
     diagram: Diagram  # their diagram
@@ -53,6 +54,14 @@ class MonteCarloResult:
     def accepted(self) -> int:
         """Number of accepted perturbations (the first minimisation not counted)."""
         return int(self.history["accepted"][1:].sum())
+
+    def __repr__(self) -> str:
+        updates = len(self.history["accepted"]) - 1
+        return (
+            f"<hcvt.MonteCarloResult n={len(self.sites)} d={self.sites.shape[1]} "
+            f"{updates} updates, {self.accepted} accepted, {self.iterations} iterations, "
+            f"{self.seconds:.3g} s; mean G={self.diagram.mean_G:.6f}>"
+        )
 
 
 def global_monte_carlo(

@@ -20,6 +20,7 @@ from scipy.spatial import Delaunay, cKDTree
 
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike
 from hcvt.diagram import Diagram, voronoi
+from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
 from hcvt.optimise import check_rule, cvt
 from hcvt.seeding.initialisation import RandomState, initialise, random_state
@@ -277,9 +278,12 @@ class Level:
         return self.diagram.energy
 
 
-@dataclass
-class HierarchicalResult:
-    """Result of :func:`hierarchical_cvt`: the final CVT and every level."""
+@dataclass(repr=False)
+class HierarchicalResult(Shows):
+    """Result of :func:`hierarchical_cvt`: the final CVT and every level.
+
+    Shows the final diagram in Jupyter, with the site count of every level.
+    """
 
     levels: list[Level] = field(default_factory=list)
     schedule: Schedule | None = None
@@ -298,6 +302,16 @@ class HierarchicalResult:
     def seconds(self) -> float:
         """Total seconds over all levels."""
         return sum(level.seconds for level in self.levels)
+
+    def __repr__(self) -> str:
+        if not self.levels:
+            return "<hcvt.HierarchicalResult (no levels)>"
+        counts = " -> ".join(str(level.n) for level in self.levels)
+        return (
+            f"<hcvt.HierarchicalResult n={len(self.sites)} d={self.sites.shape[1]} "
+            f"levels {counts}, {sum(lv.iterations for lv in self.levels)} iterations, "
+            f"{self.seconds:.3g} s; mean G={self.diagram.mean_G:.6f}>"
+        )
 
     @property
     def history(self) -> dict[str, NDArray[Any]]:

@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from hcvt.diagram import Diagram, as_sites, voronoi
+from hcvt.draw import Shows
 from hcvt.errors import InvalidSitesError
 from hcvt.geometry.domain import Domain
 from hcvt.optimise import check_rule, cvt
@@ -537,9 +538,9 @@ def _move(
 
 
 # ---------------------------------------------------------------------- entry point
-@dataclass
-class RegularResult:
-    """Outcome of :func:`regular_cvt`.
+@dataclass(repr=False)
+class RegularResult(Shows):
+    """Outcome of :func:`regular_cvt`; shows its diagram in Jupyter.
 
     Attributes
     ----------
@@ -591,6 +592,14 @@ class RegularResult:
     def defects(self) -> Defects:
         """Interior defects of the final diagram."""
         return defects(self.diagram)
+
+    def __repr__(self) -> str:
+        start = "lattice" if self.pose is not None else "hierarchical"
+        return (
+            f"<hcvt.RegularResult n={len(self.sites)} d={self.sites.shape[1]} from a {start} "
+            f"start with {self.start_defects} defects, now {self.defects.number}, "
+            f"{self.seconds:.3g} s; mean G={self.mean_G:.6f}>"
+        )
 
 
 def regular_cvt(
