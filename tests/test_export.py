@@ -464,7 +464,9 @@ def test_openfoam_2d_patch_per_boundary_ring_and_checkmesh_errors(tmp_path):
     domain = hcvt.load_domain(DATA / "2d" / "dejavu_sans_B.geojson")
     run = hcvt.cvt(domain, random_inside(domain, 200, seed=2), method="lbfgs", tol=1e-3)
     mesh = meshes.diagram_mesh_2d(run.diagram)
-    case = write_openfoam(mesh, tmp_path / "case", domain=domain, thickness=10.0)
+    case = write_openfoam(
+        mesh, tmp_path / "case", domain=domain, thickness=10.0, boundary_faces="exact"
+    )
     text = (case / "constant" / "polyMesh" / "boundary").read_text()
     names = re.findall(r"^\s+(\w+)\s*\n\s*\{", text, flags=re.MULTILINE)
     assert names == ["boundary0", "boundary1", "boundary2", "frontAndBack"]
@@ -482,6 +484,15 @@ def test_openfoam_2d_patch_per_boundary_ring_and_checkmesh_errors(tmp_path):
     sizes = [int(x) for x in re.findall(r"nFaces\s+(\d+);", text)]
     patch, _ = boundary_patches(mesh, domain)
     assert sizes[:3] == list(np.bincount(patch[~mesh.interior]))
+    # By default those faces are joined with their neighbours on the same ring: the
+    # patches stay, checkMesh passes, and OpenFOAM's volume moves by the bent faces only.
+    merged = write_openfoam(mesh, tmp_path / "merged", domain=domain, thickness=10.0)
+    log = _check_mesh(merged)
+    assert "Mesh OK" in log
+    merged_text = (merged / "constant" / "polyMesh" / "boundary").read_text()
+    assert re.findall(r"^\s+(\w+)\s*\n\s*\{", merged_text, flags=re.MULTILINE) == names
+    total = _figure(log, rf"Total volume = {NUM}")
+    assert abs(total - 10 * domain.volume) < 1e-3 * total
 
 
 # ----------------------------------------------------------------------------- API, CLI

@@ -22,7 +22,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt.mesh.merge import BOUNDARY_FACES, SPLIT_REMOVED, merged_boundary
+from hcvt.mesh.merge import (
+    BOUNDARY_FACES,
+    SPLIT_REMOVED,
+    merge_failing_boundary_faces,
+    merged_boundary,
+)
 from hcvt.mesh.patches import boundary_patches
 from hcvt.mesh.polymesh import PolyMesh
 
@@ -72,8 +77,9 @@ def write_openfoam(
         Per-site values (row ``i`` is site ``i``) written as volScalarFields, each cell
         taking its site's value.
     boundary_faces : {"merged", "exact"}
-        How a 3D mesh's boundary is written (a 2D mesh's boundary faces are its extruded
-        edges, written as they are for ``"merged"`` and ``"exact"``). ``"merged"``, the
+        How the boundary is written (a 2D mesh's boundary faces are its extruded edges;
+        with ``"merged"`` those that fail are joined with their neighbours as in 3D).
+        ``"merged"``, the
         default: the boundary pieces checkMesh would flag (small pieces at a cell's rim
         are skew; in a cell wrapping a reflex edge, its centre lies behind some pieces:
         face pyramids) are joined to neighbouring pieces of the same cell and patch until
@@ -129,6 +135,8 @@ def write_openfoam(
     if compact.dim == 2:
         compact, patch, names = _extrude(compact, patch, names, thickness)
         types.append("empty")
+        if boundary_faces == "merged":
+            compact, patch = _merged_sides(compact, patch)
     points, faces, owner, neighbour, sizes = _upper_triangular(compact, patch, len(names))
     root = Path(case)
     poly = root / "constant" / "polyMesh"
@@ -230,6 +238,35 @@ def _extrude(
     )
     front_back = np.full(len(caps), len(names), dtype=np.intp)
     return extruded, np.concatenate([patch, front_back]), [*names, "frontAndBack"]
+
+
+def _merged_sides(mesh: PolyMesh, patch: NDArray[np.intp]) -> tuple[PolyMesh, NDArray[np.intp]]:
+    """An extruded 2D mesh with its failing side faces merged, as a 3D mesh's boundary is.
+
+    A cell that wraps around a corner of a hole has a small side face beyond the corner,
+    seen from behind by its cell centre (an inverted face pyramid, a skew face); joined
+    with its neighbouring side face of the same cell and patch it passes
+    (:func:`hcvt.mesh.merge.merge_failing_boundary_faces`). The caps (``frontAndBack``)
+    are never joined: no cap shares a patch with another face of its cell's boundary loop.
+    A merged face keeps its representative's boundary element, which gives its patch.
+    """
+    side = mesh.boundary_element >= 0
+    element_patch = np.full(int(mesh.boundary_element.max(initial=-1)) + 1, -1, dtype=np.intp)
+    element_patch[mesh.boundary_element[side]] = patch[side]
+    merged, report = merge_failing_boundary_faces(mesh, patch)
+    if len(report.failing):
+        warnings.warn(
+            f"{len(report.failing)} side faces of the extruded mesh still fail checkMesh's "
+            "skewness or face-pyramid check after merging",
+            stacklevel=3,
+        )
+    merged, _ = merged.compacted()
+    element = merged.boundary_element
+    caps = patch.max(initial=0)  # frontAndBack, the last patch
+    boundary = merged.neighbour < 0
+    out = np.full(merged.n_faces, -1, dtype=np.intp)
+    out[boundary] = np.where(element[boundary] >= 0, element_patch[element[boundary]], caps)
+    return merged, out
 
 
 # ----------------------------------------------------------------------------- files
