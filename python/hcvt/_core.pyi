@@ -18,6 +18,7 @@ from hcvt.core_results import (
     DiagramArrays,
     MeshArrays,
     MeshPartArrays,
+    MeshQualityArrays,
     PartCellsArrays,
 )
 
@@ -33,6 +34,7 @@ __all__ = [
     "lloyd_step",
     "mesh",
     "mesh_part",
+    "mesh_quality",
     "partition_cells",
     "positive_curvature",
     "set_num_threads",
@@ -111,6 +113,18 @@ def mesh_part(
     total_sites: int,
     allow_outside: bool = False,
 ) -> MeshPartArrays: ...
+
+# A mesh's geometry and checkMesh figures (hcvt.mesh.quality); with `centres` (n_cells, d)
+# the face figures are measured against those cell centres.
+def mesh_quality(
+    points: _Float2,
+    face_offsets: NDArray[np.intp],
+    face_vertices: NDArray[np.intp],
+    owner: NDArray[np.intp],
+    neighbour: NDArray[np.intp],
+    n_cells: int,
+    centres: _Float2 | None = None,
+) -> MeshQualityArrays: ...
 
 # A part's cells (hcvt.distributed): one row per own site, neighbor_sites in the problem's
 # rows.

@@ -2,7 +2,8 @@
 
 Each dict is built in one place of the binding (crates/hcvt-py/src): a diagram's arrays by
 ``diagram_dict`` (diagram.rs), a mesh's by ``mesh_dict`` (mesh.rs), a CVT's by
-``outcome_dict`` and its per-iterate record by ``call`` (optimise.rs). The stubs
+``outcome_dict`` and its per-iterate record by ``call`` (optimise.rs), a mesh's quality by
+``quality_dict`` (quality.rs). The stubs
 (``_core.pyi``) return these types, so that mypy checks every key the package reads.
 
 Shapes: ``n`` sites, dimension ``d``; ``k`` neighbour entries; float arrays are float64 in
@@ -24,6 +25,7 @@ __all__ = [
     "DiagramArrays",
     "MeshArrays",
     "MeshPartArrays",
+    "MeshQualityArrays",
     "PartCellsArrays",
 ]
 
@@ -94,6 +96,24 @@ class MeshPartArrays(MeshArrays):
 
     computed: Indices  # (c,)
     reach2: Floats  # (c,) L²
+
+
+class MeshQualityArrays(TypedDict):
+    """A mesh's geometry and checkMesh quality (``_core.mesh_quality``, ``hcvt.mesh.quality``).
+
+    Rows are the mesh's faces (f) or cells (n); NaN marks a boundary face's figures that
+    need two cells, and the centroid of a cell without faces.
+    """
+
+    face_centre: Floats  # (f, d) L, OpenFOAM's fan centre
+    area_vector: Floats  # (f, d) L^(d−1), out of the owner
+    volume: Floats  # (n,) L^d
+    centroid: Floats  # (n, d) L
+    aspect_ratio: Floats  # (n,)
+    non_orthogonality: Floats  # (f,) degrees, NaN on the boundary
+    skewness: Floats  # (f,)
+    inverted_pyramid: NDArray[np.bool_]  # (f,)
+    volume_ratio: Floats  # (f,) NaN on the boundary
 
 
 class CvtRecord(TypedDict):

@@ -125,8 +125,8 @@ pub enum CoreError {
         /// The value found there.
         value: f64,
     },
-    /// A face handed to the split kernel ([`crate::split`]) refers to a vertex, part or
-    /// ghost that does not exist, or its loop is malformed.
+    /// A face of a mesh handed to [`crate::mesh_quality`] refers to a vertex or cell that
+    /// does not exist, has the wrong number of vertices, or one cell on both sides.
     #[error("face {face}: {reason}")]
     InvalidFace {
         /// Index of the face.
@@ -134,7 +134,7 @@ pub enum CoreError {
         /// What is wrong.
         reason: String,
     },
-    /// A point handed to the split kernel has a non-finite coordinate.
+    /// A point of a mesh handed to [`crate::mesh_quality`] has a non-finite coordinate.
     #[error("point {index} has a non-finite coordinate ({value})")]
     InvalidPoint {
         /// Index of the point.

@@ -11,6 +11,7 @@
 //! | `domain`    | the oriented boundary of a 2D polygon or 3D solid ([`Boundary`]), its BVH and winding number |
 //! | `diagram`   | convex Voronoi cells by kNN + half-space clipping ([`ConvexCell`]), restricted exactly to a domain through the seam [`DomainKind`] ([`clipped_diagram`], [`clipped_cells`]); the conforming mesh ([`conforming_mesh`]) |
 //! | `optimise`  | CVT energy, gradient and Hessian from the diagram ([`evaluate`]); Lloyd, L-BFGS and Newton to the stopping rule ([`cvt`]) |
+//! | `quality`   | a mesh's geometry and quality as OpenFOAM's `checkMesh` measures them ([`mesh_quality`]), from its arrays alone |
 //!
 //! `error` holds [`CoreError`], which every layer returns.
 //!
@@ -32,6 +33,7 @@ mod error;
 mod geometry;
 mod moments;
 mod optimise;
+mod quality;
 #[cfg(any(test, feature = "sample"))]
 pub mod sample;
 
@@ -50,3 +52,4 @@ pub use optimise::{
     cvt, evaluate, lbfgs, lloyd, Frame, Measures, Method, Named, Outcome, Point, PointRequest,
     Record, Rule, Settings, Step, StopReason,
 };
+pub use quality::{mesh_quality, MeshArrays, MeshQuality};

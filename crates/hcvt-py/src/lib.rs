@@ -9,6 +9,7 @@ mod errors;
 mod mesh;
 mod optimise;
 mod partition;
+mod quality;
 mod threads;
 
 use pyo3::prelude::*;
@@ -29,6 +30,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mesh::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_part, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells, m)?)?;
+    m.add_function(wrap_pyfunction!(quality::mesh_quality, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::step_fields, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::lloyd_step, m)?)?;

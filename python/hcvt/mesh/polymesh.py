@@ -12,13 +12,11 @@ from typing import NamedTuple
 
 import numpy as np
 import shapely
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
+from hcvt import _core
+from hcvt.core_results import MeshQualityArrays
 from hcvt.errors import InvalidMeshError
-
-# Faces whose fan area is below this (L^(d-1)) keep their vertex average as centre, as
-# OpenFOAM does (primitiveMeshTools: ROOTVSMALL), instead of dividing by zero.
-_ROOT_VSMALL = 1e-150
 
 
 class CellFaces(NamedTuple):
@@ -155,45 +153,12 @@ class PolyMesh:
 
         3D: OpenFOAM's rule (``primitiveMeshTools::makeFaceCentresAndAreas``): a fan of
         triangles from the vertex average; the area vector is their sum, the centre their
-        area-weighted centroid. For a planar face both are exact, and using OpenFOAM's
-        rule makes our quality figures those ``checkMesh`` prints. 2D: the edge's
-        midpoint and its right-hand normal (the owner lies on the left).
+        area-weighted centroid. For a planar convex face both are exact, and using
+        OpenFOAM's rule makes our quality figures those ``checkMesh`` prints. 2D: the
+        edge's midpoint and its right-hand normal (the owner lies on the left). From
+        :attr:`measured`.
         """
-        p = self.points[self.face_vertices]
-        if self.dim == 2:
-            a, b = p[0::2], p[1::2]
-            t = b - a
-            return FaceGeometry(0.5 * (a + b), np.column_stack([t[:, 1], -t[:, 0]]))
-        starts = self.face_offsets[:-1]
-        sizes = self.face_sizes
-        estimate = np.add.reduceat(p, starts, axis=0) / sizes[:, None]
-        following = np.arange(1, len(p) + 1, dtype=np.intp)
-        following[self.face_offsets[1:] - 1] = starts
-        q = p[following]
-        apex = np.repeat(estimate, sizes, axis=0)
-        normal = np.cross(q - p, apex - p)
-        with np.errstate(over="ignore", under="ignore"):
-            weight = np.linalg.norm(normal, axis=1)
-        # Squares overflow for faces wider than 1e77 and underflow below 1e-77 (a domain
-        # 1e100 or 1e-100 wide, issue 30): those rows again, scaled by their largest entry.
-        odd = ~(np.isfinite(weight) & (weight > _ROOT_VSMALL)) & np.any(normal != 0, axis=1)
-        if odd.any():
-            big = np.max(np.abs(normal[odd]), axis=1)
-            weight[odd] = big * np.linalg.norm(normal[odd] / big[:, None], axis=1)
-        area = np.add.reduceat(weight, starts)
-        with np.errstate(over="ignore", invalid="ignore"):
-            moment = np.add.reduceat(weight[:, None] * (p + q + apex), starts, axis=0)
-            degenerate = area < _ROOT_VSMALL
-            centre = np.where(
-                degenerate[:, None],
-                estimate,
-                moment / (3.0 * np.maximum(area, _ROOT_VSMALL))[:, None],
-            )
-        lost = ~np.isfinite(centre).all(axis=1) & np.isfinite(estimate).all(axis=1)
-        if lost.any():  # area · position overflowed (faces 1e100 wide at 1e109): about the estimate
-            local = np.add.reduceat(weight[:, None] * ((p - apex) + (q - apex)), starts, axis=0)
-            centre[lost] = estimate[lost] + local[lost] / (3.0 * area[lost])[:, None]
-        return FaceGeometry(centre, 0.5 * np.add.reduceat(normal, starts, axis=0))
+        return FaceGeometry(self.measured["face_centre"], self.measured["area_vector"])
 
     @cached_property
     def cell_geometry(self) -> CellGeometry:
@@ -203,27 +168,52 @@ class PolyMesh:
         3D, triangle in 2D) per face with apex ``x0``, the average of its face centres; a
         cone's measure is ``S_f · (c_f - x0) / d`` and its centroid ``(d c_f + x0) /
         (d + 1)``. Exact for planar faces, whatever ``x0``; the same rule as OpenFOAM's
-        ``makeCellCentresAndVols``, so centroids agree with ``checkMesh``'s.
+        ``makeCellCentresAndVols``, so centroids agree with ``checkMesh``'s. From
+        :attr:`measured`.
         """
-        d, n = self.dim, self.n_cells
-        centre, area = self.face_geometry
-        cf = self.cell_faces
-        cells = np.repeat(np.arange(n, dtype=np.intp), np.diff(cf.offsets))
-        count = np.bincount(cells, minlength=n)
-        c = centre[cf.faces]
-        s = area[cf.faces] * np.where(cf.outward, 1.0, -1.0)[:, None]
-        apex = _sum_by(cells, c, n) / np.maximum(count, 1)[:, None]
-        cone = np.einsum("ij,ij->i", s, c - apex[cells]) / d
-        cone_centroid = (d * c + apex[cells]) / (d + 1)
-        volume = np.bincount(cells, weights=cone, minlength=n).astype(np.float64)
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            centroid = _sum_by(cells, cone[:, None] * cone_centroid, n) / volume[:, None]
-            lost = ~np.isfinite(centroid).all(axis=1) & (count > 0)
-            if lost.any():  # volume · position overflowed: about the apex instead
-                local = _sum_by(cells, cone[:, None] * (cone_centroid - apex[cells]), n)
-                centroid[lost] = apex[lost] + local[lost] / volume[lost, None]
-        centroid[count == 0] = np.nan
-        return CellGeometry(volume, centroid)
+        return CellGeometry(self.measured["volume"], self.measured["centroid"])
+
+    @cached_property
+    def measured(self) -> MeshQualityArrays:
+        """Geometry and checkMesh figures of every face and cell (:meth:`measure`), cached."""
+        return self.measure()
+
+    def measure(self, centres: ArrayLike | None = None) -> MeshQualityArrays:
+        """Geometry and checkMesh figures of every face and cell, computed by the core.
+
+        One pass of ``hcvt._core.mesh_quality`` (crates/hcvt-core/src/quality.rs, where
+        the definitions are): face centres and area vectors, cell volumes and centroids,
+        and the figures of :class:`hcvt.mesh.quality.MeshQuality`. Each value depends on
+        the mesh's bits alone (no summation order of numpy's, no thread count).
+
+        Parameters
+        ----------
+        centres : array_like of float, shape (n_cells, d), optional
+            Cell centres to measure the faces' non-orthogonality, skewness and pyramids
+            against, instead of the cells' own centroids (:func:`hcvt.mesh.quality.face_quality`).
+
+        Raises
+        ------
+        InvalidMeshError
+            An index out of range, a face with the wrong number of vertices or one cell on
+            both sides, a non-finite point: the message names the first.
+        ValueError
+            ``centres`` of another shape.
+        """
+        given = None if centres is None else np.ascontiguousarray(centres, dtype=np.float64)
+        if given is not None and given.shape != (self.n_cells, self.dim):
+            raise ValueError(
+                f"centres must have shape ({self.n_cells}, {self.dim}), got {given.shape}"
+            )
+        return _core.mesh_quality(
+            np.ascontiguousarray(self.points, dtype=np.float64),
+            np.ascontiguousarray(self.face_offsets, dtype=np.intp),
+            np.ascontiguousarray(self.face_vertices, dtype=np.intp),
+            np.ascontiguousarray(self.owner, dtype=np.intp),
+            np.ascontiguousarray(self.neighbour, dtype=np.intp),
+            self.n_cells,
+            centres=given,
+        )
 
     def check(self, *, keyholes: bool = False) -> None:
         """Raise :class:`hcvt.errors.InvalidMeshError` unless this is a conforming mesh.
@@ -415,13 +405,6 @@ def _shoelace(xy: NDArray[np.float64]) -> float:
     """Signed area of a closed ring (k, 2): positive counter-clockwise."""
     x, y = xy[:, 0], xy[:, 1]
     return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
-
-def _sum_by(group: NDArray[np.intp], values: NDArray[np.float64], n: int) -> NDArray[np.float64]:
-    """Row sums of ``values`` (m, d) grouped by ``group`` (m,) into (n, d)."""
-    return np.column_stack(
-        [np.bincount(group, weights=values[:, k], minlength=n) for k in range(values.shape[1])]
-    )
 
 
 def _require(values: NDArray[np.intp], lo: int, hi: int, name: str) -> None:

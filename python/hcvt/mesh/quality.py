@@ -1,6 +1,8 @@
 """Mesh quality as OpenFOAM's ``checkMesh`` measures it.
 
-Cell volume, face non-orthogonality and skewness.
+Cell volume, face non-orthogonality and skewness, computed once in the core
+(``hcvt._core.mesh_quality``, crates/hcvt-core/src/quality.rs) from the mesh's arrays: every
+figure depends on the mesh's bits alone, not on numpy's summation order or the thread count.
 
 Definitions (OpenFOAM ``primitiveMeshTools``; centres as in
 :attr:`hcvt.mesh.polymesh.PolyMesh.face_geometry` and ``cell_geometry``, which follow it):
@@ -18,11 +20,12 @@ Definitions (OpenFOAM ``primitiveMeshTools``; centres as in
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:
     from hcvt.mesh.polymesh import PolyMesh
@@ -37,10 +40,6 @@ ASPECT_RATIO_LIMIT = 1000.0
 #: far above the 1e-9 by which our figures and checkMesh's printed ones have been seen to
 #: differ, so that a face we pass at 3.999999 is not failed by OpenFOAM's rounding.
 SKEWNESS_TARGET = SKEWNESS_LIMIT * (1.0 - 1e-6)
-
-# OpenFOAM's guard against 0/0 in the skewness (ROOTVSMALL), and its pyramid tolerance.
-_ROOT_VSMALL = 1e-150
-_SMALL = 1e-15
 
 
 @dataclass(frozen=True)
@@ -88,18 +87,18 @@ class MeshQuality:
         """
         cells = self.volume[self.volume > 0]
         angle = self.non_orthogonality[self.interior]
+        # Sums by math.fsum: correctly rounded, so in no order of numpy's either.
+        cosine = np.cos(np.radians(angle))
         return {
             "cells": int(len(cells)),
             "faces": int(len(self.skewness)),
             "volume_min": float(cells.min()) if len(cells) else 0.0,
             "volume_max": float(cells.max()) if len(cells) else 0.0,
-            "volume_total": float(cells.sum()),
+            "volume_total": math.fsum(cells),
             "non_orthogonality_max": float(angle.max()) if len(angle) else 0.0,
             # checkMesh's "average": the angle of the mean cosine, not the mean angle.
             "non_orthogonality_average": (
-                float(np.degrees(np.arccos(np.cos(np.radians(angle)).mean())))
-                if len(angle)
-                else 0.0
+                math.degrees(math.acos(math.fsum(cosine) / len(cosine))) if len(angle) else 0.0
             ),
             "non_orthogonal_faces": int((angle > NON_ORTHOGONALITY_LIMIT).sum()),
             "skewness_max": float(self.skewness.max()) if len(self.skewness) else 0.0,
@@ -113,6 +112,16 @@ class MeshQuality:
 
 def mesh_quality(mesh: PolyMesh) -> MeshQuality:
     """Cell volumes, face non-orthogonality and skewness of ``mesh`` (module docs).
+
+    A thin wrapper: the figures are those the core measured once for the mesh
+    (:attr:`PolyMesh.measured <hcvt.mesh.polymesh.PolyMesh.measured>`), which also serve
+    its ``face_geometry`` and ``cell_geometry``.
+
+    Raises
+    ------
+    InvalidMeshError
+        The mesh's arrays are malformed (an index out of range, a face with the wrong
+        number of vertices, a non-finite point); the message names the first offender.
 
     Examples
     --------
@@ -130,14 +139,16 @@ def mesh_quality(mesh: PolyMesh) -> MeshQuality:
     >>> q.non_orthogonality[0], q.skewness.max()
     (np.float64(0.0), np.float64(0.0))
     """
-    volume, centroid = mesh.cell_geometry
-    angle, skewness, inverted = face_quality(mesh, centroid)
-    aspect = cell_aspect_ratio(mesh)
-    inner = mesh.interior
-    pair = np.sort([volume[mesh.owner[inner]], volume[mesh.neighbour[inner]]], axis=0)
-    ratio = np.full(mesh.n_faces, np.nan)
-    ratio[inner] = pair[0] / np.maximum(pair[1], _ROOT_VSMALL)
-    return MeshQuality(volume, aspect, angle, skewness, inverted, inner, ratio)
+    m = mesh.measured
+    return MeshQuality(
+        volume=m["volume"],
+        aspect_ratio=m["aspect_ratio"],
+        non_orthogonality=m["non_orthogonality"],
+        skewness=m["skewness"],
+        inverted_pyramid=m["inverted_pyramid"],
+        interior=mesh.interior,
+        volume_ratio=m["volume_ratio"],
+    )
 
 
 def cell_aspect_ratio(mesh: PolyMesh) -> NDArray[np.float64]:
@@ -150,21 +161,11 @@ def cell_aspect_ratio(mesh: PolyMesh) -> NDArray[np.float64]:
     mesh is measured as OpenFOAM measures its one-cell-thick extrusion (the empty
     direction left out).
     """
-    _, area = mesh.face_geometry
-    magnitude = np.abs(area)
-    inner = mesh.interior
-    cells = np.concatenate([mesh.owner, mesh.neighbour[inner]])
-    s = np.zeros((mesh.n_cells, mesh.dim))
-    np.add.at(s, cells, np.concatenate([magnitude, magnitude[inner]]))
-    ratio = s.max(axis=1) / (s.min(axis=1) + _ROOT_VSMALL)
-    if mesh.dim == 3:
-        volume = np.maximum(mesh.cell_geometry.volume, _ROOT_VSMALL)
-        ratio = np.maximum(ratio, s.sum(axis=1) / 6.0 / volume ** (2.0 / 3.0))
-    return ratio
+    return mesh.measured["aspect_ratio"]
 
 
 def face_quality(
-    mesh: PolyMesh, centroid: NDArray[np.float64]
+    mesh: PolyMesh, centroid: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """Non-orthogonality, skewness and inverted pyramids of the faces of ``mesh``.
 
@@ -172,34 +173,8 @@ def face_quality(
     (n, d)) given: :mod:`hcvt.mesh.merge` measures candidate faces with it before it
     makes them. Returns the three per-face arrays of :class:`MeshQuality`.
     """
-    centre, area = mesh.face_geometry
-    inner = mesh.interior
-    own = centroid[mesh.owner]
-    d = np.where(inner[:, None], centroid[np.maximum(mesh.neighbour, 0)] - own, 0.0)
-    cpf = centre - own
-    # A boundary face measures against its owner's mirror image: d along the normal.
-    unit = area / np.maximum(np.linalg.norm(area, axis=1), _ROOT_VSMALL)[:, None]
-    d = np.where(inner[:, None], d, unit * _dot(unit, cpf)[:, None])
-    cosine = _dot(d, area) / (
-        np.linalg.norm(d, axis=1) * np.linalg.norm(area, axis=1) + _ROOT_VSMALL
-    )
-    angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
-    angle[~inner] = np.nan
-    s = cpf - (_dot(area, cpf) / (_dot(area, d) + _ROOT_VSMALL))[:, None] * d
-    s_norm = np.linalg.norm(s, axis=1)
-    s_hat = s / (s_norm + _ROOT_VSMALL)[:, None]
-    # Extent of the face along s: the largest |ŝ·(v - c_f)| over its vertices.
-    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
-    reach = np.abs(_dot(s_hat[face_of], mesh.points[mesh.face_vertices] - centre[face_of]))
-    extent = np.maximum.reduceat(reach, mesh.face_offsets[:-1])
-    floor = np.where(inner, 0.2, 0.4) * np.linalg.norm(d, axis=1) + _ROOT_VSMALL
-    skewness = s_norm / np.maximum(floor, extent)
-    # checkMesh's face pyramids: 3 x the signed cone volume from each side's centroid,
-    # wrong below -SMALL (1e-15, OpenFOAM's tolerance, in L^3).
-    own_cone = _dot(area, cpf) / mesh.dim
-    nei_cone = _dot(area, centroid[np.maximum(mesh.neighbour, 0)] - centre) / mesh.dim
-    inverted = (own_cone < -_SMALL) | (inner & (nei_cone < -_SMALL))
-    return angle, skewness, inverted
+    m = mesh.measure(centroid)
+    return m["non_orthogonality"], m["skewness"], m["inverted_pyramid"]
 
 
 def fails_checkmesh(
@@ -218,7 +193,3 @@ def _min_ratio(ratio: NDArray[np.float64] | None, interior: NDArray[np.bool_]) -
     if ratio is None or not interior.any():
         return 1.0
     return float(ratio[interior].min())
-
-
-def _dot(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.einsum("ij,ij->i", a, b)
