@@ -85,6 +85,11 @@ class MergeReport(NamedTuple):
     """Detached parts of cells joined to a neighbour first (:mod:`hcvt.mesh.parts`)."""
 
 
+#: Relative round-off of a candidate's change of volume ``|S·c - Σ S_i·c_i| / 3``: 64 ulps
+#: of the moments it is the difference of.
+ROUND_OFF = 64 * np.finfo(np.float64).eps
+
+
 def merged_boundary(
     mesh: PolyMesh, domain: Domain | None = None, labels: ArrayLike | None = None
 ) -> tuple[PolyMesh, MergeReport]:
@@ -428,7 +433,13 @@ def _best_joins(
     piece_centre, piece_area = mesh.face_geometry
     moment = np.einsum("ij,ij->i", piece_area[faces_all], piece_centre[faces_all])
     exact = np.bincount(cand_all, weights=moment, minlength=len(cand_src))[ok]
-    change = np.abs(np.einsum("ij,ij->i", area, centre) - exact) / 3.0
+    joined = np.einsum("ij,ij->i", area, centre)
+    change = np.abs(joined - exact) / 3.0
+    # Coplanar pieces change nothing: their change is 0 but for round-off, which must not
+    # rank candidates (it follows the last bits of the geometry, and with them the
+    # summation orders of numpy and of the core). Below it, ties go by candidate order.
+    gross = np.bincount(cand_all, weights=np.abs(moment), minlength=len(cand_src))[ok]
+    change[change <= ROUND_OFF * (np.abs(joined) + gross)] = 0.0
     # Each failing group's best candidate (passing first, then least change), then
     # those best first.
     best = np.lexsort((change, fails, cand_src[ok]))
