@@ -485,12 +485,22 @@ where
                 .into(),
         });
     }
+    if domain.periodic().is_some() && settings.method == Method::Newton {
+        return Err(CoreError::InvalidSettings {
+            reason: "Newton's Hessian is not summed in a periodic box yet: use method \
+                     'lbfgs' or 'lloyd'"
+                .into(),
+        });
+    }
+    // In a periodic box the iterates are not wrapped (the L-BFGS memory differences them;
+    // the diagram takes any site along a periodic axis), what the caller sees is.
+    let wrap = |x: [f64; D]| domain.periodic().map_or(x, |torus| torus.wrap(x));
     let order = morton_order(&sites);
     let along_curve: Vec<[f64; D]> = order.iter().map(|&i| sites[i as usize]).collect();
     let mut caller_order = vec![[0.0; D]; sites.len()];
     let mut observe = |record: &Record, held: &[[f64; D]]| {
         for (&i, &x) in order.iter().zip(held) {
-            caller_order[i as usize] = x;
+            caller_order[i as usize] = wrap(x);
         }
         observer(record, &caller_order)
     };
@@ -498,7 +508,7 @@ where
         Ok(out) => {
             let mut sites = vec![[0.0; D]; out.sites.len()];
             for (&i, &x) in order.iter().zip(&out.sites) {
-                sites[i as usize] = x;
+                sites[i as usize] = wrap(x);
             }
             let (diagram, faces) = out.diagram.reordered_faces(&order);
             Ok(Outcome {
