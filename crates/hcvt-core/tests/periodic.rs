@@ -1,13 +1,15 @@
 //! Cells of a periodic box (DESIGN §14) against closed forms (BCC, FCC and hexagonal
 //! lattices), against the central cells of a tiled non-periodic box, and their invariants:
-//! volumes summing to the box's, symmetric neighbours with their images, determinism.
+//! volumes summing to the box's, symmetric neighbours with their images, determinism; and
+//! CVTs on the torus (sites wrap).
 
 use std::collections::HashMap;
+use std::ops::ControlFlow;
 
 use hcvt_core::sample::Lcg;
 use hcvt_core::{
-    clipped_diagram, BoxDomain, ConvexCell, CoreError, Diagram, PeriodicBox, PolygonCell,
-    PolyhedronCell, Request,
+    clipped_diagram, cvt, BoxDomain, ConvexCell, CoreError, Diagram, Method, Outcome, PeriodicBox,
+    PolygonCell, PolyhedronCell, Request, Rule, Settings, StopReason,
 };
 
 fn periodic<const D: usize, C: ConvexCell<D>>(
@@ -385,4 +387,130 @@ fn a_density_is_refused_in_a_periodic_box() {
     };
     let out = clipped_diagram::<2, PolygonCell, _>(&torus, &[[0.5, 0.5]], &request);
     assert!(matches!(out, Err(CoreError::InvalidDensity { .. })));
+}
+
+fn cvt_settings<const D: usize>(method: Method, tol: f64, max_iter: usize) -> Settings<'static, D> {
+    Settings {
+        method,
+        rule: Rule::Gap,
+        tol,
+        max_iter,
+        ..Settings::default()
+    }
+}
+
+fn run_cvt<const D: usize, C: ConvexCell<D>>(
+    torus: &PeriodicBox<D>,
+    sites: Vec<[f64; D]>,
+    settings: &Settings<'_, D>,
+) -> Outcome<D>
+where
+    hcvt_core::Euclid: hcvt_core::Space<D>,
+{
+    cvt::<D, C, _>(
+        torus,
+        sites,
+        settings,
+        &mut |_, _| ControlFlow::Continue(()),
+    )
+    .unwrap()
+}
+
+/// The distance between `a` and `b` on the torus, coordinate by coordinate.
+fn torus_distance<const D: usize>(torus: &PeriodicBox<D>, a: [f64; D], b: [f64; D]) -> f64 {
+    let periods = torus.periods();
+    (0..D)
+        .map(|k| {
+            let d = (a[k] - b[k]).rem_euclid(periods[k]);
+            d.min(periods[k] - d)
+        })
+        .fold(0.0, f64::max)
+}
+
+/// A BCC lattice translated so that many sites sit across the periodic sides (wrapped) is a
+/// CVT of the torus: Lloyd and L-BFGS steps leave every site where it is, and the sites
+/// come back in the box.
+#[test]
+fn a_bcc_lattice_is_a_fixed_point_on_the_torus() {
+    let m = 2usize;
+    let torus = PeriodicBox::new([0.0; 3], [m as f64; 3], [true; 3]).unwrap();
+    let mut sites = Vec::new();
+    for i in 0..m * m * m {
+        let c = [i % m, i / m % m, i / (m * m)].map(|x| x as f64 + 0.37);
+        sites.push(torus.wrap(c));
+        sites.push(torus.wrap(c.map(|x| x + 0.5)));
+    }
+    for method in [Method::Lloyd, Method::Lbfgs] {
+        let out =
+            run_cvt::<3, PolyhedronCell>(&torus, sites.clone(), &cvt_settings(method, 0.0, 5));
+        assert_eq!(out.iterations(), 5);
+        for (a, b) in out.sites.iter().zip(&sites) {
+            assert!(
+                torus_distance(&torus, *a, *b) < 1e-13,
+                "{method:?}: {a:?} {b:?}"
+            );
+            assert!((0..3).all(|k| (0.0..m as f64).contains(&a[k])), "{a:?}");
+        }
+        let g = out.history.last().unwrap().mean_g;
+        assert!(
+            (g - g_truncated_octahedron()).abs() < 1e-13,
+            "{method:?}: G = {g}"
+        );
+    }
+}
+
+/// Random sites converge to the default rule on the torus with Lloyd and with L-BFGS (no
+/// site held at a periodic side: none is pinned), ending in the box; in 2D the cells are
+/// then nearly hexagons.
+#[test]
+fn random_sites_converge_on_the_torus() {
+    let torus = PeriodicBox::new([0.0, 0.0], [1.5, 1.0], [true; 2]).unwrap();
+    let sites = random_sites(150, [0.0, 0.0], [1.5, 1.0], 21);
+    let tol = Rule::Gap.default_tol();
+    for (method, max_iter) in [(Method::Lbfgs, 500), (Method::Lloyd, 5000)] {
+        let out =
+            run_cvt::<2, PolygonCell>(&torus, sites.clone(), &cvt_settings(method, tol, max_iter));
+        assert_eq!(out.stop_reason, StopReason::Converged, "{method:?}");
+        let last = out.history.last().unwrap();
+        assert!(last.measures.rms_gap < tol && last.measures.pinned == 0);
+        assert!(out
+            .sites
+            .iter()
+            .all(|s| (0.0..1.5).contains(&s[0]) && (0.0..1.0).contains(&s[1])));
+        // Some site crossed a side on the way (the run did not hold them in).
+        let crossed = out
+            .sites
+            .iter()
+            .zip(&sites)
+            .filter(|(a, b)| (0..2).any(|k| (a[k] - b[k]).abs() > 0.5))
+            .count();
+        assert!(crossed > 0, "{method:?}");
+        // The final diagram, of the wrapped sites, is that of a fresh computation.
+        let fresh = periodic::<2, PolygonCell>(&torus, &out.sites);
+        assert_eq!(fresh.neighbor_sites, out.diagram.neighbor_sites);
+        assert_eq!(fresh.neighbor_images, out.diagram.neighbor_images);
+        let g = last.mean_g;
+        assert!(g < 0.0810, "{method:?}: mean G {g}");
+        let energies: Vec<f64> = out.history.iter().map(|r| r.energy).collect();
+        assert!(energies.last() < energies.first());
+    }
+    let torus = PeriodicBox::new([0.0; 3], [1.0; 3], [true, true, false]).unwrap();
+    let sites = random_sites(120, [0.0; 3], [1.0; 3], 22);
+    let out = run_cvt::<3, PolyhedronCell>(&torus, sites, &cvt_settings(Method::Lbfgs, tol, 500));
+    assert_eq!(out.stop_reason, StopReason::Converged);
+    assert!(out.history.last().unwrap().measures.rms_gap < tol);
+}
+
+/// Newton is refused in a periodic box for now (its Hessian is not summed there).
+#[test]
+fn newton_is_refused_on_the_torus() {
+    let torus = PeriodicBox::new([0.0; 2], [1.0; 2], [true; 2]).unwrap();
+    let sites = random_sites(10, [0.0; 2], [1.0; 2], 3);
+    let out = cvt::<2, PolygonCell, _>(
+        &torus,
+        sites,
+        &cvt_settings(Method::Newton, 1e-6, 10),
+        &mut |_, _| ControlFlow::Continue(()),
+    );
+    assert!(matches!(out, Err(CoreError::InvalidSettings { .. })));
 }

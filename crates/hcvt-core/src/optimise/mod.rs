@@ -458,6 +458,12 @@ impl<const D: usize> Tracker<'_, D> {
 /// Hessian's products); the observer and the outcome see the caller's order. Sums over
 /// sites (energy, norms) run in the run's order.
 ///
+/// In a periodic box ([`crate::PeriodicBox`]) sites move freely across the periodic sides:
+/// the iterates are not wrapped (the L-BFGS memory takes differences of them; the diagram
+/// takes a site anywhere along a periodic axis), [`crate::DomainKind::locate`] finds every
+/// point of the torus inside, so no site is held or pinned at a side, and the observer and
+/// the outcome see the sites wrapped into the box. Newton is refused there for now.
+///
 /// Errors: those of the first diagram (sites outside the domain, coinciding, non-finite),
 /// naming sites in the caller's order. Later steps keep the sites inside the domain and
 /// distinct, so they do not fail.
