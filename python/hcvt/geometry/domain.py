@@ -196,7 +196,9 @@ class Domain:
         core_lo, core_hi = frame.to_core(corners, "vertices")
         core_box = _core.BoxDomain2 if dim == 2 else _core.BoxDomain3
         core = core_box(tuple(core_lo), tuple(core_hi), tuple(bool(a) for a in axes))
-        return cls(core, dim, None, None, frame)
+        # In 2D the shapely rectangle too, for what reads a polygon (plots, lattice seeds).
+        geometry = shapely.box(*corners[0], *corners[1]) if dim == 2 else None
+        return cls(core, dim, geometry, None, frame)
 
     @property
     def periodic(self) -> tuple[bool, ...]:
