@@ -1,5 +1,5 @@
 //! Time the diagram of uniform random sites in the unit square or cube, periodic and not.
-//! `cargo run --release --example periodic_profile -- 2 100000`
+//! `cargo run --release --example periodic_profile -- 2 100000 [repeats] [periodic|box]`
 
 use std::time::Instant;
 
@@ -12,6 +12,7 @@ use hcvt_core::{
 fn run<const D: usize, C: ConvexCell<D>>(
     n: usize,
     repeats: usize,
+    only: Option<String>,
 ) -> Result<(), hcvt_core::CoreError>
 where
     Euclid: Space<D>,
@@ -22,6 +23,16 @@ where
         .collect();
     let torus = PeriodicBox::new([0.0; D], [1.0; D], [true; D])?;
     let plain = BoxDomain::new([0.0; D], [1.0; D])?;
+    if let Some(kind) = only {
+        // One kind alone, for an instruction count (valgrind --tool=cachegrind).
+        let d = if kind == "box" {
+            clipped_diagram::<D, C, _>(&plain, &sites, &Request::default())?.diagram
+        } else {
+            clipped_diagram::<D, C, _>(&torus, &sites, &Request::default())?.diagram
+        };
+        println!("{kind}: {} faces", d.neighbor_sites.len());
+        return Ok(());
+    }
     for _ in 0..repeats {
         let t = Instant::now();
         let d = clipped_diagram::<D, C, _>(&torus, &sites, &Request::default())?.diagram;
@@ -46,9 +57,10 @@ fn main() -> Result<(), hcvt_core::CoreError> {
     let d: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(2);
     let n: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(100_000);
     let repeats: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(3);
+    let only = args.next();
     if d == 2 {
-        run::<2, PolygonCell>(n, repeats)
+        run::<2, PolygonCell>(n, repeats, only)
     } else {
-        run::<3, PolyhedronCell>(n, repeats)
+        run::<3, PolyhedronCell>(n, repeats, only)
     }
 }
