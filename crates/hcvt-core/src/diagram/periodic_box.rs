@@ -281,7 +281,18 @@ impl<const D: usize> Images<D> {
             .collect();
         let mut sites = wrapped.to_vec();
         let (mut source, mut shift) = (Vec::new(), Vec::new());
+        // A site farther than the band (and a margin for rounding) from every periodic
+        // side has no image in it: most sites, skipped before trying the 3^p − 1 shifts.
+        let reach: [f64; D] = std::array::from_fn(|m| band + 1e-9 * periods[m]);
+        let near_a_side = |z: &[f64; D]| {
+            (0..D).any(|m| {
+                torus.periodic[m] && (z[m] - lo[m] <= reach[m] || hi[m] - z[m] <= reach[m])
+            })
+        };
         for (i, z) in wrapped.iter().enumerate() {
+            if !near_a_side(z) {
+                continue;
+            }
             for k in &shifts {
                 let p: [f64; D] = std::array::from_fn(|m| z[m] + f64::from(k[m]) * periods[m]);
                 let near =
