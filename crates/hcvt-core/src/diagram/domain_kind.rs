@@ -12,8 +12,9 @@
 //! axis-aligned box ([`super::BoxDomain`]); and a periodic box ([`PeriodicBox`]: no
 //! boundary along its periodic axes, the cell itself, its neighbours' images through
 //! [`DomainKind::periodic`]). The sphere and a triangle surface (great-circle and triangle
-//! pieces, cells of dimension 2) will implement the same methods. The conforming mesh (`mesh`) still reads a [`Boundary`]'s simplices: the
-//! boundary pieces a mesh needs join this trait with the first kind that meshes otherwise.
+//! pieces, cells of dimension 2) will implement the same methods. The conforming mesh
+//! (`mesh`) still reads a [`Boundary`]'s simplices: the boundary pieces a mesh needs join
+//! this trait with the first kind that meshes otherwise.
 
 use crate::domain::{Boundary, WindingNumber};
 use crate::geometry::{Aabb, Euclid, Space};

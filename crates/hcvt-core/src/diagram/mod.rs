@@ -13,7 +13,8 @@
 //!
 //! | file | owns |
 //! |------|------|
-//! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |\n//! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
+//! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |
+//! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
 //! | `periodic_box.rs` | [`PeriodicBox`], a box periodic along some or all axes: cells among the sites' images in a band, each neighbour with its image shift (DESIGN §14) |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
@@ -193,7 +194,10 @@ pub struct Clipped<const D: usize, C> {
     /// (relative to its site): the Voronoi cell in the domain's box, cut to a box around
     /// the domain's part for some cells of sites near the boundary, and in a convex domain
     /// already cut to the domain for cells that needed more than `PRECLIP_K` neighbours
-    /// (most cells at its boundary). Empty otherwise.
+    /// (most cells at its boundary). Empty otherwise. In a periodic box each is the cell
+    /// of the wrapped site (the torus' cell, unwrapped around it), and its
+    /// [`Face::Neighbor`] tags number the sites and images it was computed among: read the
+    /// neighbours off the diagram.
     pub cells: Vec<C>,
     /// With [`Request::integrand`], its sums over the faces between cells; empty otherwise.
     pub face_integrals: FaceIntegrals<D>,

@@ -20,11 +20,12 @@
 //! read sites (the partitions' certificate, DESIGN §10): that the band held every image a
 //! cell needed is checked, not assumed (freud's cells depend on the size of its ghost
 //! buffer, freud #128). The cells whose reach passes the band's cover are computed again
-//! with the band doubled (only they: a few per 100k sites). Once the band reaches the largest period all `3^p − 1` images of
-//! every site are present, which certifies every cell: it lies in the half-period box
-//! around its site, where an image with some `|k_m| ≥ 2` is never nearer than the image
-//! with `k_m` one step nearer zero (the sites being in `[lo, hi)`), so images beyond ±1
-//! cut nothing. A band of `b` spacings ([`FIRST_BAND`]: 8 in 2D, 3 in 3D) adds about
+//! with the band doubled (only they: a few per 100k sites). Once the band reaches the
+//! largest period all `3^p − 1` images of every site are present, which certifies every
+//! cell: it lies in the half-period box around its site, where an image with some
+//! `|k_m| ≥ 2` is never nearer than the image with `k_m` one step nearer zero (the sites
+//! being in `[lo, hi)`), so images beyond ±1 cut nothing. So a box of few sites, whose
+//! cells reach their own images (ALGORITHMS, pitfalls), needs no special case. A band of `b` spacings ([`FIRST_BAND`]: 8 in 2D, 3 in 3D) adds about
 //! `2 d b / n^{1/d}` of the sites as images: 10% at 100k sites in 2D, 40% in 3D.
 //!
 //! **Sites.** Along periodic axes a site may lie anywhere: its cell is that of its image in
