@@ -23,6 +23,8 @@ from hcvt.core_results import (
 )
 
 __all__ = [
+    "BoxDomain2",
+    "BoxDomain3",
     "PolygonDomain",
     "SolidDomain",
     "check_settings",
@@ -83,14 +85,55 @@ class SolidDomain:
     def crossing_triangles(self, max: int = 10) -> tuple[int, list[tuple[int, int]]]: ...
     def generalized_winding_numbers(self, points: _Float2) -> _Float1: ...
 
+@final
+class BoxDomain2:
+    """The box [lo, hi] (2D), periodic along the axes marked so (2 values each)."""
+
+    def __new__(
+        cls, lo: Sequence[float], hi: Sequence[float], periodic: Sequence[bool]
+    ) -> BoxDomain2: ...
+    @property
+    def volume(self) -> float: ...
+    @property
+    def first_moment(self) -> tuple[float, float]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float], tuple[float, float]]: ...
+    @property
+    def periodic(self) -> tuple[bool, bool]: ...
+    @property
+    def vertices(self) -> _Float2: ...
+    def winding_numbers(self, points: _Float2) -> _Windings: ...
+    def wrap(self, points: _Float2) -> _Float2: ...
+
+@final
+class BoxDomain3:
+    """The box [lo, hi] (3D), periodic along the axes marked so (3 values each)."""
+
+    def __new__(
+        cls, lo: Sequence[float], hi: Sequence[float], periodic: Sequence[bool]
+    ) -> BoxDomain3: ...
+    @property
+    def volume(self) -> float: ...
+    @property
+    def first_moment(self) -> tuple[float, float, float]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]: ...
+    @property
+    def periodic(self) -> tuple[bool, bool, bool]: ...
+    @property
+    def vertices(self) -> _Float2: ...
+    def winding_numbers(self, points: _Float2) -> _Windings: ...
+    def wrap(self, points: _Float2) -> _Float2: ...
+
 # A density is either `polynomial=(constant, linear (d,), quadratic (d, d))` or
 # `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`.
 _Coefficients = tuple[float, Sequence[float], Sequence[Sequence[float]]]
 _Function = Callable[[NDArray[np.float64]], ArrayLike]
 
-# Each function takes either kind of domain: a polygon (d = 2) or a solid (d = 3); the
-# dicts it returns are typed in hcvt.core_results.
-_Domain = PolygonDomain | SolidDomain
+# Each function takes any kind of domain: a polygon (d = 2), a solid (d = 3) or a box
+# (mesh, mesh_part and the steps of a partitioned run raise InvalidDomainError for a box);
+# the dicts it returns are typed in hcvt.core_results.
+_Domain = PolygonDomain | SolidDomain | BoxDomain2 | BoxDomain3
 
 def voronoi(
     domain: _Domain,

@@ -35,7 +35,9 @@ def voronoi(
     Parameters
     ----------
     domain : Domain
-        Polygon with holes (d = 2) or closed-mesh solid (d = 3); length unit L.
+        Polygon with holes (d = 2), closed-mesh solid (d = 3) or box, periodic along some
+        axes or all (:meth:`Domain.box`: sites may then lie anywhere along a periodic axis,
+        and the diagram gives each neighbour's image shift); length unit L.
     sites : array_like of float, shape (n, d)
         Generator positions in L: finite, distinct, inside the domain (points on the
         boundary count as inside). Copied to C-contiguous float64.
@@ -132,7 +134,8 @@ def cvt(
     Parameters
     ----------
     domain : Domain
-        Polygon (d = 2) or solid (d = 3); length unit L.
+        Polygon (d = 2), solid (d = 3) or box (:meth:`Domain.box`; along its periodic axes
+        sites move across the sides and come back wrapped); length unit L.
     sites : array_like of float, shape (n, d)
         Initial sites: finite, distinct, inside the domain. Not modified.
     method : {"lbfgs", "newton", "lloyd"}

@@ -48,6 +48,8 @@ class DiagramArrays(TypedDict):
     neighbor_offsets: Indices  # (n + 1,)
     neighbor_sites: Indices  # (k,)
     neighbor_measures: Floats  # (k,) L^(d−1)
+    # In a periodic box: the image shift of each neighbour, in {-1, 0, 1}^d.
+    neighbor_images: NotRequired[NDArray[np.int8]]  # (k, d)
     # With keep_cells: 2D, each site's convex cell counter-clockwise, absolute.
     cell_offsets: NotRequired[Indices]  # (n + 1,)
     cell_vertices: NotRequired[Floats]  # (m, d)

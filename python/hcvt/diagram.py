@@ -74,9 +74,17 @@ class Diagram(Shows):
         The site across each face.
     neighbor_measures : ndarray, shape (m,)
         Length (2D) or area (3D) of each face inside the domain.
+    neighbor_images : ndarray of int8, shape (m, d), or None
+        In a periodic box (:meth:`hcvt.Domain.box`): the image of the site across each
+        face, ``k`` in {-1, 0, 1}^d: the face is shared with ``w_j + k * (hi - lo)``, ``w``
+        the sites wrapped into the box (:meth:`hcvt.Domain.wrap`). A site may then be a
+        neighbour across several faces (one per image) or its own neighbour (few sites);
+        each row is sorted by site, then image. None for every other domain.
     neighbors : ndarray of intp, shape (k, 2)
         Restricted Delaunay edges ``(i, j)``, ``i < j``, sorted: the faces above of
-        positive measure (more than ``NEIGHBOR_REL_TOL · h^(d-1)``).
+        positive measure (more than ``NEIGHBOR_REL_TOL · h^(d-1)``). In a periodic box a
+        pair appears once per image it shares a face across, and a cell's faces with its
+        own images are left out.
     face_measures : ndarray, shape (k,)
         The measure of each face of ``neighbors``.
     adjacency : scipy.sparse.csr_array of float64, shape (n, n)
@@ -116,6 +124,11 @@ class Diagram(Shows):
         self.neighbor_sites: NDArray[np.intp] = arrays["neighbor_sites"]
         self._allow_outside = allow_outside
         self._mesh: PolyMesh | None = None
+
+    @property
+    def neighbor_images(self) -> NDArray[np.int8] | None:
+        """Image shift of the site across each face, shape (m, d), in a periodic box."""
+        return self._arrays.get("neighbor_images")
 
     def _in_input(self, name: CellField) -> Any:
         return self._frame.to_input(name, self._arrays[name])

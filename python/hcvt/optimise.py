@@ -181,6 +181,9 @@ def cvt(
             bar.close()
     history = frame.history({key: np.asarray(value) for key, value in out["history"].items()})
     sites_out = frame.to_input("sites", out["sites"])
+    if any(domain.periodic):
+        # Wrapped by the core in its frame; again here, where rounding may touch `hi`.
+        sites_out = domain.wrap(sites_out)
     return CVTResult(
         sites=sites_out,
         diagram=Diagram(domain, sites_out, out["diagram"], density, core_sites=out["sites"]),

@@ -41,8 +41,8 @@ pub use density::{Density, Field, Quadratic};
 pub use diagram::{
     clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, morton_order, BoxDomain,
     Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals, FaceIntegrand, Matrix,
-    MeshDomain, MeshPart, Options, PartCells, PolyMesh, PolygonCell, PolyhedronCell, Request,
-    SiteIndex,
+    MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh, PolygonCell, PolyhedronCell,
+    Request, SiteIndex,
 };
 pub use domain::{generalized_winding_number, Boundary, Polygon, Solid};
 pub use error::CoreError;

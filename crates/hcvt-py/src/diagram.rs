@@ -1,8 +1,8 @@
 //! The clipped Voronoi diagram as numpy arrays.
 
 use hcvt_core::{
-    clipped_diagram, Boundary, ConvexCell, Diagram, DomainKind, Euclid, Options, PolygonCell,
-    PolyhedronCell, Request, Space,
+    clipped_diagram, ConvexCell, Diagram, DomainKind, Euclid, Options, PolygonCell, PolyhedronCell,
+    Request, Space,
 };
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -12,8 +12,9 @@ use crate::arrays::{rows, to_array2, to_intp, to_intp2};
 use crate::density::{Coefficients, Given};
 use crate::domain::{by_kind, AnyDomain};
 
-/// Clipped diagram of `sites` (n, d) in `domain` (a polygon, d = 2, or a solid, d = 3): a
-/// dict of arrays, row i = site i (see `hcvt.voronoi`). With `keep_cells`, also each
+/// Clipped diagram of `sites` (n, d) in `domain` (a polygon, d = 2, a solid, d = 3, or a
+/// box, periodic or not): a dict of arrays, row i = site i (see `hcvt.voronoi`); in a
+/// periodic box also `neighbor_images` (k, d) int8. With `keep_cells`, also each
 /// site's convex cell from the core (the Voronoi cell in the domain's box, already cut to
 /// the domain for most boundary cells of a convex domain, see `clipped_diagram`),
 /// absolute: in 2D `cell_offsets` (n+1,) and `cell_vertices` (m, 2), counter-clockwise;
@@ -48,15 +49,14 @@ struct Asked<'a> {
     given: &'a Given,
 }
 
-fn voronoi_in<'py, const D: usize, C: ConvexCell<D> + CellArrays<D>>(
-    boundary: &Boundary<D>,
+fn voronoi_in<'py, const D: usize, C: ConvexCell<D> + CellArrays<D>, K: DomainKind<D>>(
+    domain: &K,
     py: Python<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     asked: Asked<'_>,
 ) -> PyResult<Bound<'py, PyDict>>
 where
     Euclid: Space<D>,
-    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(&sites, "sites")?;
     let density = asked.given.density::<D>()?;
@@ -69,7 +69,7 @@ where
         ..Request::default()
     };
     let clipped = py
-        .detach(|| crate::threads::run(|| clipped_diagram::<D, C, _>(boundary, &points, &request)))
+        .detach(|| crate::threads::run(|| clipped_diagram::<D, C, _>(domain, &points, &request)))
         .map_err(|e| asked.given.error(e))?;
     let out = diagram_dict(py, &clipped.diagram, &points)?;
     if asked.keep_cells {
@@ -168,5 +168,9 @@ pub(crate) fn diagram_dict<'py, const D: usize>(
         "neighbor_measures",
         PyArray1::from_vec(py, diagram.neighbor_measures.clone()),
     )?;
+    if !diagram.neighbor_images.is_empty() {
+        // A periodic box: each neighbour's image shift (k, d), int8.
+        out.set_item("neighbor_images", to_array2(py, &diagram.neighbor_images)?)?;
+    }
     Ok(out)
 }

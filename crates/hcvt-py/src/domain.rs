@@ -1,6 +1,6 @@
 //! Domains: a checked, indexed boundary held by Python.
 
-use hcvt_core::{generalized_winding_number, Boundary, DomainKind, Polygon, Solid};
+use hcvt_core::{generalized_winding_number, DomainKind, PeriodicBox, Polygon, Solid};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
@@ -12,14 +12,11 @@ type Windings<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<bool>>);
 
 /// Exact winding numbers of `points` about `boundary`, in parallel without the GIL; points
 /// on the boundary get 0 and an on-boundary flag.
-fn winding_numbers<'py, const D: usize>(
+fn winding_numbers<'py, const D: usize, K: DomainKind<D>>(
     py: Python<'py>,
-    boundary: &Boundary<D>,
+    boundary: &K,
     points: &[[f64; D]],
-) -> Windings<'py>
-where
-    Boundary<D>: DomainKind<D>,
-{
+) -> Windings<'py> {
     let w: Vec<Option<i32>> = py.detach(|| {
         crate::threads::run(|| {
             use rayon::prelude::*;
@@ -140,6 +137,90 @@ domain_class! {
     }
 }
 
+/// A box domain class held by Python: `lo`, `hi` (d,) and which axes are periodic.
+macro_rules! box_class {
+    ($(#[$doc:meta])* $name:ident($d:literal)) => {
+        $(#[$doc])*
+        #[pyclass(frozen, module = "hcvt._core")]
+        pub struct $name(pub PeriodicBox<$d>);
+
+        #[pymethods]
+        impl $name {
+            #[new]
+            fn new(lo: [f64; $d], hi: [f64; $d], periodic: [bool; $d]) -> PyResult<Self> {
+                PeriodicBox::new(lo, hi, periodic).map(Self).map_err(to_py_err)
+            }
+
+            /// Area (2D) or volume (3D) of the box.
+            #[getter]
+            fn volume(&self) -> f64 {
+                self.0.volume()
+            }
+
+            /// First moment `∫ x dx` (d,) about the coordinate origin.
+            #[getter]
+            fn first_moment(&self) -> [f64; $d] {
+                let v = self.0.volume();
+                self.0.bounds().center().map(|c| v * c)
+            }
+
+            /// `(lo, hi)` corners.
+            #[getter]
+            fn bounds(&self) -> ([f64; $d], [f64; $d]) {
+                let b = self.0.bounds();
+                (b.lo, b.hi)
+            }
+
+            /// Which axes are periodic (d,).
+            #[getter]
+            fn periodic(&self) -> [bool; $d] {
+                self.0.periodic_axes()
+            }
+
+            /// The `2^d` corners (2^d, d), the box's vertices.
+            #[getter]
+            fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+                to_array2(py, self.0.density_checkpoints())
+            }
+
+            /// Winding number of each point (m,): 1 inside (along periodic axes every
+            /// point is inside), 0 outside; `on_boundary` marks points on a side that is
+            /// not periodic (reported as 0).
+            fn winding_numbers<'py>(
+                &self,
+                py: Python<'py>,
+                points: PyReadonlyArray2<'py, f64>,
+            ) -> PyResult<Windings<'py>> {
+                let p = rows::<f64, $d>(&points, "points")?;
+                Ok(winding_numbers(py, &self.0, &p))
+            }
+
+            /// `points` (m, d) moved by whole periods into `[lo, hi)` along the periodic
+            /// axes.
+            fn wrap<'py>(
+                &self,
+                py: Python<'py>,
+                points: PyReadonlyArray2<'py, f64>,
+            ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+                let p = rows::<f64, $d>(&points, "points")?;
+                let wrapped: Vec<[f64; $d]> = p.iter().map(|&x| self.0.wrap(x)).collect();
+                to_array2(py, &wrapped)
+            }
+        }
+    };
+}
+
+box_class! {
+    /// An axis-aligned box `[lo, hi]` (2D), periodic along the axes marked so: cells of
+    /// the torus there, clipped by the sides along the others.
+    BoxDomain2(2)
+}
+
+box_class! {
+    /// An axis-aligned box `[lo, hi]` (3D), periodic along the axes marked so.
+    BoxDomain3(3)
+}
+
 /// Either kind of domain, as the binding's functions take it: one Python function per job,
 /// dispatched by [`by_kind`] to the core's generic code in the domain's dimension (the
 /// only place where the 2D and 3D paths part).
@@ -149,25 +230,43 @@ pub enum AnyDomain<'py> {
     Polygon(PyRef<'py, PolygonDomain>),
     /// A solid: dimension 3, [`hcvt_core::PolyhedronCell`]s.
     Solid(PyRef<'py, SolidDomain>),
+    /// A box, periodic along some axes (or none): dimension 2.
+    Box2(PyRef<'py, BoxDomain2>),
+    /// A box, periodic along some axes (or none): dimension 3.
+    Box3(PyRef<'py, BoxDomain3>),
 }
 
-/// `by_kind!(domain, f(args…))` calls `f::<D, Cell>(&boundary, args…)` and
-/// `by_kind!(domain, dim f(args…))` calls `f::<D>(&boundary, args…)` for the dimension
-/// `D`, convex cell type and boundary of `domain` (an [`AnyDomain`]).
+/// `by_kind!(domain, f(args…))` calls `f::<D, Cell, _>(&kind, args…)` for the dimension
+/// `D`, convex cell type and domain kind of `domain` (an [`AnyDomain`]: `f` is generic over
+/// [`DomainKind`]); `by_kind!(domain, dim f(args…))` calls `f::<D>(&boundary, args…)` for
+/// the jobs that need a boundary of simplices (the conforming mesh, the steps of a
+/// partitioned run) and raises `InvalidDomainError` for a box.
 macro_rules! by_kind {
     ($domain:expr, dim $f:ident($($arg:expr),* $(,)?)) => {
         match &$domain {
             $crate::domain::AnyDomain::Polygon(d) => $f::<2>(&d.0, $($arg),*),
             $crate::domain::AnyDomain::Solid(d) => $f::<3>(&d.0, $($arg),*),
+            $crate::domain::AnyDomain::Box2(_) | $crate::domain::AnyDomain::Box3(_) => {
+                Err($crate::errors::InvalidDomainError::new_err(
+                    "a box has no boundary of simplices: the conforming mesh and the steps \
+                     of a partitioned run take a polygon or a solid",
+                ))
+            }
         }
     };
     ($domain:expr, $f:ident($($arg:expr),* $(,)?)) => {
         match &$domain {
             $crate::domain::AnyDomain::Polygon(d) => {
-                $f::<2, hcvt_core::PolygonCell>(&d.0, $($arg),*)
+                $f::<2, hcvt_core::PolygonCell, _>(&d.0, $($arg),*)
             }
             $crate::domain::AnyDomain::Solid(d) => {
-                $f::<3, hcvt_core::PolyhedronCell>(&d.0, $($arg),*)
+                $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
+            }
+            $crate::domain::AnyDomain::Box2(d) => {
+                $f::<2, hcvt_core::PolygonCell, _>(&d.0, $($arg),*)
+            }
+            $crate::domain::AnyDomain::Box3(d) => {
+                $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
             }
         }
     };

@@ -333,15 +333,14 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// `SIGNAL_POLL`: CPython runs signal handlers only on the main thread, so a check made by
 /// a pool worker would never see Ctrl-C. A signal (or an error in the callback) stops the
 /// loop at the next iterate and is raised here.
-fn run<'py, const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+fn run<'py, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    boundary: &K,
     py: Python<'py>,
     sites: &PyReadonlyArray2<'py, f64>,
     job: Job<'_>,
 ) -> PyResult<Bound<'py, PyDict>>
 where
     Euclid: Space<D>,
-    Boundary<D>: DomainKind<D>,
 {
     let Job {
         named,

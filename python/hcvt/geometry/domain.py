@@ -1,8 +1,9 @@
-"""Domains: 2D polygons with holes and 3D solids bounded by closed triangle meshes.
+"""Domains: 2D polygons with holes, 3D solids bounded by closed triangle meshes, and boxes.
 
-A domain is stored by its oriented boundary only (outer rings counter-clockwise, holes
-clockwise; mesh triangles counter-clockwise seen from outside), checked once, and indexed
-by a BVH in the Rust core. Every diagram, CVT and initialisation takes a :class:`Domain`.
+A polygon or solid is stored by its oriented boundary only (outer rings counter-clockwise,
+holes clockwise; mesh triangles counter-clockwise seen from outside), checked once, and
+indexed by a BVH in the Rust core. A box is its corners and which axes are periodic
+(:meth:`Domain.box`). Every diagram, CVT and initialisation takes a :class:`Domain`.
 """
 
 from __future__ import annotations
@@ -56,9 +57,10 @@ class RepairReport:
 
 
 class Domain:
-    """A 2D polygon with holes or a 3D solid, checked and indexed for exact clipping.
+    """A 2D polygon with holes, a 3D solid or a box, checked and indexed for exact clipping.
 
-    Build one with :meth:`from_polygon`, :meth:`from_mesh` or :func:`hcvt.load_domain`.
+    Build one with :meth:`from_polygon`, :meth:`from_mesh`, :meth:`box` or
+    :func:`hcvt.load_domain`.
 
     Attributes
     ----------
@@ -79,6 +81,8 @@ class Domain:
         2D: the projected coordinate reference system of the input (GIS data read by
         :func:`hcvt.load_domain`, or ``crs=`` given to :meth:`from_polygon`); carried on to
         :meth:`hcvt.Diagram.to_geopandas` and the cells written. None when unknown.
+    periodic : tuple of bool
+        Which axes are periodic (a box made so by :meth:`box`); all False otherwise.
     """
 
     crs: Any = None
@@ -158,6 +162,84 @@ class Domain:
         domain = cls(core, 2, geometry, report, frame)
         domain.crs = parsed_crs
         return domain
+
+    # ------------------------------------------------------------------ boxes
+    @classmethod
+    def box(
+        cls, lo: ArrayLike, hi: ArrayLike, *, periodic: bool | Sequence[bool] = False
+    ) -> Domain:
+        """The axis-aligned box ``[lo, hi]`` in 2D or 3D, periodic along some axes or all.
+
+        Along a periodic axis the box is a torus (DESIGN §14): a cell that crosses the side
+        at ``lo_k`` continues at ``hi_k``, every neighbour face carries the image shift of
+        its neighbour (:attr:`hcvt.Diagram.neighbor_images`), sites may lie anywhere along
+        the axis (each stands for its image in ``[lo_k, hi_k)``, :meth:`wrap`) and a CVT
+        moves them freely across the sides and returns them wrapped. Along the other axes
+        the sides clip the cells, as for a polygon or solid box.
+
+        Parameters
+        ----------
+        lo, hi : array_like of float, shape (d,)
+            Opposite corners, ``lo < hi`` on every axis; d = 2 or 3.
+        periodic : bool or sequence of d bools, default False
+            Periodic along every axis (True), none (False), or those marked.
+
+        Raises
+        ------
+        InvalidDomainError
+            Non-finite corners, a side of zero or negative length, d not 2 or 3, or a
+            ``periodic`` of the wrong length.
+
+        Notes
+        -----
+        Not yet on a box: a density, Newton's method, the conforming mesh
+        (:meth:`hcvt.Diagram.mesh`) and partitions (``client=``); each raises.
+
+        Examples
+        --------
+        >>> import hcvt
+        >>> torus = hcvt.Domain.box([0, 0], [2, 1], periodic=True)
+        >>> d = hcvt.voronoi(torus, [[0.5, 0.5], [1.5, 0.5]])
+        >>> d.volume.tolist()
+        [1.0, 1.0]
+        >>> d.neighbor_sites[:4].tolist(), d.neighbor_images[:4].tolist()
+        ([0, 0, 1, 1], [[0, -1], [0, 1], [-1, 0], [0, 0]])
+        """
+        corners = np.array([_as_corner(lo, "lo"), _as_corner(hi, "hi")])
+        dim = corners.shape[1]
+        if dim not in (2, 3):
+            raise InvalidDomainError(f"a box has 2 or 3 axes, got lo and hi of length {dim}")
+        axes = (bool(periodic),) * dim if isinstance(periodic, bool) else tuple(periodic)
+        if len(axes) != dim or not all(isinstance(a, (bool, np.bool_)) for a in axes):
+            raise InvalidDomainError(f"periodic must be a bool or {dim} bools, got {periodic!r}")
+        frame = Frame.fit(corners)
+        core_lo, core_hi = frame.to_core(corners, "vertices")
+        core_box = _core.BoxDomain2 if dim == 2 else _core.BoxDomain3
+        core = core_box(tuple(core_lo), tuple(core_hi), tuple(bool(a) for a in axes))
+        # In 2D the shapely rectangle too, for what reads a polygon (plots, lattice seeds).
+        geometry = shapely.box(*corners[0], *corners[1]) if dim == 2 else None
+        return cls(core, dim, geometry, None, frame)
+
+    @property
+    def periodic(self) -> tuple[bool, ...]:
+        """Which axes are periodic, length d (all False but for a periodic :meth:`box`)."""
+        if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):
+            return tuple(bool(p) for p in self._core.periodic)
+        return (False,) * self.dim
+
+    def wrap(self, points: ArrayLike) -> NDArray[np.float64]:
+        """``points`` (m, d) moved by whole periods into ``[lo, hi)`` along periodic axes.
+
+        Unchanged along the other axes (and for a domain that is not periodic), in the
+        input's coordinates: ``lo + (x − lo) mod (hi − lo)``, and ``lo`` where rounding
+        lands on ``hi``.
+        """
+        pts = _as_points(points, self.dim, "points").copy()
+        lo, hi = self.bounds
+        for k in np.flatnonzero(self.periodic):
+            x = lo[k] + np.mod(pts[:, k] - lo[k], hi[k] - lo[k])
+            pts[:, k] = np.where(x < hi[k], x, lo[k])
+        return pts
 
     # ------------------------------------------------------------------ 3D
     @classmethod
@@ -387,6 +469,9 @@ class Domain:
         return (winding != 0) & ~on_boundary
 
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):
+            lo, hi = self.bounds
+            return _unpickle_box, (lo, hi, self.periodic)
         # Pickled as its checked boundary (dask, joblib, multiprocessing); the core rebuilds
         # its index from the same arrays, so diagrams in another process are bitwise equal.
         simplices = self._core.segments if self.dim == 2 else self._core.faces
@@ -414,6 +499,26 @@ def _surface(dataset: Any) -> Any:
         return dataset.extract_surface(pass_pointid=False, pass_cellid=False, algorithm=None)
     except TypeError:
         return dataset.extract_surface(pass_pointid=False, pass_cellid=False)
+        if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):
+            kind = f"box periodic={self.periodic}"
+        else:
+            kind = "polygon" if self.dim == 2 else "solid"
+        return f"<hcvt.Domain {kind}, volume={self.volume:.6g}>"
+
+
+def _unpickle_box(
+    lo: NDArray[np.float64], hi: NDArray[np.float64], periodic: tuple[bool, ...]
+) -> Domain:
+    """A box from the corners and axes :meth:`Domain.__reduce__` saved."""
+    return Domain.box(lo, hi, periodic=periodic)
+
+
+def _as_corner(corner: ArrayLike, name: str) -> NDArray[np.float64]:
+    """A box corner as a float64 vector, or an InvalidDomainError."""
+    arr = np.asarray(corner)
+    if arr.ndim != 1 or arr.dtype.kind not in "iuf":
+        raise InvalidDomainError(f"{name} must be a vector of real numbers, got {corner!r}")
+    return arr.astype(np.float64)
 
 
 def _unpickle(

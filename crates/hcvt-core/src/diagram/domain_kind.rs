@@ -7,12 +7,14 @@
 //! densities and the partitions are shared by every kind; a kind is one implementation of
 //! this trait, not a copy of the driver.
 //!
-//! Today's kind is the region bounded by simplices ([`Boundary`]: a polygon with holes in
-//! 2D, a solid bounded by triangles in 3D), measured through signed cones (`clip.rs`). A
-//! periodic box (no boundary; the cell itself, its neighbours' images), the sphere and a
-//! triangle surface (great-circle and triangle pieces, cells of dimension 2) implement the
-//! same methods. The conforming mesh (`mesh`) still reads a [`Boundary`]'s simplices: the
-//! boundary pieces a mesh needs join this trait with the first kind that meshes otherwise.
+//! The kinds: the region bounded by simplices ([`Boundary`]: a polygon with holes in 2D, a
+//! solid bounded by triangles in 3D), measured through signed cones (`clip.rs`); an
+//! axis-aligned box ([`super::BoxDomain`]); and a periodic box ([`PeriodicBox`]: no
+//! boundary along its periodic axes, the cell itself, its neighbours' images through
+//! [`DomainKind::periodic`]). The sphere and a triangle surface (great-circle and triangle
+//! pieces, cells of dimension 2) will implement the same methods. The conforming mesh
+//! (`mesh`) still reads a [`Boundary`]'s simplices: the boundary pieces a mesh needs join
+//! this trait with the first kind that meshes otherwise.
 
 use crate::domain::{Boundary, WindingNumber};
 use crate::geometry::{Aabb, Euclid, Space};
@@ -21,6 +23,8 @@ use crate::moments::Moments;
 use super::clip::{clip_by_domain, cut_by_boundary, domain_radius2, MeasureScratch};
 use super::convex_cell::ConvexCell;
 use super::faces::FaceRow;
+use super::periodic_box::PeriodicBox;
+use super::voronoi_cell::BOX_MARGIN;
 
 /// What the diagram driver asks of a domain. Lengths in the input's unit `L`; a cell is
 /// given relative to its site (absolute coordinates `site + v`).
@@ -28,6 +32,23 @@ pub trait DomainKind<const D: usize>: Sync {
     /// (a) A box holding the domain: every convex cell starts as this box (a little
     /// larger), before the bisectors cut it.
     fn bounds(&self) -> Aabb<D>;
+
+    /// (a) The box, relative to `site`, that the site's convex cell starts from: by
+    /// default [`DomainKind::bounds`] grown by a thousandth of its diagonal (a cell face
+    /// on the domain boundary would otherwise be a box face, and the boundary pieces that
+    /// measure it flat).
+    fn start(&self, site: [f64; D]) -> Aabb<D> {
+        let bounds = self.bounds();
+        bounds
+            .expanded(BOX_MARGIN * bounds.diagonal())
+            .relative_to(site)
+    }
+
+    /// (e) The periodic box whose images of the sites the cells are computed among, for a
+    /// periodic kind; `None` (the default) for the others.
+    fn periodic(&self) -> Option<&PeriodicBox<D>> {
+        None
+    }
 
     /// The domain's measure (area in 2D, volume in 3D), `L^d`: what the mean spacing of the
     /// sites is taken from.

@@ -13,7 +13,9 @@
 //!
 //! | file | owns |
 //! |------|------|
-//! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |\n//! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
+//! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |
+//! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
+//! | `periodic_box.rs` | [`PeriodicBox`], a box periodic along some or all axes: cells among the sites' images in a band, each neighbour with its image shift (DESIGN §14) |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
@@ -32,6 +34,7 @@ mod faces;
 mod knn;
 mod mesh;
 mod order;
+mod periodic_box;
 mod polygon_cell;
 mod polyhedron_cell;
 mod voronoi_cell;
@@ -52,6 +55,7 @@ use faces::{FaceRow, FaceSums};
 pub use knn::SiteIndex;
 pub use mesh::{conforming_mesh, conforming_mesh_part, MeshDomain, MeshPart, PolyMesh};
 pub use order::morton_order;
+pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
 use voronoi_cell::{voronoi_cell, CellScratch};
@@ -77,6 +81,11 @@ pub struct Diagram<const D: usize> {
     pub neighbor_sites: Vec<u32>,
     /// Measure of each shared face inside the domain (length in 2D, area in 3D).
     pub neighbor_measures: Vec<f64>,
+    /// In a periodic box ([`PeriodicBox`]): the image of each neighbour, `k` in
+    /// `{−1, 0, 1}^d`: the face is shared with `z_j + k∘L` (`z` the sites wrapped into the
+    /// box, `L` its periods), so site `j` may appear once per image, and a row is sorted
+    /// by site, then image. Empty for the other kinds.
+    pub neighbor_images: Vec<[i8; D]>,
     /// With a density ρ (DESIGN §8): each cell's `∫ρ`, `∫ρ (x − x_i)`, `∫ρ |x − x_i|²`
     /// about its site; empty without one (then the weighted moments are `moments`).
     pub weighted: Vec<Moments<D>>,
@@ -185,7 +194,10 @@ pub struct Clipped<const D: usize, C> {
     /// (relative to its site): the Voronoi cell in the domain's box, cut to a box around
     /// the domain's part for some cells of sites near the boundary, and in a convex domain
     /// already cut to the domain for cells that needed more than `PRECLIP_K` neighbours
-    /// (most cells at its boundary). Empty otherwise.
+    /// (most cells at its boundary). Empty otherwise. In a periodic box each is the cell
+    /// of the wrapped site (the torus' cell, unwrapped around it), and its
+    /// [`Face::Neighbor`] tags number the sites and images it was computed among: read the
+    /// neighbours off the diagram.
     pub cells: Vec<C>,
     /// With [`Request::integrand`], its sums over the faces between cells; empty otherwise.
     pub face_integrals: FaceIntegrals<D>,
@@ -205,6 +217,9 @@ pub fn clipped_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
+    if let Some(torus) = domain.periodic() {
+        return periodic_box::clipped_diagram::<D, C>(torus, sites, request);
+    }
     let density = request.density;
     if let Some(Density::Polynomial(q)) = density {
         weighted::check_polynomial(q, domain, sites)?;
@@ -481,6 +496,11 @@ where
         return Err(CoreError::InvalidSettings {
             reason: "the cells of a part keep no convex cells and sum no face integrand"
                 .to_string(),
+        });
+    }
+    if domain.periodic().is_some() {
+        return Err(CoreError::InvalidSettings {
+            reason: "the cells of a part of a periodic box are not computed yet".to_string(),
         });
     }
     let (options, density) = (request.options, request.density);

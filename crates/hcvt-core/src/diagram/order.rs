@@ -41,7 +41,7 @@ pub fn morton_order<const D: usize>(sites: &[[f64; D]]) -> Vec<u32> {
 impl<const D: usize> Diagram<D> {
     /// The same diagram for the sites renamed by `order`: row `k` becomes row `order[k]`
     /// and neighbour `j` becomes `order[j]` (each row's neighbours sorted again, their
-    /// measures with them). `order` must be a permutation of `0..n`.
+    /// measures and images with them; the images of one site stay in their order). `order` must be a permutation of `0..n`.
     pub fn reordered(&self, order: &[u32]) -> Self {
         self.reordered_faces(order).0
     }
@@ -56,6 +56,7 @@ impl<const D: usize> Diagram<D> {
             neighbor_offsets: vec![0; n + 1],
             neighbor_sites: vec![0; self.neighbor_sites.len()],
             neighbor_measures: vec![0.0; self.neighbor_measures.len()],
+            neighbor_images: vec![[0; D]; self.neighbor_images.len()],
             weighted: vec![Moments::zero(); self.weighted.len()],
         };
         let mut faces = vec![0; self.neighbor_sites.len()];
@@ -71,6 +72,7 @@ impl<const D: usize> Diagram<D> {
         for i in 0..n {
             out.neighbor_offsets[i + 1] += out.neighbor_offsets[i];
         }
+        let images = !self.neighbor_images.is_empty();
         let mut row: Vec<(u32, usize)> = Vec::new();
         for (k, &i) in order.iter().enumerate() {
             let i = i as usize;
@@ -84,6 +86,9 @@ impl<const D: usize> Diagram<D> {
             for (slot, &(j, e)) in row.iter().enumerate() {
                 out.neighbor_sites[from + slot] = j;
                 out.neighbor_measures[from + slot] = self.neighbor_measures[e];
+                if images {
+                    out.neighbor_images[from + slot] = self.neighbor_images[e];
+                }
                 faces[from + slot] = e;
             }
         }

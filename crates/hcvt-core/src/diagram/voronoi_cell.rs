@@ -12,8 +12,9 @@ use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::knn::{NearScratch, SiteIndex};
 
-/// Margin of the starting box around the domain, relative to the domain's diagonal.
-const BOX_MARGIN: f64 = 1e-3;
+/// Margin of the starting box around the domain, relative to the domain's diagonal
+/// ([`DomainKind::start`]).
+pub(super) const BOX_MARGIN: f64 = 1e-3;
 
 /// Neighbour count, per dimension, after which a cell that has not reached its security
 /// radius is localised to the domain (see [`DomainKind::local_radius2`]). 16 in 2D: a CVT of the star
@@ -74,12 +75,7 @@ where
     Euclid: Space<D>,
 {
     let site = sites[i];
-    // Start a little outside the domain's box: a cell face lying on the domain boundary
-    // would otherwise be a box face, and the boundary pieces that measure it would be flat.
-    let bounds = domain.bounds();
-    let start = bounds
-        .expanded(BOX_MARGIN * bounds.diagonal())
-        .relative_to(site);
+    let start = domain.start(site);
     let cell = scratch.cell.get_or_insert_with(|| C::from_box(&start));
     cell.reset_to_box(&start);
     let mut radius2 = cell.max_dist2();

@@ -458,6 +458,12 @@ impl<const D: usize> Tracker<'_, D> {
 /// Hessian's products); the observer and the outcome see the caller's order. Sums over
 /// sites (energy, norms) run in the run's order.
 ///
+/// In a periodic box ([`crate::PeriodicBox`]) sites move freely across the periodic sides:
+/// the iterates are not wrapped (the L-BFGS memory takes differences of them; the diagram
+/// takes a site anywhere along a periodic axis), [`crate::DomainKind::locate`] finds every
+/// point of the torus inside, so no site is held or pinned at a side, and the observer and
+/// the outcome see the sites wrapped into the box. Newton is refused there for now.
+///
 /// Errors: those of the first diagram (sites outside the domain, coinciding, non-finite),
 /// naming sites in the caller's order. Later steps keep the sites inside the domain and
 /// distinct, so they do not fail.
@@ -485,12 +491,22 @@ where
                 .into(),
         });
     }
+    if domain.periodic().is_some() && settings.method == Method::Newton {
+        return Err(CoreError::InvalidSettings {
+            reason: "Newton's Hessian is not summed in a periodic box yet: use method \
+                     'lbfgs' or 'lloyd'"
+                .into(),
+        });
+    }
+    // In a periodic box the iterates are not wrapped (the L-BFGS memory differences them;
+    // the diagram takes any site along a periodic axis), what the caller sees is.
+    let wrap = |x: [f64; D]| domain.periodic().map_or(x, |torus| torus.wrap(x));
     let order = morton_order(&sites);
     let along_curve: Vec<[f64; D]> = order.iter().map(|&i| sites[i as usize]).collect();
     let mut caller_order = vec![[0.0; D]; sites.len()];
     let mut observe = |record: &Record, held: &[[f64; D]]| {
         for (&i, &x) in order.iter().zip(held) {
-            caller_order[i as usize] = x;
+            caller_order[i as usize] = wrap(x);
         }
         observer(record, &caller_order)
     };
@@ -498,7 +514,7 @@ where
         Ok(out) => {
             let mut sites = vec![[0.0; D]; out.sites.len()];
             for (&i, &x) in order.iter().zip(&out.sites) {
-                sites[i as usize] = x;
+                sites[i as usize] = wrap(x);
             }
             let (diagram, faces) = out.diagram.reordered_faces(&order);
             Ok(Outcome {
