@@ -485,7 +485,10 @@ class Domain:
         )
 
     def __repr__(self) -> str:
-        kind = "polygon" if self.dim == 2 else "solid"
+        if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):
+            kind = f"box periodic={self.periodic}"
+        else:
+            kind = "polygon" if self.dim == 2 else "solid"
         crs = ""
         if self.crs is not None:
             authority = self.crs.to_authority()
@@ -499,11 +502,6 @@ def _surface(dataset: Any) -> Any:
         return dataset.extract_surface(pass_pointid=False, pass_cellid=False, algorithm=None)
     except TypeError:
         return dataset.extract_surface(pass_pointid=False, pass_cellid=False)
-        if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):
-            kind = f"box periodic={self.periodic}"
-        else:
-            kind = "polygon" if self.dim == 2 else "solid"
-        return f"<hcvt.Domain {kind}, volume={self.volume:.6g}>"
 
 
 def _unpickle_box(
