@@ -1,12 +1,14 @@
 """Time the Voronoi cells of random sites in a periodic box against freud and multivoro.
 
 hcvt, freud and multivoro (both voro++) are timed in the same run on the same sites, one
-thread each. Each peer runs in a child process (freud's 2D Voronoi is about O(n²), and voro++ calls
-``exit(1)`` on some inputs, which would end this process); hcvt in this one. Prints the
-median of ``--repeats`` calls per code, the ratio peer / hcvt, and what each returns:
-Σ volumes against the box, neighbour entries per cell, and the largest difference of a
-cell's volume from hcvt's (freud rounds positions to float32 in 3D; multivoro's volumes
-are those of the convex hulls of its cells' vertices, on a sample of cells).
+thread each. Every call runs in a child process (freud's 2D Voronoi is about O(n²), and
+voro++ calls ``exit(1)`` on some inputs, which would end this process), the codes taking
+turns round after round so that a change of the machine's load falls on all alike. Prints
+the median of ``--repeats`` rounds per code (each a call after a warm-up call), the ratio
+peer / hcvt, and what each returns: Σ volumes against the box, neighbour entries per
+cell, and the largest difference of a cell's volume from hcvt's (freud rounds positions
+to float32 in 3D; multivoro's volumes are those of the convex hulls of its cells'
+vertices, on a sample of cells).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/periodic.py [--quick] [--million]
 """
@@ -41,13 +43,13 @@ def run_hcvt(dim: int, n: int, repeats: int) -> dict:
     hcvt.set_num_threads(1)
     torus = hcvt.Domain.box([0.0] * dim, [1.0] * dim, periodic=True)
     points = sites(dim, n)
+    d = hcvt.voronoi(torus, points)  # also warms up: threads, pages
     seconds = median_seconds(hcvt.voronoi, repeats, torus, points)
-    d = hcvt.voronoi(torus, points)
     return {
         "seconds": seconds,
         "volume_error": abs(float(d.volume.sum()) - 1.0),
         "entries": len(d.neighbor_sites) / n,
-        "volumes": d.volume,
+        "volumes": d.volume.tolist(),
     }
 
 
@@ -61,6 +63,8 @@ def run_freud(dim: int, n: int, repeats: int) -> dict:
     if dim == 2:
         points = np.column_stack([points, np.zeros(n)])
     voronoi = freud.locality.Voronoi()
+    if dim == 3:  # warm-up (in 2D a call takes a minute)
+        voronoi.compute((box, points))
     seconds = median_seconds(lambda: voronoi.compute((box, points)), repeats)
     return {
         "seconds": seconds,
@@ -84,14 +88,14 @@ def run_multivoro(dim: int, n: int, repeats: int) -> dict:
             points, limits=limits, radii=radii, periodic_boundaries=(True,) * 3, n_threads=1
         )
 
+    cells = run()  # also warms up
     seconds = median_seconds(run, repeats)
-    cells = run()
     entries = sum(len(c.get_neighbors()) for c in cells) / n
     volumes = [ConvexHull(np.asarray(c.get_vertices())).volume for c in cells[:SAMPLE]]
     return {"seconds": seconds, "volume_error": None, "entries": entries, "volumes": volumes}
 
 
-PEERS = {"freud": run_freud, "multivoro": run_multivoro}
+CODES = {"hcvt": run_hcvt, "freud": run_freud, "multivoro": run_multivoro}
 
 
 def child(peer: str, dim: int, n: int, repeats: int, timeout: float) -> dict | str:
@@ -107,27 +111,38 @@ def child(peer: str, dim: int, n: int, repeats: int, timeout: float) -> dict | s
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def report(dim: int, n: int, peers: list[str], repeats: int, timeout: float) -> None:
-    ours = run_hcvt(dim, n, repeats)
+def report(dim: int, n: int, peers: list[str], rounds: int, timeout: float) -> None:
+    """One line per code: median seconds over ``rounds``, the codes taking turns."""
+    results: dict[str, list[dict | str]] = {code: [] for code in ["hcvt", *peers]}
+    for round_ in range(rounds):
+        for code, runs in results.items():
+            # freud's 2D cells take a minute at 10k sites: one round only.
+            if round_ == 0 or not (code == "freud" and dim == 2):
+                runs.append(child(code, dim, n, 1, timeout))
+    ours = results["hcvt"][0]
+    assert isinstance(ours, dict), ours
+    seconds = float(np.median([r["seconds"] for r in results["hcvt"]]))
     print(
-        f"{dim}D, {n:,} sites: hcvt {ours['seconds']:.3f} s "
+        f"{dim}D, {n:,} sites: hcvt {seconds:.3f} s "
         f"(Σ volumes − 1 = {ours['volume_error']:.1e}, {ours['entries']:.2f} faces per cell, "
         "symmetric, float64)"
     )
     for peer in peers:
-        # One call of freud in 2D: it takes tens of seconds.
-        got = child(peer, dim, n, 1 if dim == 2 else repeats, timeout)
-        if isinstance(got, str):
-            print(f"  {peer}: {got}")
+        failed = [r for r in results[peer] if isinstance(r, str)]
+        if failed:
+            print(f"  {peer}: {failed[0]}")
             continue
-        theirs = np.asarray(got["volumes"])
-        worst = np.abs(theirs - ours["volumes"][: len(theirs)]).max() * n
-        error = got["volume_error"]
+        runs = [r for r in results[peer] if isinstance(r, dict)]
+        theirs = np.asarray(runs[0]["volumes"])
+        worst = np.abs(theirs - np.asarray(ours["volumes"][: len(theirs)])).max() * n
+        error = runs[0]["volume_error"]
         total = "" if error is None else f"Σ volumes − 1 = {error:.1e}, "
+        median = float(np.median([r["seconds"] for r in runs]))
         print(
-            f"  {peer}: {got['seconds']:.3f} s = {got['seconds'] / ours['seconds']:.2f} × hcvt "
-            f"({total}{got['entries']:.2f} neighbour entries per cell, largest volume "
-            f"difference from hcvt {worst:.1e} of the mean cell over {len(theirs)} cells)"
+            f"  {peer}: {median:.3f} s = {median / seconds:.2f} × hcvt over {len(runs)} "
+            f"round(s) ({total}{runs[0]['entries']:.2f} neighbour entries per cell, largest "
+            f"volume difference from hcvt {worst:.1e} of the mean cell over {len(theirs)} "
+            "cells)"
         )
 
 
@@ -135,18 +150,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="10k sites, one call each")
     parser.add_argument("--million", action="store_true", help="also hcvt alone at 1M sites")
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=3, help="rounds")
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds per peer run")
     parser.add_argument("--child", nargs=4, metavar=("PEER", "DIM", "N", "REPEATS"))
     args = parser.parse_args()
     if args.child:
         peer, dim, n, repeats = args.child
-        out = PEERS[peer](int(dim), int(n), int(repeats))
+        out = CODES[peer](int(dim), int(n), int(repeats))
         print(json.dumps(out))
         return
     n = 10_000 if args.quick else 100_000
     repeats = 1 if args.quick else args.repeats
-    # freud's 2D cells cost about O(n²) (50 s at 10k sites measured here): at 10k only.
+    # freud's 2D cells cost about O(n²) (a minute at 10k sites measured here): 10k only.
     report(2, 10_000, ["freud"], repeats, args.timeout)
     if n > 10_000:
         report(2, n, [], repeats, args.timeout)
