@@ -14,6 +14,7 @@
 //! | file | owns |
 //! |------|------|
 //! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |\n//! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
+//! | `sphere.rs` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
@@ -34,6 +35,7 @@ mod mesh;
 mod order;
 mod polygon_cell;
 mod polyhedron_cell;
+mod sphere;
 mod voronoi_cell;
 mod weighted;
 
@@ -54,6 +56,7 @@ pub use mesh::{conforming_mesh, conforming_mesh_part, MeshDomain, MeshPart, Poly
 pub use order::morton_order;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
+pub use sphere::{Sphere, ON_SPHERE_TOL};
 use voronoi_cell::{voronoi_cell, CellScratch};
 
 /// How to treat unusual input.
