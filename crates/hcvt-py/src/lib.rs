@@ -25,6 +25,7 @@ static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::PolygonDomain>()?;
     m.add_class::<domain::SolidDomain>()?;
+    m.add_class::<domain::SphereDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_part, m)?)?;

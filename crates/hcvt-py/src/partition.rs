@@ -1,7 +1,7 @@
 //! One partition's cells among its own sites and a halo (`hcvt.distributed`).
 
 use hcvt_core::{
-    clipped_cells, Boundary, ConvexCell, DomainKind, Euclid, Options, PartCells, Request, Space,
+    clipped_cells, ConvexCell, DomainKind, Euclid, Options, PartCells, Request, Space,
 };
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -48,8 +48,8 @@ struct Part<'a> {
     given: &'a Given,
 }
 
-fn cells_dict<'py, const D: usize, C: ConvexCell<D>>(
-    boundary: &Boundary<D>,
+fn cells_dict<'py, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     py: Python<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     rows_in: PyReadonlyArray1<'py, i64>,
@@ -58,7 +58,6 @@ fn cells_dict<'py, const D: usize, C: ConvexCell<D>>(
 ) -> PyResult<Bound<'py, PyDict>>
 where
     Euclid: Space<D>,
-    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(&sites, "sites")?;
     let global = increasing_rows(&rows_in, points.len())?;
@@ -75,7 +74,7 @@ where
     let part: PartCells<D> = py
         .detach(|| {
             crate::threads::run(|| {
-                clipped_cells::<D, C, _>(boundary, &points, &own, total_sites, &request)
+                clipped_cells::<D, C, _>(domain, &points, &own, total_sites, &request)
             })
         })
         .map_err(|e| {
@@ -94,7 +93,7 @@ where
         .map(|&j| global.get(j as usize).copied().unwrap_or(usize::MAX))
         .collect();
     diagram.neighbor_sites.clear();
-    let out = diagram_dict(py, &diagram, &own_sites)?;
+    let out = diagram_dict(py, domain, &diagram, &own_sites)?;
     out.set_item("neighbor_sites", to_intp(py, &neighbors)?)?;
     out.set_item("first", to_array2(py, &firsts)?)?;
     out.set_item("reach2", PyArray1::from_vec(py, part.reach2))?;
