@@ -27,6 +27,7 @@ __all__ = [
     "BoxDomain3",
     "PolygonDomain",
     "SolidDomain",
+    "SphereDomain",
     "check_settings",
     "cvt",
     "get_num_threads",
@@ -125,15 +126,29 @@ class BoxDomain3:
     def winding_numbers(self, points: _Float2) -> _Windings: ...
     def wrap(self, points: _Float2) -> _Float2: ...
 
+@final
+class SphereDomain:
+    """The unit sphere about the origin: sites are unit vectors (n, 3)."""
+
+    def __new__(cls) -> SphereDomain: ...
+    @property
+    def volume(self) -> float: ...
+    @property
+    def first_moment(self) -> tuple[float, float, float]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]: ...
+    def winding_numbers(self, points: _Float2) -> _Windings: ...
+
 # A density is either `polynomial=(constant, linear (d,), quadratic (d, d))` or
 # `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`.
 _Coefficients = tuple[float, Sequence[float], Sequence[Sequence[float]]]
 _Function = Callable[[NDArray[np.float64]], ArrayLike]
 
-# Each function takes any kind of domain: a polygon (d = 2), a solid (d = 3) or a box
-# (mesh, mesh_part and the steps of a partitioned run raise InvalidDomainError for a box);
-# the dicts it returns are typed in hcvt.core_results.
-_Domain = PolygonDomain | SolidDomain | BoxDomain2 | BoxDomain3
+# Each function takes any kind of domain: a polygon (d = 2), a solid (d = 3), a box (mesh,
+# mesh_part and the steps of a partitioned run raise InvalidDomainError for a box) or the
+# unit sphere (sites in 3D, cells of dimension 2; mesh and mesh_part refuse it); the dicts
+# it returns are typed in hcvt.core_results.
+_Domain = PolygonDomain | SolidDomain | BoxDomain2 | BoxDomain3 | SphereDomain
 
 def voronoi(
     domain: _Domain,

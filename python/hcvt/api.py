@@ -94,6 +94,8 @@ def voronoi(
     >>> diagram.G.round(6)
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
+    if client is not None and domain.is_sphere:
+        raise NotImplementedError("partitioned diagrams on the sphere are not implemented yet")
     if client is None:
         return diagram.voronoi(
             domain,
@@ -225,6 +227,8 @@ def cvt(
         "density": density,
         "quadrature_degree": quadrature_degree,
     }
+    if client is not None and domain.is_sphere:
+        raise NotImplementedError("partitioned CVTs on the sphere are not implemented yet")
     if client is None:
         return optimise.cvt(domain, sites, method, **options)
     per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION

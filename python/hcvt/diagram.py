@@ -203,8 +203,9 @@ class Diagram(Shows):
         volume = (
             self.domain._core.volume if self._frame is self.domain.frame else self.domain.volume
         )
-        h = (float(volume) / self.n) ** (1.0 / self.domain.dim)
-        floor = NEIGHBOR_REL_TOL * h ** (self.domain.dim - 1)
+        d = self.domain.cell_dim
+        h = (float(volume) / self.n) ** (1.0 / d)
+        floor = NEIGHBOR_REL_TOL * h ** (d - 1)
         keep = (owner < other) & (measures > floor)
         pairs = np.column_stack([owner[keep], other[keep]])
         return pairs, self._frame.to_input("neighbor_measures", measures[keep])
@@ -268,6 +269,8 @@ class Diagram(Shows):
             ``points`` (p, d), faces with ``owner``, ``neighbour`` (``-1`` on the boundary)
             and ``boundary_element``; interior faces first, sorted by (owner, neighbour).
         """
+        if self.domain.is_sphere:
+            raise NotImplementedError("conforming meshes of spherical cells: a later slice")
         if self._mesh is None:
             with self.domain.frame.input_errors():
                 arrays = _core.mesh(

@@ -42,7 +42,7 @@ pub use diagram::{
     clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, morton_order, BoxDomain,
     Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals, FaceIntegrand, Matrix,
     MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh, PolygonCell, PolyhedronCell,
-    Request, SiteIndex,
+    Request, SiteIndex, Sphere, ON_SPHERE_TOL,
 };
 pub use domain::{generalized_winding_number, Boundary, Polygon, Solid};
 pub use error::CoreError;

@@ -71,7 +71,7 @@ where
     let clipped = py
         .detach(|| crate::threads::run(|| clipped_diagram::<D, C, _>(domain, &points, &request)))
         .map_err(|e| asked.given.error(e))?;
-    let out = diagram_dict(py, &clipped.diagram, &points)?;
+    let out = diagram_dict(py, domain, &clipped.diagram, &points)?;
     if asked.keep_cells {
         C::cell_arrays(py, &clipped.cells, &points, &out)?;
     }
@@ -137,27 +137,39 @@ impl CellArrays<3> for PolyhedronCell {
     }
 }
 
-/// The arrays every diagram carries, in any dimension.
-pub(crate) fn diagram_dict<'py, const D: usize>(
+/// The arrays every diagram carries, in any dimension and kind: centroids retracted onto
+/// the domain (the sphere's `∫x/|∫x|`), second moments about them and `G` in the cells'
+/// dimension ([`DomainKind::central_second`], [`DomainKind::g_value`]).
+pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
     py: Python<'py>,
+    domain: &K,
     diagram: &Diagram<D>,
     sites: &[[f64; D]],
 ) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
     out.set_item("volume", PyArray1::from_vec(py, diagram.volumes()))?;
     out.set_item("mass", PyArray1::from_vec(py, diagram.masses()))?;
-    out.set_item("centroid", to_array2(py, &diagram.centroids(sites))?)?;
-    out.set_item(
-        "second_moment",
-        PyArray1::from_vec(py, diagram.second_moments()),
-    )?;
-    out.set_item("G", PyArray1::from_vec(py, diagram.g_values()))?;
+    let centroids: Vec<[f64; D]> = (diagram.centroids(sites).into_iter())
+        .map(|c| domain.retract(c))
+        .collect();
+    out.set_item("centroid", to_array2(py, &centroids)?)?;
+    let second: Vec<f64> = (diagram.moments.iter())
+        .map(|m| domain.central_second(m))
+        .collect();
+    out.set_item("second_moment", PyArray1::from_vec(py, second))?;
+    let g: Vec<f64> = (diagram.moments.iter())
+        .map(|m| domain.g_value(m).unwrap_or(f64::NAN))
+        .collect();
+    out.set_item("G", PyArray1::from_vec(py, g))?;
     out.set_item(
         "energy_terms",
         PyArray1::from_vec(py, diagram.energy_terms()),
     )?;
     out.set_item("energy", diagram.energy())?;
-    out.set_item("gradient", to_array2(py, &diagram.gradient())?)?;
+    let gradient: Vec<[f64; D]> = (diagram.gradient().into_iter().zip(sites))
+        .map(|(g, &x)| domain.tangent(x, g))
+        .collect();
+    out.set_item("gradient", to_array2(py, &gradient)?)?;
     out.set_item(
         "boundary_measure",
         PyArray1::from_vec(py, diagram.boundary_measure.clone()),

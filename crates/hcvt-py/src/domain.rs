@@ -1,6 +1,6 @@
 //! Domains: a checked, indexed boundary held by Python.
 
-use hcvt_core::{generalized_winding_number, DomainKind, PeriodicBox, Polygon, Solid};
+use hcvt_core::{generalized_winding_number, DomainKind, PeriodicBox, Polygon, Solid, Sphere};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
@@ -221,7 +221,54 @@ box_class! {
     BoxDomain3(3)
 }
 
-/// Either kind of domain, as the binding's functions take it: one Python function per job,
+/// The unit sphere about the origin (`hcvt.Domain.sphere` scales by the radius): cells are
+/// spherical polygons, sites unit vectors (n, 3).
+#[pyclass(frozen, module = "hcvt._core")]
+pub struct SphereDomain(pub Sphere);
+
+#[pymethods]
+impl SphereDomain {
+    #[new]
+    fn new() -> Self {
+        Self(Sphere::new())
+    }
+
+    /// Area of the unit sphere, 4π.
+    #[getter]
+    fn volume(&self) -> f64 {
+        self.0.volume()
+    }
+
+    /// First moment `∫ x dA` (3,): zero.
+    #[getter]
+    fn first_moment(&self) -> [f64; 3] {
+        [0.0; 3]
+    }
+
+    /// `(lo, hi)` corners of the bounding box.
+    #[getter]
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let b = self.0.bounds();
+        (b.lo, b.hi)
+    }
+
+    /// 1 for points (m, 3) on the unit sphere (to `ON_SPHERE_TOL`), else 0; `on_boundary`
+    /// all false (the sphere has none).
+    fn winding_numbers<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Windings<'py>> {
+        let p = rows::<f64, 3>(&points, "points")?;
+        let w: Vec<i32> = p.iter().map(|q| self.0.locate(q).unwrap_or(0)).collect();
+        Ok((
+            PyArray1::from_vec(py, w),
+            PyArray1::from_vec(py, vec![false; p.len()]),
+        ))
+    }
+}
+
+/// Any kind of domain, as the binding's functions take it: one Python function per job,
 /// dispatched by [`by_kind`] to the core's generic code in the domain's dimension (the
 /// only place where the 2D and 3D paths part).
 #[derive(FromPyObject)]
@@ -234,22 +281,43 @@ pub enum AnyDomain<'py> {
     Box2(PyRef<'py, BoxDomain2>),
     /// A box, periodic along some axes (or none): dimension 3.
     Box3(PyRef<'py, BoxDomain3>),
+    /// The unit sphere: sites in 3D, [`hcvt_core::PolyhedronCell`]s (cones from the
+    /// centre), cells of dimension 2.
+    Sphere(PyRef<'py, SphereDomain>),
 }
 
 /// `by_kind!(domain, f(args…))` calls `f::<D, Cell, _>(&kind, args…)` for the dimension
-/// `D`, convex cell type and domain kind of `domain` (an [`AnyDomain`]: `f` is generic over
-/// [`DomainKind`]); `by_kind!(domain, dim f(args…))` calls `f::<D>(&boundary, args…)` for
-/// the jobs that need a boundary of simplices (the conforming mesh, the steps of a
-/// partitioned run) and raises `InvalidDomainError` for a box.
+/// `D`, convex cell type and domain kind of `domain` (an [`AnyDomain`]; `f` is generic over
+/// [`DomainKind`]). `by_kind!(domain, dim f(args…))` calls `f::<D, _>(&kind, args…)` for
+/// the steps of a partitioned run (a box is refused: its runs are not partitioned yet);
+/// `by_kind!(domain, bounded dim f(args…))` calls `f::<D>(&boundary, args…)` for jobs
+/// that read a [`hcvt_core::Boundary`] of simplices (the conforming mesh): boxes and the sphere are
+/// refused.
 macro_rules! by_kind {
-    ($domain:expr, dim $f:ident($($arg:expr),* $(,)?)) => {
+    ($domain:expr, bounded dim $f:ident($($arg:expr),* $(,)?)) => {
         match &$domain {
             $crate::domain::AnyDomain::Polygon(d) => $f::<2>(&d.0, $($arg),*),
             $crate::domain::AnyDomain::Solid(d) => $f::<3>(&d.0, $($arg),*),
             $crate::domain::AnyDomain::Box2(_) | $crate::domain::AnyDomain::Box3(_) => {
                 Err($crate::errors::InvalidDomainError::new_err(
-                    "a box has no boundary of simplices: the conforming mesh and the steps \
-                     of a partitioned run take a polygon or a solid",
+                    "a box has no boundary of simplices: the conforming mesh takes a polygon \
+                     or a solid",
+                ))
+            }
+            $crate::domain::AnyDomain::Sphere(_) => Err(pyo3::exceptions::PyValueError::new_err(
+                concat!(stringify!($f), ": not available on the sphere"),
+            )),
+        }
+    };
+    ($domain:expr, dim $f:ident($($arg:expr),* $(,)?)) => {
+        match &$domain {
+            $crate::domain::AnyDomain::Polygon(d) => $f::<2, _>(&d.0, $($arg),*),
+            $crate::domain::AnyDomain::Solid(d) => $f::<3, _>(&d.0, $($arg),*),
+            $crate::domain::AnyDomain::Sphere(d) => $f::<3, _>(&d.0, $($arg),*),
+            $crate::domain::AnyDomain::Box2(_) | $crate::domain::AnyDomain::Box3(_) => {
+                Err($crate::errors::InvalidDomainError::new_err(
+                    "the steps of a partitioned run take a polygon, a solid or the sphere, \
+                     not a box",
                 ))
             }
         }
@@ -266,6 +334,9 @@ macro_rules! by_kind {
                 $f::<2, hcvt_core::PolygonCell, _>(&d.0, $($arg),*)
             }
             $crate::domain::AnyDomain::Box3(d) => {
+                $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
+            }
+            $crate::domain::AnyDomain::Sphere(d) => {
                 $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
             }
         }

@@ -40,7 +40,7 @@ pub fn mesh<'py>(
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
-    by_kind!(domain, dim mesh_in(py, &sites, Options { allow_outside }))
+    by_kind!(domain, bounded dim mesh_in(py, &sites, Options { allow_outside }))
 }
 
 /// The faces of the cells `sites[own]` (n, d) in the conforming mesh of a problem of
@@ -65,7 +65,7 @@ pub fn mesh_part<'py>(
         total_sites,
         options: Options { allow_outside },
     };
-    by_kind!(domain, dim mesh_part_in(py, &sites, part))
+    by_kind!(domain, bounded dim mesh_part_in(py, &sites, part))
 }
 
 fn mesh_in<'py, const D: usize>(

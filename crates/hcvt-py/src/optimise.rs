@@ -14,8 +14,8 @@ use std::time::Duration;
 
 use hcvt_core::lbfgs::{self, LineSearch};
 use hcvt_core::{
-    cvt as core_cvt, lloyd, Boundary, ConvexCell, DomainKind, Euclid, Frame, Moments, Named,
-    Outcome, Record, Settings, Space,
+    cvt as core_cvt, lloyd, ConvexCell, DomainKind, Euclid, Frame, Moments, Named, Outcome, Record,
+    Settings, Space,
 };
 use numpy::{
     PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
@@ -176,8 +176,8 @@ fn values(array: &PyReadonlyArray1<'_, f64>, n: usize, what: &str) -> PyResult<V
     Ok(out)
 }
 
-fn step_fields_in<'py, const D: usize>(
-    boundary: &Boundary<D>,
+fn step_fields_in<'py, const D: usize, K: DomainKind<D>>(
+    boundary: &K,
     py: Python<'py>,
     sites: &PyReadonlyArray2<'py, f64>,
     mass: &PyReadonlyArray1<'py, f64>,
@@ -186,7 +186,6 @@ fn step_fields_in<'py, const D: usize>(
 ) -> PyResult<StepFields<'py>>
 where
     Euclid: Space<D>,
-    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(sites, "sites")?;
     let n = points.len();
@@ -213,15 +212,14 @@ where
     ))
 }
 
-fn lloyd_step_in<'py, const D: usize>(
-    boundary: &Boundary<D>,
+fn lloyd_step_in<'py, const D: usize, K: DomainKind<D>>(
+    boundary: &K,
     py: Python<'py>,
     sites: &PyReadonlyArray2<'py, f64>,
     shifts: &PyReadonlyArray2<'py, f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>>
 where
     Euclid: Space<D>,
-    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(sites, "sites")?;
     let shifts = rows::<f64, D>(shifts, "shifts")?;
@@ -264,8 +262,8 @@ fn pairs<const D: usize>(
         .collect())
 }
 
-fn lbfgs_direction_in<'py, const D: usize>(
-    boundary: &Boundary<D>,
+fn lbfgs_direction_in<'py, const D: usize, K: DomainKind<D>>(
+    boundary: &K,
     py: Python<'py>,
     part: PartPairs<'_, 'py>,
     c: &PyReadonlyArray1<'py, f64>,
@@ -273,7 +271,6 @@ fn lbfgs_direction_in<'py, const D: usize>(
 ) -> PyResult<Bound<'py, PyArray2<f64>>>
 where
     Euclid: Space<D>,
-    Boundary<D>: DomainKind<D>,
 {
     let points = rows::<f64, D>(part.sites, "sites")?;
     let k = points.len();
@@ -409,7 +406,7 @@ where
     if let Some(err) = raised.into_inner().ok().flatten() {
         return Err(err);
     }
-    outcome_dict(py, &outcome.map_err(|e| given.error(e))?)
+    outcome_dict(py, boundary, &outcome.map_err(|e| given.error(e))?)
 }
 
 /// Call the callback with a dict of the iterate; `true` (a true return value) asks to stop.
@@ -433,8 +430,9 @@ fn call<const D: usize>(
     callback.bind(py).call1((info,))?.is_truthy()
 }
 
-fn outcome_dict<'py, const D: usize>(
+fn outcome_dict<'py, const D: usize, K: DomainKind<D>>(
     py: Python<'py>,
+    domain: &K,
     outcome: &Outcome<D>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let h = &outcome.history;
@@ -456,7 +454,7 @@ fn outcome_dict<'py, const D: usize>(
     out.set_item("sites", to_array2(py, &outcome.sites)?)?;
     out.set_item(
         "diagram",
-        diagram_dict(py, &outcome.diagram, &outcome.sites)?,
+        diagram_dict(py, domain, &outcome.diagram, &outcome.sites)?,
     )?;
     out.set_item("history", history)?;
     out.set_item("stop_reason", outcome.stop_reason.as_str())?;

@@ -49,7 +49,7 @@ struct Part<'a> {
 }
 
 fn cells_dict<'py, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
-    boundary: &K,
+    domain: &K,
     py: Python<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     rows_in: PyReadonlyArray1<'py, i64>,
@@ -74,7 +74,7 @@ where
     let part: PartCells<D> = py
         .detach(|| {
             crate::threads::run(|| {
-                clipped_cells::<D, C, _>(boundary, &points, &own, total_sites, &request)
+                clipped_cells::<D, C, _>(domain, &points, &own, total_sites, &request)
             })
         })
         .map_err(|e| {
@@ -93,7 +93,7 @@ where
         .map(|&j| global.get(j as usize).copied().unwrap_or(usize::MAX))
         .collect();
     diagram.neighbor_sites.clear();
-    let out = diagram_dict(py, &diagram, &own_sites)?;
+    let out = diagram_dict(py, domain, &diagram, &own_sites)?;
     out.set_item("neighbor_sites", to_intp(py, &neighbors)?)?;
     out.set_item("first", to_array2(py, &firsts)?)?;
     out.set_item("reach2", PyArray1::from_vec(py, part.reach2))?;

@@ -23,6 +23,7 @@ from hcvt.errors import InvalidDomainError
 from hcvt.geometry import repair as mesh
 from hcvt.geometry.crs import projected_crs
 from hcvt.geometry.frame import Frame
+from hcvt.geometry.sphere import ON_SPHERE_RTOL, SphereFrame, check_radius
 
 # VTK's cell type of a triangle (vtkCellType.h).
 _VTK_TRIANGLE = 5
@@ -100,6 +101,45 @@ class Domain:
         self.geometry = geometry
         self.repair_report = repair_report
         self.frame = Frame(np.zeros(dim), 1.0) if frame is None else frame
+
+    # ------------------------------------------------------------------ sphere
+    @classmethod
+    def sphere(cls, radius: float = 1.0) -> Domain:
+        """The sphere of ``radius`` about the origin: cells are spherical polygons.
+
+        Sites are points of the sphere, shape (n, 3) (to a relative ``1e-9`` of the
+        radius; they are pushed onto it exactly). Cells have dimension 2: ``volume`` is
+        the area ``4πR²``, a diagram's ``volume`` the cells' areas, its ``centroid`` the
+        constrained centroid ``∫x / |∫x|`` scaled to the sphere (Du, Gunzburger and Ju
+        2003), ``second_moment`` ``∫|x − c|² dA`` about it, ``G`` with ``d = 2``, and
+        ``neighbor_measures`` the great-circle arc lengths (DESIGN §13).
+
+        Examples
+        --------
+        >>> import hcvt
+        >>> earth = hcvt.Domain.sphere(6371.0)
+        >>> round(earth.volume / 1e6, 3)
+        510.064
+        """
+        r = check_radius(radius)
+        return cls(_core.SphereDomain(), 3, None, None, SphereFrame.of_radius(r))
+
+    @property
+    def is_sphere(self) -> bool:
+        """Whether this is :meth:`sphere` (cells of dimension 2 on a surface)."""
+        return isinstance(self.frame, SphereFrame)
+
+    @property
+    def radius(self) -> float:
+        """The sphere's radius; AttributeError for other domains."""
+        if not self.is_sphere:
+            raise AttributeError("only a sphere has a radius")
+        return float(self.frame.scale)
+
+    @property
+    def cell_dim(self) -> int:
+        """The dimension of the cells: ``dim``, or 2 on the sphere."""
+        return 2 if self.is_sphere else self.dim
 
     # ------------------------------------------------------------------ 2D
     @classmethod
@@ -393,13 +433,15 @@ class Domain:
     @property
     def vertices(self) -> NDArray[np.float64]:
         """Boundary vertices as indexed, shape (V, d), bit for bit the input's."""
+        if self.is_sphere:
+            raise AttributeError("the sphere has no boundary vertices")
         return self.frame.points_to_input(np.asarray(self._core.vertices))
 
     @property
     def faces(self) -> NDArray[np.intp]:
         """3D only: boundary triangles, shape (F, 3), counter-clockwise seen from outside."""
-        if self.dim != 3:
-            raise AttributeError("faces exist for 3D domains only")
+        if self.dim != 3 or self.is_sphere:
+            raise AttributeError("faces exist for 3D solids only")
         return np.asarray(self._core.faces)
 
     def generalized_winding_numbers(self, points: ArrayLike) -> NDArray[np.float64]:
@@ -408,8 +450,8 @@ class Domain:
         About 1 inside and 0 outside, changing smoothly near small defects of the surface.
         Cost O(F) per point.
         """
-        if self.dim != 3:
-            raise NotImplementedError("generalised winding numbers are implemented for 3D")
+        if self.dim != 3 or self.is_sphere:
+            raise NotImplementedError("generalised winding numbers are implemented for solids")
         pts = self.frame.to_core(_as_points(points, 3, "points"), "points")
         return np.asarray(self._core.generalized_winding_numbers(pts))
 
@@ -446,6 +488,9 @@ class Domain:
     def winding_numbers(self, points: ArrayLike) -> tuple[NDArray[np.int32], NDArray[np.bool_]]:
         """Exact winding number of each point, and whether it lies on the boundary.
 
+        On the sphere: 1 for points on it (to a relative ``1e-9`` of the radius), 0
+        elsewhere, and no boundary.
+
         Parameters
         ----------
         points : array_like, shape (m, d)
@@ -456,6 +501,11 @@ class Domain:
             1 inside, 0 outside (0 as well on the boundary).
         on_boundary : ndarray of bool, shape (m,)
         """
+        if self.is_sphere:
+            p = _as_points(points, 3, "points")
+            r = np.linalg.norm(p, axis=1)
+            on = np.abs(r - self.radius) <= ON_SPHERE_RTOL * self.radius
+            return on.astype(np.int32), np.zeros(len(p), dtype=bool)
         pts = self.frame.to_core(_as_points(points, self.dim, "points"), "points")
         return self._core.winding_numbers(pts)
 
@@ -474,6 +524,8 @@ class Domain:
             return _unpickle_box, (lo, hi, self.periodic)
         # Pickled as its checked boundary (dask, joblib, multiprocessing); the core rebuilds
         # its index from the same arrays, so diagrams in another process are bitwise equal.
+        if self.is_sphere:
+            return Domain.sphere, (self.radius,)
         simplices = self._core.segments if self.dim == 2 else self._core.faces
         return _unpickle, (
             self.dim,
@@ -485,6 +537,8 @@ class Domain:
         )
 
     def __repr__(self) -> str:
+        if self.is_sphere:
+            return f"<hcvt.Domain sphere, radius={self.radius:.6g}>"
         if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):
             kind = f"box periodic={self.periodic}"
         else:

@@ -34,6 +34,7 @@ from hcvt.density import DensityLike, evaluate
 from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain, polygon_boundary
 from hcvt.seeding.cover import Cover, cover
+from hcvt.seeding.sphere import SPHERE_METHODS, fibonacci, icosahedral, random_sphere
 
 METHODS = ("random", "halton", "hammersley", "lattice")
 # Memory of one site with its diagram, measured order of magnitude (bytes).
@@ -90,7 +91,7 @@ def initialise(
         Polygon with holes (d = 2) or closed-mesh solid (d = 3), length unit L.
     n : int
         Number of sites, at least 1 (a Python or numpy integer, not a bool).
-    method : {"random", "halton", "hammersley", "lattice"}
+    method : {"random", "halton", "hammersley", "lattice", "fibonacci", "icosahedral"}
         ``random``: uniform in the domain, by rejection of uniform points of the bounding
         box (area/volume weighted, whatever the box), or of a tighter cover when the
         domain fills less than 5% of its box (:mod:`hcvt.seeding.cover`; uniform all the
@@ -113,6 +114,10 @@ def initialise(
         ``g`` over :data:`DENSITY_PROBES` Halton points of the domain, raised and the
         stream restarted should a larger value turn up). ``hammersley`` and ``lattice``
         are uniform by construction: with a density they raise ValueError.
+        On :meth:`hcvt.Domain.sphere` (there only): ``random`` uniform on the sphere
+        (normalised normal vectors), ``fibonacci`` the golden-spiral lattice,
+        ``icosahedral`` the subdivided icosahedron (``n = 10·4^k + 2`` only), each scaled
+        to the radius (:mod:`hcvt.seeding.sphere`).
 
     Returns
     -------
@@ -145,6 +150,8 @@ def initialise(
     (4, 2)
     """
     n = check_count(n, domain.dim)
+    if domain.is_sphere:
+        return _on_sphere(domain, n, method, random_state(seed, rng), density)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     state = random_state(seed, rng)
@@ -161,6 +168,29 @@ def initialise(
     else:
         sites = lattice(domain, n, seed, rng=rng).sites
     return _distinct(domain, sites)
+
+
+def _on_sphere(
+    domain: Domain,
+    n: int,
+    method: str,
+    state: int | np.random.Generator | None,
+    density: DensityLike,
+) -> NDArray[np.float64]:
+    """``initialise`` on the sphere: unit vectors of :mod:`hcvt.seeding.sphere` times R."""
+    if method not in SPHERE_METHODS:
+        raise ValueError(
+            f"unknown method {method!r} on the sphere; expected one of {', '.join(SPHERE_METHODS)}"
+        )
+    if density is not None:
+        raise InvalidDensityError("densities on the sphere are not implemented yet")
+    if method == "random":
+        unit = random_sphere(n, np.random.default_rng(state))
+    elif method == "fibonacci":
+        unit = fibonacci(n)
+    else:
+        unit = icosahedral(n)
+    return np.ascontiguousarray(unit * domain.radius)
 
 
 #: Sites are checked for coincidence when two of ``n`` uniform points would share a

@@ -103,8 +103,9 @@ impl<const D: usize> DomainKind<D> for BoxDomain<D> {
         true
     }
 
-    fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], _: &mut Vec<u32>) {
+    fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], _: &mut Vec<u32>) -> bool {
         self.cut(cell, site);
+        true
     }
 
     /// The cell's own bound: its part in the box lies within it.

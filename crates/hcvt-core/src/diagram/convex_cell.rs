@@ -30,6 +30,12 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// whole cell already and nothing changed.
     fn clip(&mut self, h: &HalfSpace<D>, face: Face) -> bool;
 
+    /// Call `f(face, h)` for the half-space `h` (relative to the site) of every face. The
+    /// 3D cell gives every plane that has cut it, in the order they did, exactly as given
+    /// to [`ConvexCell::clip`] (one may since have been cut away); the 2D cell each edge's
+    /// line through its ends. The sphere (`sphere.rs`) reads its great circles here.
+    fn for_each_plane(&self, f: impl FnMut(Face, &HalfSpace<D>));
+
     /// Nothing (of positive measure) is left.
     fn is_empty(&self) -> bool;
 

@@ -67,8 +67,17 @@ pub trait DomainKind<const D: usize>: Sync {
     fn is_convex(&self) -> bool;
 
     /// Cut `cell` (of a site strictly inside a convex domain) to the domain, tagging the
-    /// new faces `Face::Boundary`; `candidates` is a buffer.
-    fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], candidates: &mut Vec<u32>);
+    /// new faces `Face::Boundary`; `candidates` is a buffer. `true`: the cell now lies in
+    /// the domain and is measured as it is. `false`: the cell is to be measured by
+    /// [`DomainKind::clip`], and the driver streams on and asks again `PRECLIP_K`
+    /// neighbours later (the sphere, whose cut only bounds the cap holding the cell so far,
+    /// and tightens as the cell shrinks).
+    fn cut_convex<C: ConvexCell<D>>(
+        &self,
+        cell: &mut C,
+        site: [f64; D],
+        candidates: &mut Vec<u32>,
+    ) -> bool;
 
     /// An upper bound on `|x|²` over the part of `cell` inside the domain, `L²`: how far a
     /// localised cell must be validated.
@@ -85,6 +94,53 @@ pub trait DomainKind<const D: usize>: Sync {
         row: Option<FaceRow<'_, D>>,
         scratch: &mut MeasureScratch<D, C>,
     ) -> Moments<D>;
+
+    /// The dimension `d` of the cells: `D` for a region of space, 2 for a surface (the
+    /// sphere). The `d` of `G` and of the gap's `V_i^{1/d}` (DESIGN §7, §11).
+    fn cell_dim(&self) -> usize {
+        D
+    }
+
+    /// `∫ |x − c|²` over a cell with moments `m` (about its site) about its centroid `c`:
+    /// the parallel-axis rule in a flat domain; on a curved one, about the centroid that
+    /// the CVT drives the site to (the sphere's `∫x / |∫x|`).
+    fn central_second(&self, m: &Moments<D>) -> f64 {
+        m.central_second()
+    }
+
+    /// `G = ∫|x − c|² / (d · V^((d+2)/d))` of a cell with moments `m`, `d` the
+    /// [`DomainKind::cell_dim`], [`DomainKind::central_second`] about `c`; `None` for an
+    /// empty cell.
+    fn g_value(&self, m: &Moments<D>) -> Option<f64> {
+        if m.mass <= 0.0 {
+            return None;
+        }
+        // The exponent a constant in a flat domain, as `Moments` has it: LLVM folds
+        // `powf` with constant exponents, and the bits must not change with this seam.
+        let d = self.cell_dim();
+        let size = if d == D {
+            let d = D as f64;
+            d * m.mass.powf((d + 2.0) / d)
+        } else {
+            let d = d as f64;
+            d * m.mass.powf((d + 2.0) / d)
+        };
+        Some(self.central_second(m) / size)
+    }
+
+    /// The part of a move `v` of the site `site` along the domain: `v` itself in a flat
+    /// domain, its component in the tangent plane on the sphere. The optimisers' gradients
+    /// and steps are projected by it.
+    fn tangent(&self, _site: [f64; D], v: [f64; D]) -> [f64; D] {
+        v
+    }
+
+    /// The point of the domain that stands for `x` after a step: `x` itself in a flat
+    /// domain (no arithmetic, so no bit changes), `x / |x|` on the unit sphere (the
+    /// retraction of DESIGN §13).
+    fn retract(&self, x: [f64; D]) -> [f64; D] {
+        x
+    }
 }
 
 /// A polygon with holes (2D) or a solid bounded by triangles (3D): cells clipped through
@@ -118,8 +174,9 @@ where
         cell: &mut C,
         site: [f64; D],
         candidates: &mut Vec<u32>,
-    ) {
+    ) -> bool {
         cut_by_boundary(self, cell, site, candidates);
+        true
     }
 
     fn local_radius2<C: ConvexCell<D>>(&self, cell: &C, site: [f64; D]) -> f64 {

@@ -16,6 +16,7 @@
 //! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |
 //! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
 //! | `periodic_box.rs` | [`PeriodicBox`], a box periodic along some or all axes: cells among the sites' images in a band, each neighbour with its image shift (DESIGN §14) |
+//! | `sphere.rs` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
@@ -37,6 +38,7 @@ mod order;
 mod periodic_box;
 mod polygon_cell;
 mod polyhedron_cell;
+mod sphere;
 mod voronoi_cell;
 mod weighted;
 
@@ -58,6 +60,7 @@ pub use order::morton_order;
 pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
+pub use sphere::{Sphere, ON_SPHERE_TOL};
 use voronoi_cell::{voronoi_cell, CellScratch};
 
 /// How to treat unusual input.

@@ -230,8 +230,9 @@ impl<const D: usize> DomainKind<D> for PeriodicBox<D> {
         true
     }
 
-    fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], _: &mut Vec<u32>) {
+    fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], _: &mut Vec<u32>) -> bool {
         self.cut(cell, site);
+        true
     }
 
     fn local_radius2<C: ConvexCell<D>>(&self, cell: &C, _: [f64; D]) -> f64 {

@@ -121,6 +121,16 @@ impl ConvexCell<2> for PolygonCell {
         true
     }
 
+    fn for_each_plane(&self, mut f: impl FnMut(Face, &HalfSpace<2>)) {
+        let n = self.vertices.len();
+        for i in 0..n {
+            let (a, b) = (self.vertices[i], self.vertices[(i + 1) % n]);
+            // Counter-clockwise: the outward normal is the edge turned clockwise.
+            let normal = [b[1] - a[1], a[0] - b[0]];
+            f(self.faces[i], &HalfSpace::through(a, normal));
+        }
+    }
+
     fn is_empty(&self) -> bool {
         self.vertices.len() < 3
     }

@@ -98,10 +98,11 @@ where
             }
         }
         clipped += 1;
-        if clipped == preclip_after && clipped < total_sites {
-            domain.cut_convex(cell, site, &mut scratch.candidates);
+        if clipped % preclip_after == 0 && clipped < total_sites && !inside {
+            // Every `PRECLIP_K` neighbours until the domain can cut the cell (a solid's
+            // and a box's always can at once; a sphere's cell once it is closed).
+            inside = domain.cut_convex(cell, site, &mut scratch.candidates);
             radius2 = cell.max_dist2();
-            inside = true;
         }
         if clipped % localise_after == 0 && clipped < total_sites && !inside && !cell.is_empty() {
             // Localise only a cell whose part in the domain is already near the site: a

@@ -39,7 +39,12 @@ where
 {
     let mut moves = shifts.to_vec();
     hold_inside(domain, sites, &mut moves);
-    sites.iter().zip(&moves).map(|(&x, &m)| add(x, m)).collect()
+    // On the sphere `retract(x + (M/A − x)) = M/|M|`, the constrained centroid.
+    sites
+        .iter()
+        .zip(&moves)
+        .map(|(&x, &m)| domain.retract(add(x, m)))
+        .collect()
 }
 
 /// `c_i − x_i = m1_i / m_i` of each cell from its moments about its site (ρ-weighted with a
@@ -64,7 +69,7 @@ pub fn hold_inside<const D: usize, K: DomainKind<D>>(
     moves.par_iter_mut().zip(sites).for_each(|(m, &site)| {
         let mut t = 1.0;
         for _ in 0..MAX_HALVINGS {
-            if inside_or_on(domain, &add(site, scale(*m, t))) {
+            if inside_or_on(domain, &domain.retract(add(site, scale(*m, t)))) {
                 *m = scale(*m, t);
                 return;
             }
@@ -168,6 +173,7 @@ where
             let sign = if r % 2 == 0 { 1.0 } else { -1.0 };
             let mut candidate = donor;
             candidate[r / 2] += sign * 0.25 * h;
+            let candidate = domain.retract(candidate);
             (domain.locate(&candidate).is_some_and(|w| w != 0)).then_some(candidate)
         });
         if let Some(p) = placed {

@@ -362,9 +362,13 @@ where
         },
     )?;
     let diagram = clipped.diagram;
+    // The gradient along the domain: itself in a flat one, its tangent part on the sphere.
+    let gradient = (diagram.gradient().into_iter().zip(&sites))
+        .map(|(g, &x)| domain.tangent(x, g))
+        .collect();
     Ok(Point {
         energy: diagram.energy(),
-        gradient: diagram.gradient(),
+        gradient,
         hessian: request
             .hessian
             .then(|| Hessian::new(&diagram, clipped.face_integrals)),
@@ -379,15 +383,15 @@ fn mean_spacing<const D: usize, K: DomainKind<D>>(domain: &K, n: usize) -> f64
 where
     Euclid: Space<D>,
 {
-    (domain.volume() / n.max(1) as f64).powf(1.0 / D as f64)
+    stopping::cell_size::<D>(domain.volume() / n.max(1) as f64, domain.cell_dim())
 }
 
-/// Mean of `G` over the non-empty cells (paper eq. 3).
-fn mean_g<const D: usize>(diagram: &Diagram<D>) -> f64 {
+/// Mean of `G` over the non-empty cells (paper eq. 3), in the cells' dimension.
+fn mean_g<const D: usize, K: DomainKind<D>>(domain: &K, diagram: &Diagram<D>) -> f64 {
     let values: Vec<f64> = diagram
         .moments
         .iter()
-        .filter_map(|m| m.dimensionless_second_moment())
+        .filter_map(|m| domain.g_value(m))
         .collect();
     values.iter().sum::<f64>() / values.len().max(1) as f64
 }
@@ -435,8 +439,8 @@ impl<const D: usize> Tracker<'_, D> {
         let pinned = lloyd::pinned_sites(domain, point);
         let record = Record {
             energy: point.energy,
-            mean_g: mean_g(&point.diagram),
-            measures: Measures::of_in(point, &pinned, &self.frame),
+            mean_g: mean_g(domain, &point.diagram),
+            measures: Measures::of_cells(point, &pinned, &self.frame, domain.cell_dim()),
             seconds: self.start.elapsed().as_secs_f64(),
             evaluations: self.evaluations,
             step,
@@ -482,6 +486,13 @@ pub fn cvt<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
+    if settings.method == Method::Newton && domain.cell_dim() != D {
+        return Err(CoreError::InvalidSettings {
+            reason: "Newton's Hessian is that of a flat domain: on the sphere use method \
+                     'lbfgs' or 'lloyd'"
+                .into(),
+        });
+    }
     if matches!(settings.density, Some(Density::Sampled { .. }))
         && settings.method == Method::Newton
     {
@@ -622,12 +633,27 @@ where
     Euclid: Space<D>,
 {
     if solver.method != Method::Lloyd {
-        let mut eval = |sites: Vec<[f64; D]>| match tracker.evaluate::<C, K>(domain, sites) {
-            Ok(p) => Ok(Some(p)),
-            Err(CoreError::SiteOutsideDomain { .. } | CoreError::DuplicateSites { .. }) => Ok(None),
-            Err(e) => Err(e),
+        // Trial sites are retracted onto the domain (normalised on the sphere; untouched
+        // in a flat domain), and moves are taken in the tangent plane before they are
+        // held inside (DESIGN §13).
+        let mut eval = |mut sites: Vec<[f64; D]>| {
+            for x in sites.iter_mut() {
+                *x = domain.retract(*x);
+            }
+            match tracker.evaluate::<C, K>(domain, sites) {
+                Ok(p) => Ok(Some(p)),
+                Err(CoreError::SiteOutsideDomain { .. } | CoreError::DuplicateSites { .. }) => {
+                    Ok(None)
+                }
+                Err(e) => Err(e),
+            }
         };
-        let hold = |moves: &mut [[f64; D]]| lloyd::hold_inside(domain, &point.sites, moves);
+        let hold = |moves: &mut [[f64; D]]| {
+            for (m, &x) in moves.iter_mut().zip(&point.sites) {
+                *m = domain.tangent(x, *m);
+            }
+            lloyd::hold_inside(domain, &point.sites, moves)
+        };
         let next = if solver.method == Method::Newton {
             let forcing = newton::forcing(measures);
             let trials = solver.search.max_evaluations;

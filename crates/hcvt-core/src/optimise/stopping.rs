@@ -130,6 +130,19 @@ impl Measures {
     /// `‖g‖/‖X‖ = s^d · ‖g'‖ / ‖X' + c/s‖` (factor by factor, so that nothing over- or
     /// underflows unless the result does). Bitwise [`Measures::of`] for the identity.
     pub fn of_in<const D: usize>(point: &Point<D>, pinned: &[bool], frame: &Frame) -> Self {
+        Self::of_cells(point, pinned, frame, D)
+    }
+
+    /// As [`Measures::of_in`] for cells of dimension `dim` (2 on the sphere, where
+    /// `point.gradient` is the tangent gradient): there `r_i = |g_i| / (2 m_i) /
+    /// V_i^{1/dim}`, the tangent distance to the constrained centroid `∫x/|∫x|` to first
+    /// order, and `‖g‖/‖X‖` scales as `s^dim`.
+    pub fn of_cells<const D: usize>(
+        point: &Point<D>,
+        pinned: &[bool],
+        frame: &Frame,
+        dim: usize,
+    ) -> Self {
         let (mut sum_r2, mut max_r, mut counted, mut g2) = (0.0, 0.0_f64, 0usize, 0.0);
         let diagram = &point.diagram;
         for (((m, w), &g), &p) in (diagram.moments.iter())
@@ -141,8 +154,14 @@ impl Measures {
                 continue;
             }
             // |x − c| = |m1| / m with m1 the (ρ-weighted) first moment about the site, over
-            // the geometric size V^(1/d) of the cell.
-            let r = norm2(w.first).sqrt() / w.mass / m.mass.powf(1.0 / D as f64);
+            // the geometric size V^(1/d) of the cell; on a curved domain the tangent part
+            // of m1, which is |g| / 2.
+            let offset = if dim == D {
+                norm2(w.first).sqrt() / w.mass
+            } else {
+                norm2(g).sqrt() / (2.0 * w.mass)
+            };
+            let r = offset / cell_size::<D>(m.mass, dim);
             sum_r2 += r * r;
             max_r = max_r.max(r);
             counted += 1;
@@ -162,12 +181,23 @@ impl Measures {
             grad_norm: if g2 == 0.0 {
                 0.0
             } else {
-                (0..D).fold(g2.sqrt() / x2.sqrt().max(f64::MIN_POSITIVE), |v, _| {
+                (0..dim).fold(g2.sqrt() / x2.sqrt().max(f64::MIN_POSITIVE), |v, _| {
                     v * frame.scale
                 })
             },
             pinned: pinned.iter().filter(|&&p| p).count(),
         }
+    }
+}
+
+/// `V^{1/dim}`, in a flat domain (`dim == D`) with the exponent a constant: LLVM then
+/// turns `powf(V, 1/2)` into a square root, whose bits differ from the library's `pow`
+/// (a runtime exponent changed the Newton fingerprint of the star).
+pub(super) fn cell_size<const D: usize>(volume: f64, dim: usize) -> f64 {
+    if dim == D {
+        volume.powf(1.0 / D as f64)
+    } else {
+        volume.powf(1.0 / dim as f64)
     }
 }
 

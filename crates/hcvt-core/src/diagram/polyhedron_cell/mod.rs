@@ -359,6 +359,16 @@ impl ConvexCell<3> for PolyhedronCell {
         false
     }
 
+    fn for_each_plane(&self, mut f: impl FnMut(Face, &HalfSpace<3>)) {
+        for p in &self.planes {
+            let h = HalfSpace {
+                normal: p.normal,
+                offset: p.offset,
+            };
+            f(p.face, &h);
+        }
+    }
+
     fn is_empty(&self) -> bool {
         self.triangles.len() < 4
     }

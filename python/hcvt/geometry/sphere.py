@@ -1,0 +1,135 @@
+"""The sphere of radius R about the origin as the core sees it: the unit sphere.
+
+The core computes on the unit sphere (``hcvt-core/src/diagram/sphere.rs``); a
+:class:`SphereFrame` maps sites in and results out. Sites are checked to lie on the sphere
+(to :data:`ON_SPHERE_RTOL` of ``R``) and pushed onto it exactly (``x / |x|``); a result of
+unit ``L^p`` comes back times ``R^p``, with ``p`` counted for cells of dimension 2 (areas
+``R²``, energies and second moments ``R⁴``, arc lengths ``R``), positions times ``R``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hcvt.errors import InvalidDensityError, InvalidSitesError
+from hcvt.geometry.frame import UNITS, Frame
+
+#: How far from the sphere a site may lie, relative to its radius: ``| |x| − R | ≤ rtol·R``.
+#: Sites given as unit vectors times ``R`` are within a few ulps; a site off by more is
+#: likely on another sphere, or not a site of the sphere at all.
+ON_SPHERE_RTOL = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class SphereFrame(Frame):
+    """``x = R · x'`` with ``x'`` on the unit sphere; cells of dimension 2.
+
+    Attributes
+    ----------
+    centre : ndarray, shape (3,)
+        Zeros: the sphere is about the origin.
+    scale : float
+        The radius ``R``, in L (any positive finite number; not rounded to a power of 2,
+        so results are rounded once more than in a polygon's frame).
+    """
+
+    @classmethod
+    def of_radius(cls, radius: float) -> SphereFrame:
+        """The frame of the sphere of ``radius`` (positive and finite)."""
+        return cls(np.zeros(3), float(radius))
+
+    @property
+    def dim(self) -> int:
+        """2: the dimension of the cells, which every unit's power counts."""
+        return 2
+
+    @property
+    def is_identity(self) -> bool:
+        """Never: sites are always checked and pushed onto the unit sphere."""
+        return False
+
+    def to_core(self, points: NDArray[np.float64], name: str = "sites") -> NDArray[np.float64]:
+        """``x / |x|`` of ``points`` (m, 3) after checking ``| |x| − R | ≤ rtol · R``.
+
+        Raises
+        ------
+        InvalidSitesError
+            The first row off the sphere, with its distance from the centre.
+        """
+        points = np.asarray(points, dtype=np.float64)
+        r = np.linalg.norm(points, axis=1)
+        off = ~(np.abs(r - self.scale) <= ON_SPHERE_RTOL * self.scale)
+        if off.any():
+            k = int(np.flatnonzero(off)[0])
+            what = name[:-1] if name.endswith("s") else name
+            raise InvalidSitesError(
+                f"{what} {k} at {points[k].tolist()} is {r[k]:.17g} from the centre, not on "
+                f"the sphere of radius {self.scale:.17g} (relative tolerance "
+                f"{ON_SPHERE_RTOL:g}): {int(off.sum())} such row(s); project them first, "
+                f"x * R / |x|"
+            )
+        return np.ascontiguousarray(points / r[:, None])
+
+    def quantity_to_core(self, name: str, value: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A quantity ``name`` in L as the core takes it: positions by :meth:`to_core`."""
+        unit = UNITS[name]
+        if unit is None:
+            return value
+        if unit.position:
+            return self.to_core(value, name)
+        return np.ascontiguousarray(np.asarray(value) / self.scale ** unit.power(2))
+
+    def density_to_core(self, density: Any) -> Any:
+        """No density on the sphere yet: None passes, anything else raises."""
+        if density is None:
+            return None
+        raise InvalidDensityError(
+            "densities on the sphere are not implemented yet (DESIGN §13: a surface "
+            "quadrature through the gnomonic projection); pass density=None"
+        )
+
+    def points_to_input(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``R · x'``."""
+        return np.asarray(points) * self.scale
+
+    def to_input(self, name: str, value: Any) -> Any:
+        """The core's result ``name`` times ``R^p`` (positions times ``R``)."""
+        unit = UNITS[name]
+        if unit is None:
+            return value
+        if unit.position:
+            return self.points_to_input(value)
+        power = unit.power(2)
+        if power == 0:
+            return value
+        out = np.asarray(value, dtype=np.float64) * self.scale**power
+        return out if isinstance(value, np.ndarray) else float(out)
+
+    def first_moment(self, core_first: NDArray[np.float64], core_volume: float) -> Any:
+        """``∫ x dA`` over the sphere: zero."""
+        return np.zeros(3)
+
+    def core_arguments(self) -> dict[str, Any]:
+        """``frame=`` for ``_core.cvt``: the paper's ``‖g‖/‖X‖`` in L."""
+        return {"frame": ([0.0, 0.0, 0.0], self.scale)}
+
+    def __repr__(self) -> str:
+        return f"SphereFrame(radius={self.scale!r})"
+
+
+def check_radius(radius: object) -> float:
+    """``radius`` as a positive finite float, or a ValueError."""
+    if isinstance(radius, bool) or not isinstance(radius, (int, float, np.integer, np.floating)):
+        raise ValueError(f"radius must be a number, got {type(radius).__name__}")
+    r = float(radius)
+    if not (r > 0 and math.isfinite(r)):
+        raise ValueError(f"radius must be positive and finite, got {radius!r}")
+    return r
+
+
+__all__ = ["ON_SPHERE_RTOL", "SphereFrame", "check_radius"]

@@ -1,0 +1,120 @@
+"""Sites on the sphere: uniform random, Fibonacci spiral, icosahedral (DESIGN §13).
+
+Every function returns unit vectors (n, 3); :func:`hcvt.initialise` scales them by the
+sphere's radius.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: ``initialise``'s methods on the sphere.
+SPHERE_METHODS = ("random", "fibonacci", "icosahedral")
+
+
+def random_sphere(n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+    """``n`` points uniform on the unit sphere: normalised standard normal vectors."""
+    while True:
+        v = rng.standard_normal((n, 3))
+        r = np.linalg.norm(v, axis=1)
+        if np.all(r > 0):  # a zero vector has probability 0; draw again if it happens
+            return np.asarray(v / r[:, None], dtype=np.float64)
+
+
+def fibonacci(n: int) -> NDArray[np.float64]:
+    """The Fibonacci (golden spiral) lattice of ``n`` points: equal-area bands in ``z``.
+
+    Point ``i`` at height ``z_i = 1 − (2i + 1)/n`` and longitude ``i · π(3 − √5)``; every
+    point lies in its own band of area ``4π/n`` (Swinbank and Purser 2006).
+    """
+    i = np.arange(n, dtype=np.float64)
+    z = 1.0 - (2.0 * i + 1.0) / n
+    r = np.sqrt(np.maximum(0.0, (1.0 - z) * (1.0 + z)))
+    phi = i * (math.pi * (3.0 - math.sqrt(5.0)))
+    return np.ascontiguousarray(np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1))
+
+
+def icosahedral_level(n: int) -> int | None:
+    """``k`` with ``n = 10 · 4^k + 2``, or None."""
+    k, size = 0, 12
+    while size < n:
+        k, size = k + 1, 10 * 4 ** (k + 1) + 2
+    return k if size == n else None
+
+
+def icosahedron() -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """The 12 unit vertices and 20 faces (counter-clockwise seen from outside)."""
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    v = np.array(
+        [
+            [-1, t, 0],
+            [1, t, 0],
+            [-1, -t, 0],
+            [1, -t, 0],
+            [0, -1, t],
+            [0, 1, t],
+            [0, -1, -t],
+            [0, 1, -t],
+            [t, 0, -1],
+            [t, 0, 1],
+            [-t, 0, -1],
+            [-t, 0, 1],
+        ],
+        dtype=np.float64,
+    )
+    faces = np.array(
+        [
+            [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11],
+            [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8],
+            [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
+            [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        ],
+        dtype=np.intp,
+    )  # fmt: skip
+    return v / np.linalg.norm(v, axis=1)[:, None], faces
+
+
+def icosahedral(n: int) -> NDArray[np.float64]:
+    """The vertices of the icosahedron subdivided ``k`` times, ``n = 10 · 4^k + 2``.
+
+    Each step splits every triangle into four at its edges' midpoints, pushed out onto the
+    sphere (the MPAS standard meshes start from these: 2,562 at k = 4, 40,962 at k = 6).
+
+    Raises
+    ------
+    ValueError
+        ``n`` is not of the form ``10 · 4^k + 2`` (the message names the nearest two).
+    """
+    k = icosahedral_level(n)
+    if k is None:
+        below = max(j for j in range(0, 20) if 10 * 4**j + 2 <= max(n, 12))
+        raise ValueError(
+            f"icosahedral sites come in n = 10·4^k + 2 (12, 42, 162, 642, 2562, ...), got "
+            f"{n}; the nearest are {10 * 4**below + 2} and {10 * 4 ** (below + 1) + 2}"
+        )
+    v, faces = icosahedron()
+    vertices = [v]
+    count = len(v)
+    for _ in range(k):
+        edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+        edges.sort(axis=1)
+        unique, inverse = np.unique(edges, axis=0, return_inverse=True)
+        points = np.concatenate(vertices)
+        mid = points[unique[:, 0]] + points[unique[:, 1]]
+        vertices.append(mid / np.linalg.norm(mid, axis=1)[:, None])
+        m = count + inverse.reshape(3, -1).T  # midpoints of edges 01, 12, 20 per face
+        a, b, c = faces.T
+        ab, bc, ca = m.T
+        faces = np.concatenate(
+            [
+                np.stack([a, ab, ca], axis=1),
+                np.stack([ab, b, bc], axis=1),
+                np.stack([ca, bc, c], axis=1),
+                np.stack([ab, bc, ca], axis=1),
+            ]
+        )
+        count += len(unique)
+    return np.ascontiguousarray(np.concatenate(vertices))
