@@ -45,10 +45,15 @@ impl<const D: usize> BoxDomain<D> {
         })
     }
 
-    /// The box's sides relative to `site`, each with its boundary element number.
-    fn sides(&self, site: [f64; D]) -> impl Iterator<Item = (u32, HalfSpace<D>)> + '_ {
+    /// The sides along the axes `along` marks, relative to `site`, each with its boundary
+    /// element number.
+    fn sides(
+        &self,
+        site: [f64; D],
+        along: [bool; D],
+    ) -> impl Iterator<Item = (u32, HalfSpace<D>)> + '_ {
         let (lo, hi) = (sub(self.bounds.lo, site), sub(self.bounds.hi, site));
-        (0..D).flat_map(move |k| {
+        (0..D).filter(move |&k| along[k]).flat_map(move |k| {
             let axis: [f64; D] = std::array::from_fn(|j| if j == k { 1.0 } else { 0.0 });
             let below = HalfSpace {
                 normal: axis.map(|a| -a),
@@ -62,13 +67,33 @@ impl<const D: usize> BoxDomain<D> {
         })
     }
 
-    /// `cell` (relative to `site`) clipped by the sides.
-    fn cut<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D]) {
-        for (t, h) in self.sides(site) {
+    /// `cell` (relative to `site`) clipped by the sides along the axes `along` marks (all of
+    /// them for this box; the non-periodic ones for a [`super::PeriodicBox`]).
+    pub(super) fn cut_along<C: ConvexCell<D>>(
+        &self,
+        cell: &mut C,
+        site: [f64; D],
+        along: [bool; D],
+    ) {
+        for (t, h) in self.sides(site, along) {
             if cell.is_empty() {
                 return;
             }
             cell.clip(&h, Face::Boundary(t));
+        }
+    }
+
+    /// The inside test along the axes `along` marks (every coordinate counts as inside along
+    /// the others): 0 outside, `None` on a side, 1 inside.
+    pub(super) fn locate_along(&self, point: &[f64; D], along: [bool; D]) -> Option<i32> {
+        let (lo, hi) = (self.bounds.lo, self.bounds.hi);
+        let axes = (0..D).filter(|&k| along[k]);
+        if axes.clone().any(|k| point[k] < lo[k] || point[k] > hi[k]) {
+            Some(0)
+        } else if axes.clone().any(|k| point[k] == lo[k] || point[k] == hi[k]) {
+            None
+        } else {
+            Some(1)
         }
     }
 }
@@ -85,14 +110,7 @@ impl<const D: usize> DomainKind<D> for BoxDomain<D> {
     }
 
     fn locate(&self, point: &[f64; D]) -> Option<i32> {
-        let (lo, hi) = (self.bounds.lo, self.bounds.hi);
-        if (0..D).any(|k| point[k] < lo[k] || point[k] > hi[k]) {
-            Some(0)
-        } else if (0..D).any(|k| point[k] == lo[k] || point[k] == hi[k]) {
-            None
-        } else {
-            Some(1)
-        }
+        self.locate_along(point, [true; D])
     }
 
     fn density_checkpoints(&self) -> &[[f64; D]] {
@@ -104,7 +122,7 @@ impl<const D: usize> DomainKind<D> for BoxDomain<D> {
     }
 
     fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], _: &mut Vec<u32>) -> bool {
-        self.cut(cell, site);
+        self.cut_along(cell, site, [true; D]);
         true
     }
 
@@ -123,7 +141,7 @@ impl<const D: usize> DomainKind<D> for BoxDomain<D> {
     ) -> Moments<D> {
         let piece = scratch.piece.get_or_insert_with(|| cell.clone());
         piece.clone_from(cell);
-        self.cut(piece, site);
+        self.cut_along(piece, site, [true; D]);
         measure(piece, row, &mut scratch.faces)
     }
 }

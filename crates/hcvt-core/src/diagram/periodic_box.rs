@@ -38,11 +38,12 @@
 //! its cells fit the box (e.g. `2m³` BCC sites in a cube).
 
 use crate::error::CoreError;
-use crate::geometry::{sub, Aabb, Euclid, HalfSpace, Space};
+use crate::geometry::{sub, Aabb, Euclid, Space};
 use crate::moments::Moments;
 
+use super::box_domain::BoxDomain;
 use super::clip::{measure, MeasureScratch};
-use super::convex_cell::{ConvexCell, Face};
+use super::convex_cell::ConvexCell;
 use super::domain_kind::DomainKind;
 use super::faces::FaceRow;
 use super::voronoi_cell::BOX_MARGIN;
@@ -67,12 +68,12 @@ const FIRST_BAND: [f64; 4] = [8.0, 8.0, 8.0, 3.0];
 /// `2k + 1` (`x_k = hi_k`), as a [`super::BoxDomain`]'s.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PeriodicBox<const D: usize> {
+    /// The plain box: its corners, and its sides along the axes that are not periodic.
+    plain: BoxDomain<D>,
     bounds: Aabb<D>,
     periodic: [bool; D],
     /// `hi − lo`, `L`.
     periods: [f64; D],
-    /// The `2^D` corners, for a density's checks.
-    corners: Vec<[f64; D]>,
 }
 
 impl<const D: usize> PeriodicBox<D> {
@@ -82,26 +83,24 @@ impl<const D: usize> PeriodicBox<D> {
     /// Errors: a non-finite coordinate (vertex 0 is `lo`, 1 is `hi`), or a side of zero or
     /// negative length.
     pub fn new(lo: [f64; D], hi: [f64; D], periodic: [bool; D]) -> Result<Self, CoreError> {
-        for (index, corner) in [lo, hi].iter().enumerate() {
-            if let Some(&value) = corner.iter().find(|x| !x.is_finite()) {
-                return Err(CoreError::NonFiniteVertex { index, value });
-            }
-        }
+        let plain = BoxDomain::new(lo, hi)?;
         let periods = sub(hi, lo);
-        if periods.iter().any(|&p| p <= 0.0 || !p.is_finite()) {
+        if periods.iter().any(|&p| !p.is_finite()) {
             return Err(CoreError::NonPositiveVolume {
                 volume: periods.iter().product(),
             });
         }
-        let corners = (0..1usize << D)
-            .map(|bits| std::array::from_fn(|k| if bits >> k & 1 == 0 { lo[k] } else { hi[k] }))
-            .collect();
         Ok(Self {
+            plain,
             bounds: Aabb { lo, hi },
             periodic,
             periods,
-            corners,
         })
+    }
+
+    /// The axes that are not periodic: where the box's sides clip.
+    fn fixed(&self) -> [bool; D] {
+        self.periodic.map(|p| !p)
     }
 
     /// Which axes are periodic.
@@ -137,34 +136,6 @@ impl<const D: usize> PeriodicBox<D> {
         (0..D)
             .filter(|&k| self.periodic[k])
             .fold(0.0, |m: f64, k| m.max(self.periods[k]))
-    }
-
-    /// The sides along the non-periodic axes, relative to `site`, with their boundary
-    /// element numbers.
-    fn sides(&self, site: [f64; D]) -> impl Iterator<Item = (u32, HalfSpace<D>)> + '_ {
-        let (lo, hi) = (sub(self.bounds.lo, site), sub(self.bounds.hi, site));
-        (0..D).filter(|&k| !self.periodic[k]).flat_map(move |k| {
-            let axis: [f64; D] = std::array::from_fn(|j| if j == k { 1.0 } else { 0.0 });
-            let below = HalfSpace {
-                normal: axis.map(|a| -a),
-                offset: -lo[k],
-            };
-            let above = HalfSpace {
-                normal: axis,
-                offset: hi[k],
-            };
-            [(2 * k as u32, below), (2 * k as u32 + 1, above)]
-        })
-    }
-
-    /// `cell` (relative to `site`) clipped by the sides along the non-periodic axes.
-    fn cut<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D]) {
-        for (t, h) in self.sides(site) {
-            if cell.is_empty() {
-                return;
-            }
-            cell.clip(&h, Face::Boundary(t));
-        }
     }
 }
 
@@ -208,22 +179,11 @@ impl<const D: usize> DomainKind<D> for PeriodicBox<D> {
     /// Along periodic axes every point is inside (it stands for its image in the box); the
     /// box test along the others.
     fn locate(&self, point: &[f64; D]) -> Option<i32> {
-        let (lo, hi) = (self.bounds.lo, self.bounds.hi);
-        let fixed = (0..D).filter(|&k| !self.periodic[k]);
-        if fixed.clone().any(|k| point[k] < lo[k] || point[k] > hi[k]) {
-            Some(0)
-        } else if fixed
-            .clone()
-            .any(|k| point[k] == lo[k] || point[k] == hi[k])
-        {
-            None
-        } else {
-            Some(1)
-        }
+        self.plain.locate_along(point, self.fixed())
     }
 
     fn density_checkpoints(&self) -> &[[f64; D]] {
-        &self.corners
+        self.plain.density_checkpoints()
     }
 
     fn is_convex(&self) -> bool {
@@ -231,7 +191,7 @@ impl<const D: usize> DomainKind<D> for PeriodicBox<D> {
     }
 
     fn cut_convex<C: ConvexCell<D>>(&self, cell: &mut C, site: [f64; D], _: &mut Vec<u32>) -> bool {
-        self.cut(cell, site);
+        self.plain.cut_along(cell, site, self.fixed());
         true
     }
 
@@ -252,7 +212,7 @@ impl<const D: usize> DomainKind<D> for PeriodicBox<D> {
         }
         let piece = scratch.piece.get_or_insert_with(|| cell.clone());
         piece.clone_from(cell);
-        self.cut(piece, site);
+        self.plain.cut_along(piece, site, self.fixed());
         measure(piece, row, &mut scratch.faces)
     }
 }
