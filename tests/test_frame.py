@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt.errors import InvalidSitesError, UnrepresentableError
+from hcvt.errors import InvalidDomainError, InvalidSitesError, UnrepresentableError
 from hcvt.geometry.frame import Frame
 
 C = 64.0
@@ -45,6 +45,7 @@ class Kind:
     build: Callable[[np.ndarray], hcvt.Domain]
     vertices: np.ndarray
     sites: np.ndarray
+    meshes: bool = True  # the conforming mesh is made (not yet for a periodic box)
 
 
 def _l_shape_with_hole() -> np.ndarray:
@@ -102,10 +103,31 @@ def _sites(domain: hcvt.Domain, n: int, seed: int) -> np.ndarray:
     return p[domain.contains(p)][:n]
 
 
+def _torus(v: np.ndarray) -> hcvt.Domain:
+    return hcvt.Domain.box(v[0], v[1], periodic=True)
+
+
+def _slab_torus(v: np.ndarray) -> hcvt.Domain:
+    return hcvt.Domain.box(v[0], v[1], periodic=(True, False, True))
+
+
 _unit_polygon = _polygon(_l_shape_with_hole())
+_UNIT_RECTANGLE = np.array([[0.0, 0.0], [1.0, 0.75]])
+_UNIT_BOX = np.array([[0.0, 0.0, 0.0], [1.0, 0.75, 0.5]])
 KINDS = {
     "polygon": Kind("polygon", 2, _polygon, _l_shape_with_hole(), _sites(_unit_polygon, 60, 1)),
     "solid": Kind("solid", 3, _solid, CUBE, _sites(_solid(CUBE), 100, 2)),
+    "periodic 2D": Kind(
+        "periodic 2D", 2, _torus, _UNIT_RECTANGLE, _sites(_torus(_UNIT_RECTANGLE), 60, 3), False
+    ),
+    "periodic 3D (x, z)": Kind(
+        "periodic 3D (x, z)",
+        3,
+        _slab_torus,
+        _UNIT_BOX,
+        _sites(_slab_torus(_UNIT_BOX), 80, 4),
+        False,
+    ),
 }
 
 
@@ -182,12 +204,19 @@ def test_cells_meshes_and_cvt_match_the_unit_problem(kind, offset, size, units):
     assert np.max(np.abs(back(diagram.centroid, offset, size) - unit.centroid)) <= C * delta
     np.testing.assert_array_equal(diagram.neighbors, unit.neighbors)
 
+    if diagram.neighbor_images is not None:  # the image shift of every neighbour
+        np.testing.assert_array_equal(diagram.neighbor_images, unit.neighbor_images)
+
     # the conforming mesh: the same vertices, mapped back, and the same cell volumes
-    mesh, unit_mesh = diagram.mesh(), unit.mesh()
-    assert mesh.points.shape == unit_mesh.points.shape
-    assert np.max(np.abs(back(mesh.points, offset, size) - unit_mesh.points)) <= C * delta
-    np.testing.assert_array_equal(mesh.face_vertices, unit_mesh.face_vertices)
-    if representable(unit.volume, d, size):
+    if not k.meshes:
+        with pytest.raises(InvalidDomainError, match="conforming mesh"):
+            diagram.mesh()
+    else:
+        mesh, unit_mesh = diagram.mesh(), unit.mesh()
+        assert mesh.points.shape == unit_mesh.points.shape
+        assert np.max(np.abs(back(mesh.points, offset, size) - unit_mesh.points)) <= C * delta
+        np.testing.assert_array_equal(mesh.face_vertices, unit_mesh.face_vertices)
+    if k.meshes and representable(unit.volume, d, size):
         # measured from the points in L: the points carry the round-off δ of their position
         from_mesh = mesh.cell_geometry.volume / size**d
         worst = np.max(np.abs(from_mesh - unit.volume) / unit.volume)
@@ -213,9 +242,10 @@ def test_the_frame_of_a_unit_shape_at_the_origin_is_the_identity(kind):
     far = k.build(place(k.vertices, 1e6, 1e-90))
     assert not far.frame.is_identity
     assert math.frexp(far.frame.scale)[0] == 0.5  # a power of two
-    # vertices in and out of the frame bit for bit
+    # vertices (a box: its corners lo, hi) in and out of the frame bit for bit
     expected = np.unique(place(k.vertices, 1e6, 1e-90), axis=0)
-    np.testing.assert_array_equal(np.unique(far.vertices, axis=0), expected)
+    given = far.vertices if k.meshes else np.array(far.bounds)
+    np.testing.assert_array_equal(np.unique(given, axis=0), expected)
 
 
 def test_sites_beyond_the_frame_are_refused_by_row():
@@ -242,6 +272,55 @@ def test_the_paper_rule_is_measured_in_input_coordinates():
     expected = np.linalg.norm(g) / np.linalg.norm(x)
     assert placed.history["grad_norm"][-1] == pytest.approx(expected, rel=1e-6)
     assert placed.history["grad_norm"][-1] < 1e-6 * unit.history["grad_norm"][-1]
+
+
+# ---------------------------------------------------------------------- the sphere
+# The sphere is about the origin by definition: its frame is the radius alone, and a site
+# x is taken as x / |x| after checking |x| = R. The radius is not a power of two, so the
+# sites R·z come back from x / R with a rounding or two: the bound is a few ulps per cell
+# quantity (C ulps / h, h the smallest cell's size on the unit sphere), not the input's δ.
+RADII = (1e-100, 1e-3, 6371e3, 1e100)
+
+
+@pytest.fixture(scope="module")
+def unit_sphere() -> tuple[np.ndarray, hcvt.Diagram, hcvt.CVTResult]:
+    sphere = hcvt.Domain.sphere(1.0)
+    sites = hcvt.initialise(sphere, 200, method="random", seed=35)
+    return sites, hcvt.voronoi(sphere, sites), hcvt.cvt(sphere, sites, max_iter=10)
+
+
+@pytest.mark.parametrize("radius", RADII)
+def test_the_sphere_at_any_radius_gives_the_unit_spheres_cells_and_iterates(radius, unit_sphere):
+    sites, unit, unit_cvt = unit_sphere
+    sphere = hcvt.Domain.sphere(radius)
+    diagram = hcvt.voronoi(sphere, radius * sites)
+    h = float(np.min(unit.volume)) ** 0.5
+    rel = C * ULP / h + CORE_REL
+    worst = np.max(np.abs(diagram.volume / radius**2 - unit.volume) / unit.volume)
+    assert worst <= rel, f"areas: {worst:.3g} > {rel:.3g}"
+    assert np.max(np.abs(diagram.G - unit.G) / unit.G) <= rel
+    assert np.max(np.abs(diagram.centroid / radius - unit.centroid)) <= C * ULP
+    np.testing.assert_array_equal(diagram.neighbors, unit.neighbors)
+    arcs = np.max(np.abs(diagram.face_measures / radius - unit.face_measures))
+    assert arcs <= C * ULP
+    # per cell energy R^4: refused where 1e±400 is no float64
+    compare_or_refused(lambda: diagram.energy_terms, unit.energy_terms, 4, radius, 10 * rel)
+
+    result = hcvt.cvt(sphere, radius * sites, max_iter=10)
+    assert result.iterations == unit_cvt.iterations
+    gap = np.max(np.abs(result.sites / radius - unit_cvt.sites))
+    assert gap <= C * ULP / h, f"CVT sites differ by {gap:.3g} radii"
+    np.testing.assert_allclose(result.history["mean_G"], unit_cvt.history["mean_G"], rtol=rel)
+
+
+@pytest.mark.parametrize("radius", [1e-200, 1e200])
+def test_a_sphere_whose_areas_are_not_floats_gives_G_and_refuses_areas(radius, unit_sphere):  # noqa: N802
+    sites, unit, _ = unit_sphere
+    diagram = hcvt.voronoi(hcvt.Domain.sphere(radius), radius * sites)
+    np.testing.assert_allclose(diagram.G, unit.G, rtol=1e-12)
+    np.testing.assert_allclose(diagram.centroid / radius, unit.centroid, atol=1e-14)
+    with pytest.raises(UnrepresentableError, match="volume .* (under|over)flows"):
+        _ = diagram.volume
 
 
 # ---------------------------------------------------------------------- issue 30 as measured

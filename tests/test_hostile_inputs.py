@@ -10,9 +10,11 @@ The table is built per domain kind: :data:`KINDS` maps a kind (``polygon``, ``so
 what the generic rows need of it (a domain, one of its vertices, a point on its boundary,
 a thin copy, a way to poison its vertices), and :func:`kind_rows` makes the rows every kind
 gets: non-finite, duplicate and boundary sites, one and two sites, thin domains under every
-initialisation method and a density, non-finite densities. A new kind (surface, sphere,
-periodic box) adds an entry to :data:`KINDS` and its own rows to :data:`SPECIFIC`. Readers
-(one row per suffix and defect), the CLI and the thread pool have their own lists.
+initialisation method and a density, non-finite densities (or, for a kind that takes no
+density yet, that it refuses one with a message). A new kind adds an entry to :data:`KINDS`
+and its own rows to :data:`SPECIFIC`: the periodic boxes have both; the sphere, which has
+no boundary, vertices or thin copy, only its own rows. Readers (one row per suffix and
+defect), the CLI and the thread pool have their own lists.
 """
 
 from __future__ import annotations
@@ -102,6 +104,10 @@ def poisoned_mesh(value: float) -> hcvt.Domain:
     return hcvt.Domain.from_mesh(vertices, CUBE_FACES)
 
 
+def torus(hi: tuple[float, ...], periodic: bool | tuple[bool, ...] = True) -> hcvt.Domain:
+    return hcvt.Domain.box((0.0,) * len(hi), hi, periodic=periodic)
+
+
 @dataclass(frozen=True)
 class Kind:
     """What the generic rows need of a domain kind."""
@@ -113,6 +119,7 @@ class Kind:
     thin: Callable[[], hcvt.Domain]  # fills a tiny fraction of its bounding box
     poisoned: Callable[[float], hcvt.Domain]  # the domain with one vertex coordinate set
     thin_lattice: Raises | None  # what method="lattice" gives on it (None: n sites inside)
+    density: Raises | None = None  # what any density gives (None: densities are taken)
 
 
 KINDS: dict[str, Kind] = {
@@ -133,6 +140,28 @@ KINDS: dict[str, Kind] = {
         lambda: needle(0.03),  # 1.5e-4 of its box
         poisoned_mesh,
         None,
+    ),
+    # On a torus a "vertex" or "boundary" site is one on the box's sides, which are no
+    # boundary of its cells: its cells must still fill the box.
+    "periodic 2D": Kind(
+        lambda: torus((1.0, 1.0)),
+        (1.0, 1.0),
+        (1.0, 0.5),
+        (0.5, 0.5),
+        lambda: torus((1.0, 1e-9)),
+        lambda value: torus((1.0, value)),
+        Raises(InvalidDomainError, "too thin for 'lattice'"),
+        Raises(InvalidDensityError, "periodic box takes no density yet"),
+    ),
+    "periodic 3D (x, z)": Kind(
+        lambda: torus((1.0, 1.0, 1.0), (True, False, True)),
+        (1.0, 1.0, 1.0),
+        (1.0, 0.5, 0.5),
+        (0.5, 0.5, 0.5),
+        lambda: torus((1.0, 1.0, 1e-9), (True, False, True)),
+        lambda value: torus((1.0, 1.0, value), (True, False, True)),
+        Raises(InvalidDomainError, "too thin for 'lattice'"),
+        Raises(InvalidDensityError, "periodic box takes no density yet"),
     ),
 }
 
@@ -242,6 +271,20 @@ def kind_rows(name: str, kind: Kind) -> list[Row]:
         )
         for method in METHODS
     ]
+    if kind.density is not None:
+        refused = kind.density
+        return rows + [
+            (
+                f"{name}: a density is refused with a message",
+                lambda: hcvt.voronoi(d, [kind.inside, other], density=lambda x: 1.0 + x[:, 0]),
+                refused,
+            ),
+            (
+                f"{name}: a density in a CVT is refused with a message",
+                lambda: hcvt.cvt(d, [kind.inside, other], density=hcvt.Polynomial(1.0)),
+                refused,
+            ),
+        ]
     rows += [
         (
             f"{name}: thin domain, initialise {method} with a density",
@@ -384,7 +427,153 @@ SPECIFIC: dict[str, list[Row]] = {
             Raises(InvalidDomainError, "fills only .* of the boxes"),
         ),
     ],
+    "periodic 2D": [
+        (
+            "periodic 2D: a site outside the box is its image inside",
+            lambda: hcvt.voronoi(torus((1.0, 1.0)), [(0.5, 0.5), (3.25, -1.75)]),
+            Gives("two cells of half the box", lambda r: np.allclose(r.volume, 0.5)),
+        ),
+        (
+            "periodic 2D: two sites one period apart coincide",
+            lambda: hcvt.voronoi(torus((1.0, 1.0)), [(0.5, 0.5), (0.2, 0.2), (1.5, 0.5)]),
+            Raises(InvalidSitesError, "sites 0 and 2 coincide"),
+        ),
+        (
+            "periodic 2D: lo above hi",
+            lambda: hcvt.Domain.box((0.0, 1.0), (1.0, 0.0), periodic=True),
+            Raises(InvalidDomainError, "no positive volume"),
+        ),
+        (
+            "periodic 2D: periodic flags of the wrong length",
+            lambda: hcvt.Domain.box((0.0, 0.0), (1.0, 1.0), periodic=(True, False, True)),
+            Raises(InvalidDomainError, "periodic must be a bool or 2 bools"),
+        ),
+        (
+            "periodic 2D: Newton is refused with a message",
+            lambda: hcvt.cvt(torus((1.0, 1.0)), [(0.5, 0.5), (0.2, 0.3)], "newton"),
+            Raises(ValueError, "not summed in a periodic box yet"),
+        ),
+        (
+            "periodic 2D: the conforming mesh is refused with a message",
+            lambda: hcvt.voronoi(torus((1.0, 1.0)), [(0.5, 0.5), (0.2, 0.3)]).mesh(),
+            Raises(InvalidDomainError, "conforming mesh"),
+        ),
+    ],
+    "periodic 3D (x, z)": [
+        (
+            "periodic 3D (x, z): lattice initialisation (the box's sides as 12 triangles)",
+            lambda: hcvt.initialise(torus((1.0, 1.0, 1.0), (True, False, True)), 20, "lattice"),
+            Gives("20 sites inside", strictly_inside(torus((1.0, 1.0, 1.0)), 20)),
+        ),
+    ],
+    "sphere": [
+        (
+            "sphere: NaN coordinate in a site",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0), (NAN, 0.0, 0.0)]),
+            Raises(InvalidSitesError, "site 1 has a non-finite coordinate"),
+        ),
+        (
+            "sphere: inf coordinate in a site",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0), (0.0, INF, 0.0)]),
+            Raises(InvalidSitesError, "site 1 has a non-finite coordinate"),
+        ),
+        (
+            "sphere: a site off the sphere",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0), (1.0, 0.0, 0.0)]),
+            Raises(InvalidSitesError, "site 1 .* not on the sphere of radius 2"),
+        ),
+        (
+            "sphere: a site at the centre",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0), (0.0, 0.0, 0.0)]),
+            Raises(InvalidSitesError, "site 1 .* is 0 from the centre"),
+        ),
+        *[
+            (
+                f"sphere: radius {radius!r}",
+                lambda radius=radius: hcvt.Domain.sphere(radius),
+                Raises(ValueError, "radius must be"),
+            )
+            for radius in (NAN, INF, 0.0, -1.0, "1")
+        ],
+        (
+            "sphere: two sites at the same point",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0), (2.0, 0.0, 0.0), (0.0, 0.0, 2.0)]),
+            Raises(InvalidSitesError, "sites 0 and 2 coincide"),
+        ),
+        (
+            "sphere: one site: its cell is the sphere",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0)]),
+            Gives("area 16π", lambda r: math.isclose(r.volume[0], 16 * math.pi, rel_tol=1e-13)),
+        ),
+        (
+            "sphere: two antipodal sites: two hemispheres",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0), (0.0, 0.0, -2.0)]),
+            Gives("areas 8π", lambda r: np.allclose(r.volume, 8 * math.pi, rtol=1e-13)),
+        ),
+        (
+            "sphere: three sites on one great circle (lunes)",
+            lambda: hcvt.voronoi(sphere(), [(2.0, 0.0, 0.0), (0.0, 2.0, 0.0), (-2.0, 0.0, 0.0)]),
+            Gives(
+                "lunes of 90°, 135°, 135°",
+                lambda r: np.allclose(r.volume, [6 * math.pi, 4 * math.pi, 6 * math.pi]),
+            ),
+        ),
+        (
+            "sphere: two sites 1e-9 radii apart",
+            lambda: hcvt.voronoi(sphere(), [(0.0, 0.0, 2.0), (0.0, 2e-9, 2.0)]),
+            Gives("areas add up to 16π", lambda r: math.isclose(r.volume.sum(), 16 * math.pi)),
+        ),
+        (
+            "sphere: two-site CVT ends antipodal",
+            lambda: hcvt.cvt(sphere(), [(0.0, 0.0, 2.0), (2.0, 0.0, 0.0)]),
+            Gives("antipodal sites", lambda r: np.allclose(r.sites[0], -r.sites[1], atol=1e-6)),
+        ),
+        (
+            "sphere: sites of the wrong dimension",
+            lambda: hcvt.voronoi(sphere(), np.zeros((3, 2))),
+            Raises(ValueError, r"shape \(n, 3\)"),
+        ),
+        (
+            "sphere: no sites",
+            lambda: hcvt.voronoi(sphere(), np.zeros((0, 3))),
+            Raises(InvalidSitesError, "no sites"),
+        ),
+        (
+            "sphere: radius 1e-200: G given, areas (1e-400) refused",
+            lambda: hcvt.voronoi(hcvt.Domain.sphere(1e-200), [(0, 0, 1e-200), (1e-200, 0, 0)]),
+            Gives("finite G", lambda r: bool(np.isfinite(r.G).all())),
+        ),
+        (
+            "sphere: a density is refused with a message",
+            lambda: hcvt.voronoi(sphere(), [(0, 0, 2.0), (2.0, 0, 0)], density=lambda x: x[:, 0]),
+            Raises(InvalidDensityError, "densities on the sphere are not implemented yet"),
+        ),
+        (
+            "sphere: Newton is refused with a message",
+            lambda: hcvt.cvt(sphere(), [(0, 0, 2.0), (2.0, 0, 0)], "newton"),
+            Raises(ValueError, "on the sphere use method 'lbfgs' or 'lloyd'"),
+        ),
+        (
+            "sphere: an unknown initialisation",
+            lambda: hcvt.initialise(sphere(), 12, method="lattice"),
+            Raises(ValueError, "unknown method 'lattice' on the sphere"),
+        ),
+        (
+            "sphere: n = 0",
+            lambda: hcvt.initialise(sphere(), 0),
+            Raises(ValueError, "n must be a positive integer"),
+        ),
+        (
+            "sphere: n beyond the machine's memory",
+            lambda: hcvt.initialise(sphere(), 10**12),
+            Raises(ValueError, "more than the .* GB of memory"),
+        ),
+    ],
 }
+
+
+def sphere() -> hcvt.Domain:
+    return hcvt.Domain.sphere(2.0)
 
 
 # ---------------------------------------------------------------------- readers
@@ -619,7 +808,8 @@ THREADS: list[Row] = [
 
 # ---------------------------------------------------------------------- the table
 ROWS: list[Row] = (
-    [row for kind, spec in KINDS.items() for row in kind_rows(kind, spec) + SPECIFIC.get(kind, [])]
+    [row for kind, spec in KINDS.items() for row in kind_rows(kind, spec)]
+    + [row for rows in SPECIFIC.values() for row in rows]
     + READERS
     + CLI
     + THREADS

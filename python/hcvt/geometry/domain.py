@@ -28,6 +28,20 @@ from hcvt.geometry.sphere import ON_SPHERE_RTOL, SphereFrame, check_radius
 # VTK's cell type of a triangle (vtkCellType.h).
 _VTK_TRIANGLE = 5
 
+#: The 12 outward triangles of a 3D box's corners as :attr:`Domain.vertices` orders them
+#: (corner ``k`` takes ``hi`` along axis ``a`` where bit ``a`` of ``k`` is set).
+BOX_FACES = np.array(
+    [
+        [0, 2, 1], [1, 2, 3],  # z = lo
+        [4, 5, 6], [5, 7, 6],  # z = hi
+        [0, 1, 5], [0, 5, 4],  # y = lo
+        [2, 6, 7], [2, 7, 3],  # y = hi
+        [0, 4, 6], [0, 6, 2],  # x = lo
+        [1, 3, 7], [1, 7, 5],  # x = hi
+    ],
+    dtype=np.intp,
+)  # fmt: skip
+
 
 @dataclass(frozen=True)
 class RepairReport:
@@ -439,9 +453,15 @@ class Domain:
 
     @property
     def faces(self) -> NDArray[np.intp]:
-        """3D only: boundary triangles, shape (F, 3), counter-clockwise seen from outside."""
+        """3D only: boundary triangles, shape (F, 3), counter-clockwise seen from outside.
+
+        A 3D box: its six sides as 12 triangles of :attr:`vertices` (its corners), also for
+        a periodic box (where the sides along periodic axes are no boundary of the cells).
+        """
         if self.dim != 3 or self.is_sphere:
             raise AttributeError("faces exist for 3D solids only")
+        if isinstance(self._core, _core.BoxDomain3):
+            return BOX_FACES.copy()
         return np.asarray(self._core.faces)
 
     def generalized_winding_numbers(self, points: ArrayLike) -> NDArray[np.float64]:

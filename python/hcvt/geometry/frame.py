@@ -198,7 +198,7 @@ class Frame:
         """A quantity ``name`` (:data:`UNITS`) in L as the core takes it.
 
         The inverse of :meth:`to_input`: positions by :meth:`to_core`, the rest divided by
-        a power of two (exact).
+        ``s^p`` (exact for a power-of-two ``s``).
         """
         unit = UNITS[name]
         if unit is None or self.is_identity:
@@ -206,11 +206,7 @@ class Frame:
         if unit.position:
             return self.to_core(value, name)
         power = unit.power(self.dim)
-        exponent = -power * (math.frexp(self.scale)[1] - 1)
-        with np.errstate(over="ignore", under="ignore"):
-            if -1022 <= exponent <= 1023:
-                return np.ascontiguousarray(np.asarray(value) * math.ldexp(1.0, exponent))
-            return np.ascontiguousarray(_scaled(np.asarray(value), -power, self.scale))
+        return np.ascontiguousarray(_times_scale_power(np.asarray(value), -power, self.scale))
 
     def density_to_core(self, density: Any) -> Any:
         """A density in input coordinates as one in the frame: ``ρ'(x') = ρ(s x' + c)``.
@@ -272,12 +268,7 @@ class Frame:
         if power == 0:
             return value
         x = np.asarray(value, dtype=np.float64)
-        exponent = power * (math.frexp(self.scale)[1] - 1)  # s^power = 2^exponent
-        with np.errstate(over="ignore", under="ignore"):
-            if -1022 <= exponent <= 1023:
-                out = x * math.ldexp(1.0, exponent)
-            else:
-                out = _scaled(x, power, self.scale)
+        out = _times_scale_power(x, power, self.scale)
         finite = np.isfinite(x)
         over = finite & ~np.isfinite(out)
         under = finite & (x != 0) & ~(np.abs(out) >= np.finfo(np.float64).tiny)
@@ -374,6 +365,23 @@ class History(dict[str, Any]):
         if key in self.unrepresentable:
             raise UnrepresentableError(self.unrepresentable[key])
         raise KeyError(key)
+
+
+def _times_scale_power(x: NDArray[np.float64], power: int, scale: float) -> NDArray[np.float64]:
+    """``x · scale^power``, rounded once where ``scale^power`` is a normal float64.
+
+    Exact for a power-of-two scale (a polygon's or a solid's frame); for the sphere's
+    radius one more rounding. Where ``scale^power`` alone over- or underflows, a factor at
+    a time, so that entries that fit come out right and the others as inf or 0.
+    """
+    try:
+        factor = scale**power
+    except OverflowError:  # Python floats raise where numpy would give inf
+        factor = math.inf
+    with np.errstate(over="ignore", under="ignore"):
+        if math.isfinite(factor) and factor >= np.finfo(np.float64).tiny:
+            return x * factor
+        return _scaled(x, power, scale)
 
 
 def _scaled(x: NDArray[np.float64], power: int, scale: float) -> NDArray[np.float64]:

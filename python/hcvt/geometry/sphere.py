@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hcvt.errors import InvalidDensityError, InvalidSitesError
-from hcvt.geometry.frame import UNITS, Frame
+from hcvt.geometry.frame import Frame
 
 #: How far from the sphere a site may lie, relative to its radius: ``| |x| − R | ≤ rtol·R``.
 #: Sites given as unit vectors times ``R`` are within a few ulps; a site off by more is
@@ -62,27 +62,26 @@ class SphereFrame(Frame):
             The first row off the sphere, with its distance from the centre.
         """
         points = np.asarray(points, dtype=np.float64)
-        r = np.linalg.norm(points, axis=1)
-        off = ~(np.abs(r - self.scale) <= ON_SPHERE_RTOL * self.scale)
+        what = name[:-1] if name.endswith("s") else name
+        finite = np.isfinite(points)
+        if not finite.all():
+            k, j = (int(i) for i in np.argwhere(~finite)[0])
+            raise InvalidSitesError(
+                f"{what} {k} has a non-finite coordinate ({points[k, j]:g})".replace("nan", "NaN")
+            )
+        # |x| after dividing by R: |x|² itself under- or overflows for R far from 1
+        unit = points / self.scale
+        r = np.linalg.norm(unit, axis=1)
+        off = ~(np.abs(r - 1.0) <= ON_SPHERE_RTOL)
         if off.any():
             k = int(np.flatnonzero(off)[0])
-            what = name[:-1] if name.endswith("s") else name
             raise InvalidSitesError(
-                f"{what} {k} at {points[k].tolist()} is {r[k]:.17g} from the centre, not on "
-                f"the sphere of radius {self.scale:.17g} (relative tolerance "
+                f"{what} {k} at {points[k].tolist()} is {r[k] * self.scale:.17g} from the "
+                f"centre, not on the sphere of radius {self.scale:.17g} (relative tolerance "
                 f"{ON_SPHERE_RTOL:g}): {int(off.sum())} such row(s); project them first, "
                 f"x * R / |x|"
             )
-        return np.ascontiguousarray(points / r[:, None])
-
-    def quantity_to_core(self, name: str, value: NDArray[np.float64]) -> NDArray[np.float64]:
-        """A quantity ``name`` in L as the core takes it: positions by :meth:`to_core`."""
-        unit = UNITS[name]
-        if unit is None:
-            return value
-        if unit.position:
-            return self.to_core(value, name)
-        return np.ascontiguousarray(np.asarray(value) / self.scale ** unit.power(2))
+        return np.ascontiguousarray(unit / r[:, None])
 
     def density_to_core(self, density: Any) -> Any:
         """No density on the sphere yet: None passes, anything else raises."""
@@ -96,19 +95,6 @@ class SphereFrame(Frame):
     def points_to_input(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """``R · x'``."""
         return np.asarray(points) * self.scale
-
-    def to_input(self, name: str, value: Any) -> Any:
-        """The core's result ``name`` times ``R^p`` (positions times ``R``)."""
-        unit = UNITS[name]
-        if unit is None:
-            return value
-        if unit.position:
-            return self.points_to_input(value)
-        power = unit.power(2)
-        if power == 0:
-            return value
-        out = np.asarray(value, dtype=np.float64) * self.scale**power
-        return out if isinstance(value, np.ndarray) else float(out)
 
     def first_moment(self, core_first: NDArray[np.float64], core_volume: float) -> Any:
         """``∫ x dA`` over the sphere: zero."""
