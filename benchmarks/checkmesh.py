@@ -293,9 +293,11 @@ def gmsh_dual(name: str, n: int, case: Path, feature_angle: float) -> str:
     start = time.perf_counter()
     surface = "remeshed"
     try:
-        nodes, size = _gmsh_tetrahedra(stl, case / "mesh.msh", n, size, remesh=True)
-    except Exception:  # "Wrong topology of boundary mesh for parametrization" (bunny)
-        surface = "input triangles kept"
+        nodes, size = _in_time(_gmsh_tetrahedra, (stl, case / "mesh.msh", n, size, True))
+    except Exception as err:
+        # "Wrong topology of boundary mesh for parametrization" (bunny, cheese), or no
+        # remeshed surface within GMSH_SECONDS (fandisk: still running after 10 minutes)
+        surface = f"input triangles kept (remeshing: {err})"
         nodes, size = _gmsh_tetrahedra(stl, case / "mesh.msh", n, size, remesh=False)
     env = {**os.environ}
     env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
@@ -312,6 +314,24 @@ def gmsh_dual(name: str, n: int, case: Path, feature_angle: float) -> str:
     return check_mesh(case)
 
 
+#: Seconds gmsh may take to remesh a surface before its input triangles are kept instead.
+GMSH_SECONDS = 120.0
+
+
+def _in_time(function, args):  # noqa: ANN001, ANN202 (a benchmark's helper)
+    """``function(*args)`` in a child process, killed after :data:`GMSH_SECONDS`."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("fork")
+    with context.Pool(1) as pool:
+        pending = pool.apply_async(function, args)
+        try:
+            return pending.get(GMSH_SECONDS)
+        except multiprocessing.TimeoutError:
+            pool.terminate()
+            raise TimeoutError(f"no mesh after {GMSH_SECONDS:g} s") from None
+
+
 def _gmsh_tetrahedra(stl: Path, msh: Path, n: int, size: float, remesh: bool) -> tuple[int, float]:
     """Tetrahedra inside the surface ``stl`` written to ``msh``: vertices, element size.
 
@@ -324,8 +344,11 @@ def _gmsh_tetrahedra(stl: Path, msh: Path, n: int, size: float, remesh: bool) ->
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.merge(str(stl))
-        gmsh.model.mesh.classifySurfaces(np.radians(40.0), True, remesh, np.pi)
-        gmsh.model.mesh.createGeometry()
+        if remesh:
+            gmsh.model.mesh.classifySurfaces(np.radians(40.0), True, True, np.pi)
+            gmsh.model.mesh.createGeometry()
+        # else the merged triangles are one discrete surface, kept as the boundary mesh
+        # (gmsh's own recipe: Surface Loop + Volume on the STL, no parametrisation)
         surfaces = [tag for _, tag in gmsh.model.getEntities(2)]
         loop = gmsh.model.geo.addSurfaceLoop(surfaces)
         volume = gmsh.model.geo.addVolume([loop])
@@ -337,7 +360,8 @@ def _gmsh_tetrahedra(stl: Path, msh: Path, n: int, size: float, remesh: bool) ->
         for attempt in range(3):  # the element size that gives about n vertices
             gmsh.option.setNumber("Mesh.MeshSizeMin", size)
             gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-            gmsh.model.mesh.clear()
+            if remesh:  # clearing would drop the kept input triangles too
+                gmsh.model.mesh.clear()
             gmsh.model.mesh.generate(3)
             nodes = len(gmsh.model.mesh.getNodes()[0])
             if abs(nodes / n - 1) < 0.1 or attempt == 2 or not remesh:

@@ -291,10 +291,10 @@ def test_newton_with_a_polynomial_density_converges_with_fewer_diagrams() -> Non
     domain = hcvt.load_domain(DATA / "2d" / "triangle_double_hex.geojson")
     sites = hcvt.initialise(domain, 200, seed=2)
     newton = hcvt.cvt(domain, sites, method="newton", density=RHO_2D, tol=1e-9)
-    lbfgs = hcvt.cvt(domain, sites, density=RHO_2D, tol=1e-9)
+    lbfgs = hcvt.cvt(domain, sites, "lbfgs", density=RHO_2D, tol=1e-9)
     assert newton.converged and lbfgs.converged
     assert newton.evaluations < lbfgs.evaluations, (newton.evaluations, lbfgs.evaluations)
-    near = hcvt.cvt(domain, sites, density=RHO_2D, tol=1e-6)
+    near = hcvt.cvt(domain, sites, "lbfgs", density=RHO_2D, tol=1e-6)
     again = hcvt.cvt(domain, near.sites, method="newton", density=RHO_2D, tol=1e-13)
     gaps = again.history["rms_gap"]
     assert again.converged and again.iterations <= 10, gaps

@@ -162,7 +162,7 @@ def test_initialise(method, star):
 
 def test_hierarchical_and_regular(star):
     domain, _ = star
-    h = hcvt.hierarchical_cvt(domain, 160, 2, seed=5, max_iter=30)
+    h = hcvt.hierarchical_cvt(domain, 160, 2, seed=5, max_iter=30, method="lbfgs")
     check("hierarchical_2d", {"sites": h.sites, "history": _history(h)})
     r = hcvt.regular_cvt(domain, 120, seed=6, moves=4, max_iter=30)
     check("regular_2d", {"sites": r.sites, "G": r.diagram.G})

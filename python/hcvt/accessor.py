@@ -101,7 +101,7 @@ class HcvtAccessor:
         n: int | None = None,
         *,
         sites: ArrayLike | None = None,
-        method: str = "lbfgs",
+        method: str | None = None,
         init: str = "random",
         seed: int = 0,
         repair: bool = False,
@@ -115,7 +115,8 @@ class HcvtAccessor:
             Number of starting sites placed with :func:`hcvt.initialise`.
         sites : array_like of float, shape (n, 3), optional
             The starting sites instead of ``n``.
-        method : {"lbfgs", "newton", "lloyd"}, default "lbfgs"
+        method : {"newton", "lbfgs", "lloyd"}, optional
+            Default: the fastest the solid takes (:func:`hcvt.optimise.fastest_method`).
         init, seed, repair
             As in :meth:`voronoi`.
         **options

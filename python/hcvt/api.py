@@ -118,7 +118,7 @@ def voronoi(
 def cvt(
     domain: Domain,
     sites: ArrayLike,
-    method: str = "lbfgs",
+    method: str | None = None,
     *,
     rule: str = "gap",
     tol: float | None = None,
@@ -140,13 +140,16 @@ def cvt(
         sites move across the sides and come back wrapped); length unit L.
     sites : array_like of float, shape (n, d)
         Initial sites: finite, distinct, inside the domain. Not modified.
-    method : {"lbfgs", "newton", "lloyd"}
-        L-BFGS (memory ``memory``, strong-Wolfe line search, preconditioned so that its
-        first step is a Lloyd step; the paper's method), Newton (the exact Hessian from
-        the same diagram, truncated conjugate gradients in a trust region; 3-5x fewer
-        diagrams from random sites, see ``hcvt-core/src/optimise/newton.rs``; the Hessian
-        takes about 0.2 kB per site in 2D and 1.2 kB in 3D on top of the diagram) or Lloyd's
-        ``x_i <- c_i``.
+    method : {"newton", "lbfgs", "lloyd"}, optional
+        Newton (the exact Hessian from the same diagram, truncated conjugate gradients in
+        a trust region; 3-5x fewer diagrams than L-BFGS from random sites, see
+        ``hcvt-core/src/optimise/newton.rs``; the Hessian takes about 0.2 kB per site in
+        2D and 1.2 kB in 3D on top of the diagram), L-BFGS (memory ``memory``,
+        strong-Wolfe line search, preconditioned so that its first step is a Lloyd step;
+        the paper's method) or Lloyd's ``x_i <- c_i``. Default: the fastest the domain
+        takes (:func:`hcvt.optimise.fastest_method`): Newton on polygons, solids and
+        plain boxes without a density or with a polynomial one, in one process; L-BFGS
+        elsewhere (periodic boxes, the sphere, a sampled density, ``client=``).
     rule : {"gap", "paper"}
         Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
         (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates
@@ -231,6 +234,7 @@ def cvt(
         raise NotImplementedError("partitioned CVTs on the sphere are not implemented yet")
     if client is None:
         return optimise.cvt(domain, sites, method, **options)
+    method = method or optimise.fastest_method(domain, density, partitioned=True)
     per_part = sites_per_partition or DEFAULT_SITES_PER_PARTITION
     return partitioned_cvt(
         domain, sites, method, client, sites_per_partition=per_part, **options

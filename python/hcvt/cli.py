@@ -33,7 +33,7 @@ from hcvt.experiments import reproduce as run_experiment
 from hcvt.geometry.shapes import BUILTIN, builtin_domain
 from hcvt.lazy import load
 from hcvt.mesh import merged_boundary, mesh_quality
-from hcvt.optimise import RULES, default_tol
+from hcvt.optimise import RULES, default_tol, fastest_method
 
 METHODS = ("hierarchical", "regular", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
 OPTIMISERS = ("lbfgs", "newton", "lloyd")
@@ -79,8 +79,9 @@ def _load(input_: str, repair: bool):
     "--optimiser",
     type=click.Choice(OPTIMISERS),
     default=None,
-    help="Optimiser of every hierarchy level (newton: often 2-4x faster) or of the regular "
-    "method's CVTs [default: lbfgs hierarchical, newton regular].",
+    help="Optimiser of every hierarchy level or of the regular method's CVTs [default: the "
+    "fastest the domain takes: newton, or lbfgs on periodic boxes, the sphere, with a "
+    "sampled density or --scheduler].",
 )
 @click.option(
     "--moves",
@@ -204,7 +205,7 @@ def run(
     )
     if domain.repair_report is not None:
         click.echo(str(domain.repair_report))
-    optimiser = optimiser or ("newton" if method == "regular" else "lbfgs")
+    optimiser = optimiser or fastest_method(domain, density, partitioned=scheduler is not None)
     start = time.perf_counter()
     iterations: int | None = None
     history: dict[str, Any] | None = None

@@ -362,7 +362,7 @@ def hierarchical_cvt(
     tol: float | None = None,
     max_iter: int = 10_000,
     edges: str = "restricted",
-    method: str = "lbfgs",
+    method: str | None = None,
     callback: Any = None,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
@@ -393,8 +393,9 @@ def hierarchical_cvt(
         Iterations per level at most.
     edges : {"restricted", "delaunay"}
         Which Delaunay edges are subdivided (see :func:`subdivide`).
-    method : {"lbfgs", "newton", "lloyd"}
-        The optimiser of every level (:func:`hcvt.cvt`); the paper's is L-BFGS.
+    method : {"newton", "lbfgs", "lloyd"}, optional
+        The optimiser of every level (:func:`hcvt.cvt`); the paper's is L-BFGS. Default:
+        the fastest the domain takes (:func:`hcvt.optimise.fastest_method`).
     callback : callable, optional
         Called with each finished :class:`Level`; a true return value or ``StopIteration``
         ends the run after that level (the result then holds the levels made).
