@@ -303,7 +303,7 @@ def run(
                 sites, diagram, iterations = run.sites, run.diagram, run.iterations
                 history = run.history
     seconds = time.perf_counter() - start
-    info = {
+    info: dict[str, Any] = {
         "input": input_,
         "method": method,
         "optimiser": optimiser if method in ("hierarchical", "regular") else None,

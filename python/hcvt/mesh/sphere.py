@@ -294,6 +294,8 @@ def _delaunay_triangles(offsets: IntArray, ring: IntArray) -> tuple[IntArray, li
     Faces are traced on half-edges: the face left of ``i → j`` continues with ``j → k``,
     ``k`` the neighbour of ``j`` just before ``i`` counter-clockwise. A face of ``k > 3``
     sites (cocircular) is fanned from its smallest site; the rows of each fan are listed.
+    Triangles start at their smallest site and are sorted: the numbering does not depend
+    on the tangent frames (a rotated mesh is numbered alike).
     """
     n = len(offsets) - 1
     degree = np.diff(offsets)
@@ -312,7 +314,10 @@ def _delaunay_triangles(offsets: IntArray, ring: IntArray) -> tuple[IntArray, li
     in_triangle = succ[s2] == np.arange(len(ring))
     first = in_triangle & (np.arange(len(ring)) < succ) & (np.arange(len(ring)) < s2)
     e = np.flatnonzero(first)
-    triangles = [np.stack([src[e], src[succ[e]], src[s2[e]]], axis=1)]
+    traced = np.stack([src[e], src[succ[e]], src[s2[e]]], axis=1)
+    lowest = np.argmin(traced, axis=1)
+    traced = np.take_along_axis(traced, (lowest[:, None] + np.arange(3)) % 3, axis=1)
+    triangles = [traced]
     fans: list[IntArray] = []
     count = len(e)
     seen = in_triangle.copy()
@@ -334,7 +339,11 @@ def _delaunay_triangles(offsets: IntArray, ring: IntArray) -> tuple[IntArray, li
         triangles.append(fan)
         fans.append(np.arange(count, count + len(fan)))
         count += len(fan)
-    return np.concatenate(triangles).astype(np.intp), fans
+    out = np.concatenate(triangles).astype(np.intp)
+    order = np.lexsort((out[:, 2], out[:, 1], out[:, 0]))
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return out[order], [np.sort(rank[rows]) for rows in fans]
 
 
 def _circumcentres(x: FloatArray, triangles: IntArray, fans: list[IntArray]) -> FloatArray:
@@ -389,7 +398,8 @@ def _cell_sides(x: FloatArray, triangles: IntArray) -> tuple[IntArray, IntArray,
     """Each cell's neighbours and vertices counter-clockwise, CSR, from the triangles.
 
     Corner ``(i; j, k)`` of triangle ``t`` puts neighbour ``j`` and then vertex ``t`` in
-    cell ``i``; the next corner around ``i`` must begin with ``k`` (checked).
+    cell ``i``; the next corner around ``i`` must begin with ``k`` (checked). Each cell's
+    sides start at its smallest neighbour.
     """
     n = len(x)
     t = np.repeat(np.arange(len(triangles), dtype=np.intp), 3)
@@ -405,7 +415,13 @@ def _cell_sides(x: FloatArray, triangles: IntArray) -> tuple[IntArray, IntArray,
     if not np.array_equal(first[following], second):
         bad = int(centre[np.flatnonzero(first[following] != second)[0]])
         raise ValueError(f"the triangles around cell {bad} do not close up in order")
-    return offsets, first.astype(np.intp), t
+    smallest = np.full(n, np.iinfo(np.intp).max)
+    np.minimum.at(smallest, centre, first)
+    shift = np.zeros(n, dtype=np.intp)
+    at_smallest = first == smallest[centre]
+    shift[centre[at_smallest]] = pos[at_smallest]
+    rotated = offsets[centre] + (pos + shift[centre]) % degree[centre]
+    return offsets, first[rotated].astype(np.intp), t[rotated]
 
 
 # ---------------------------------------------------------------------------- quality
