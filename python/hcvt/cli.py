@@ -316,6 +316,8 @@ def run(
         "seed": seed,
         "density": None if density is None else repr(density),
     }
+    if domain.is_sphere:
+        info["radius"] = domain.radius
     found = None if domain.is_sphere else hcvt.defects(diagram)
     if found is not None:
         info.update(found.summary())
@@ -587,7 +589,8 @@ def show(summary: str, plot: str) -> None:
         )
     except EOFError as err:  # np.load of an empty file; click would say only "Aborted!"
         raise ValueError(f"{sites_path}: cannot read sites ({err})") from err
-    domain = _load(info["input"], False)
+    domain = _load(info["input"], False, info.get("radius", 1.0))
+    _check_outputs(domain, None, plot)
     _plot(hcvt.voronoi(domain, sites), plot)
 
 

@@ -260,14 +260,16 @@ def _tangent_angles(x: FloatArray, src: IntArray, dst: IntArray) -> FloatArray:
 
     Increasing counter-clockwise seen from outside (frame ``e1, e2 = x × e1``, ``x``).
     """
-    origin = x[src]
-    # e1: x crossed with the axis least aligned with it, so that it is never short.
-    axis = np.zeros_like(origin)
-    axis[np.arange(len(origin)), np.argmin(np.abs(origin), axis=1)] = 1.0
-    e1 = _normalised(np.cross(origin, axis))
-    e2 = np.cross(origin, e1)
-    d = x[dst] - origin
-    return np.asarray(np.arctan2(np.sum(d * e2, -1), np.sum(d * e1, -1)))
+    # e1: x crossed with the axis least aligned with it, so that it is never short; one
+    # frame per site.
+    axis = np.zeros_like(x)
+    axis[np.arange(len(x)), np.argmin(np.abs(x), axis=1)] = 1.0
+    e1 = _normalised(np.cross(x, axis))
+    e2 = np.cross(x, e1)
+    d = x[dst] - x[src]
+    return np.asarray(
+        np.arctan2(np.einsum("ij,ij->i", d, e2[src]), np.einsum("ij,ij->i", d, e1[src]))
+    )
 
 
 def _rings(x: FloatArray, pairs: IntArray) -> tuple[IntArray, IntArray]:
