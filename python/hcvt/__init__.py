@@ -20,7 +20,8 @@ from hcvt.errors import (
     InvalidSitesError,
 )
 from hcvt.geometry import Domain, RepairReport
-from hcvt.io import load_domain, write_cells, write_mesh
+from hcvt.io import load_domain, write_cells, write_mesh, write_mpas
+from hcvt.mesh import sphere_quality
 from hcvt.optimise import CVTResult
 from hcvt.seeding import (
     HierarchicalResult,
@@ -61,9 +62,11 @@ __all__ = [
     "plot",
     "regular_cvt",
     "set_num_threads",
+    "sphere_quality",
     "voronoi",
     "write_cells",
     "write_mesh",
+    "write_mpas",
 ]
 __version__ = "0.1.0"
 

@@ -5,6 +5,7 @@ hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
 hcvt run bunny.off -n 50000 --mesh case/ --cells cells.vtu
 hcvt run bunny.off -n 50000 --method newton --mesh case/ --mesh-boundary exact
 hcvt run square -n 1033 --method regular --moves 60 --plot square.png
+hcvt run sphere -n 2562 --radius 6371229 --out base_mesh.nc
 hcvt run unit-square -n 5000 --density "1 + 99*x^2" --plot graded.png
 hcvt show result.json --plot cells.png
 hcvt reproduce table4 --runs 10 --out results
@@ -34,10 +35,13 @@ from hcvt.geometry.shapes import BUILTIN, builtin_domain
 from hcvt.lazy import load
 from hcvt.mesh import merged_boundary, mesh_quality
 from hcvt.optimise import RULES, default_tol, fastest_method
+from hcvt.seeding.sphere import icosahedral_level
 
 METHODS = ("hierarchical", "regular", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
 OPTIMISERS = ("lbfgs", "newton", "lloyd")
-INITS = ("random", "halton", "hammersley", "lattice")
+INITS = ("random", "halton", "hammersley", "lattice", "fibonacci", "icosahedral")
+#: The built-in sphere, of radius --radius (not a shape of hcvt.geometry.shapes: it has one).
+SPHERE = "sphere"
 
 
 class _OneLineErrors(click.Group):
@@ -59,12 +63,14 @@ def main() -> None:
     """Regular centroidal Voronoi tessellations of polygons and closed meshes."""
 
 
-def _load(input_: str, repair: bool):
+def _load(input_: str, repair: bool, radius: float = 1.0):
 
+    if input_ == SPHERE:
+        return hcvt.Domain.sphere(radius)
     if input_ in BUILTIN:
         return builtin_domain(input_)
     if not Path(input_).suffix and not Path(input_).exists():
-        known = ", ".join(sorted(BUILTIN))
+        known = ", ".join(sorted([*BUILTIN, SPHERE]))
         raise ValueError(f"{input_!r} is no file and no built-in shape ({known})")
     return hcvt.load_domain(input_, repair=repair)
 
@@ -72,8 +78,27 @@ def _load(input_: str, repair: bool):
 @main.command()
 @click.argument("input_", metavar="INPUT")
 @click.option("-n", "--sites", "n", type=int, required=True, help="Number of sites.")
-@click.option("--method", type=click.Choice(METHODS), default="hierarchical", show_default=True)
-@click.option("--init", type=click.Choice(INITS), default="random", show_default=True)
+@click.option(
+    "--method",
+    type=click.Choice(METHODS),
+    default=None,
+    help="[default: hierarchical; on the sphere the fastest optimiser it takes]",
+)
+@click.option(
+    "--init",
+    type=click.Choice(INITS),
+    default=None,
+    help="Initial sites (fibonacci, icosahedral: the sphere only) [default: random; on the "
+    "sphere icosahedral when N = 10*4^k + 2, else fibonacci].",
+)
+@click.option(
+    "--radius",
+    type=float,
+    default=1.0,
+    show_default=True,
+    help="INPUT sphere: its radius; lengths and areas of --out .nc in its units (MPAS-A "
+    "grid files: 1, scaled by the model; MPAS-Ocean: 6371229 m, MPAS-Tools' Earth).",
+)
 @click.option("--subdivisions", type=int, default=None, help="Hierarchy levels s.")
 @click.option(
     "--optimiser",
@@ -103,7 +128,11 @@ def _load(input_: str, repair: bool):
 )
 @click.option("--max-iter", type=int, default=10_000, show_default=True)
 @click.option("--repair", is_flag=True, help="Repair an invalid polygon or mesh first.")
-@click.option("--out", type=click.Path(dir_okay=False), help="Sites: .npy or .csv.")
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False),
+    help="Sites: .npy or .csv; on the sphere also .nc, an MPAS mesh file (hcvt.write_mpas).",
+)
 @click.option(
     "--cells",
     "cells_path",
@@ -168,8 +197,9 @@ def _load(input_: str, repair: bool):
 def run(
     input_: str,
     n: int,
-    method: str,
-    init: str,
+    method: str | None,
+    init: str | None,
+    radius: float,
     subdivisions: int | None,
     optimiser: str | None,
     moves: int,
@@ -190,7 +220,7 @@ def run(
     sizing_spec: str | None,
     quadrature_degree: int,
 ) -> None:
-    """CVT of N sites in INPUT: a built-in shape (square, star, ...) or a polygon/mesh file."""
+    """CVT of N sites in INPUT: a built-in shape (square, star, sphere, ...) or a file."""
     if scheduler is not None and method not in PARTITIONED:
         raise click.UsageError(
             f"--scheduler runs the methods {', '.join(PARTITIONED)}, not {method!r}"
@@ -198,7 +228,9 @@ def run(
     pieces = cells_path is not None and Path(cells_path).suffix.lower() == ".pvtu"
     if pieces and scheduler is None:
         raise click.UsageError("--cells .pvtu (one piece per part) needs --scheduler")
-    domain = _load(input_, repair)
+    domain = _load(input_, repair, radius)
+    method, init = _defaults(domain, n, method, init)
+    _check_outputs(domain, out, plot)
     density = _density(density_spec, sizing_spec, domain.dim)
     weighted: dict[str, Any] = (
         {} if density is None else {"density": density, "quadrature_degree": quadrature_degree}
@@ -272,7 +304,7 @@ def run(
                 sites, diagram, iterations = run.sites, run.diagram, run.iterations
                 history = run.history
     seconds = time.perf_counter() - start
-    info = {
+    info: dict[str, Any] = {
         "input": input_,
         "method": method,
         "optimiser": optimiser if method in ("hierarchical", "regular") else None,
@@ -285,8 +317,11 @@ def run(
         "seed": seed,
         "density": None if density is None else repr(density),
     }
-    found = hcvt.defects(diagram)
-    info.update(found.summary())
+    if domain.is_sphere:
+        info["radius"] = domain.radius
+    found = None if domain.is_sphere else hcvt.defects(diagram)
+    if found is not None:
+        info.update(found.summary())
     if method != "voronoi":
         info["rule"] = rule
         info["tol"] = default_tol(rule) if tol is None else tol
@@ -296,16 +331,22 @@ def run(
         f"n = {info['n']}  mean G = {info['mean_G']:.6f}  energy = {info['energy']:.6g}  "
         f"iterations = {iterations}  seconds = {seconds:.2f}"
     )
-    click.echo(
-        f"interior defects = {found.number} of {found.interior_cells} interior cells "
-        f"({100 * found.fraction:.1f}%), {found.deep_number} away from the boundary layer"
-    )
+    if found is not None:
+        click.echo(
+            f"interior defects = {found.number} of {found.interior_cells} interior cells "
+            f"({100 * found.fraction:.1f}%), {found.deep_number} away from the boundary layer"
+        )
+    else:
+        info["sphere_quality"] = _sphere_quality(diagram)
     if history is not None:
         click.echo(
             f"rule = {rule}  RMS gap = {info['rms_gap']:.2e}  max gap = {info['max_gap']:.2e}  "
             f"|g|/|X| = {info['grad_norm']:.2e}  pinned = {info['pinned']}"
         )
-    if out:
+    if out and Path(out).suffix.lower() == ".nc":
+        hcvt.write_mpas(diagram, out)
+        info["mpas_mesh"] = str(out)
+    elif out:
         _write_sites(Path(out), sites)
         info["sites"] = str(out)
     if cells_path or mesh_dir:
@@ -314,6 +355,39 @@ def run(
         _plot(diagram, plot)
     if summary:
         Path(summary).write_text(json.dumps(info, indent=2))
+
+
+def _defaults(domain: Any, n: int, method: str | None, init: str | None) -> tuple[str, str]:
+    """--method and --init as given, or their defaults for the domain (see their help)."""
+    if domain.is_sphere:
+        fits = icosahedral_level(n) is not None
+        return method or fastest_method(domain), init or ("icosahedral" if fits else "fibonacci")
+    return method or "hierarchical", init or "random"
+
+
+def _check_outputs(domain: Any, out: str | None, plot: str | None) -> None:
+    """Refuse, before any work, outputs the domain does not have."""
+    if out and Path(out).suffix.lower() == ".nc" and not domain.is_sphere:
+        raise ValueError("--out .nc writes an MPAS mesh, for INPUT sphere only")
+    if plot and domain.is_sphere:
+        raise ValueError(
+            "--plot draws planar and solid cells; view spherical ones with "
+            "hcvt.voronoi(...).to_pyvista()"
+        )
+
+
+def _sphere_quality(diagram: Any) -> dict[str, Any]:
+    """Print the spherical mesh's quality as MPAS users read it; the summary's entry."""
+    quality = hcvt.sphere_quality(diagram).summary()
+    sides = ", ".join(f"{count} with {k}" for k, count in quality["sides"].items())
+    angles = f"{quality['triangle_angle_min_deg']:.1f}-{quality['triangle_angle_max_deg']:.1f}"
+    click.echo(
+        f"cells by sides: {sides}  cell quality (shortest/longest edge) min "
+        f"{quality['cell_quality_min']:.3f}  triangle angles {angles} deg "
+        f"({quality['obtuse_triangles']} obtuse)  "
+        f"grid spacing {quality['grid_spacing_min']:.4g}-{quality['grid_spacing_max']:.4g}"
+    )
+    return quality
 
 
 def _write_meshes(
@@ -516,7 +590,8 @@ def show(summary: str, plot: str) -> None:
         )
     except EOFError as err:  # np.load of an empty file; click would say only "Aborted!"
         raise ValueError(f"{sites_path}: cannot read sites ({err})") from err
-    domain = _load(info["input"], False)
+    domain = _load(info["input"], False, info.get("radius", 1.0))
+    _check_outputs(domain, None, plot)
     _plot(hcvt.voronoi(domain, sites), plot)
 
 

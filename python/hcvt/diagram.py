@@ -20,6 +20,7 @@ from hcvt.io.geo import to_geodataframe
 from hcvt.io.writers import to_pyvista
 from hcvt.mesh.cells import polygons, triangulated
 from hcvt.mesh.polymesh import PolyMesh
+from hcvt.mesh.sphere import SphereMesh, spherical_mesh
 
 # Faces shorter (2D) or smaller (3D) than this fraction of h^(d-1), h = (V/n)^(1/d), are
 # not restricted Delaunay edges: lattices produce faces of zero measure up to round-off.
@@ -124,6 +125,7 @@ class Diagram(Shows):
         self.neighbor_sites: NDArray[np.intp] = arrays["neighbor_sites"]
         self._allow_outside = allow_outside
         self._mesh: PolyMesh | None = None
+        self._sphere_mesh: SphereMesh | None = None
 
     @property
     def neighbor_images(self) -> NDArray[np.int8] | None:
@@ -270,7 +272,10 @@ class Diagram(Shows):
             and ``boundary_element``; interior faces first, sorted by (owner, neighbour).
         """
         if self.domain.is_sphere:
-            raise NotImplementedError("conforming meshes of spherical cells: a later slice")
+            raise NotImplementedError(
+                "spherical cells have no PolyMesh: use Diagram.spherical_mesh() (MPAS's "
+                "layout), Diagram.cells() (each cell's vertices) or hcvt.write_mpas"
+            )
         if self._mesh is None:
             with self.domain.frame.input_errors():
                 arrays = _core.mesh(
@@ -287,8 +292,33 @@ class Diagram(Shows):
             )
         return self._mesh
 
+    def spherical_mesh(self) -> SphereMesh:
+        """The cells on the sphere as a mesh of cells, edges and vertices, made once.
+
+        MPAS's layout (0-based): topology from :attr:`neighbors`, each cell's neighbours
+        counter-clockwise seen from outside, the Delaunay triangles between them, and the
+        Voronoi vertices as their circumcentres on the sphere (from the sites alone);
+        cocircular sites give edges of length zero (:mod:`hcvt.mesh.sphere`). Each arc's
+        length (``dv_edge``) equals :attr:`face_measures` to round-off. Written by
+        :func:`hcvt.write_mpas`; its quality by :func:`hcvt.sphere_quality`.
+
+        Raises
+        ------
+        ValueError
+            The domain is not :meth:`hcvt.Domain.sphere`, or the sites are too few (a
+            cell with fewer than three neighbours, or cells reaching a hemisphere).
+        """
+        if not self.domain.is_sphere:
+            raise ValueError("spherical_mesh() is for diagrams on hcvt.Domain.sphere; use mesh()")
+        if self._sphere_mesh is None:
+            self._sphere_mesh = spherical_mesh(self._core_sites, self.neighbors, self.domain.radius)
+        return self._sphere_mesh
+
     def cells(self) -> list[Any]:
         """Geometry of every clipped cell, read off :meth:`mesh`.
+
+        On the sphere: each cell's vertices, (k, 3) in L, counter-clockwise seen from
+        outside (:meth:`spherical_mesh`; consecutive vertices joined by great-circle arcs).
 
         2D: a list of shapely Polygons (with holes where a cell has them), MultiPolygons
         for cells in several pieces, or empty Polygons.
@@ -297,6 +327,8 @@ class Diagram(Shows):
         triangulation of each clipped cell's boundary (its mesh faces fanned from their
         first vertex; both arrays empty for an empty cell).
         """
+        if self.domain.is_sphere:
+            return list(self.spherical_mesh().cell_polygons())
         mesh = self.mesh()
         return triangulated(mesh) if self.domain.dim == 3 else polygons(mesh)
 
@@ -305,7 +337,9 @@ class Diagram(Shows):
 
         For interactive viewing (``diagram.to_pyvista().plot()``); cell data ``site``,
         ``volume``, ``G``. Needs pyvista, an optional extra (``pip install 'hcvt[viz]'``),
-        and ``Diagram.mesh()``. See :func:`hcvt.io.to_pyvista`.
+        and ``Diagram.mesh()``. See :func:`hcvt.io.to_pyvista`. On the sphere a
+        ``pyvista.PolyData`` of the cells as polygons through their vertices (flat between
+        them), cell data ``site``, ``area`` and ``G``.
         """
         return to_pyvista(self)
 

@@ -5,14 +5,24 @@ The names users import as ``hcvt.export.*`` (README), gathered from where they l
 (the writers).
 """
 
-from hcvt.io import as_polymesh, to_pyvista, write_geojson, write_mesh, write_openfoam, write_vtu
+from hcvt.io import (
+    as_polymesh,
+    to_pyvista,
+    write_geojson,
+    write_mesh,
+    write_mpas,
+    write_openfoam,
+    write_vtu,
+)
 from hcvt.io.solver import LaplaceCheck, OpenFOAMError, laplace_check
 from hcvt.mesh import (
     MergeReport,
     MeshQuality,
+    SphereQuality,
     boundary_patches,
     merged_boundary,
     mesh_quality,
+    sphere_quality,
 )
 
 __all__ = [
@@ -20,14 +30,17 @@ __all__ = [
     "MergeReport",
     "MeshQuality",
     "OpenFOAMError",
+    "SphereQuality",
     "as_polymesh",
     "boundary_patches",
     "laplace_check",
     "merged_boundary",
     "mesh_quality",
+    "sphere_quality",
     "to_pyvista",
     "write_geojson",
     "write_mesh",
+    "write_mpas",
     "write_openfoam",
     "write_vtu",
 ]

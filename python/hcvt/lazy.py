@@ -26,6 +26,7 @@ LAZY = {
     "pyproj": "geo",  # coordinate reference systems of GIS input: Domain.crs
     "geopandas": "geo",  # GIS files and GeoDataFrames: load_domain, Diagram.to_geopandas()
     "pandas": "geo",  # the index of Diagram.to_geopandas()
+    "xarray": "mpas",  # MPAS mesh files of spherical diagrams: hcvt.write_mpas (netCDF4)
 }
 
 

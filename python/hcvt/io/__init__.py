@@ -14,6 +14,8 @@
     the index of a VTU written in pieces
 :mod:`~hcvt.io.openfoam`
     OpenFOAM cases (constant/polyMesh, system/, 0/)
+:mod:`~hcvt.io.mpas`
+    MPAS mesh files (NetCDF) of diagrams on the sphere
 :mod:`~hcvt.io.geojson`
     2D cells on shared vertices
 :mod:`~hcvt.io.solver`
@@ -22,6 +24,7 @@
 
 from hcvt.io.cells import write_cells
 from hcvt.io.geojson import write_geojson
+from hcvt.io.mpas import mpas_dataset, write_mpas
 from hcvt.io.openfoam import write_openfoam
 from hcvt.io.readers import load_domain, read_mesh, read_polygon
 from hcvt.io.solver import LaplaceCheck, OpenFOAMError, laplace_check
@@ -33,6 +36,7 @@ __all__ = [
     "OpenFOAMError",
     "as_polymesh",
     "laplace_check",
+    "mpas_dataset",
     "load_domain",
     "read_mesh",
     "read_polygon",
@@ -40,6 +44,7 @@ __all__ = [
     "write_cells",
     "write_geojson",
     "write_mesh",
+    "write_mpas",
     "write_openfoam",
     "write_vtu",
 ]

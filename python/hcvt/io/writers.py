@@ -138,15 +138,40 @@ def to_pyvista(source: Any) -> Any:
     temporary VTU (:func:`write_vtu`), so what you see is what the file holds: cell data
     ``site`` and, for a diagram, ``volume`` and ``G``.
 
+    On the sphere (a diagram of :meth:`hcvt.Domain.sphere`): a ``pyvista.PolyData`` of
+    the cells as polygons through their vertices (:meth:`hcvt.Diagram.spherical_mesh`),
+    cell data ``site``, ``area`` and ``G``.
+
     Raises
     ------
     ImportError
         pyvista is not installed.
     """
     pyvista = load("pyvista")
+    domain = getattr(source, "domain", None)
+    if domain is not None and domain.is_sphere:
+        return _sphere_polydata(pyvista, source)
     mesh, _, data = as_polymesh(source)
     with tempfile.TemporaryDirectory() as tmp:
         file = write_vtu(mesh, Path(tmp) / "mesh.vtu", cell_data=data)
         grid = pyvista.read(file)
         grid.points = np.array(grid.points)  # detached from the reader before tmp goes
     return grid
+
+
+def _sphere_polydata(pyvista: Any, diagram: Any) -> Any:
+    """The spherical cells as a PolyData of polygons on the shared Voronoi vertices."""
+    mesh = diagram.spherical_mesh()
+    counts = mesh.n_edges_on_cell
+    # VTK's legacy cell array: each polygon's vertex count, then its vertices.
+    starts = mesh.cell_offsets[:-1] + np.arange(mesh.n_cells)
+    faces = np.empty(len(mesh.vertices_on_cell) + mesh.n_cells, dtype=np.int64)
+    faces[starts] = counts
+    inside = np.ones(len(faces), dtype=bool)
+    inside[starts] = False
+    faces[inside] = mesh.vertices_on_cell
+    poly = pyvista.PolyData(mesh.vertices * mesh.radius, faces=faces)
+    poly.cell_data["site"] = np.arange(mesh.n_cells)
+    poly.cell_data["area"] = diagram.volume
+    poly.cell_data["G"] = diagram.G
+    return poly

@@ -8,18 +8,23 @@
 | :mod:`~hcvt.mesh.patches` | the boundary's patches (connected components or labels) |
 | :mod:`~hcvt.mesh.parts` | cells in several parts: all but the largest joined to neighbours |
 | :mod:`~hcvt.mesh.merge` | boundary pieces checkMesh would flag, merged |
+| :mod:`~hcvt.mesh.sphere` | a spherical diagram as MPAS's cells, edges, vertices; its quality |
 """
 
 from hcvt.mesh.merge import MergeReport, merged_boundary
 from hcvt.mesh.patches import boundary_patches
 from hcvt.mesh.polymesh import PolyMesh
 from hcvt.mesh.quality import MeshQuality, mesh_quality
+from hcvt.mesh.sphere import SphereMesh, SphereQuality, sphere_quality
 
 __all__ = [
     "MergeReport",
     "MeshQuality",
     "PolyMesh",
+    "SphereMesh",
+    "SphereQuality",
     "boundary_patches",
     "merged_boundary",
     "mesh_quality",
+    "sphere_quality",
 ]
