@@ -242,6 +242,10 @@ def test_icosahedral_cvt_has_exactly_twelve_pentagons(icosahedral):
     assert summary["obtuse_triangles"] == 0 and summary["zero_length_edges"] == 0
     assert np.array_equal(quality.grid_spacing, ds.gridSpacing.values)
     assert np.array_equal(quality.cell_quality, ds.cellQuality.values)
+    # the regularity measure of the flat kinds counts the same cells (6 is ideal on S²)
+    found = hcvt.defects(diagram)
+    assert found.number == 12 and found.interior_cells == 2562
+    assert np.array_equal(found.defective, sides != 6)
 
 
 def test_quality_figures_from_the_file(random):

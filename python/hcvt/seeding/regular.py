@@ -140,10 +140,11 @@ def defects(diagram: Diagram) -> Defects:
     """The defect measure of a diagram: interior cells without 6 (2D) / 14 (3D) neighbours.
 
     An interior cell is one with ``boundary_measure == 0``; boundary cells are left out,
-    since no count is right for them.
+    since no count is right for them. Cells of dimension 2 on the sphere are all interior
+    and ideal with 6 neighbours (an icosahedral CVT has exactly 12 defects, its pentagons).
     """
     counts = neighbor_counts(diagram)
-    ideal = IDEAL_NEIGHBORS[diagram.domain.dim]
+    ideal = IDEAL_NEIGHBORS[diagram.domain.cell_dim]
     interior = diagram.boundary_measure == 0
     # A cell is deep when no edge joins it to a boundary cell.
     i, j = diagram.neighbors.T
