@@ -158,6 +158,7 @@ def voronoi(
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
+    weights: _Float1 | None = None,
 ) -> DiagramArrays: ...
 def mesh(domain: _Domain, sites: _Float2, allow_outside: bool = False) -> MeshArrays: ...
 

@@ -12,6 +12,53 @@ use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::knn::{NearScratch, SiteIndex};
 
+/// The weights of a power (Laguerre) diagram (DESIGN §14), one per site of the computation
+/// (a periodic box's images carry their site's), `L²`: cell `i` is
+/// `{x : |x − z_i|² − w_i ≤ |x − z_j|² − w_j}`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Power<'a> {
+    weights: &'a [f64],
+    /// `max_j w_j`: `w_max − w_i ≥ 0` is how much farther than site `i` a site may lie and
+    /// still cut its cell (the stopping rule of [`Power::reach2`]).
+    max: f64,
+}
+
+impl<'a> Power<'a> {
+    /// Weights indexed like the sites (all finite, checked by the caller).
+    pub(super) fn new(weights: &'a [f64]) -> Self {
+        let max = weights.iter().fold(f64::NEG_INFINITY, |m, &w| m.max(w));
+        Self { weights, max }
+    }
+
+    /// The half-space of cell `i` against site `j` at `q = z_j − z_i`, relative to `z_i`:
+    /// `q·y ≤ (|q|² + w_i − w_j) / 2`. Equal weights add an exact zero, so the plane is the
+    /// Voronoi bisector bit for bit.
+    fn bisector<const D: usize>(&self, q: [f64; D], i: usize, j: usize) -> HalfSpace<D> {
+        HalfSpace {
+            normal: q,
+            offset: 0.5 * (norm2(q) + (self.weights[i] - self.weights[j])),
+        }
+    }
+
+    /// `w_max − w_i ≥ 0`, `L²`.
+    fn slack(&self, i: usize) -> f64 {
+        self.max - self.weights[i]
+    }
+
+    /// The squared distance beyond which no site can cut cell `i` held in the ball of
+    /// squared radius `radius2` about its site.
+    ///
+    /// Site `j` at `q = z_j − z_i` cuts the cell only if some `y` of it has
+    /// `|y − q|² − w_j < |y|² − w_i`, i.e. `|q|² − 2 q·y < w_j − w_i ≤ w_max − w_i = s`.
+    /// With `q·y ≤ |q| R` (`R² = radius2`) that needs `|q|² − 2 R |q| − s < 0`, i.e.
+    /// `|q| < R + √(R² + s)`. For `s = 0` this is the Voronoi security radius `2R`
+    /// (Ray et al. 2018); a thousandth of a millionth more covers the rounding of the root.
+    fn reach2(&self, i: usize, radius2: f64) -> f64 {
+        let r = radius2.sqrt() + (radius2 + self.slack(i)).sqrt();
+        r * r * (1.0 + 1e-12)
+    }
+}
+
 /// Margin of the starting box around the domain, relative to the domain's diagonal
 /// ([`DomainKind::start`]).
 pub(super) const BOX_MARGIN: f64 = 1e-3;
@@ -62,10 +109,16 @@ const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
 /// been clipped), and for a localised cell the nearest site of each vertex `v` it checks,
 /// found at some distance `δ` from `v`: the answer only depends on the sites within
 /// `|v| + δ` of the site. Its reach is the largest of these distances.
+///
+/// With `power`, the power cell (DESIGN §14): the planes and the stopping distance are
+/// [`Power`]'s, a vertex is checked against the site of least power there, and a cell that
+/// empties stops streaming (an empty cell: mass 0, no faces).
+#[allow(clippy::too_many_arguments)]
 pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
+    power: Option<&Power<'_>>,
     total_sites: usize,
     i: usize,
     convex_inside: bool,
@@ -89,12 +142,25 @@ where
     let mut near = index.near(site, &mut scratch.near);
     let mut clipped = 0; // sites taken from the stream, the site itself included
     let mut last2: f64 = 0.0; // squared distance of the last site taken
-    while let Some((j, dist2)) = near.next_within(4.0 * radius2) {
+    let stop2 = |radius2: f64| match power {
+        None => 4.0 * radius2,
+        Some(p) => p.reach2(i, radius2),
+    };
+    while let Some((j, dist2)) = near.next_within(stop2(radius2)) {
         last2 = dist2;
         if j as usize != i {
             let q = offset_to(sites, i, j)?;
-            if cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j)) {
+            let plane = match power {
+                None => HalfSpace::bisector(q),
+                Some(p) => p.bisector(q, i, j as usize),
+            };
+            if cell.clip(&plane, Face::Neighbor(j)) {
                 radius2 = cell.max_dist2();
+                if power.is_some() && cell.is_empty() {
+                    // An empty power cell: no site can take anything more from it.
+                    scratch.reach2 = last2;
+                    return Ok((cell, true));
+                }
             }
         }
         clipped += 1;
@@ -112,13 +178,13 @@ where
             let local2 = domain.local_radius2(cell, site);
             if local2 <= LOCAL_REACH2 * last2 {
                 localise(cell, local2.sqrt());
-                let reach = validate_vertices(cell, index, sites, i)?;
+                let reach = validate_vertices(cell, index, sites, power, i)?;
                 scratch.reach2 = last2.max(reach * reach);
                 return Ok((cell, false));
             }
         }
     }
-    scratch.reach2 = last2.max(4.0 * radius2);
+    scratch.reach2 = last2.max(stop2(radius2));
     Ok((cell, inside))
 }
 
@@ -192,16 +258,21 @@ const MAX_VALIDATIONS: usize = 100_000;
 ///
 /// Returns the largest `|v| + δ` over the vertices checked, `δ` the distance of the
 /// nearest site found for `v`, with a margin for rounding: the sites read lie within it.
+///
+/// With `power`, each vertex is checked against the site of least power there
+/// ([`least_power`]), and `δ` is the distance within which that search read sites.
 fn validate_vertices<const D: usize, C: ConvexCell<D>>(
     cell: &mut C,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
+    power: Option<&Power<'_>>,
     i: usize,
 ) -> Result<f64, CoreError> {
     let site = sites[i];
     let mut valid: Vec<[u64; D]> = Vec::new();
     let mut used: Vec<u32> = Vec::new();
     let mut reach: f64 = 0.0;
+    let mut near = NearScratch::default();
     for _ in 0..MAX_VALIDATIONS {
         let mut cut = None;
         for &v in cell.vertices() {
@@ -209,9 +280,14 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
             if valid.contains(&key) {
                 continue;
             }
-            let (j, dist2) = index.nearest_one(add(v, site));
+            let (j, dist2, closer) = match power {
+                None => {
+                    let (j, dist2) = index.nearest_one(add(v, site));
+                    (j, dist2, dist2 < norm2(v) * (1.0 - 1e-12))
+                }
+                Some(p) => least_power(p, index, sites, i, v, &mut near),
+            };
             reach = reach.max((norm2(v).sqrt() + dist2.sqrt()) * (1.0 + 1e-12));
-            let closer = dist2 < norm2(v) * (1.0 - 1e-12);
             if j as usize != i && closer && !used.contains(&j) {
                 cut = Some(j);
                 break;
@@ -222,11 +298,45 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
             return Ok(reach);
         };
         let q = offset_to(sites, i, j)?;
-        cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
+        let plane = match power {
+            None => HalfSpace::bisector(q),
+            Some(p) => p.bisector(q, i, j as usize),
+        };
+        cell.clip(&plane, Face::Neighbor(j));
         used.push(j);
         if cell.is_empty() {
             return Ok(reach);
         }
     }
     Ok(reach)
+}
+
+/// The site of least power `|p − z_j|² − w_j` at the vertex `v` of cell `i` (relative to
+/// its site, `p = z_i + v`), as `(j, r², lower)`: `lower` when its power is below site
+/// `i`'s own `|v|² − w_i` by more than round-off, and `r²` the squared distance within
+/// which the sites were read.
+///
+/// A site `j` has less power at `p` only if `|p − z_j|² < |v|² − w_i + w_j ≤ |v|² + s`
+/// (`s = w_max − w_i`), so the sites are streamed in increasing distance up to there.
+fn least_power<const D: usize>(
+    power: &Power<'_>,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    i: usize,
+    v: [f64; D],
+    near: &mut NearScratch,
+) -> (u32, f64, bool) {
+    // Powers shifted by w_max (`|p − z_j|² + w_max − w_j`, every term ≥ 0), so that
+    // round-off is relative to them whatever the weights' common offset.
+    let own = norm2(v) + power.slack(i);
+    let limit2 = own * (1.0 + 1e-12);
+    let mut stream = index.near(add(v, sites[i]), near);
+    let mut best = (i as u32, own);
+    while let Some((j, dist2)) = stream.next_within(limit2) {
+        let value = dist2 + power.slack(j as usize);
+        if value < best.1 {
+            best = (j, value);
+        }
+    }
+    (best.0, limit2, best.1 < own * (1.0 - 1e-12))
 }
