@@ -33,6 +33,7 @@ from hcvt.seeding import (
     initialise,
     regular_cvt,
 )
+from hcvt.transport import TransportResult, optimal_transport
 
 __all__ = [
     "CVTResult",
@@ -49,6 +50,7 @@ __all__ = [
     "MonteCarloResult",
     "Polynomial",
     "SizingField",
+    "TransportResult",
     "cvt",
     "defects",
     "density",
@@ -58,6 +60,7 @@ __all__ = [
     "initialise",
     "io",
     "load_domain",
+    "optimal_transport",
     "plot",
     "regular_cvt",
     "set_num_threads",

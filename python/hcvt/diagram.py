@@ -381,19 +381,19 @@ def voronoi(
     )
 
 
-def as_weights(weights: ArrayLike, n: int) -> NDArray[np.float64]:
-    """Check and copy power-diagram ``weights`` to a float64 array of shape (n,), L²."""
-    arr = np.asarray(weights)
+def as_weights(values: ArrayLike, n: int, name: str = "weights") -> NDArray[np.float64]:
+    """Check and copy one value per site (``weights``, ``masses``): finite, shape (n,)."""
+    arr = np.asarray(values)
     if arr.dtype.kind not in "iuf":
-        raise ValueError(f"weights must be real numbers, got dtype {arr.dtype}")
+        raise ValueError(f"{name} must be real numbers, got dtype {arr.dtype}")
     if arr.ndim == 0:
         arr = np.full(n, arr)
     if arr.shape != (n,):
-        raise ValueError(f"weights must have shape ({n},), one per site, got {arr.shape}")
+        raise ValueError(f"{name} must have shape ({n},), one per site, got {arr.shape}")
     out = np.array(arr, dtype=np.float64, order="C", copy=True)
     if not np.all(np.isfinite(out)):
         bad = int(np.flatnonzero(~np.isfinite(out))[0])
-        raise ValueError(f"weight {bad} is not finite ({out[bad]})")
+        raise ValueError(f"{name.rstrip('s')} {bad} is not finite ({out[bad]})")
     return out
 
 

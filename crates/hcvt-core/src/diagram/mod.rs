@@ -24,6 +24,7 @@
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | `convex_cell.rs`, `polygon_cell.rs`, `polyhedron_cell/` | the convex cell ([`ConvexCell`]) in 2D and 3D |
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
+//! | `power.rs` | a power diagram's weights: its planes and how far its cells look for sites (DESIGN §14) |
 //! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
 //! | `mesh/` | cell geometry and the conforming mesh of all cells ([`PolyMesh`], DESIGN §9) |
 
@@ -38,6 +39,7 @@ mod order;
 mod periodic_box;
 mod polygon_cell;
 mod polyhedron_cell;
+mod power;
 mod sphere;
 mod voronoi_cell;
 mod weighted;
@@ -60,8 +62,9 @@ pub use order::morton_order;
 pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
+use power::Power;
 pub use sphere::{Sphere, ON_SPHERE_TOL};
-use voronoi_cell::{voronoi_cell, CellScratch, Power};
+use voronoi_cell::{voronoi_cell, CellScratch};
 
 /// How to treat unusual input.
 #[derive(Debug, Clone, Copy, Default)]
@@ -292,7 +295,7 @@ where
         sites,
         index: &index,
         windings: &windings,
-        power: weights.map(Power::new),
+        power: weights.map(|w| Power::new(w, sites)),
         total_sites: sites.len(),
     };
     let integrand = request.integrand;
@@ -406,7 +409,7 @@ struct Visit<'a, const D: usize> {
     /// Indexed like `sites`; only the entries of the sites visited are read.
     windings: &'a [Option<i32>],
     /// The weights of a power diagram, indexed like `sites`.
-    power: Option<Power<'a>>,
+    power: Option<Power<'a, D>>,
     total_sites: usize,
 }
 

@@ -361,7 +361,9 @@ where
             sites: &images.sites,
             index: &index,
             windings: &windings,
-            power: image_weights.as_deref().map(Power::new),
+            power: image_weights
+                .as_deref()
+                .map(|w| Power::new(w, &images.sites)),
             total_sites: images.sites.len(),
         };
         let batches = visit.batches::<C, PeriodicBox<D>>(

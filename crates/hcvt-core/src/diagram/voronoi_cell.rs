@@ -11,53 +11,7 @@ use crate::geometry::{add, norm2, scale, sub, Euclid, HalfSpace, Space};
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::knn::{NearScratch, SiteIndex};
-
-/// The weights of a power (Laguerre) diagram (DESIGN §14), one per site of the computation
-/// (a periodic box's images carry their site's), `L²`: cell `i` is
-/// `{x : |x − z_i|² − w_i ≤ |x − z_j|² − w_j}`.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Power<'a> {
-    weights: &'a [f64],
-    /// `max_j w_j`: `w_max − w_i ≥ 0` is how much farther than site `i` a site may lie and
-    /// still cut its cell (the stopping rule of [`Power::reach2`]).
-    max: f64,
-}
-
-impl<'a> Power<'a> {
-    /// Weights indexed like the sites (all finite, checked by the caller).
-    pub(super) fn new(weights: &'a [f64]) -> Self {
-        let max = weights.iter().fold(f64::NEG_INFINITY, |m, &w| m.max(w));
-        Self { weights, max }
-    }
-
-    /// The half-space of cell `i` against site `j` at `q = z_j − z_i`, relative to `z_i`:
-    /// `q·y ≤ (|q|² + w_i − w_j) / 2`. Equal weights add an exact zero, so the plane is the
-    /// Voronoi bisector bit for bit.
-    fn bisector<const D: usize>(&self, q: [f64; D], i: usize, j: usize) -> HalfSpace<D> {
-        HalfSpace {
-            normal: q,
-            offset: 0.5 * (norm2(q) + (self.weights[i] - self.weights[j])),
-        }
-    }
-
-    /// `w_max − w_i ≥ 0`, `L²`.
-    fn slack(&self, i: usize) -> f64 {
-        self.max - self.weights[i]
-    }
-
-    /// The squared distance beyond which no site can cut cell `i` held in the ball of
-    /// squared radius `radius2` about its site.
-    ///
-    /// Site `j` at `q = z_j − z_i` cuts the cell only if some `y` of it has
-    /// `|y − q|² − w_j < |y|² − w_i`, i.e. `|q|² − 2 q·y < w_j − w_i ≤ w_max − w_i = s`.
-    /// With `q·y ≤ |q| R` (`R² = radius2`) that needs `|q|² − 2 R |q| − s < 0`, i.e.
-    /// `|q| < R + √(R² + s)`. For `s = 0` this is the Voronoi security radius `2R`
-    /// (Ray et al. 2018); a thousandth of a millionth more covers the rounding of the root.
-    fn reach2(&self, i: usize, radius2: f64) -> f64 {
-        let r = radius2.sqrt() + (radius2 + self.slack(i)).sqrt();
-        r * r * (1.0 + 1e-12)
-    }
-}
+use super::power::Power;
 
 /// Margin of the starting box around the domain, relative to the domain's diagonal
 /// ([`DomainKind::start`]).
@@ -118,7 +72,7 @@ pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
-    power: Option<&Power<'_>>,
+    power: Option<&Power<'_, D>>,
     total_sites: usize,
     i: usize,
     convex_inside: bool,
@@ -142,9 +96,19 @@ where
     let mut near = index.near(site, &mut scratch.near);
     let mut clipped = 0; // sites taken from the stream, the site itself included
     let mut last2: f64 = 0.0; // squared distance of the last site taken
-    let stop2 = |radius2: f64| match power {
-        None => 4.0 * radius2,
-        Some(p) => p.reach2(i, radius2),
+                              // The power cell's stopping distance is recomputed only once the radius has shrunk to
+                              // half its square since the last time: a stale one, for a larger radius, still bounds
+                              // it (and never grows, as the stream requires).
+    let mut power_stop = power.map(|p| (radius2, p.reach2(i, sites[i], radius2)));
+    let mut stop2 = |radius2: f64| match (power, power_stop.as_mut()) {
+        (Some(p), Some((at, stop))) => {
+            if radius2 < 0.5 * *at {
+                *at = radius2;
+                *stop = stop.min(p.reach2(i, sites[i], radius2));
+            }
+            *stop
+        }
+        _ => 4.0 * radius2,
     };
     while let Some((j, dist2)) = near.next_within(stop2(radius2)) {
         last2 = dist2;
@@ -265,7 +229,7 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
     cell: &mut C,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
-    power: Option<&Power<'_>>,
+    power: Option<&Power<'_, D>>,
     i: usize,
 ) -> Result<f64, CoreError> {
     let site = sites[i];
@@ -316,10 +280,10 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
 /// `i`'s own `|v|² − w_i` by more than round-off, and `r²` the squared distance within
 /// which the sites were read.
 ///
-/// A site `j` has less power at `p` only if `|p − z_j|² < |v|² − w_i + w_j ≤ |v|² + s`
-/// (`s = w_max − w_i`), so the sites are streamed in increasing distance up to there.
+/// A site `j` has less power at `p` only if `|p − z_j|² < |v|² − w_i + w_j`, so the sites
+/// are streamed in increasing distance up to [`Power::vertex_reach2`].
 fn least_power<const D: usize>(
-    power: &Power<'_>,
+    power: &Power<'_, D>,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
     i: usize,
@@ -329,8 +293,9 @@ fn least_power<const D: usize>(
     // Powers shifted by w_max (`|p − z_j|² + w_max − w_j`, every term ≥ 0), so that
     // round-off is relative to them whatever the weights' common offset.
     let own = norm2(v) + power.slack(i);
-    let limit2 = own * (1.0 + 1e-12);
-    let mut stream = index.near(add(v, sites[i]), near);
+    let point = add(v, sites[i]);
+    let limit2 = power.vertex_reach2(i, point, norm2(v));
+    let mut stream = index.near(point, near);
     let mut best = (i as u32, own);
     while let Some((j, dist2)) = stream.next_within(limit2) {
         let value = dist2 + power.slack(j as usize);
