@@ -25,7 +25,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcvt.mesh",),
     ("hcvt.io",),
     ("hcvt.diagram",),
-    ("hcvt.optimise",),
+    ("hcvt.optimise", "hcvt.transport"),
     ("hcvt.seeding",),
     ("hcvt.distributed",),
     ("hcvt.api",),

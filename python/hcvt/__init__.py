@@ -34,6 +34,7 @@ from hcvt.seeding import (
     initialise,
     regular_cvt,
 )
+from hcvt.transport import TransportResult, optimal_transport
 
 __all__ = [
     "CVTResult",
@@ -50,6 +51,7 @@ __all__ = [
     "MonteCarloResult",
     "Polynomial",
     "SizingField",
+    "TransportResult",
     "cvt",
     "defects",
     "density",
@@ -59,6 +61,7 @@ __all__ = [
     "initialise",
     "io",
     "load_domain",
+    "optimal_transport",
     "plot",
     "regular_cvt",
     "set_num_threads",

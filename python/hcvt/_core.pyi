@@ -20,6 +20,7 @@ from hcvt.core_results import (
     MeshPartArrays,
     MeshQualityArrays,
     PartCellsArrays,
+    TransportArrays,
 )
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
     "mesh",
     "mesh_part",
     "mesh_quality",
+    "optimal_transport",
     "partition_cells",
     "positive_curvature",
     "set_num_threads",
@@ -158,7 +160,19 @@ def voronoi(
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
+    weights: _Float1 | None = None,
 ) -> DiagramArrays: ...
+def optimal_transport(
+    domain: _Domain,
+    sites: _Float2,
+    masses: _Float1,
+    tol: float = 1e-10,
+    max_iter: int = 100,
+    normalise: bool = False,
+    polynomial: _Coefficients | None = None,
+    function: _Function | None = None,
+    quadrature_degree: int = 4,
+) -> TransportArrays: ...
 def mesh(domain: _Domain, sites: _Float2, allow_outside: bool = False) -> MeshArrays: ...
 
 # A part's mesh (hcvt.distributed.partition_mesh): the own cells' faces, owner and

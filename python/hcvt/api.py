@@ -29,6 +29,7 @@ def voronoi(
     sites_per_partition: int | None = None,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    weights: ArrayLike | None = None,
 ) -> Diagram:
     """Clipped Voronoi diagram of ``sites`` inside ``domain``, exact to round-off.
 
@@ -64,6 +65,14 @@ def voronoi(
         gives the uniform diagram (``Polynomial(1.0)`` bitwise).
     quadrature_degree : int, default 4
         Degree (1 to 5) of the simplex rule that samples a callable density.
+    weights : array_like of float, shape (n,), optional
+        The power (Laguerre) diagram of these weights, L²: cell ``i`` is ``{x : |x - z_i|²
+        - w_i <= |x - z_j|² - w_j}`` inside the domain, on every flat domain kind (not on
+        the sphere, nor with ``client`` yet). A cell may be empty (volume 0, no
+        neighbours, G NaN) and need not hold its site; ``weights=0`` is the Voronoi
+        diagram bit for bit. :func:`hcvt.optimal_transport` finds the weights that give
+        each cell a prescribed mass. ``Diagram.mesh()`` of a power diagram is not
+        implemented yet.
 
     Returns
     -------
@@ -96,6 +105,8 @@ def voronoi(
     """
     if client is not None and domain.is_sphere:
         raise NotImplementedError("partitioned diagrams on the sphere are not implemented yet")
+    if client is not None and weights is not None:
+        raise NotImplementedError("partitioned power diagrams (weights) are not implemented yet")
     if client is None:
         return diagram.voronoi(
             domain,
@@ -103,6 +114,7 @@ def voronoi(
             allow_outside=allow_outside,
             density=density,
             quadrature_degree=quadrature_degree,
+            weights=weights,
         )
     return partitioned_voronoi(
         domain,

@@ -156,3 +156,24 @@ class CvtArrays(TypedDict):
     stop_reason: str
     iterations: int
     evaluations: int
+
+
+class TransportHistory(TypedDict):
+    """Per Newton step of ``_core.optimal_transport``, one array per field."""
+
+    max_error: Floats
+    step: Floats
+    min_mass: Floats
+    cg_iterations: Indices
+    diagrams: Indices
+
+
+class TransportArrays(TypedDict):
+    """Prescribed masses (``_core.optimal_transport``): the weights and their diagram."""
+
+    weights: Floats  # (n,)
+    diagram: DiagramArrays
+    targets: Floats  # (n,)
+    max_error: float
+    converged: bool
+    history: TransportHistory

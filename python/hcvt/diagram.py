@@ -42,6 +42,10 @@ class Diagram(Shows):
         Number of sites.
     density : Polynomial, SizingField, callable or None
         The density ρ the weighted quantities carry (:mod:`hcvt.density`); None for ρ = 1.
+    weights : ndarray of float64, shape (n,), or None
+        The power diagram's weights, L² (cell ``i`` is ``{x : |x - z_i|² - w_i <=
+        |x - z_j|² - w_j}``: possibly empty, possibly not holding its site); None for
+        the Voronoi diagram.
     volume : ndarray, shape (n,)
         Cell areas (2D) or volumes (3D), L^d. Geometric, whatever the density.
     mass : ndarray, shape (n,)
@@ -112,10 +116,12 @@ class Diagram(Shows):
         allow_outside: bool = False,
         core_sites: NDArray[np.float64] | None = None,
         frame: Frame | None = None,
+        weights: NDArray[np.float64] | None = None,
     ):
         self.domain = domain
         self.sites = sites
         self.density = density
+        self.weights = weights
         self._arrays = arrays
         # The frame `arrays` are in: the domain's, unless the caller mapped them already.
         self._frame = domain.frame if frame is None else frame
@@ -276,6 +282,8 @@ class Diagram(Shows):
                 "spherical cells have no PolyMesh: use Diagram.spherical_mesh() (MPAS's "
                 "layout), Diagram.cells() (each cell's vertices) or hcvt.write_mpas"
             )
+        if self.weights is not None and np.any(self.weights):
+            raise NotImplementedError("conforming meshes of power diagrams: a later slice")
         if self._mesh is None:
             with self.domain.frame.input_errors():
                 arrays = _core.mesh(
@@ -376,8 +384,9 @@ def voronoi(
     allow_outside: bool = False,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    weights: ArrayLike | None = None,
 ) -> Diagram:
-    """The clipped Voronoi diagram of ``sites`` in ``domain``, in this process.
+    """The clipped Voronoi (or, with ``weights``, power) diagram of ``sites`` in ``domain``.
 
     :func:`hcvt.voronoi` without ``client``, which documents the parameters.
     """
@@ -385,11 +394,41 @@ def voronoi(
     frame = domain.frame
     weighted = core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree)
     core_sites = frame.to_core(points)
+    power = None if weights is None else as_weights(weights, len(points))
+    core_weights = None if power is None else frame.quantity_to_core("weights", power)
     with frame.input_errors():
-        arrays = _core.voronoi(domain._core, core_sites, allow_outside=allow_outside, **weighted)
+        arrays = _core.voronoi(
+            domain._core,
+            core_sites,
+            allow_outside=allow_outside,
+            weights=core_weights,
+            **weighted,
+        )
     return Diagram(
-        domain, points, arrays, density, allow_outside=allow_outside, core_sites=core_sites
+        domain,
+        points,
+        arrays,
+        density,
+        allow_outside=allow_outside,
+        core_sites=core_sites,
+        weights=power,
     )
+
+
+def as_weights(values: ArrayLike, n: int, name: str = "weights") -> NDArray[np.float64]:
+    """Check and copy one value per site (``weights``, ``masses``): finite, shape (n,)."""
+    arr = np.asarray(values)
+    if arr.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be real numbers, got dtype {arr.dtype}")
+    if arr.ndim == 0:
+        arr = np.full(n, arr)
+    if arr.shape != (n,):
+        raise ValueError(f"{name} must have shape ({n},), one per site, got {arr.shape}")
+    out = np.array(arr, dtype=np.float64, order="C", copy=True)
+    if not np.all(np.isfinite(out)):
+        bad = int(np.flatnonzero(~np.isfinite(out))[0])
+        raise ValueError(f"{name.rstrip('s')} {bad} is not finite ({out[bad]})")
+    return out
 
 
 def as_sites(sites: ArrayLike, dim: int) -> NDArray[np.float64]:

@@ -102,6 +102,13 @@ pub enum CoreError {
         /// Actual length.
         got: usize,
     },
+    /// The weights of a power diagram, or the masses prescribed to its cells, cannot be
+    /// used as given (length, a non-finite value, a domain that takes none).
+    #[error("{reason}")]
+    InvalidWeights {
+        /// What is wrong, naming the offending row.
+        reason: String,
+    },
     /// An optimiser setting out of its range, or an unknown method or rule name.
     #[error("{reason}")]
     InvalidSettings {

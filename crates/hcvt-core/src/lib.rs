@@ -49,7 +49,8 @@ pub use error::CoreError;
 pub use geometry::{Aabb, Euclid, Space};
 pub use moments::{tetra_moments, triangle_moments, FaceMoments, Moments};
 pub use optimise::{
-    cvt, evaluate, lbfgs, lloyd, Frame, Measures, Method, Named, Outcome, Point, PointRequest,
-    Record, Rule, Settings, Step, StopReason,
+    cvt, evaluate, lbfgs, lloyd, optimal_transport, Frame, Measures, Method, Named, Outcome, Point,
+    PointRequest, Record, Rule, Settings, Step, StopReason, Transport, TransportRecord,
+    TransportSettings,
 };
 pub use quality::{mesh_quality, MeshArrays, MeshQuality};

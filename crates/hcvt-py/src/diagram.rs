@@ -4,7 +4,7 @@ use hcvt_core::{
     clipped_diagram, ConvexCell, Diagram, DomainKind, Euclid, Options, PolygonCell, PolyhedronCell,
     Request, Space,
 };
-use numpy::{PyArray1, PyReadonlyArray2};
+use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -20,8 +20,9 @@ use crate::domain::{by_kind, AnyDomain};
 /// absolute: in 2D `cell_offsets` (n+1,) and `cell_vertices` (m, 2), counter-clockwise;
 /// in 3D a closed outward triangle mesh per cell, `cell_vertex_offsets` (n+1,),
 /// `cell_vertices` (m, 3), `cell_face_offsets` (n+1,), `cell_faces` (f, 3) local.
+/// With `weights` (n,), the power diagram of those weights (DESIGN §14).
 #[pyfunction]
-#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false, polynomial=None, function=None, quadrature_degree=4))]
+#[pyo3(signature = (domain, sites, allow_outside=false, keep_cells=false, polynomial=None, function=None, quadrature_degree=4, weights=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn voronoi<'py>(
     py: Python<'py>,
@@ -32,12 +33,15 @@ pub fn voronoi<'py>(
     polynomial: Option<Coefficients>,
     function: Option<Py<PyAny>>,
     quadrature_degree: usize,
+    weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let given = Given::new(polynomial, function, quadrature_degree)?;
+    let weights = weights.map(|w| w.as_array().to_vec());
     let asked = Asked {
         allow_outside,
         keep_cells,
         given: &given,
+        weights: weights.as_deref(),
     };
     by_kind!(domain, voronoi_in(py, sites, asked))
 }
@@ -47,6 +51,8 @@ struct Asked<'a> {
     allow_outside: bool,
     keep_cells: bool,
     given: &'a Given,
+    /// The power diagram's weights, one per site, `L²`.
+    weights: Option<&'a [f64]>,
 }
 
 fn voronoi_in<'py, const D: usize, C: ConvexCell<D> + CellArrays<D>, K: DomainKind<D>>(
@@ -66,6 +72,7 @@ where
         },
         keep_cells: asked.keep_cells,
         density: density.as_ref(),
+        weights: asked.weights,
         ..Request::default()
     };
     let clipped = py

@@ -28,7 +28,9 @@ pub fn to_py_err(err: CoreError) -> PyErr {
         CoreError::InvalidDensity { .. } | CoreError::DensityValue { .. } => {
             InvalidDensityError::new_err(message)
         }
-        CoreError::InvalidSettings { .. } => PyValueError::new_err(message),
+        CoreError::InvalidSettings { .. } | CoreError::InvalidWeights { .. } => {
+            PyValueError::new_err(message)
+        }
         CoreError::InvalidFace { .. }
         | CoreError::InvalidPoint { .. }
         | CoreError::InvalidPlane { .. } => InvalidMeshError::new_err(message),

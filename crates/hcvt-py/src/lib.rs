@@ -30,6 +30,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::BoxDomain3>()?;
     m.add_class::<domain::SphereDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi, m)?)?;
+    m.add_function(wrap_pyfunction!(optimise::optimal_transport, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_part, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells, m)?)?;

@@ -77,6 +77,9 @@ UNITS: dict[str, Unit | None] = {
     "boundary_measure": Unit(1, -1),
     "neighbor_measures": Unit(1, -1),
     "reach2": Unit(0, 2),
+    # power diagrams and optimal transport (hcvt.transport)
+    "weights": Unit(0, 2),
+    "masses": Unit(1, 0),
     # a partitioned CVT's per-part step (distributed/partition.py)
     "shift": Unit(0, 1),  # a displacement: L, no centre
     "direction": Unit(0, 1),

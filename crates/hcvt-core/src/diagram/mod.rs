@@ -24,6 +24,7 @@
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | `convex_cell.rs`, `polygon_cell.rs`, `polyhedron_cell/` | the convex cell ([`ConvexCell`]) in 2D and 3D |
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
+//! | `power.rs` | a power diagram's weights: its planes and how far its cells look for sites (DESIGN §14) |
 //! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
 //! | `mesh/` | cell geometry and the conforming mesh of all cells ([`PolyMesh`], DESIGN §9) |
 
@@ -38,6 +39,7 @@ mod order;
 mod periodic_box;
 mod polygon_cell;
 mod polyhedron_cell;
+mod power;
 mod sphere;
 mod voronoi_cell;
 mod weighted;
@@ -60,6 +62,7 @@ pub use order::morton_order;
 pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
+use power::Power;
 pub use sphere::{Sphere, ON_SPHERE_TOL};
 use voronoi_cell::{voronoi_cell, CellScratch};
 
@@ -186,6 +189,45 @@ pub struct Request<'a, const D: usize> {
     /// [`Diagram::weighted`], integrated over the same signed pieces. A sampled density is
     /// asked for its values once, at every node of the diagram.
     pub density: Option<&'a Density<'a, D>>,
+    /// The power (Laguerre) diagram of these weights, one per site, `L²` (DESIGN §14):
+    /// cell `i` is `{x : |x − z_i|² − w_i ≤ |x − z_j|² − w_j}`, possibly empty (mass 0, no
+    /// faces) and possibly not holding its site. `None`, or all zero, is the Voronoi
+    /// diagram bit for bit. Not on the sphere, nor for a part ([`clipped_cells`]).
+    pub weights: Option<&'a [f64]>,
+}
+
+/// The weights of `request` checked against `n` sites in `domain`: `None` when absent or
+/// all zero (the Voronoi diagram, on its own code path).
+fn checked_weights<'a, const D: usize, K: DomainKind<D>>(
+    domain: &K,
+    n: usize,
+    request: &Request<'a, D>,
+) -> Result<Option<&'a [f64]>, CoreError> {
+    let Some(weights) = request.weights else {
+        return Ok(None);
+    };
+    if weights.len() != n {
+        return Err(CoreError::InvalidWeights {
+            reason: format!(
+                "weights: expected one per site ({n}), got {}",
+                weights.len()
+            ),
+        });
+    }
+    if let Some(index) = weights.iter().position(|w| !w.is_finite()) {
+        return Err(CoreError::InvalidWeights {
+            reason: format!("weight {index} is not finite ({})", weights[index]),
+        });
+    }
+    if weights.iter().all(|&w| w == 0.0) {
+        return Ok(None);
+    }
+    if domain.cell_dim() != D {
+        return Err(CoreError::InvalidWeights {
+            reason: "power diagrams (weights) are not supported on the sphere".to_string(),
+        });
+    }
+    Ok(Some(weights))
 }
 
 /// What [`clipped_diagram`] returns.
@@ -220,8 +262,9 @@ pub fn clipped_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
+    let weights = checked_weights(domain, sites.len(), request)?;
     if let Some(torus) = domain.periodic() {
-        return periodic_box::clipped_diagram::<D, C>(torus, sites, request);
+        return periodic_box::clipped_diagram::<D, C>(torus, sites, weights, request);
     }
     let density = request.density;
     if let Some(Density::Polynomial(q)) = density {
@@ -252,6 +295,7 @@ where
         sites,
         index: &index,
         windings: &windings,
+        power: weights.map(|w| Power::new(w, sites)),
         total_sites: sites.len(),
     };
     let integrand = request.integrand;
@@ -364,6 +408,8 @@ struct Visit<'a, const D: usize> {
     index: &'a SiteIndex<D>,
     /// Indexed like `sites`; only the entries of the sites visited are read.
     windings: &'a [Option<i32>],
+    /// The weights of a power diagram, indexed like `sites`.
+    power: Option<Power<'a, D>>,
     total_sites: usize,
 }
 
@@ -395,11 +441,14 @@ where
                     for &i in chunk {
                         let i = i as usize;
                         let winding = self.windings[i];
-                        let convex_inside = convex && winding == Some(1);
+                        // A power cell need not hold its site: the early cut by the
+                        // boundary near the cell assumes it does (`cut_by_boundary`).
+                        let convex_inside = convex && winding == Some(1) && self.power.is_none();
                         let (cell, inside) = match voronoi_cell::<D, C, K>(
                             domain,
                             self.index,
                             self.sites,
+                            self.power.as_ref(),
                             self.total_sites,
                             i,
                             convex_inside,
@@ -413,6 +462,15 @@ where
                         };
                         let row = integrand.map(|integrand| FaceRow { integrand, site: i });
                         measuring.faces.weighted.start_cell(self.sites[i]);
+                        // The clip may start its cones from the site, with the site's
+                        // winding number, only if the site lies in its cell: the
+                        // boundary it looks for is that near the cell. A power cell
+                        // without its site is measured from a point of its own, as is
+                        // the cell of a site on the boundary (winding `None`).
+                        let winding = match self.power {
+                            Some(_) if cell.excludes(&[[0.0; D]]) => None,
+                            _ => winding,
+                        };
                         let moments = if inside {
                             measure(cell, row, &mut measuring.faces)
                         } else {
@@ -506,6 +564,11 @@ where
             reason: "the cells of a part of a periodic box are not computed yet".to_string(),
         });
     }
+    if checked_weights(domain, sites.len(), request)?.is_some() {
+        return Err(CoreError::InvalidWeights {
+            reason: "the cells of a part of a power diagram are not computed yet".to_string(),
+        });
+    }
     let (options, density) = (request.options, request.density);
     if sites.is_empty() || own.is_empty() {
         return Ok(PartCells::default());
@@ -531,6 +594,7 @@ where
         sites,
         index: &index,
         windings: &windings,
+        power: None,
         total_sites: total_sites.max(sites.len()),
     };
     let mut batches =

@@ -49,8 +49,8 @@ use super::faces::FaceRow;
 use super::voronoi_cell::BOX_MARGIN;
 use super::weighted::WeightedSums;
 use super::{
-    checked_windings, morton_order, without_errors, Batch, Clipped, Diagram, Request, SiteIndex,
-    Visit,
+    checked_windings, morton_order, without_errors, Batch, Clipped, Diagram, Power, Request,
+    SiteIndex, Visit,
 };
 
 /// Width of the first band of images, in mean spacings `(V/n)^{1/d}`, per dimension. The
@@ -312,6 +312,7 @@ impl<const D: usize> Images<D> {
 pub(super) fn clipped_diagram<const D: usize, C: ConvexCell<D>>(
     torus: &PeriodicBox<D>,
     sites: &[[f64; D]],
+    weights: Option<&[f64]>,
     request: &Request<'_, D>,
 ) -> Result<Clipped<D, C>, CoreError>
 where
@@ -350,10 +351,19 @@ where
         }
         let images = Images::new(torus, &wrapped, band);
         let index = SiteIndex::new(&images.sites)?;
+        // Each image carries its site's weight.
+        let image_weights: Option<Vec<f64>> = weights.map(|w| {
+            (0..images.sites.len())
+                .map(|j| w[images.image(j).0 as usize])
+                .collect()
+        });
         let visit = Visit {
             sites: &images.sites,
             index: &index,
             windings: &windings,
+            power: image_weights
+                .as_deref()
+                .map(|w| Power::new(w, &images.sites)),
             total_sites: images.sites.len(),
         };
         let batches = visit.batches::<C, PeriodicBox<D>>(

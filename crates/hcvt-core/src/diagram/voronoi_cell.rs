@@ -11,6 +11,7 @@ use crate::geometry::{add, norm2, scale, sub, Euclid, HalfSpace, Space};
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::knn::{NearScratch, SiteIndex};
+use super::power::Power;
 
 /// Margin of the starting box around the domain, relative to the domain's diagonal
 /// ([`DomainKind::start`]).
@@ -62,10 +63,16 @@ const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
 /// been clipped), and for a localised cell the nearest site of each vertex `v` it checks,
 /// found at some distance `δ` from `v`: the answer only depends on the sites within
 /// `|v| + δ` of the site. Its reach is the largest of these distances.
+///
+/// With `power`, the power cell (DESIGN §14): the planes and the stopping distance are
+/// [`Power`]'s, a vertex is checked against the site of least power there, and a cell that
+/// empties stops streaming (an empty cell: mass 0, no faces).
+#[allow(clippy::too_many_arguments)]
 pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
+    power: Option<&Power<'_, D>>,
     total_sites: usize,
     i: usize,
     convex_inside: bool,
@@ -89,12 +96,35 @@ where
     let mut near = index.near(site, &mut scratch.near);
     let mut clipped = 0; // sites taken from the stream, the site itself included
     let mut last2: f64 = 0.0; // squared distance of the last site taken
-    while let Some((j, dist2)) = near.next_within(4.0 * radius2) {
+                              // The power cell's stopping distance is recomputed only once the radius has shrunk to
+                              // half its square since the last time: a stale one, for a larger radius, still bounds
+                              // it (and never grows, as the stream requires).
+    let mut power_stop = power.map(|p| (radius2, p.reach2(i, sites[i], radius2)));
+    let mut stop2 = |radius2: f64| match (power, power_stop.as_mut()) {
+        (Some(p), Some((at, stop))) => {
+            if radius2 < 0.5 * *at {
+                *at = radius2;
+                *stop = stop.min(p.reach2(i, sites[i], radius2));
+            }
+            *stop
+        }
+        _ => 4.0 * radius2,
+    };
+    while let Some((j, dist2)) = near.next_within(stop2(radius2)) {
         last2 = dist2;
         if j as usize != i {
             let q = offset_to(sites, i, j)?;
-            if cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j)) {
+            let plane = match power {
+                None => HalfSpace::bisector(q),
+                Some(p) => p.bisector(q, i, j as usize),
+            };
+            if cell.clip(&plane, Face::Neighbor(j)) {
                 radius2 = cell.max_dist2();
+                if power.is_some() && cell.is_empty() {
+                    // An empty power cell: no site can take anything more from it.
+                    scratch.reach2 = last2;
+                    return Ok((cell, true));
+                }
             }
         }
         clipped += 1;
@@ -112,13 +142,13 @@ where
             let local2 = domain.local_radius2(cell, site);
             if local2 <= LOCAL_REACH2 * last2 {
                 localise(cell, local2.sqrt());
-                let reach = validate_vertices(cell, index, sites, i)?;
+                let reach = validate_vertices(cell, index, sites, power, i)?;
                 scratch.reach2 = last2.max(reach * reach);
                 return Ok((cell, false));
             }
         }
     }
-    scratch.reach2 = last2.max(4.0 * radius2);
+    scratch.reach2 = last2.max(stop2(radius2));
     Ok((cell, inside))
 }
 
@@ -192,16 +222,21 @@ const MAX_VALIDATIONS: usize = 100_000;
 ///
 /// Returns the largest `|v| + δ` over the vertices checked, `δ` the distance of the
 /// nearest site found for `v`, with a margin for rounding: the sites read lie within it.
+///
+/// With `power`, each vertex is checked against the site of least power there
+/// ([`least_power`]), and `δ` is the distance within which that search read sites.
 fn validate_vertices<const D: usize, C: ConvexCell<D>>(
     cell: &mut C,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
+    power: Option<&Power<'_, D>>,
     i: usize,
 ) -> Result<f64, CoreError> {
     let site = sites[i];
     let mut valid: Vec<[u64; D]> = Vec::new();
     let mut used: Vec<u32> = Vec::new();
     let mut reach: f64 = 0.0;
+    let mut near = NearScratch::default();
     for _ in 0..MAX_VALIDATIONS {
         let mut cut = None;
         for &v in cell.vertices() {
@@ -209,9 +244,14 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
             if valid.contains(&key) {
                 continue;
             }
-            let (j, dist2) = index.nearest_one(add(v, site));
+            let (j, dist2, closer) = match power {
+                None => {
+                    let (j, dist2) = index.nearest_one(add(v, site));
+                    (j, dist2, dist2 < norm2(v) * (1.0 - 1e-12))
+                }
+                Some(p) => least_power(p, index, sites, i, v, &mut near),
+            };
             reach = reach.max((norm2(v).sqrt() + dist2.sqrt()) * (1.0 + 1e-12));
-            let closer = dist2 < norm2(v) * (1.0 - 1e-12);
             if j as usize != i && closer && !used.contains(&j) {
                 cut = Some(j);
                 break;
@@ -222,11 +262,46 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
             return Ok(reach);
         };
         let q = offset_to(sites, i, j)?;
-        cell.clip(&HalfSpace::bisector(q), Face::Neighbor(j));
+        let plane = match power {
+            None => HalfSpace::bisector(q),
+            Some(p) => p.bisector(q, i, j as usize),
+        };
+        cell.clip(&plane, Face::Neighbor(j));
         used.push(j);
         if cell.is_empty() {
             return Ok(reach);
         }
     }
     Ok(reach)
+}
+
+/// The site of least power `|p − z_j|² − w_j` at the vertex `v` of cell `i` (relative to
+/// its site, `p = z_i + v`), as `(j, r², lower)`: `lower` when its power is below site
+/// `i`'s own `|v|² − w_i` by more than round-off, and `r²` the squared distance within
+/// which the sites were read.
+///
+/// A site `j` has less power at `p` only if `|p − z_j|² < |v|² − w_i + w_j`, so the sites
+/// are streamed in increasing distance up to [`Power::vertex_reach2`].
+fn least_power<const D: usize>(
+    power: &Power<'_, D>,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    i: usize,
+    v: [f64; D],
+    near: &mut NearScratch,
+) -> (u32, f64, bool) {
+    // Powers shifted by w_max (`|p − z_j|² + w_max − w_j`, every term ≥ 0), so that
+    // round-off is relative to them whatever the weights' common offset.
+    let own = norm2(v) + power.slack(i);
+    let point = add(v, sites[i]);
+    let limit2 = power.vertex_reach2(i, point, norm2(v));
+    let mut stream = index.near(point, near);
+    let mut best = (i as u32, own);
+    while let Some((j, dist2)) = stream.next_within(limit2) {
+        let value = dist2 + power.slack(j as usize);
+        if value < best.1 {
+            best = (j, value);
+        }
+    }
+    (best.0, limit2, best.1 < own * (1.0 - 1e-12))
 }

@@ -11,6 +11,7 @@
 //! | [`lloyd`] | Lloyd's `x_i ← c_i`, held inside the domain; reseeding of empty cells |
 //! | [`newton`] | Newton with the exact Hessian: truncated CG in a trust region (often 2–5× fewer diagrams) |
 //! | [`hessian`] | the exact Hessian, summed by the diagram over the faces between cells; its product |
+//! | `transport` | prescribed masses: the weights of a power diagram by damped Newton on the graph Laplacian ([`optimal_transport`], DESIGN §14) |
 //!
 //! **Stopping rules** ([`stopping`], DESIGN §7). By default a run stops when the RMS over
 //! the sites of the scale-free gap `|x_i − c_i| / V_i^{1/d}` is below the tolerance; the
@@ -40,6 +41,7 @@ pub mod lbfgs;
 pub mod lloyd;
 mod newton;
 mod stopping;
+mod transport;
 
 use std::ops::ControlFlow;
 use std::time::Instant;
@@ -55,6 +57,7 @@ use hessian::{Hessian, HessianTerms};
 use lbfgs::{LineSearch, Memory};
 use newton::TrustRegion;
 pub use stopping::{Frame, Measures, Rule};
+pub use transport::{optimal_transport, Transport, TransportRecord, TransportSettings};
 
 /// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the
 /// energy (translating the domain and 2,000 random sites changed `E` by at most 2.4e-14

@@ -328,6 +328,7 @@ where
                             boundary,
                             index,
                             sites,
+                            None,
                             total_sites,
                             i,
                             false,
