@@ -20,6 +20,49 @@ fn main() -> Result<(), hcvt_core::CoreError> {
             }
         })
         .collect();
+    if std::env::args().nth(3).as_deref() == Some("newton") {
+        use hcvt_core::{cvt, evaluate, Method, PointRequest, Settings};
+        for hessian in [false, true] {
+            let t = Instant::now();
+            let request = PointRequest {
+                hessian,
+                density: None,
+            };
+            let p = evaluate::<3, PolyhedronCell, _>(&Sphere, sites.clone(), &request)?;
+            println!(
+                "evaluate hessian={hessian}: {:.3} s",
+                t.elapsed().as_secs_f64()
+            );
+            if let Some(h) = &p.hessian {
+                let t = Instant::now();
+                for _ in 0..10 {
+                    let _ = h.product(&p.diagram, &p.gradient);
+                }
+                println!("10 products: {:.3} s", t.elapsed().as_secs_f64());
+            }
+        }
+        if std::env::args().nth(4).as_deref() == Some("only") {
+            return Ok(());
+        }
+        let settings = Settings {
+            method: Method::Newton,
+            ..Settings::default()
+        };
+        let t = Instant::now();
+        let out = cvt::<3, PolyhedronCell, _>(&Sphere, sites, &settings, &mut |r, _| {
+            println!(
+                "  {:.3} s  {} diagrams  gap {:.2e}",
+                r.seconds, r.evaluations, r.measures.rms_gap
+            );
+            std::ops::ControlFlow::Continue(())
+        })?;
+        println!(
+            "newton: {:.3} s, {:?}",
+            t.elapsed().as_secs_f64(),
+            out.stop_reason
+        );
+        return Ok(());
+    }
     for _ in 0..repeats {
         let t = Instant::now();
         let d =

@@ -144,6 +144,13 @@ pub trait DomainKind<const D: usize>: Sync {
         0.0
     }
 
+    /// Newton's first trust region may be as large as the model's own step (its
+    /// `TrustRegion::open`, in `optimise/newton.rs`): a domain without boundary (no site
+    /// can be moved out of it) whose runs often start near a CVT. `false` by default.
+    fn trusts_newton(&self) -> bool {
+        false
+    }
+
     /// The point of the domain that stands for `x` after a step: `x` itself in a flat
     /// domain (no arithmetic, so no bit changes), `x / |x|` on the unit sphere (the
     /// retraction of DESIGN §13).

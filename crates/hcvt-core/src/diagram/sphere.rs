@@ -685,6 +685,11 @@ impl DomainKind<3> for Sphere {
         dot(site, gradient) / norm2(site).sqrt()
     }
 
+    /// No boundary, and icosahedral starts lie near a CVT.
+    fn trusts_newton(&self) -> bool {
+        true
+    }
+
     fn retract(&self, x: [f64; 3]) -> [f64; 3] {
         let r2 = norm2(x);
         if r2 > 0.0 {

@@ -576,7 +576,11 @@ where
     let mut solver = Solver {
         method: settings.method,
         memory: Memory::new(settings.memory),
-        region: TrustRegion::default(),
+        region: if domain.trusts_newton() {
+            TrustRegion::open()
+        } else {
+            TrustRegion::default()
+        },
         search: LineSearch::new(settings.max_line_evaluations),
     };
     let (mut record, mut pinned) = tracker.record(domain, &point, Step::Start);
