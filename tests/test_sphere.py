@@ -126,12 +126,16 @@ def test_icosahedral_sites_converge_to_twelve_pentagons(n: int) -> None:
     jitter = random_sites(n, 5) * 0.05 * math.sqrt(4 * math.pi / n) * 6371.0
     start = sites + jitter
     start *= 6371.0 / np.linalg.norm(start, axis=1)[:, None]
-    for method in ("lbfgs", "lloyd"):
+    diagrams = {}
+    for method in ("newton", "lbfgs", "lloyd"):
         res = hcvt.cvt(domain, start, method=method, max_iter=3000)
+        diagrams[method] = res.evaluations
         assert res.converged, (n, method, res.history["rms_gap"][-1])
         assert sides(res.diagram) == {5: 12, 6: n - 12}
         assert np.allclose(np.linalg.norm(res.sites, axis=1), 6371.0, rtol=1e-15, atol=0)
         assert res.history["energy"][-1] < res.history["energy"][0]
+    # Newton's Riemannian Hessian: near the CVT it converges in a few diagrams.
+    assert diagrams["newton"] < diagrams["lbfgs"] < diagrams["lloyd"], diagrams
 
 
 def test_random_sites_converge_by_both_rules() -> None:
@@ -186,8 +190,6 @@ def test_bad_input_is_refused_by_row() -> None:
     with pytest.raises(InvalidSitesError, match="sites 3 and 12 coincide"):
         hcvt.voronoi(domain, sites)
     sites[12] = -sites[3]
-    with pytest.raises(ValueError, match="Newton"):
-        hcvt.cvt(domain, sites, method="newton")
     with pytest.raises(InvalidDensityError):
         hcvt.voronoi(domain, sites, density=lambda p: np.ones(len(p)))
     with pytest.raises(NotImplementedError):

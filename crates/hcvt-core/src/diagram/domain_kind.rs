@@ -135,6 +135,22 @@ pub trait DomainKind<const D: usize>: Sync {
         v
     }
 
+    /// The curvature term of the Riemannian Hessian of an energy at `site` whose ambient
+    /// gradient there is `gradient`: the Hessian along the domain is `P ∇²f P − c P` with
+    /// `c` this and `P` the projection of [`DomainKind::tangent`] (Absil, Mahony and
+    /// Sepulchre 2008, §5.5, for a surface whose shape operator is the identity, as the
+    /// unit sphere's). 0 in a flat domain, where the Hessian is used as it is.
+    fn curvature_term(&self, _site: [f64; D], _gradient: [f64; D]) -> f64 {
+        0.0
+    }
+
+    /// Newton's first trust region may be as large as the model's own step (its
+    /// `TrustRegion::open`, in `optimise/newton.rs`): a domain without boundary (no site
+    /// can be moved out of it) whose runs often start near a CVT. `false` by default.
+    fn trusts_newton(&self) -> bool {
+        false
+    }
+
     /// The point of the domain that stands for `x` after a step: `x` itself in a flat
     /// domain (no arithmetic, so no bit changes), `x / |x|` on the unit sphere (the
     /// retraction of DESIGN §13).

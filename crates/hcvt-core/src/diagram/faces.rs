@@ -135,7 +135,13 @@ impl<const D: usize> FaceSums<D> {
 
     /// Add a face with its moments `m` about the site, and its terms of the integrand of
     /// `row`.
-    fn add_moments(&mut self, face: Face, sign: f64, m: &FaceMoments<D>, row: FaceRow<'_, D>) {
+    pub(super) fn add_moments(
+        &mut self,
+        face: Face,
+        sign: f64,
+        m: &FaceMoments<D>,
+        row: FaceRow<'_, D>,
+    ) {
         self.add_weighted_moments(face, sign, m.measure, m, row);
     }
 

@@ -62,7 +62,7 @@
 use std::cell::RefCell;
 
 use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
-use crate::moments::Moments;
+use crate::moments::{FaceMoments, Moments};
 
 use super::clip::MeasureScratch;
 use super::convex_cell::{ConvexCell, Face};
@@ -122,6 +122,20 @@ impl SiteFrame {
             add(scale(self.e1, l[0]), scale(self.e2, l[1])),
             scale(self.z, l[2]),
         )
+    }
+
+    /// Face moments in the frame turned into global axes: `F m`, `F S Fᵀ` with `F` the
+    /// matrix of columns `(e1, e2, ẑ)`.
+    fn global_moments(&self, m: &FaceMoments<3>) -> FaceMoments<3> {
+        // `S` is symmetric: `F` times its row `r` is column `r` of `F S`, and `F` times row
+        // `c` of `F S` is column `c` of `F S Fᵀ`.
+        let columns = m.second.map(|row| self.global(row));
+        let rows = [0, 1, 2].map(|c| self.global([columns[0][c], columns[1][c], columns[2][c]]));
+        FaceMoments {
+            measure: m.measure,
+            first: self.global(m.first),
+            second: std::array::from_fn(|r| std::array::from_fn(|c| rows[c][r])),
+        }
     }
 }
 
@@ -344,7 +358,11 @@ struct Sums {
 /// A polygon above the site's equator holding the site (the cap's polygon, or a piece in
 /// an upper octant, whose corner `ẑ` is the site), by the closed forms of the module
 /// docs; its arcs are added to `faces`.
-fn measure_upper(poly: &SphericalPolygon, faces: &mut FaceSums<3>) -> Sums {
+fn measure_upper(
+    poly: &SphericalPolygon,
+    faces: &mut FaceSums<3>,
+    arcs: Option<ArcRow<'_>>,
+) -> Sums {
     let n = poly.vertices.len();
     let mut sums = Sums::default();
     if n < 3 {
@@ -370,7 +388,8 @@ fn measure_upper(poly: &SphericalPolygon, faces: &mut FaceSums<3>) -> Sums {
             let tms = theta_minus_sin(theta);
             sums.first[0] += 0.5 * (c[0] + tms * normal[0]);
             sums.first[1] += 0.5 * (c[1] + tms * normal[1]);
-            faces.add(poly.faces[k], theta);
+            let (a, b) = (poly.vertices[k], poly.vertices[(k + 1) % n]);
+            add_arc(faces, arcs, poly.faces[k], [unit(a), unit(b)], theta);
             // Fan triangle (ẑ, v_a, v_b): det = c[2], and 4 − den from the y's.
             let rest = 0.5 * dd - ya[2] - yb[2];
             let den = 4.0 - rest;
@@ -387,7 +406,11 @@ fn measure_upper(poly: &SphericalPolygon, faces: &mut FaceSums<3>) -> Sums {
 /// plainly: fan from its first vertex, `½ Σ θ_k n_k`; its arcs are added to
 /// `faces`. Its arcs along the octants' sides cancel those of the neighbouring pieces in
 /// the first moment.
-fn measure_lower(poly: &SphericalPolygon, faces: &mut FaceSums<3>) -> Sums {
+fn measure_lower(
+    poly: &SphericalPolygon,
+    faces: &mut FaceSums<3>,
+    arcs: Option<ArcRow<'_>>,
+) -> Sums {
     let n = poly.vertices.len();
     if n < 3 {
         return Sums::default();
@@ -407,13 +430,85 @@ fn measure_lower(poly: &SphericalPolygon, faces: &mut FaceSums<3>) -> Sums {
         if s > 0.0 {
             let theta = s.atan2(dot(a, b));
             first = add(first, scale(w, 0.5 * theta / s));
-            faces.add(poly.faces[k], theta);
+            add_arc(faces, arcs, poly.faces[k], [a, b], theta);
         }
     }
     Sums {
         area,
         first: [first[0], first[1]],
         energy: 2.0 * (area - first[2]),
+    }
+}
+
+/// A row's face integrand (the optimiser's Hessian) and the frame of its site: what
+/// [`add_arc`] needs to hand the integrand each arc's moments.
+#[derive(Clone, Copy)]
+struct ArcRow<'a> {
+    row: FaceRow<'a, 3>,
+    frame: &'a SiteFrame,
+}
+
+/// Add the arc from `ends[0]` to `ends[1]` (unit, in the site's frame, `theta` long, made by
+/// `face`) to `faces`: its length, and with `arcs` its moments about the site
+/// ([`arc_moments`]) for the row's integrand.
+fn add_arc(
+    faces: &mut FaceSums<3>,
+    arcs: Option<ArcRow<'_>>,
+    face: Face,
+    ends: [[f64; 3]; 2],
+    theta: f64,
+) {
+    match (arcs, face) {
+        (Some(arcs), Face::Neighbor(_)) => {
+            let local = arc_moments(ends[0], ends[1], theta);
+            faces.add_moments(face, 1.0, &arcs.frame.global_moments(&local), arcs.row);
+        }
+        _ => {
+            faces.add(face, theta);
+        }
+    }
+}
+
+/// The length, `∫ y ds` and `∫ y yᵀ ds` (`y = x − ẑ`) of the great-circle arc from `a` to
+/// `b` (unit, in the site's frame, `theta < π` long).
+///
+/// Along the arc `x(t) = a cos t + u sin t` (`u = n × a`, `n` the unit normal of `a × b`),
+/// so `y(t) = y_a c + u s − ẑ w` with `c = cos t`, `s = sin t`, `w = 1 − cos t` and
+/// `y_a = a − ẑ`: every term of the cell's size, no cancellation. The products' integrals
+/// over `[0, θ]` are written through `τ(θ) = θ − sin θ` ([`theta_minus_sin`]) and powers of
+/// `sin(θ/2)`, which keep their relative precision for short arcs (`∫w² = 2τ(θ) − τ(2θ)/4
+/// ~ θ⁵/20` cancels, but only below `1e-16 θ³` absolute, the scale of `∫ y yᵀ`).
+fn arc_moments(a: [f64; 3], b: [f64; 3], theta: f64) -> FaceMoments<3> {
+    let n = cross(a, b);
+    let u = cross(scale(n, 1.0 / norm2(n).sqrt()), a);
+    let ya = [a[0], a[1], -(a[0] * a[0] + a[1] * a[1]) / (1.0 + a[2])];
+    let z = [0.0, 0.0, 1.0];
+    let (sin, half) = (theta.sin(), (0.5 * theta).sin());
+    let (tau, tau2) = (theta_minus_sin(theta), theta_minus_sin(2.0 * theta));
+    let int_c = sin;
+    let int_s = 2.0 * half * half;
+    let int_w = tau;
+    let int_ss = 0.25 * tau2;
+    let int_cc = theta - int_ss;
+    let int_cs = 0.5 * sin * sin;
+    let int_ww = 2.0 * tau - 0.25 * tau2;
+    let int_cw = 0.25 * tau2 - tau;
+    let int_sw = 2.0 * half.powi(4);
+    let first = std::array::from_fn(|r| ya[r] * int_c + u[r] * int_s - z[r] * int_w);
+    let second = std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            ya[r] * ya[c] * int_cc
+                + u[r] * u[c] * int_ss
+                + z[r] * z[c] * int_ww
+                + (ya[r] * u[c] + u[r] * ya[c]) * int_cs
+                - (ya[r] * z[c] + z[r] * ya[c]) * int_cw
+                - (u[r] * z[c] + z[r] * u[c]) * int_sw
+        })
+    });
+    FaceMoments {
+        measure: theta,
+        first,
+        second,
     }
 }
 
@@ -446,12 +541,14 @@ fn measure_polygons<C: ConvexCell<3>>(
     cell: &C,
     site: [f64; 3],
     faces: &mut FaceSums<3>,
+    row: Option<FaceRow<'_, 3>>,
 ) -> Moments<3> {
     faces.clear();
     let frame = SiteFrame::at(site);
+    let arcs = row.map(|row| ArcRow { row, frame: &frame });
     let sums = with_polygon(|poly| {
         if cap_polygon(poly, cell, &frame) {
-            return measure_upper(poly, faces);
+            return measure_upper(poly, faces, arcs);
         }
         let mut sums = Sums::default();
         for sz in [1.0, -1.0] {
@@ -459,9 +556,9 @@ fn measure_polygons<C: ConvexCell<3>>(
                 poly.reset_to_octant(sx, sy, sz);
                 poly.clip_by_cell(cell, &frame);
                 let piece = if sz > 0.0 {
-                    measure_upper(poly, faces)
+                    measure_upper(poly, faces, arcs)
                 } else {
-                    measure_lower(poly, faces)
+                    measure_lower(poly, faces, arcs)
                 };
                 sums.area += piece.area;
                 sums.first = [
@@ -554,10 +651,10 @@ impl DomainKind<3> for Sphere {
         cell: &C,
         site: [f64; 3],
         _: Option<i32>,
-        _: Option<FaceRow<'_, 3>>,
+        row: Option<FaceRow<'_, 3>>,
         scratch: &mut MeasureScratch<3, C>,
     ) -> Moments<3> {
-        measure_polygons(cell, site, &mut scratch.faces)
+        measure_polygons(cell, site, &mut scratch.faces, row)
     }
 
     fn cell_dim(&self) -> usize {
@@ -579,6 +676,18 @@ impl DomainKind<3> for Sphere {
     fn tangent(&self, site: [f64; 3], v: [f64; 3]) -> [f64; 3] {
         let z = scale(site, 1.0 / norm2(site).sqrt());
         sub(v, scale(z, dot(v, z)))
+    }
+
+    /// `x·g` at the unit vector `x` (the sphere's outward normal at `x`): for the CVT
+    /// energy, whose ambient gradient is `g_i = 2 (A_i x_i − ∫x)`, the cell's energy
+    /// `∫|x − x_i|²`.
+    fn curvature_term(&self, site: [f64; 3], gradient: [f64; 3]) -> f64 {
+        dot(site, gradient) / norm2(site).sqrt()
+    }
+
+    /// No boundary, and icosahedral starts lie near a CVT.
+    fn trusts_newton(&self) -> bool {
+        true
     }
 
     fn retract(&self, x: [f64; 3]) -> [f64; 3] {
@@ -916,7 +1025,7 @@ mod tests {
         count
     }
 
-    /// Icosahedral sites (k = 1, 2), jittered, go to a spherical CVT by L-BFGS and by
+    /// Icosahedral sites (k = 1, 2), jittered, go to a spherical CVT by Newton, L-BFGS and
     /// Lloyd, to the default rule, with exactly 12 pentagons and the rest hexagons; every
     /// site stays on the sphere and the energy goes down.
     #[test]
@@ -935,7 +1044,7 @@ mod tests {
             let sites: Vec<[f64; 3]> = (exact.iter().zip(&jitter))
                 .map(|(&x, &r)| unit(add(x, scale(Sphere.tangent(x, r), 0.1 * h))))
                 .collect();
-            for method in [Method::Lbfgs, Method::Lloyd] {
+            for method in [Method::Newton, Method::Lbfgs, Method::Lloyd] {
                 let settings = Settings {
                     method,
                     max_iter: 2000,
@@ -993,15 +1102,125 @@ mod tests {
                 last.mean_g
             );
         }
-        let newton = Settings {
-            method: Method::Newton,
-            ..Settings::default()
-        };
-        let go = &mut |_: &_, _: &_| ControlFlow::Continue(());
-        assert!(matches!(
-            cvt::<3, PolyhedronCell, _>(&Sphere, sites, &newton, go),
-            Err(CoreError::InvalidSettings { .. })
-        ));
+        // Newton from random sites: to the same rule in fewer diagrams than L-BFGS.
+        let mut diagrams = Vec::new();
+        for method in [Method::Newton, Method::Lbfgs] {
+            let settings = Settings {
+                method,
+                max_iter: 3000,
+                ..Settings::default()
+            };
+            let go = &mut |_: &_, _: &_| ControlFlow::Continue(());
+            let out = cvt::<3, PolyhedronCell, _>(&Sphere, sites.clone(), &settings, go).unwrap();
+            assert_eq!(out.stop_reason, StopReason::Converged, "{method:?}");
+            diagrams.push(out.evaluations());
+        }
+        assert!(
+            diagrams[0] < diagrams[1],
+            "Newton, L-BFGS diagrams: {diagrams:?}"
+        );
+    }
+
+    /// The Riemannian Hessian (arc face terms, projected, with the curvature term) against
+    /// central differences of the tangent gradient along the retraction
+    /// `x(t) = (x + t v)/|x + t v|`: `P_x (g(t) − g(−t)) / 2t → Hess[v]`, per site.
+    #[test]
+    fn the_hessian_matches_differences_of_the_gradient() {
+        use crate::optimise::{evaluate, PointRequest};
+        for (n, seed) in [(60, 3), (400, 4)] {
+            let sites = random_sites(n, seed);
+            let h = (4.0 * PI / n as f64).sqrt();
+            let request = PointRequest {
+                hessian: true,
+                density: None,
+            };
+            let point = evaluate::<3, PolyhedronCell, _>(&Sphere, sites.clone(), &request).unwrap();
+            let v: Vec<[f64; 3]> = (random_sites(n, seed + 100).iter().zip(&sites))
+                .map(|(&r, &x)| Sphere.tangent(x, r))
+                .collect();
+            let hv = point.hessian_product(&v).unwrap();
+            let t = 1e-6 * h;
+            let moved = |s: f64| {
+                let x: Vec<[f64; 3]> = (sites.iter().zip(&v))
+                    .map(|(&x, &d)| Sphere.retract(add(x, scale(d, s * t))))
+                    .collect();
+                evaluate::<3, PolyhedronCell, _>(&Sphere, x, &PointRequest::default())
+                    .unwrap()
+                    .gradient
+            };
+            let (plus, minus) = (moved(1.0), moved(-1.0));
+            let scale_hv = hv.iter().map(|&r| norm2(r)).fold(0.0, f64::max).sqrt();
+            let mut worst: f64 = 0.0;
+            for i in 0..n {
+                let fd = Sphere.tangent(sites[i], scale(sub(plus[i], minus[i]), 0.5 / t));
+                worst = worst.max(norm2(sub(fd, hv[i])).sqrt() / scale_hv);
+                // The Hessian maps into the tangent plane.
+                assert!(dot(hv[i], sites[i]).abs() < 1e-13 * scale_hv);
+            }
+            let tol = 1e-7;
+            assert!(worst < tol, "{n}: worst relative miss {worst:e}");
+            // Without the curvature term the miss is of the cells' energy: far above that.
+            let curvature: f64 =
+                point.diagram.moments.iter().map(|m| m.second).sum::<f64>() / n as f64;
+            let v_norm = v.iter().map(|&r| norm2(r)).fold(0.0, f64::max).sqrt();
+            assert!(
+                curvature * v_norm > 100.0 * tol * scale_hv,
+                "{curvature} {v_norm} {scale_hv}"
+            );
+        }
+    }
+
+    /// An arc's moments about the site against a Gauss–Legendre rule along it.
+    #[test]
+    fn arc_moments_match_a_quadrature() {
+        for (a, b) in [
+            ([0.01, 0.02, 1.0], [-0.015, 0.012, 1.0]),
+            ([0.3, -0.2, 0.9], [0.5, 0.4, 0.7]),
+            ([1.0, 0.0, 0.0], [0.0, 0.7, -0.7]),
+        ] {
+            let (a, b) = (unit(a), unit(b));
+            let theta = dot(a, b).clamp(-1.0, 1.0).acos();
+            let m = arc_moments(a, b, theta);
+            let n = unit(cross(a, b));
+            let u = cross(n, a);
+            // 20 Gauss–Legendre nodes on [0, θ], by Newton on the Legendre polynomial.
+            let k = 20;
+            let (mut first, mut second) = ([0.0; 3], [[0.0; 3]; 3]);
+            for r in 1..=k {
+                let mut x = (PI * (r as f64 - 0.25) / (k as f64 + 0.5)).cos();
+                let mut dp = 0.0;
+                for _ in 0..100 {
+                    let (mut p0, mut p1) = (1.0, x);
+                    for l in 2..=k {
+                        let l = l as f64;
+                        (p0, p1) = (p1, ((2.0 * l - 1.0) * x * p1 - (l - 1.0) * p0) / l);
+                    }
+                    dp = k as f64 * (x * p1 - p0) / (x * x - 1.0);
+                    x -= p1 / dp;
+                }
+                let w = 2.0 / ((1.0 - x * x) * dp * dp) * 0.5 * theta;
+                let tt = 0.5 * theta * (x + 1.0);
+                let y = sub(add(scale(a, tt.cos()), scale(u, tt.sin())), [0.0, 0.0, 1.0]);
+                for p in 0..3 {
+                    first[p] += w * y[p];
+                    for q in 0..3 {
+                        second[p][q] += w * y[p] * y[q];
+                    }
+                }
+            }
+            let size = norm2(sub(a, [0.0, 0.0, 1.0])).max(norm2(sub(b, [0.0, 0.0, 1.0])));
+            for p in 0..3 {
+                assert!(
+                    (first[p] - m.first[p]).abs() < 1e-14 * theta,
+                    "{first:?} {:?}",
+                    m.first
+                );
+                for (q, (s, t)) in second[p].iter().zip(&m.second[p]).enumerate() {
+                    let e = (s - t).abs();
+                    assert!(e < 1e-14 * theta * size, "{p}{q}: {e:e}");
+                }
+            }
+        }
     }
 
     #[test]

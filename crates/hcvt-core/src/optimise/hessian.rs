@@ -5,7 +5,7 @@
 
 use rayon::prelude::*;
 
-use crate::diagram::{Diagram, FaceIntegrals, FaceIntegrand, Matrix};
+use crate::diagram::{Diagram, DomainKind, FaceIntegrals, FaceIntegrand, Matrix};
 use crate::geometry::{add, dot, norm2, sub};
 use crate::moments::FaceMoments;
 
@@ -108,6 +108,54 @@ impl<const D: usize> Hessian<D> {
                 for (k, o) in rows.iter_mut().enumerate() {
                     *o = row(c * PRODUCT_ROWS + k);
                 }
+            });
+    }
+
+    /// The Riemannian Hessian on a curved domain (the sphere, DESIGN §13) from the ambient
+    /// one (`self`, whose face terms the domain measured on its curved faces) at `sites`
+    /// with ambient gradients `gradient`: `P_i H_ij P_j`, and on the diagonal also
+    /// `− c_i P_i` with `c_i` the domain's [`DomainKind::curvature_term`] (Absil, Mahony and
+    /// Sepulchre 2008, §5.5: on the unit sphere `Hess f = P ∇²f P − (x·∇f) P`). `P_i` is
+    /// the projection onto the tangent plane at site `i` ([`DomainKind::tangent`]).
+    pub fn along<K: DomainKind<D>>(
+        &mut self,
+        domain: &K,
+        diagram: &Diagram<D>,
+        sites: &[[f64; D]],
+        gradient: &[[f64; D]],
+    ) {
+        let project = |b: &Block<D>, xi: [f64; D], xj: [f64; D]| -> Block<D> {
+            // `B P_j` row by row (P symmetric), then `P_i` on each column.
+            let right = b.map(|row| domain.tangent(xj, row));
+            let columns: [[f64; D]; D] =
+                std::array::from_fn(|c| domain.tangent(xi, std::array::from_fn(|r| right[r][c])));
+            std::array::from_fn(|r| std::array::from_fn(|c| columns[c][r]))
+        };
+        self.diagonal
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, block)| {
+                let x = sites[i];
+                let c = domain.curvature_term(x, gradient[i]);
+                *block = project(block, x, x);
+                for (r, row) in block.iter_mut().enumerate() {
+                    let unit: [f64; D] = std::array::from_fn(|k| if k == r { 1.0 } else { 0.0 });
+                    for (b, p) in row.iter_mut().zip(domain.tangent(x, unit)) {
+                        *b -= c * p;
+                    }
+                }
+            });
+        let rows: Vec<u32> = (0..diagram.len())
+            .flat_map(|i| {
+                let count = diagram.neighbor_offsets[i + 1] - diagram.neighbor_offsets[i];
+                std::iter::repeat_n(i as u32, count)
+            })
+            .collect();
+        self.off_diagonal
+            .par_iter_mut()
+            .zip(rows.par_iter().zip(&diagram.neighbor_sites))
+            .for_each(|(block, (&i, &j))| {
+                *block = project(block, sites[i as usize], sites[j as usize]);
             });
     }
 

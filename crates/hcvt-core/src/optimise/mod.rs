@@ -365,16 +365,23 @@ where
         },
     )?;
     let diagram = clipped.diagram;
+    let ambient = diagram.gradient();
+    let hessian = request.hessian.then(|| {
+        let mut hessian = Hessian::new(&diagram, clipped.face_integrals);
+        if domain.cell_dim() != D {
+            // On a surface the Riemannian Hessian, along the tangent planes.
+            hessian.along(domain, &diagram, &sites, &ambient);
+        }
+        hessian
+    });
     // The gradient along the domain: itself in a flat one, its tangent part on the sphere.
-    let gradient = (diagram.gradient().into_iter().zip(&sites))
+    let gradient = (ambient.into_iter().zip(&sites))
         .map(|(g, &x)| domain.tangent(x, g))
         .collect();
     Ok(Point {
         energy: diagram.energy(),
         gradient,
-        hessian: request
-            .hessian
-            .then(|| Hessian::new(&diagram, clipped.face_integrals)),
+        hessian,
         diagram,
         sites,
     })
@@ -489,10 +496,10 @@ pub fn cvt<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
-    if settings.method == Method::Newton && domain.cell_dim() != D {
+    if settings.method == Method::Newton && domain.cell_dim() != D && settings.density.is_some() {
         return Err(CoreError::InvalidSettings {
-            reason: "Newton's Hessian is that of a flat domain: on the sphere use method \
-                     'lbfgs' or 'lloyd'"
+            reason: "Newton's Hessian on the sphere is not weighted by a density yet: use \
+                     method 'lbfgs' or 'lloyd'"
                 .into(),
         });
     }
@@ -572,7 +579,11 @@ where
     let mut solver = Solver {
         method: settings.method,
         memory: Memory::new(settings.memory),
-        region: TrustRegion::default(),
+        region: if domain.trusts_newton() {
+            TrustRegion::open()
+        } else {
+            TrustRegion::default()
+        },
         search: LineSearch::new(settings.max_line_evaluations),
     };
     let (mut record, mut pinned) = tracker.record(domain, &point, Step::Start);
