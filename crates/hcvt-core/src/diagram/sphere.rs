@@ -1127,8 +1127,22 @@ mod tests {
     #[test]
     fn the_hessian_matches_differences_of_the_gradient() {
         use crate::optimise::{evaluate, PointRequest};
-        for (n, seed) in [(60, 3), (400, 4)] {
-            let sites = random_sites(n, seed);
+        // A cluster at the north pole and a site on the equator, whose cell reaches far
+        // below its own equator (measured through the octants), then random sites.
+        let mut cluster: Vec<[f64; 3]> = (0..5)
+            .map(|k| {
+                let a = k as f64 * 2.0 * PI / 5.0 + 0.1;
+                unit([0.2 * a.cos(), 0.2 * a.sin(), 1.0])
+            })
+            .collect();
+        cluster.push([1.0, 0.0, 0.0]);
+        let cases = [
+            (cluster, 5),
+            (random_sites(60, 3), 3),
+            (random_sites(400, 4), 4),
+        ];
+        for (sites, seed) in cases {
+            let n = sites.len();
             let h = (4.0 * PI / n as f64).sqrt();
             let request = PointRequest {
                 hessian: true,
