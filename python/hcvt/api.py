@@ -145,8 +145,9 @@ def cvt(
         first step is a Lloyd step; the paper's method), Newton (the exact Hessian from
         the same diagram, truncated conjugate gradients in a trust region; 3-5x fewer
         diagrams from random sites, see ``hcvt-core/src/optimise/newton.rs``; the Hessian
-        takes about 0.2 kB per site in 2D and 1.2 kB in 3D on top of the diagram) or Lloyd's
-        ``x_i <- c_i``.
+        takes about 0.2 kB per site in 2D and 1.2 kB in 3D on top of the diagram; on the
+        sphere the Riemannian Hessian, and the fastest method: 5 diagrams from icosahedral
+        sites, without a density) or Lloyd's ``x_i <- c_i``.
     rule : {"gap", "paper"}
         Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
         (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates
