@@ -1184,6 +1184,33 @@ mod tests {
         }
     }
 
+    /// The Riemannian Hessian (its arc terms and its projection in parallel) is the same
+    /// bit for bit on 1 and 3 threads.
+    #[test]
+    fn the_hessian_does_not_depend_on_the_thread_count() {
+        use crate::optimise::{evaluate, PointRequest};
+        let sites = random_sites(3000, 6);
+        let request = PointRequest {
+            hessian: true,
+            density: None,
+        };
+        let hessian = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                evaluate::<3, PolyhedronCell, _>(&Sphere, sites.clone(), &request)
+                    .unwrap()
+                    .hessian
+                    .unwrap()
+            })
+        };
+        let (one, three) = (hessian(1), hessian(3));
+        assert_eq!(one.diagonal, three.diagonal);
+        assert_eq!(one.off_diagonal, three.off_diagonal);
+    }
+
     /// An arc's moments about the site against a Gauss–Legendre rule along it.
     #[test]
     fn arc_moments_match_a_quadrature() {
