@@ -156,12 +156,13 @@ def cvt(
         Newton (the exact Hessian from the same diagram, truncated conjugate gradients in
         a trust region; 3-5x fewer diagrams than L-BFGS from random sites, see
         ``hcvt-core/src/optimise/newton.rs``; the Hessian takes about 0.2 kB per site in
-        2D and 1.2 kB in 3D on top of the diagram), L-BFGS (memory ``memory``,
-        strong-Wolfe line search, preconditioned so that its first step is a Lloyd step;
-        the paper's method) or Lloyd's ``x_i <- c_i``. Default: the fastest the domain
-        takes (:func:`hcvt.optimise.fastest_method`): Newton on polygons, solids and
-        plain boxes without a density or with a polynomial one, in one process; L-BFGS
-        elsewhere (periodic boxes, the sphere, a sampled density, ``client=``).
+        2D and 1.2 kB in 3D on top of the diagram; on the sphere the Riemannian Hessian:
+        5 diagrams from icosahedral sites), L-BFGS (memory ``memory``, strong-Wolfe line
+        search, preconditioned so that its first step is a Lloyd step; the paper's method)
+        or Lloyd's ``x_i <- c_i``. Default: the fastest the domain takes
+        (:func:`hcvt.optimise.fastest_method`): Newton on polygons, solids, plain boxes
+        and the sphere without a density or with a polynomial one (none on the sphere), in
+        one process; L-BFGS elsewhere (periodic boxes, a sampled density, ``client=``).
     rule : {"gap", "paper"}
         Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
         (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates

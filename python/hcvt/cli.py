@@ -105,8 +105,8 @@ def _load(input_: str, repair: bool, radius: float = 1.0):
     type=click.Choice(OPTIMISERS),
     default=None,
     help="Optimiser of every hierarchy level or of the regular method's CVTs [default: the "
-    "fastest the domain takes: newton, or lbfgs on periodic boxes, the sphere, with a "
-    "sampled density or --scheduler].",
+    "fastest the domain takes: newton, or lbfgs on periodic boxes, with a sampled "
+    "density or --scheduler].",
 )
 @click.option(
     "--moves",

@@ -1127,8 +1127,22 @@ mod tests {
     #[test]
     fn the_hessian_matches_differences_of_the_gradient() {
         use crate::optimise::{evaluate, PointRequest};
-        for (n, seed) in [(60, 3), (400, 4)] {
-            let sites = random_sites(n, seed);
+        // A cluster at the north pole and a site on the equator, whose cell reaches far
+        // below its own equator (measured through the octants), then random sites.
+        let mut cluster: Vec<[f64; 3]> = (0..5)
+            .map(|k| {
+                let a = k as f64 * 2.0 * PI / 5.0 + 0.1;
+                unit([0.2 * a.cos(), 0.2 * a.sin(), 1.0])
+            })
+            .collect();
+        cluster.push([1.0, 0.0, 0.0]);
+        let cases = [
+            (cluster, 5),
+            (random_sites(60, 3), 3),
+            (random_sites(400, 4), 4),
+        ];
+        for (sites, seed) in cases {
+            let n = sites.len();
             let h = (4.0 * PI / n as f64).sqrt();
             let request = PointRequest {
                 hessian: true,
@@ -1168,6 +1182,33 @@ mod tests {
                 "{curvature} {v_norm} {scale_hv}"
             );
         }
+    }
+
+    /// The Riemannian Hessian (its arc terms and its projection in parallel) is the same
+    /// bit for bit on 1 and 3 threads.
+    #[test]
+    fn the_hessian_does_not_depend_on_the_thread_count() {
+        use crate::optimise::{evaluate, PointRequest};
+        let sites = random_sites(3000, 6);
+        let request = PointRequest {
+            hessian: true,
+            density: None,
+        };
+        let hessian = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                evaluate::<3, PolyhedronCell, _>(&Sphere, sites.clone(), &request)
+                    .unwrap()
+                    .hessian
+                    .unwrap()
+            })
+        };
+        let (one, three) = (hessian(1), hessian(3));
+        assert_eq!(one.diagonal, three.diagonal);
+        assert_eq!(one.off_diagonal, three.off_diagonal);
     }
 
     /// An arc's moments about the site against a Gauss–Legendre rule along it.
