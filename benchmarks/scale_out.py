@@ -37,6 +37,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import collections
+import resource
 import statistics
 import subprocess
 import sys
@@ -183,6 +184,17 @@ def uptime() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
+def children_cpu() -> float:
+    """CPU seconds (user + system) of the finished child processes so far."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def workers_cpu(client) -> float:
+    """CPU seconds of every worker process so far (all its threads), summed."""
+    return sum(client.run(time.process_time).values())
+
+
 def _core_threads(n: int) -> int:
     import hcvt
 
@@ -207,10 +219,12 @@ def partitioned_turn(client, domain, points, per_part: int) -> tuple[float, floa
     """One partitioned diagram: print where its wall time went; (seconds, gather seconds)."""
     from dask.distributed import get_task_stream
 
+    cpu = workers_cpu(client), time.process_time()
     with get_task_stream(client) as stream:
         t = time.perf_counter()
         parted = partitioned_voronoi(domain, points, client, sites_per_partition=per_part)
         seconds = time.perf_counter() - t
+    cpu = workers_cpu(client) - cpu[0], time.process_time() - cpu[1]
     t = time.perf_counter()
     gathered = parted.gather()
     gather_seconds = time.perf_counter() - t
@@ -232,6 +246,7 @@ def partitioned_turn(client, domain, points, per_part: int) -> tuple[float, floa
         f"parts; client: split {split['split']:.2f} s, scatter {split['scatter']:.2f} s, "
         f"rounds {rounds}, sums {split['sums']:.2f} s"
     )
+    print(f"    CPU seconds: workers {cpu[0]:.2f}, client {cpu[1]:.2f}")
     print(
         "    worker task seconds: "
         + ", ".join(f"{k} {v:.2f}" for k, v in sorted(work.items(), key=lambda kv: -kv[1]))
@@ -261,9 +276,13 @@ def ratio_case(args: argparse.Namespace) -> None:
     try:
         client.run(_core_threads, 1)
         for turn in range(args.repeats):
+            cpu = children_cpu()
             seconds, _ = single_process(2, n, threads=workers)
             single.append(seconds)
-            print(f"turn {turn + 1}: single process: {seconds:.2f} s, {n / seconds:,.0f} cells/s")
+            print(
+                f"turn {turn + 1}: single process: {seconds:.2f} s, {n / seconds:,.0f} cells/s; "
+                f"CPU seconds {children_cpu() - cpu:.2f} (with making the sites)"
+            )
             parted.append(partitioned_turn(client, domain, points, per_part)[0])
     finally:
         client.close()
