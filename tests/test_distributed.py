@@ -167,6 +167,47 @@ def test_kd_split_depends_on_the_data_only_and_locates_every_site():
     assert np.array_equal(again.value, split.value)
 
 
+def test_the_grid_finds_every_site_in_the_balls():
+    """Later rounds take the sites within balls through a grid: a superset, never fewer
+    than a brute-force distance test (2D and 3D, radii from 1e-6 to 0.3)."""
+    rng = np.random.default_rng(5)
+    for trial in range(100):
+        d = 2 + trial % 2
+        points = rng.random((int(rng.integers(1, 3000)), d))
+        centres = rng.random((int(rng.integers(1, 30)), d))
+        radii = rng.random(len(centres)) ** 3 * 0.3 + 1e-6
+        got = pt.ball_slice(pt.Part(0, np.arange(len(points)), points), centres, radii)[0]
+        distance = np.sqrt(((points[:, None, :] - centres[None]) ** 2).sum(axis=-1))
+        inside = np.flatnonzero((distance <= radii).any(axis=1))
+        assert np.isin(inside, got).all(), trial
+        assert np.all(np.diff(got) > 0)
+    # Balls along a part's four faces (as after a first round): their common box is the
+    # whole part, the grid keeps the sites near them (about 4% here), not the 100,000.
+    points = rng.random((100_000, 2))
+    t = rng.random(200)
+    centres = np.concatenate([np.c_[t[:50], 0 * t[:50]], np.c_[t[50:100], 1 + 0 * t[:50]]])
+    centres = np.concatenate([centres, centres[:, ::-1]])
+    got = pt._near_balls(points, centres, np.full(len(centres), 0.01))
+    assert len(got) < 0.1 * len(points)
+
+
+def test_cells_are_visited_along_a_morton_curve():
+    """The keys interleave the coordinates' bits (against one bit at a time), and the
+    order is a permutation whose consecutive sites are near (mean step ~ the spacing)."""
+    rng = np.random.default_rng(0)
+    for d in (2, 3):
+        values = rng.integers(0, 1 << (63 // d), 10_000, dtype=np.uint64)
+        expected = np.zeros_like(values)
+        for b in range(63 // d):
+            expected |= ((values >> np.uint64(b)) & np.uint64(1)) << np.uint64(d * b)
+        assert np.array_equal(pt._spread_bits(values, d), expected)
+    points = rng.random((40_000, 2))
+    order = pt.spatial_order(points)
+    assert np.array_equal(np.sort(order), np.arange(len(points)))
+    step = np.sqrt((np.diff(points[order], axis=0) ** 2).sum(axis=1)).mean()
+    assert step < 2.5 / np.sqrt(len(points))  # row order: ~0.52, 100 spacings
+
+
 def test_lloyd_is_bitwise_the_single_process_lloyd(client, holes):
     domain, sites = holes
     sites = sites[:1000]

@@ -8,7 +8,7 @@ lives on a worker as a dask future; the domain is scattered to every worker once
 **Diagram.** In rounds: a part's cells are computed among its sites and the sites of the
 other parts within a distance ``rho = 3 h`` of its sites' box (taken by small tasks where
 those parts live, so only the halo travels). Each cell reports its reach; the cells whose
-reach ``rho`` does not cover are computed again among the sites within 1.5 times their
+reach leaves that widened box are computed again among the sites within 1.5 times their
 reach (a ball per cell), and so on until every cell is certified or its part holds every
 site. The per-cell arrays are then bitwise
 those of :func:`hcvt.voronoi` in one process (module docs of :mod:`hcvt.distributed.partition`).

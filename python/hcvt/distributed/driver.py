@@ -47,10 +47,15 @@ _T = TypeVar("_T")
 
 @dataclass
 class Rounds:
-    """How the halos grew for one diagram: per round, cells computed and halo sites."""
+    """How the halos grew for one diagram: per round, cells computed, halo sites, seconds.
+
+    ``seconds`` is the client's wall time from submitting a round's tasks to having every
+    part's status (the workers' computation and the waiting on them).
+    """
 
     cells: list[int] = field(default_factory=list)
     halo: list[int] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
 
 
 class _Cluster:
@@ -118,6 +123,7 @@ class _Cluster:
         rounds = Rounds()
         balls: dict[int, Any] = {}
         while pending:
+            start = time.perf_counter()
             for p in pending:
                 # Where part p's halo must reach: its sites' box widened by rho, or later
                 # the box of the balls of its cells not certified.
@@ -151,6 +157,7 @@ class _Cluster:
             status = self.gather([self.submit(_status, cells[p]) for p in pending])
             rounds.cells.append(sum(s.computed for s in status))
             rounds.halo.append(sum(s.halo for s in status))
+            rounds.seconds.append(time.perf_counter() - start)
             still = []
             for p, s in zip(pending, status, strict=True):
                 # The last round's result of p is now in cells[p]: let the worker drop it.
@@ -179,7 +186,8 @@ def _balls(cells: pt.PartCells) -> tuple[NDArray[np.float64], NDArray[np.float64
 def _energy_partial(cells: pt.PartCells) -> tuple[float, float, int]:
     a = cells.arrays
     g = a["G"][~np.isnan(a["G"])]
-    return math.fsum(a["energy_terms"]), math.fsum(g), len(g)
+    # fsum of a list: the same correctly rounded sum, without a numpy scalar per element.
+    return math.fsum(a["energy_terms"].tolist()), math.fsum(g.tolist()), len(g)
 
 
 def _peak_rss() -> float:
@@ -203,7 +211,15 @@ class PartitionedDiagram:
         Cells computed and halo sites per round of halo growth.
     """
 
-    def __init__(self, cluster: _Cluster, parts: list[Any], cells: list[Any], rounds: Rounds):
+    def __init__(
+        self,
+        cluster: _Cluster,
+        parts: list[Any],
+        cells: list[Any],
+        rounds: Rounds,
+        timings: dict[str, float] | None = None,
+    ):
+        start = time.perf_counter()
         self._cluster = cluster
         self._parts = parts
         self._cells = cells
@@ -216,6 +232,11 @@ class PartitionedDiagram:
         self.energy = math.fsum(s[0] for s in sums)
         count = sum(s[2] for s in sums)
         self.mean_G = math.fsum(s[1] for s in sums) / max(count, 1)
+        #: Wall seconds on the client: ``split`` (kd planes and parts), ``scatter`` (the
+        #: domain and the parts to the workers), ``cells`` (every round of
+        #: :attr:`rounds`, as ``rounds.seconds``), ``sums`` (energy and mean G).
+        self.timings = dict(timings or {}, cells=math.fsum(rounds.seconds))
+        self.timings["sums"] = time.perf_counter() - start
 
     def gather(self) -> Diagram:
         """The whole :class:`~hcvt.diagram.Diagram` on the client, row ``i`` site ``i``.
@@ -330,11 +351,19 @@ def partitioned_voronoi(
     value whatever the other points of the call: module docs).
     """
     points = as_sites(sites, domain.dim)
+    start = time.perf_counter()
     cluster = _Cluster(client, domain, len(points), allow_outside, density, quadrature_degree)
-    split = pt.kd_split(points, sites_per_partition)
-    parts = client.scatter(pt.make_parts(points, split), hash=False)
+    split_at = time.perf_counter()
+    made = pt.make_parts(points, pt.kd_split(points, sites_per_partition))
+    scatter_at = time.perf_counter()
+    parts = client.scatter(made, hash=False)
+    del made
+    timings = {
+        "split": scatter_at - split_at,
+        "scatter": (split_at - start) + (time.perf_counter() - scatter_at),
+    }
     cells, rounds = cluster.cells(parts)
-    return PartitionedDiagram(cluster, parts, cells, rounds)
+    return PartitionedDiagram(cluster, parts, cells, rounds, timings)
 
 
 @dataclass

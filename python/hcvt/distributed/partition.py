@@ -125,13 +125,15 @@ def _median_plane(points: NDArray[np.float64]) -> tuple[int, float] | None:
     """``(axis, value)`` splitting ``points`` in two non-empty halves, or None."""
     extent = points.max(axis=0) - points.min(axis=0)
     for axis in np.argsort(-extent, kind="stable"):
-        coords = np.sort(points[:, axis])
-        value = coords[len(coords) // 2]
-        if value == coords[0]:
+        coords = points[:, axis]
+        # The element a sort would put in the middle, found in linear time.
+        middle = len(coords) // 2
+        value = np.partition(coords, middle)[middle]
+        if value == coords.min():
             above = coords[coords > value]
             if above.size == 0:
                 continue
-            value = above[0]
+            value = above.min()
         return int(axis), float(value)
     return None
 
@@ -262,29 +264,124 @@ def empty_cells(d: int) -> PartCells:
 def ball_slice(
     part: Part, centres: NDArray[np.float64], radii: NDArray[np.float64]
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Rows and sites of ``part`` within ``radii`` of any of ``centres``, and maybe more.
+    """Rows and sites of ``part`` within ``radii`` of any of ``centres``, and maybe more."""
+    near = _in_balls(part.sites, centres, radii)
+    return part.rows[near], part.sites[near]
+
+
+def _in_balls(
+    points: NDArray[np.float64], centres: NDArray[np.float64], radii: NDArray[np.float64]
+) -> NDArray[np.intp]:
+    """Indices of ``points`` (m, d) within ``radii`` (c,) of any of ``centres`` (c, d), or more.
+
+    Increasing.
 
     The balls are grouped by radius into powers of two; each group answers one
-    nearest-centre query per site within its largest radius: a superset of the sites in
-    the balls (which is all a halo needs), in memory linear in the sites. (Listing each
-    ball's sites took more than 2 GB on a 10M-site run: the balls overlap.)
+    nearest-centre query per point within its largest radius: a superset of the points in
+    the balls (which is all a halo needs), in memory linear in the points. (Listing each
+    ball's points took more than 2 GB on a 10M-site run: the balls overlap.)
     """
-    if len(part.rows) == 0 or len(centres) == 0:
-        return part.rows[:0], part.sites[:0]
-    lo = (centres - radii[:, None]).min(axis=0)
-    hi = (centres + radii[:, None]).max(axis=0)
-    near = np.flatnonzero(np.all((part.sites >= lo) & (part.sites <= hi), axis=1))
+    if len(points) == 0 or len(centres) == 0:
+        return np.zeros(0, dtype=np.intp)
+    near = _near_balls(points, centres, radii)
     take = np.zeros(len(near), dtype=bool)
     group = np.ceil(np.log2(radii)).astype(int)
     for g in np.unique(group):
         members = group == g
         bound = float(radii[members].max())
         distance, _ = cKDTree(centres[members]).query(
-            part.sites[near], distance_upper_bound=bound * (1 + 1e-12)
+            points[near], distance_upper_bound=bound * (1 + 1e-12)
         )
         take |= distance <= bound * (1 + 1e-12)
-    near = near[take]
-    return part.rows[near], part.sites[near]
+    return near[take]
+
+
+def _near_balls(
+    points: NDArray[np.float64], centres: NDArray[np.float64], radii: NDArray[np.float64]
+) -> NDArray[np.intp]:
+    """Indices of the ``points`` in the grid cells that the balls' boxes touch, increasing.
+
+    A coarse filter before the distance test: the balls of the cells left over from a
+    first round lie along a part's faces, so their common box is most of the part, while
+    the grid cells they touch hold a few of its sites. The grid's side is at least the
+    largest radius, so a ball's box spans at most three cells along each axis, and at
+    least the points' mean spacing, so the grid has about as many cells as points at most.
+    """
+    lo = (centres - radii[:, None]).min(axis=0)
+    hi = (centres + radii[:, None]).max(axis=0)
+    inside = np.flatnonzero(np.all((points >= lo) & (points <= hi), axis=1))
+    d = points.shape[1]
+    extent = np.maximum(hi - lo, np.finfo(np.float64).tiny)
+    side = max(float(radii.max()), float(np.prod(extent) / max(len(inside), 1)) ** (1.0 / d))
+    shape = np.maximum(np.ceil(extent / side).astype(np.intp), 1)
+
+    def cell_of(x: NDArray[np.float64]) -> NDArray[np.intp]:
+        return np.clip(np.floor((x - lo) / side).astype(np.intp), 0, shape - 1)
+
+    touched = np.zeros(shape, dtype=bool)
+    first, last = cell_of(centres - radii[:, None]), cell_of(centres + radii[:, None])
+    # Every cell of each ball's span (at most 3 per axis), as offsets from its first.
+    for corner in np.ndindex(*(3,) * d):
+        at = np.minimum(first + np.asarray(corner), last)
+        touched[tuple(at.T)] = True
+    return inside[touched[tuple(cell_of(points[inside]).T)]]
+
+
+def spatial_order(points: NDArray[np.float64]) -> NDArray[np.intp]:
+    """A permutation of ``points`` (m, d) along a Morton curve over their box, shape (m,).
+
+    The core computes the cells it is given in the order given; visiting them along the
+    curve keeps neighbouring cells' index buckets in cache (as ``morton_order`` does for a
+    whole diagram). Measured on 1M uniform random sites in the unit square, one thread:
+    ``partition_cells`` took 7.0 s of CPU in row order, 4.0 s along the curve.
+    """
+    m, d = points.shape
+    if m < 2:
+        return np.arange(m, dtype=np.intp)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    bits = min(int(math.log2(m)) // d + 3, 63 // d)
+    extent = np.maximum(hi - lo, np.finfo(np.float64).tiny)
+    cell = ((points - lo) / extent * ((1 << bits) - 1)).astype(np.uint64)
+    key = np.zeros(m, dtype=np.uint64)
+    for k in range(d):
+        key |= _spread_bits(cell[:, k], d) << np.uint64(k)
+    return np.argsort(key, kind="stable")
+
+
+#: Shifts and masks that move bit ``b`` of a value to bit ``d·b``, by dimension ``d``.
+_SPREAD = {
+    1: [],
+    2: [
+        (16, 0x0000FFFF0000FFFF),
+        (8, 0x00FF00FF00FF00FF),
+        (4, 0x0F0F0F0F0F0F0F0F),
+        (2, 0x3333333333333333),
+        (1, 0x5555555555555555),
+    ],
+    3: [
+        (32, 0x001F00000000FFFF),
+        (16, 0x001F0000FF0000FF),
+        (8, 0x100F00F00F00F00F),
+        (4, 0x10C30C30C30C30C3),
+        (2, 0x1249249249249249),
+    ],
+}
+
+
+def _spread_bits(values: NDArray[np.uint64], d: int) -> NDArray[np.uint64]:
+    """``values`` (each below ``2^(63 // d)``) with bit ``b`` moved to bit ``d·b``.
+
+    The Morton interleave of one coordinate, in five shift-and-mask steps instead of one
+    per bit.
+    """
+    out = values.copy()
+    for shift, mask in _SPREAD[d]:
+        out = (out | (out << np.uint64(shift))) & np.uint64(mask)
+    return out
+
+
+#: The per-face arrays of a part's cells (CSR rows by `neighbor_offsets`).
+FACE_ARRAYS = ("neighbor_sites", "neighbor_measures")
 
 
 def part_cells(
@@ -302,9 +399,14 @@ def part_cells(
 
     Only the cells not yet certified in ``previous`` are computed (all without it).
     ``slices`` hold every site of the problem within ``cover`` of each of these cells'
-    sites: a float (the slices are then the sites within ``cover`` of ``part``'s box), or
-    one radius per cell computed. A cell is certified when its reach is below its
-    ``cover``, or when every site of the problem is present.
+    sites: a float (the slices are then the sites of other parts in ``part``'s box widened
+    by ``cover``), or one radius per cell computed (the balls of ``previous.balls()``).
+    A cell is certified when its reach stays inside that box (first round) or below its
+    radius (later rounds), or when every site of the problem is present.
+
+    Later rounds read only the part's own sites within the balls: every site within a
+    cell's radius is then still present, and the core indexes a few thousand sites instead
+    of the whole part.
 
     With a ``density`` (as :func:`hcvt.voronoi` takes it) ``mass``, ``centroid``,
     ``energy_terms`` and ``first`` are ρ-weighted as in one process; a callable is called
@@ -313,12 +415,20 @@ def part_cells(
     """
     if len(part.rows) == 0:
         return empty_cells(part.sites.shape[1])
-    rows = np.concatenate([part.rows] + [r for r, _ in slices])
-    sites = np.concatenate([part.sites] + [s for _, s in slices])
+    if previous is None:
+        todo = np.arange(len(part.rows))
+        present = todo
+    else:
+        todo = np.flatnonzero(~previous.certified)
+        present = np.union1d(_in_balls(part.sites, *previous.balls()), todo)
+    rows = np.concatenate([part.rows[present]] + [r for r, _ in slices])
+    sites = np.concatenate([part.sites[present]] + [s for _, s in slices])
     order = np.argsort(rows, kind="stable")
     rows, sites = np.ascontiguousarray(rows[order]), np.ascontiguousarray(sites[order])
-    own = np.searchsorted(rows, part.rows)
-    todo = np.arange(len(part.rows)) if previous is None else np.flatnonzero(~previous.certified)
+    # Computed along a curve through space (cache), stored in row order.
+    visit = spatial_order(part.sites[todo])
+    # Looked up in row order (a cache-friendly search), then taken in the visit's order.
+    own = np.searchsorted(rows, part.rows[todo])[visit]
     # The core works in the domain's frame; a part's cells are kept in L.
     frame = domain.frame
     with frame.input_errors():
@@ -326,21 +436,30 @@ def part_cells(
             domain._core,
             frame.to_core(sites),
             rows,
-            own[todo].astype(np.uint32),
+            own.astype(np.uint32),
             int(total_sites),
             allow_outside=allow_outside,
             **core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree),
         )
     # Kept once: the energy is summed by the client, the gradient is -2 first.
-    cells = {
-        key: frame.to_input(key, value)
-        for key, value in out.items()
-        if key not in ("reach2", "energy", "gradient")
-    }
-    reach = np.sqrt(frame.to_input("reach2", out["reach2"]))
-    complete = len(rows) == total_sites
-    certified = np.full(len(todo), True) if complete else reach < COVER_FRACTION * cover
-    halo = len(rows) - len(part.rows)
+    cells = _in_row_order(
+        {
+            key: frame.to_input(key, value)
+            for key, value in out.items()
+            if key not in ("energy", "gradient")
+        },
+        visit,
+    )
+    reach = np.sqrt(frame.to_input("reach2", cells.pop("reach2")))
+    if len(rows) == total_sites:
+        certified = np.full(len(todo), True)
+    elif previous is None:
+        lo, hi = part.box()
+        room = room_in_box(part.sites, lo - cover, hi + cover)
+        certified = reach < COVER_FRACTION * room
+    else:
+        certified = reach < COVER_FRACTION * cover
+    halo = len(rows) - len(present)
     if previous is None:
         return PartCells(cells, reach, certified, halo, len(todo), part.sites)
     # In place: the earlier round is superseded, and a part's cells are held once (twice
@@ -353,8 +472,43 @@ def part_cells(
     return previous
 
 
-#: The per-face arrays of a part's cells (CSR rows by `neighbor_offsets`).
-FACE_ARRAYS = ("neighbor_sites", "neighbor_measures")
+def room_in_box(
+    points: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Distance from each of ``points`` (m, d) to the nearest side of the box, shape (m,).
+
+    A cell whose reach is below it read only sites inside the box, L.
+    """
+    return np.asarray(np.minimum(points - lo, hi - points).min(axis=1))
+
+
+def _in_row_order(
+    cells: dict[str, NDArray[Any]], visit: NDArray[np.intp]
+) -> dict[str, NDArray[Any]]:
+    """The core's per-cell arrays, computed in the order ``visit``, in row order again.
+
+    Row ``j`` of ``cells`` is the cell ``visit[j]``; faces (CSR) move with their cell.
+    """
+    out = {}
+    for key, value in cells.items():
+        if key == "neighbor_offsets" or key in FACE_ARRAYS:
+            continue
+        placed = np.empty_like(value)
+        placed[visit] = value
+        out[key] = placed
+    offsets = cells["neighbor_offsets"]
+    counts = np.empty(len(visit), dtype=np.intp)
+    counts[visit] = np.diff(offsets)
+    new_offsets = np.zeros(len(visit) + 1, dtype=np.intp)
+    np.cumsum(counts, out=new_offsets[1:])
+    # Face e of cell i (row order) is entry offsets[where[i]] + e of the core's arrays.
+    where = np.empty(len(visit), dtype=np.intp)
+    where[visit] = np.arange(len(visit))
+    take = np.repeat(offsets[where] - new_offsets[:-1], counts) + np.arange(new_offsets[-1])
+    for key in FACE_ARRAYS:
+        out[key] = cells[key][take]
+    out["neighbor_offsets"] = new_offsets
+    return out
 
 
 def _replace_rows(

@@ -147,7 +147,7 @@ def _covered(
     ball_radii: NDArray[np.float64],
 ) -> NDArray[np.bool_]:
     """Whether each cell's reach lies in the box or in the largest ball of its row."""
-    room = np.minimum(sites - lo, hi - sites).min(axis=1)
+    room = pt.room_in_box(sites, lo, hi)
     covered = reach < pt.COVER_FRACTION * room
     if len(ball_rows):
         order = np.argsort(ball_rows, kind="stable")
