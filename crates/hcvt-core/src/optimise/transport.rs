@@ -327,7 +327,12 @@ impl<'a, const D: usize> Laplacian<'a, D> {
         let mut diagonal = vec![0.0; n];
         for (i, sum) in diagonal.iter_mut().enumerate() {
             let faces = diagram.neighbor_offsets[i]..diagram.neighbor_offsets[i + 1];
-            for (e, c) in edge.iter_mut().enumerate().take(faces.end).skip(faces.start) {
+            for (e, c) in edge
+                .iter_mut()
+                .enumerate()
+                .take(faces.end)
+                .skip(faces.start)
+            {
                 let j = diagram.neighbor_sites[e] as usize;
                 if j == i {
                     continue; // a face with its own image: w_i moves both sides
