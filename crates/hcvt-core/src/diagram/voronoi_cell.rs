@@ -86,7 +86,17 @@ where
     let cell = scratch.cell.get_or_insert_with(|| C::from_box(&start));
     cell.reset_to_box(&start);
     let mut radius2 = cell.max_dist2();
-    let localise_after = LOCALISE_K.get(D).copied().unwrap_or(64);
+    // A power cell in a convex domain is not localised: its part in the domain is all of
+    // it, and each vertex check would read the sites within that vertex's own (wide)
+    // power reach. Streaming on to the stopping distance cost less: at 10,000 random
+    // sites in the unit square with random weights of one squared spacing a diagram took
+    // 0.34 s instead of 0.78 s, and equal masses by optimal transport 3.4 s instead of
+    // 17.8 s (one thread, the machine under load).
+    let localise_after = if power.is_some() && domain.is_convex() {
+        usize::MAX
+    } else {
+        LOCALISE_K.get(D).copied().unwrap_or(64)
+    };
     let preclip_after = if convex_inside {
         PRECLIP_K.get(D).copied().unwrap_or(usize::MAX)
     } else {

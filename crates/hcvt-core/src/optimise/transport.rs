@@ -21,11 +21,13 @@
 //! fixed: the fixed row's equation then holds only through the sum of all the others, and
 //! their residuals, each small, add up in that one cell and emptied it (5,000 random
 //! sites). Chosen over a
-//! direct factorisation because `L` has about 6 (2D) or 15 (3D) entries per row and CG needs
-//! only its products, one pass over the diagram's face list in parallel rows; and over
-//! algebraic multigrid (what the damped Newton of pysdot and geogram call) because it takes
-//! no dependency: the system is solved only as accurately as the step needs (inexact
-//! Newton, relative residual `min(10⁻², max error)`), so early steps take few iterations.
+//! direct factorisation (pysdot's default here is scipy's `spsolve`) because `L` has about
+//! 6 (2D) or 15 (3D) entries per row and CG needs only its products, one pass over the
+//! diagram's face list in parallel rows, with no dependency; and because the system is
+//! solved only as accurately as the step needs (inexact Newton: each cell's residual
+//! within `min(0.1, e) · e` of its target, `e` the present largest relative error), so
+//! early steps take few iterations. Algebraic multigrid would cut the iterations at 100k
+//! sites and more (not done).
 //! Products run in parallel rows and every dot product is summed in index order: the
 //! weights do not depend on the thread count.
 
@@ -327,7 +329,12 @@ impl<'a, const D: usize> Laplacian<'a, D> {
         let mut diagonal = vec![0.0; n];
         for (i, sum) in diagonal.iter_mut().enumerate() {
             let faces = diagram.neighbor_offsets[i]..diagram.neighbor_offsets[i + 1];
-            for (e, c) in edge.iter_mut().enumerate().take(faces.end).skip(faces.start) {
+            for (e, c) in edge
+                .iter_mut()
+                .enumerate()
+                .take(faces.end)
+                .skip(faces.start)
+            {
                 let j = diagram.neighbor_sites[e] as usize;
                 if j == i {
                     continue; // a face with its own image: w_i moves both sides
