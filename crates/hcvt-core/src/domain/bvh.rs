@@ -142,6 +142,20 @@ impl<const D: usize> Bvh<D> {
     /// Append to `out` every element whose box overlaps `query`, in ascending order.
     pub fn query(&self, query: &Aabb<D>, out: &mut Vec<u32>) {
         let first = out.len();
+        self.visit_overlapping(query, |_| false, |i| out.push(i));
+        out[first..].sort_unstable();
+    }
+
+    /// Call `found(i)` for every element `i` whose box overlaps `query`, less those under
+    /// a node whose box `skip` refuses, depth first in a fixed order (not ascending).
+    /// `skip` is asked about each node's box before its subtree is read (not about the
+    /// elements' own boxes), and may change as elements are found (a bound that tightens).
+    pub fn visit_overlapping(
+        &self,
+        query: &Aabb<D>,
+        mut skip: impl FnMut(&Aabb<D>) -> bool,
+        mut found: impl FnMut(u32),
+    ) {
         if self.boxes.is_empty() {
             return;
         }
@@ -150,14 +164,14 @@ impl<const D: usize> Bvh<D> {
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
-            if !node.bounds.overlaps(query) {
+            if !node.bounds.overlaps(query) || skip(&node.bounds) {
                 continue;
             }
             if node.count > 0 {
                 let (s, c) = (node.start as usize, node.count as usize);
                 for &i in &self.items[s..s + c] {
                     if self.boxes[i as usize].overlaps(query) {
-                        out.push(i);
+                        found(i);
                     }
                 }
             } else if top + 2 <= stack.len() {
@@ -166,7 +180,6 @@ impl<const D: usize> Bvh<D> {
                 top += 2;
             }
         }
-        out[first..].sort_unstable();
     }
 }
 
