@@ -33,6 +33,7 @@ from hcvt.seeding import (
     initialise,
     regular_cvt,
 )
+from hcvt.surface import RemeshError, RemeshResult, SurfaceQuality, remesh, surface_quality
 
 __all__ = [
     "CVTResult",
@@ -45,10 +46,13 @@ __all__ = [
     "InvalidSitesError",
     "LatticeResult",
     "RegularResult",
+    "RemeshError",
+    "RemeshResult",
     "RepairReport",
     "MonteCarloResult",
     "Polynomial",
     "SizingField",
+    "SurfaceQuality",
     "cvt",
     "defects",
     "density",
@@ -60,7 +64,9 @@ __all__ = [
     "load_domain",
     "plot",
     "regular_cvt",
+    "remesh",
     "set_num_threads",
+    "surface_quality",
     "voronoi",
     "write_cells",
     "write_mesh",

@@ -27,6 +27,7 @@ __all__ = [
     "MeshPartArrays",
     "MeshQualityArrays",
     "PartCellsArrays",
+    "RestrictedDelaunayArrays",
 ]
 
 Floats = NDArray[np.float64]
@@ -156,3 +157,12 @@ class CvtArrays(TypedDict):
     stop_reason: str
     iterations: int
     evaluations: int
+
+
+class RestrictedDelaunayArrays(TypedDict):
+    """The restricted Delaunay triangulation on a surface (``_core.restricted_delaunay``)."""
+
+    triangles: Indices  # (m, 3) site indices, counter-clockwise about the surface normal
+    points: Floats  # (m, 3) where the three cells meet
+    faces: Indices  # (m,) the surface triangle of each meeting point
+    repeated: Indices  # (r, 3) triples of cells meeting at more than one point

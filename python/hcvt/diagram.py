@@ -271,6 +271,11 @@ class Diagram(Shows):
         """
         if self.domain.is_sphere:
             raise NotImplementedError("conforming meshes of spherical cells: a later slice")
+        if self.domain.is_surface:
+            raise NotImplementedError(
+                "cell geometry of restricted Voronoi cells on a surface: a later slice "
+                "(hcvt.remesh gives their restricted Delaunay triangulation)"
+            )
         if self._mesh is None:
             with self.domain.frame.input_errors():
                 arrays = _core.mesh(

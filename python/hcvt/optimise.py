@@ -40,6 +40,7 @@ from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
 from hcvt.diagram import Diagram, as_sites
 from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
+from hcvt.geometry.surface_points import closest_points
 from hcvt.lazy import load
 
 RULES = ("gap", "paper")
@@ -181,6 +182,14 @@ def cvt(
             bar.close()
     history = frame.history({key: np.asarray(value) for key, value in out["history"].items()})
     sites_out = frame.to_input("sites", out["sites"])
+    if domain.is_surface:
+        # Free in space while minimising (Yan et al. 2009); onto the surface at the end,
+        # where the diagram is then taken.
+        core_sites, _ = closest_points(domain._core.vertices, domain._core.faces, out["sites"])
+        sites_out = frame.to_input("sites", core_sites)
+        with frame.input_errors():
+            arrays = _core.voronoi(domain._core, core_sites)
+        out["sites"], out["diagram"] = core_sites, arrays
     if any(domain.periodic):
         # Wrapped by the core in its frame; again here, where rounding may touch `hi`.
         sites_out = domain.wrap(sites_out)

@@ -6,6 +6,7 @@
 //! needs: the signed cones from any point sum to the indicator of the domain.
 
 mod bvh;
+mod closest;
 mod winding;
 mod winding_grid;
 
@@ -15,6 +16,7 @@ use crate::error::CoreError;
 use crate::geometry::{dot, sub, Aabb, Euclid, Space};
 use crate::moments::{ConeMoments, Moments};
 pub use bvh::Bvh;
+pub use closest::TriangleSet;
 pub use winding::{generalized_winding_number, WindingNumber};
 
 /// A domain bounded by a closed, oriented cycle of `(D-1)`-simplices.
