@@ -12,11 +12,11 @@
 //! ([`DomainKind::cell_dim`]); their centroids lie off the surface (inside its curvature),
 //! and the CVT moves the sites freely in space (Yan, Lévy, Liu, Sun, Wang 2009).
 //!
-//! **Finding the triangles.** The triangles meeting a cell are found by walking the BVH of
-//! the triangles ([`Bvh::walk`]) and pruning every node whose box lies outside one of the
-//! cell's planes (its corner least along the plane's normal beyond the plane). The cell of a site on a surface
-//! is a needle along the normal until sites across the model cut it: its bounding box
-//! would take in much of the model, the pruned walk does not.
+//! **Finding the triangles.** The triangles meeting a cell are found by walking their BVH
+//! ([`crate::domain::Bvh::walk`]) and pruning every node whose box lies outside one of the
+//! cell's planes (its corner least along the plane's normal beyond the plane). The cell of
+//! a site on a surface is a needle along the normal until sites across the model cut it:
+//! its bounding box would take in much of the model, the pruned walk does not.
 //!
 //! **Stopping early.** The part of the cell on the surface bounds where the cell matters:
 //! [`DomainKind::local_radius2`] gives its exact farthest point (from the clipped pieces)
@@ -26,7 +26,7 @@
 use std::cell::RefCell;
 use std::collections::HashMap;
 
-use crate::domain::Bvh;
+use crate::domain::TriangleSet;
 use crate::error::CoreError;
 use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
@@ -42,12 +42,11 @@ use super::polygon_clip::clip_polygon;
 /// two triangles, consistently oriented) and indexed by a BVH.
 #[derive(Debug, Clone)]
 pub struct Surface {
-    vertices: Vec<[f64; 3]>,
-    triangles: Vec<[u32; 3]>,
+    /// The triangles, their vertices and BVH (which also finds nearest points).
+    set: TriangleSet,
     /// Per triangle, whether its edge `k` (from vertex `k` to `k + 1`) lies in no other
     /// triangle: the surface's border.
     border: Vec<[bool; 3]>,
-    bvh: Bvh<3>,
     area: f64,
     first: [f64; 3],
 }
@@ -67,23 +66,7 @@ impl Surface {
     /// vertices, non-manifold edges (in three or more triangles) and edges two triangles
     /// run the same way (inconsistent orientation): each with the count and the first.
     pub fn new(vertices: Vec<[f64; 3]>, triangles: Vec<[u32; 3]>) -> Result<Self, CoreError> {
-        if triangles.is_empty() {
-            return Err(CoreError::EmptyBoundary);
-        }
-        for (index, v) in vertices.iter().enumerate() {
-            if let Some(&value) = v.iter().find(|x| !x.is_finite()) {
-                return Err(CoreError::NonFiniteVertex { index, value });
-            }
-        }
-        for (element, t) in triangles.iter().enumerate() {
-            if let Some(&vertex) = t.iter().find(|&&v| v as usize >= vertices.len()) {
-                return Err(CoreError::VertexIndexOutOfRange {
-                    element,
-                    vertex,
-                    count: vertices.len(),
-                });
-            }
-        }
+        crate::domain::check_indexed(&vertices, &triangles)?;
         let corners = |t: &[u32; 3]| t.map(|v| vertices[v as usize]);
         let degenerate: Vec<usize> = (0..triangles.len())
             .filter(|&f| {
@@ -155,11 +138,6 @@ impl Surface {
             .iter()
             .map(|t| std::array::from_fn(|k| !directed.contains_key(&(t[(k + 1) % 3], t[k]))))
             .collect();
-        let boxes = triangles
-            .iter()
-            .map(|t| Aabb::of_points(t.iter().map(|&v| &vertices[v as usize])))
-            .collect();
-        let bvh = Bvh::new(boxes);
         let (mut area, mut first) = (0.0, [0.0; 3]);
         for t in &triangles {
             let p = corners(t);
@@ -168,10 +146,8 @@ impl Surface {
             first = add(first, scale(add(add(p[0], p[1]), p[2]), a / 3.0));
         }
         Ok(Self {
-            vertices,
-            triangles,
+            set: TriangleSet::new(vertices, triangles)?,
             border,
-            bvh,
             area,
             first,
         })
@@ -179,12 +155,17 @@ impl Surface {
 
     /// The vertices, as given.
     pub fn vertices(&self) -> &[[f64; 3]] {
-        &self.vertices
+        self.set.vertices()
     }
 
     /// The triangles (vertex indices), as given.
     pub fn triangles(&self) -> &[[u32; 3]] {
-        &self.triangles
+        self.set.triangles()
+    }
+
+    /// The triangles as a [`TriangleSet`]: nearest points on the surface.
+    pub fn triangle_set(&self) -> &TriangleSet {
+        &self.set
     }
 
     /// The total area, `L²`: the sum of the triangles' areas in index order.
@@ -203,7 +184,7 @@ impl Surface {
     }
 
     fn corners(&self, t: u32) -> [[f64; 3]; 3] {
-        self.triangles[t as usize].map(|v| self.vertices[v as usize])
+        self.set.corners(t)
     }
 
     /// Call `f(t, piece)` for every triangle `t` that meets `cell` (relative to `site`),
@@ -234,15 +215,15 @@ impl Surface {
             } = buffers;
             planes.clear();
             cell.for_each_plane(|face, h| planes.push((face, *h)));
-            self.bvh.walk(|node, is_leaf| {
-                let bounds = self.bvh.node_bounds(node);
+            self.set.bvh().walk(|node, is_leaf| {
+                let bounds = self.set.bvh().node_bounds(node);
                 if !bounds.overlaps(&reach) || box_outside(planes, &bounds, site) {
                     return false;
                 }
                 if !is_leaf {
                     return true;
                 }
-                for &t in self.bvh.node_items(node) {
+                for &t in self.set.bvh().node_items(node) {
                     let rel = self.corners(t).map(|v| sub(v, site));
                     let outside = |(_, h): &(Face, HalfSpace<3>)| {
                         rel.iter().all(|&v| dot(h.normal, v) > h.offset)
@@ -481,7 +462,7 @@ impl Surface {
 
 impl DomainKind<3> for Surface {
     fn bounds(&self) -> Aabb<3> {
-        self.bvh.bounds()
+        self.set.bvh().bounds()
     }
 
     /// The area: the mean spacing of the sites is `(A/n)^{1/2}`.
@@ -496,7 +477,7 @@ impl DomainKind<3> for Surface {
     }
 
     fn density_checkpoints(&self) -> &[[f64; 3]] {
-        &self.vertices
+        self.set.vertices()
     }
 
     /// Not convex: a cell is localised by the driver to the box holding its part on the

@@ -62,23 +62,7 @@ impl TriangleSet {
     /// Index `triangles` over `vertices`: finite coordinates, indices in range, at least
     /// one triangle.
     pub fn new(vertices: Vec<[f64; 3]>, triangles: Vec<[u32; 3]>) -> Result<Self, CoreError> {
-        if triangles.is_empty() {
-            return Err(CoreError::EmptyBoundary);
-        }
-        for (index, v) in vertices.iter().enumerate() {
-            if let Some(&value) = v.iter().find(|x| !x.is_finite()) {
-                return Err(CoreError::NonFiniteVertex { index, value });
-            }
-        }
-        for (element, t) in triangles.iter().enumerate() {
-            if let Some(&vertex) = t.iter().find(|&&v| v as usize >= vertices.len()) {
-                return Err(CoreError::VertexIndexOutOfRange {
-                    element,
-                    vertex,
-                    count: vertices.len(),
-                });
-            }
-        }
+        super::check_indexed(&vertices, &triangles)?;
         let boxes = triangles
             .iter()
             .map(|t| Aabb::of_points(t.iter().map(|&v| &vertices[v as usize])))
@@ -88,6 +72,26 @@ impl TriangleSet {
             vertices,
             triangles,
         })
+    }
+
+    /// The vertices, as given.
+    pub fn vertices(&self) -> &[[f64; 3]] {
+        &self.vertices
+    }
+
+    /// The triangles (vertex indices), as given.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// The BVH over the triangles.
+    pub fn bvh(&self) -> &Bvh<3> {
+        &self.bvh
+    }
+
+    /// The corners of triangle `t`.
+    pub fn corners(&self, t: u32) -> [[f64; 3]; 3] {
+        self.triangles[t as usize].map(|v| self.vertices[v as usize])
     }
 
     /// The nearest point of the triangles to `p`, and its triangle (the first in the BVH's
@@ -100,7 +104,7 @@ impl TriangleSet {
             }
             if is_leaf {
                 for &t in self.bvh.node_items(node) {
-                    let [a, b, c] = self.triangles[t as usize].map(|v| self.vertices[v as usize]);
+                    let [a, b, c] = self.corners(t);
                     let q = closest_on_triangle(p, a, b, c);
                     let d2 = norm2(sub(q, p));
                     if d2 < best.0 || (d2 == best.0 && t < best.2) {
