@@ -27,6 +27,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("hcvt.diagram",),
     ("hcvt.optimise", "hcvt.transport"),
     ("hcvt.seeding",),
+    ("hcvt.surface",),
     ("hcvt.distributed",),
     ("hcvt.api",),
     ("hcvt.export", "hcvt.plot", "hcvt.accessor"),

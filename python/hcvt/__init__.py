@@ -35,6 +35,7 @@ from hcvt.seeding import (
     regular_cvt,
 )
 from hcvt.transport import TransportResult, optimal_transport
+from hcvt.surface import RemeshError, RemeshResult, SurfaceQuality, remesh, surface_quality
 
 __all__ = [
     "CVTResult",
@@ -47,10 +48,13 @@ __all__ = [
     "InvalidSitesError",
     "LatticeResult",
     "RegularResult",
+    "RemeshError",
+    "RemeshResult",
     "RepairReport",
     "MonteCarloResult",
     "Polynomial",
     "SizingField",
+    "SurfaceQuality",
     "TransportResult",
     "cvt",
     "defects",
@@ -64,8 +68,10 @@ __all__ = [
     "optimal_transport",
     "plot",
     "regular_cvt",
+    "remesh",
     "set_num_threads",
     "sphere_quality",
+    "surface_quality",
     "voronoi",
     "write_cells",
     "write_mesh",

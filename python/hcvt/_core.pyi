@@ -21,6 +21,7 @@ from hcvt.core_results import (
     MeshQualityArrays,
     PartCellsArrays,
     TransportArrays,
+    RestrictedDelaunayArrays,
 )
 
 __all__ = [
@@ -29,7 +30,9 @@ __all__ = [
     "PolygonDomain",
     "SolidDomain",
     "SphereDomain",
+    "SurfaceDomain",
     "check_settings",
+    "closest_points",
     "cvt",
     "get_num_threads",
     "lbfgs_coefficients",
@@ -42,6 +45,7 @@ __all__ = [
     "optimal_transport",
     "partition_cells",
     "positive_curvature",
+    "restricted_delaunay",
     "set_num_threads",
     "step_fields",
     "voronoi",
@@ -141,6 +145,27 @@ class SphereDomain:
     def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]: ...
     def winding_numbers(self, points: _Float2) -> _Windings: ...
 
+@final
+class SurfaceDomain:
+    """A triangle surface: restricted Voronoi cells, sites anywhere in space."""
+
+    def __new__(cls, vertices: _Float2, faces: NDArray[np.uint32]) -> SurfaceDomain: ...
+    @property
+    def volume(self) -> float: ...
+    @property
+    def first_moment(self) -> tuple[float, float, float]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]: ...
+    @property
+    def vertices(self) -> _Float2: ...
+    @property
+    def faces(self) -> NDArray[np.intp]: ...
+
+def closest_points(
+    vertices: _Float2, faces: NDArray[np.uint32], points: _Float2
+) -> tuple[_Float2, NDArray[np.intp]]: ...
+def restricted_delaunay(surface: SurfaceDomain, sites: _Float2) -> RestrictedDelaunayArrays: ...
+
 # A density is either `polynomial=(constant, linear (d,), quadratic (d, d))` or
 # `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`.
 _Coefficients = tuple[float, Sequence[float], Sequence[Sequence[float]]]
@@ -148,9 +173,10 @@ _Function = Callable[[NDArray[np.float64]], ArrayLike]
 
 # Each function takes any kind of domain: a polygon (d = 2), a solid (d = 3), a box (mesh,
 # mesh_part and the steps of a partitioned run raise InvalidDomainError for a box) or the
-# unit sphere (sites in 3D, cells of dimension 2; mesh and mesh_part refuse it); the dicts
+# unit sphere or a triangle surface (sites in 3D, cells of dimension 2; mesh and mesh_part
+# refuse them); the dicts
 # it returns are typed in hcvt.core_results.
-_Domain = PolygonDomain | SolidDomain | BoxDomain2 | BoxDomain3 | SphereDomain
+_Domain = PolygonDomain | SolidDomain | BoxDomain2 | BoxDomain3 | SphereDomain | SurfaceDomain
 
 def voronoi(
     domain: _Domain,

@@ -38,7 +38,9 @@ def voronoi(
     domain : Domain
         Polygon with holes (d = 2), closed-mesh solid (d = 3) or box, periodic along some
         axes or all (:meth:`Domain.box`: sites may then lie anywhere along a periodic axis,
-        and the diagram gives each neighbour's image shift); length unit L.
+        and the diagram gives each neighbour's image shift), or a triangle surface
+        (:meth:`Domain.from_surface`: the restricted Voronoi diagram, cells the parts of
+        the surface nearer their site, sites anywhere in space); length unit L.
     sites : array_like of float, shape (n, d)
         Generator positions in L: finite, distinct, inside the domain (points on the
         boundary count as inside). Copied to C-contiguous float64.
@@ -103,8 +105,10 @@ def voronoi(
     >>> diagram.G.round(6)
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
-    if client is not None and domain.is_sphere:
-        raise NotImplementedError("partitioned diagrams on the sphere are not implemented yet")
+    if client is not None and (domain.is_sphere or domain.is_surface):
+        raise NotImplementedError(
+            "partitioned diagrams on the sphere or a surface are not implemented yet"
+        )
     if client is not None and weights is not None:
         raise NotImplementedError("partitioned power diagrams (weights) are not implemented yet")
     if client is None:
@@ -149,7 +153,11 @@ def cvt(
     ----------
     domain : Domain
         Polygon (d = 2), solid (d = 3) or box (:meth:`Domain.box`; along its periodic axes
-        sites move across the sides and come back wrapped); length unit L.
+        sites move across the sides and come back wrapped), or a triangle surface
+        (:meth:`Domain.from_surface`: the energy ``Σ ∫_cell |x - x_i|² dA`` of the
+        restricted diagram, minimised with the sites free in space, which are projected
+        onto the surface at the end, as in Yan et al. 2009; ``sites`` and ``diagram`` are
+        those projected sites and their diagram, ``history`` the free run's); length unit L.
     sites : array_like of float, shape (n, d)
         Initial sites: finite, distinct, inside the domain. Not modified.
     method : {"newton", "lbfgs", "lloyd"}, optional
@@ -243,8 +251,10 @@ def cvt(
         "density": density,
         "quadrature_degree": quadrature_degree,
     }
-    if client is not None and domain.is_sphere:
-        raise NotImplementedError("partitioned CVTs on the sphere are not implemented yet")
+    if client is not None and (domain.is_sphere or domain.is_surface):
+        raise NotImplementedError(
+            "partitioned CVTs on the sphere or a surface are not implemented yet"
+        )
     if client is None:
         return optimise.cvt(domain, sites, method, **options)
     method = method or optimise.fastest_method(domain, density, partitioned=True)

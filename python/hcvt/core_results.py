@@ -27,6 +27,7 @@ __all__ = [
     "MeshPartArrays",
     "MeshQualityArrays",
     "PartCellsArrays",
+    "RestrictedDelaunayArrays",
 ]
 
 Floats = NDArray[np.float64]
@@ -177,3 +178,12 @@ class TransportArrays(TypedDict):
     max_error: float
     converged: bool
     history: TransportHistory
+
+
+class RestrictedDelaunayArrays(TypedDict):
+    """The restricted Delaunay triangulation on a surface (``_core.restricted_delaunay``)."""
+
+    triangles: Indices  # (m, 3) site indices, counter-clockwise about the surface normal
+    points: Floats  # (m, 3) where the three cells meet
+    faces: Indices  # (m,) the surface triangle of each meeting point
+    repeated: Indices  # (r, 3) triples of cells meeting at more than one point

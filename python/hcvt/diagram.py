@@ -282,6 +282,11 @@ class Diagram(Shows):
                 "spherical cells have no PolyMesh: use Diagram.spherical_mesh() (MPAS's "
                 "layout), Diagram.cells() (each cell's vertices) or hcvt.write_mpas"
             )
+        if self.domain.is_surface:
+            raise NotImplementedError(
+                "cell geometry of restricted Voronoi cells on a surface: a later slice "
+                "(hcvt.remesh gives their restricted Delaunay triangulation)"
+            )
         if self.weights is not None and np.any(self.weights):
             raise NotImplementedError("conforming meshes of power diagrams: a later slice")
         if self._mesh is None:

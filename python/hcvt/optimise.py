@@ -40,6 +40,7 @@ from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, Polynomial, cor
 from hcvt.diagram import Diagram, as_sites
 from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
+from hcvt.geometry.surface_points import closest_points
 from hcvt.lazy import load
 
 RULES = ("gap", "paper")
@@ -68,8 +69,9 @@ def fastest_method(
     seeds), faster in 10 of the 12 hierarchical rows of
     ``docs/results/bench_hierarchy.txt``, and on the sphere it converges the icosahedral
     MPAS sizes in 5 diagrams against L-BFGS's 33-118 (``benchmarks/sphere.py``).
-    Elsewhere L-BFGS: a periodic box (no Hessian summed there yet), a sampled density (its
-    Hessian is not exact), a partitioned run (``client=``: L-BFGS and Lloyd only).
+    Elsewhere L-BFGS: a periodic box or a triangle surface (no Hessian summed there yet), a
+    sampled density (its Hessian is not exact), a partitioned run (``client=``: L-BFGS and
+    Lloyd only).
 
     Returns
     -------
@@ -77,7 +79,8 @@ def fastest_method(
         ``"newton"`` or ``"lbfgs"``.
     """
     exact_hessian = density is None or isinstance(density, Polynomial)
-    if any(domain.periodic) or not exact_hessian or partitioned:
+    summed = not any(domain.periodic) and not domain.is_surface
+    if not summed or not exact_hessian or partitioned:
         return "lbfgs"
     return "newton"
 
@@ -211,6 +214,14 @@ def cvt(
             bar.close()
     history = frame.history({key: np.asarray(value) for key, value in out["history"].items()})
     sites_out = frame.to_input("sites", out["sites"])
+    if domain.is_surface:
+        # Free in space while minimising (Yan et al. 2009); onto the surface at the end,
+        # where the diagram is then taken.
+        core_sites, _ = closest_points(domain._core.vertices, domain._core.faces, out["sites"])
+        sites_out = frame.to_input("sites", core_sites)
+        with frame.input_errors():
+            arrays = _core.voronoi(domain._core, core_sites)
+        out["sites"], out["diagram"] = core_sites, arrays
     if any(domain.periodic):
         # Wrapped by the core in its frame; again here, where rounding may touch `hi`.
         sites_out = domain.wrap(sites_out)

@@ -149,6 +149,13 @@ pub enum CoreError {
         /// The offending coordinate.
         value: f64,
     },
+    /// A triangle surface ([`crate::Surface`]) that cannot be a domain: degenerate or
+    /// repeated faces, non-manifold or inconsistently oriented edges.
+    #[error("invalid surface: {reason}")]
+    InvalidSurface {
+        /// What is wrong, with the count and the first offending element.
+        reason: String,
+    },
     /// A cutting plane has a non-finite normal or origin.
     #[error("plane {index}: {reason}")]
     InvalidPlane {

@@ -42,9 +42,9 @@ pub use diagram::{
     clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, morton_order, BoxDomain,
     Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals, FaceIntegrand, Matrix,
     MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh, PolygonCell, PolyhedronCell,
-    Request, SiteIndex, Sphere, ON_SPHERE_TOL,
+    Request, RestrictedDelaunay, SiteIndex, Sphere, Surface, ON_SPHERE_TOL,
 };
-pub use domain::{generalized_winding_number, Boundary, Polygon, Solid};
+pub use domain::{generalized_winding_number, Boundary, Polygon, Solid, TriangleSet};
 pub use error::CoreError;
 pub use geometry::{Aabb, Euclid, Space};
 pub use moments::{tetra_moments, triangle_moments, FaceMoments, Moments};

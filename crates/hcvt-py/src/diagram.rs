@@ -193,3 +193,28 @@ pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
     }
     Ok(out)
 }
+
+/// The restricted Delaunay triangulation of `sites` (n, 3) on `surface`: a dict with
+/// `triangles` (m, 3) intp (a triangle per point where three cells meet on the surface,
+/// counter-clockwise about the surface's normal there), `points` (m, 3) the meeting
+/// points, `faces` (m,) intp the surface triangle of each, and `repeated` (r, 3) intp the
+/// triples of cells that meet at more than one point (cells that are not discs).
+#[pyfunction]
+pub fn restricted_delaunay<'py>(
+    py: Python<'py>,
+    surface: PyRef<'py, crate::domain::SurfaceDomain>,
+    sites: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let points = rows::<f64, 3>(&sites, "sites")?;
+    let kind = &surface.0;
+    let rdt = py
+        .detach(|| crate::threads::run(|| kind.restricted_delaunay(&points)))
+        .map_err(crate::errors::to_py_err)?;
+    let out = PyDict::new(py);
+    out.set_item("triangles", to_intp2(py, &rdt.triangles)?)?;
+    out.set_item("points", to_array2(py, &rdt.points)?)?;
+    let faces: Vec<usize> = rdt.faces.iter().map(|&f| f as usize).collect();
+    out.set_item("faces", to_intp(py, &faces)?)?;
+    out.set_item("repeated", to_intp2(py, &rdt.repeated)?)?;
+    Ok(out)
+}

@@ -1,6 +1,9 @@
 //! Domains: a checked, indexed boundary held by Python.
 
-use hcvt_core::{generalized_winding_number, DomainKind, PeriodicBox, Polygon, Solid, Sphere};
+use hcvt_core::{
+    generalized_winding_number, DomainKind, PeriodicBox, Polygon, Solid, Sphere, Surface,
+    TriangleSet,
+};
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 
@@ -268,6 +271,85 @@ impl SphereDomain {
     }
 }
 
+/// A triangle surface in 3D (open or closed, any number of components): cells are the
+/// parts of the surface nearer their site than any other (restricted Voronoi cells), sites
+/// anywhere in space.
+#[pyclass(frozen, module = "hcvt._core")]
+pub struct SurfaceDomain(pub Surface);
+
+#[pymethods]
+impl SurfaceDomain {
+    /// `vertices` (V, 3) float64 and `faces` (F, 3) uint32, checked: no degenerate or
+    /// repeated triangles, no non-manifold edges, consistent orientation.
+    #[new]
+    fn new(
+        vertices: PyReadonlyArray2<'_, f64>,
+        faces: PyReadonlyArray2<'_, u32>,
+    ) -> PyResult<Self> {
+        let v = rows::<f64, 3>(&vertices, "vertices")?;
+        let f = rows::<u32, 3>(&faces, "faces")?;
+        Surface::new(v, f).map(Self).map_err(to_py_err)
+    }
+
+    /// Area of the surface.
+    #[getter]
+    fn volume(&self) -> f64 {
+        self.0.area()
+    }
+
+    /// First moment `∫ x dA` (3,) about the coordinate origin.
+    #[getter]
+    fn first_moment(&self) -> [f64; 3] {
+        self.0.first_moment()
+    }
+
+    /// `(lo, hi)` corners of the bounding box.
+    #[getter]
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let b = self.0.bounds();
+        (b.lo, b.hi)
+    }
+
+    /// `vertices` (V, 3) as indexed.
+    #[getter]
+    fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+        to_array2(py, self.0.vertices())
+    }
+
+    /// `faces` (F, 3) as indexed, `np.intp`.
+    #[getter]
+    fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
+        to_intp2(py, self.0.triangles())
+    }
+}
+
+/// Nearest points (m, 3) and their triangles (m,).
+type Nearest<'py> = (
+    Bound<'py, numpy::PyArray2<f64>>,
+    Bound<'py, PyArray1<isize>>,
+);
+
+/// The nearest point of the triangles `faces` (F, 3) over `vertices` (V, 3) to each of
+/// `points` (m, 3): `(nearest (m, 3), triangle (m,) np.intp)`, through a BVH, in parallel
+/// without the GIL. The triangles need no checks beyond finite coordinates and indices in
+/// range.
+#[pyfunction]
+pub fn closest_points<'py>(
+    py: Python<'py>,
+    vertices: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, u32>,
+    points: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Nearest<'py>> {
+    let v = rows::<f64, 3>(&vertices, "vertices")?;
+    let f = rows::<u32, 3>(&faces, "faces")?;
+    let p = rows::<f64, 3>(&points, "points")?;
+    let set = TriangleSet::new(v, f).map_err(to_py_err)?;
+    let found = py.detach(|| crate::threads::run(|| set.closest_all(&p)));
+    let nearest: Vec<[f64; 3]> = found.iter().map(|x| x.0).collect();
+    let triangle: Vec<isize> = found.iter().map(|x| x.1 as isize).collect();
+    Ok((to_array2(py, &nearest)?, PyArray1::from_vec(py, triangle)))
+}
+
 /// Any kind of domain, as the binding's functions take it: one Python function per job,
 /// dispatched by [`by_kind`] to the core's generic code in the domain's dimension (the
 /// only place where the 2D and 3D paths part).
@@ -284,6 +366,9 @@ pub enum AnyDomain<'py> {
     /// The unit sphere: sites in 3D, [`hcvt_core::PolyhedronCell`]s (cones from the
     /// centre), cells of dimension 2.
     Sphere(PyRef<'py, SphereDomain>),
+    /// A triangle surface: sites in 3D, [`hcvt_core::PolyhedronCell`]s, cells of
+    /// dimension 2.
+    Surface(PyRef<'py, SurfaceDomain>),
 }
 
 /// `by_kind!(domain, f(args…))` calls `f::<D, Cell, _>(&kind, args…)` for the dimension
@@ -307,6 +392,9 @@ macro_rules! by_kind {
             $crate::domain::AnyDomain::Sphere(_) => Err(pyo3::exceptions::PyValueError::new_err(
                 concat!(stringify!($f), ": not available on the sphere"),
             )),
+            $crate::domain::AnyDomain::Surface(_) => Err(pyo3::exceptions::PyValueError::new_err(
+                concat!(stringify!($f), ": not available on a surface"),
+            )),
         }
     };
     ($domain:expr, dim $f:ident($($arg:expr),* $(,)?)) => {
@@ -318,6 +406,12 @@ macro_rules! by_kind {
                 Err($crate::errors::InvalidDomainError::new_err(
                     "the steps of a partitioned run take a polygon, a solid or the sphere, \
                      not a box",
+                ))
+            }
+            $crate::domain::AnyDomain::Surface(_) => {
+                Err($crate::errors::InvalidDomainError::new_err(
+                    "the steps of a partitioned run take a polygon, a solid or the sphere, \
+                     not a surface",
                 ))
             }
         }
@@ -337,6 +431,9 @@ macro_rules! by_kind {
                 $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
             }
             $crate::domain::AnyDomain::Sphere(d) => {
+                $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
+            }
+            $crate::domain::AnyDomain::Surface(d) => {
                 $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
             }
         }

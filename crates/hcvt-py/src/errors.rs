@@ -24,7 +24,8 @@ pub fn to_py_err(err: CoreError) -> PyErr {
         | CoreError::VertexIndexOutOfRange { .. }
         | CoreError::OpenBoundary { .. }
         | CoreError::NonPositiveVolume { .. }
-        | CoreError::EmptyBoundary => InvalidDomainError::new_err(message),
+        | CoreError::EmptyBoundary
+        | CoreError::InvalidSurface { .. } => InvalidDomainError::new_err(message),
         CoreError::InvalidDensity { .. } | CoreError::DensityValue { .. } => {
             InvalidDensityError::new_err(message)
         }

@@ -29,9 +29,12 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::BoxDomain2>()?;
     m.add_class::<domain::BoxDomain3>()?;
     m.add_class::<domain::SphereDomain>()?;
+    m.add_class::<domain::SurfaceDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::optimal_transport, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(domain::closest_points, m)?)?;
+    m.add_function(wrap_pyfunction!(diagram::restricted_delaunay, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_part, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells, m)?)?;
     m.add_function(wrap_pyfunction!(quality::mesh_quality, m)?)?;

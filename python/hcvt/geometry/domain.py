@@ -24,6 +24,7 @@ from hcvt.geometry import repair as mesh
 from hcvt.geometry.crs import projected_crs
 from hcvt.geometry.frame import Frame
 from hcvt.geometry.sphere import ON_SPHERE_RTOL, SphereFrame, check_radius
+from hcvt.geometry.surface_frame import SurfaceFrame
 
 # VTK's cell type of a triangle (vtkCellType.h).
 _VTK_TRIANGLE = 5
@@ -152,8 +153,57 @@ class Domain:
 
     @property
     def cell_dim(self) -> int:
-        """The dimension of the cells: ``dim``, or 2 on the sphere."""
-        return 2 if self.is_sphere else self.dim
+        """The dimension of the cells: ``dim``, or 2 on the sphere and on a surface."""
+        return 2 if self.is_sphere or self.is_surface else self.dim
+
+    # ------------------------------------------------------------------ surfaces
+    @classmethod
+    def from_surface(cls, vertices: ArrayLike, faces: ArrayLike) -> Domain:
+        """A triangle surface in 3D: restricted Voronoi diagrams and CVTs on it (DESIGN §12).
+
+        Closed or open (its border loops kept), any number of components. Cell ``i`` of a
+        diagram is the part of the surface nearer site ``i`` than any other site, exactly:
+        the surface's triangles clipped by the site's convex 3D Voronoi cell. Sites may lie
+        anywhere in space (a site far from the surface gets an empty cell). Cells have
+        dimension 2: ``volume`` is the area, a diagram's ``volume`` the cells' areas, its
+        ``centroid`` the 3D centroid ``∫x dA / A`` (off the surface, inside its
+        curvature), ``second_moment`` ``∫|x − c|² dA``, ``G`` with ``d = 2``,
+        ``neighbor_measures`` the lengths of the arcs two cells share and
+        ``boundary_measure`` the length of the surface's border in each cell.
+
+        Parameters
+        ----------
+        vertices : array_like of float, shape (V, 3)
+        faces : array_like of int, shape (F, 3)
+            Triangles, consistently oriented (every interior edge run both ways).
+
+        Raises
+        ------
+        InvalidDomainError
+            Non-finite coordinates, out-of-range indices, degenerate triangles (a repeated
+            vertex or zero area), a triangle repeated on the same vertices, non-manifold
+            edges (in three or more triangles), inconsistent orientation (an edge run the
+            same way by two triangles); each with its count and the first offender.
+
+        Examples
+        --------
+        >>> import hcvt
+        >>> square = hcvt.Domain.from_surface(
+        ...     [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)], [(0, 1, 2), (0, 2, 3)])
+        >>> square.volume, square.cell_dim
+        (1.0, 2)
+        """
+        v, f = mesh.as_mesh_arrays(vertices, faces)
+        frame = SurfaceFrame.fit_surface(v)
+        core = _core.SurfaceDomain(
+            frame.to_core(v, "vertices"), np.ascontiguousarray(f, dtype=np.uint32)
+        )
+        return cls(core, 3, None, None, frame)
+
+    @property
+    def is_surface(self) -> bool:
+        """Whether this is a triangle surface (:meth:`from_surface`)."""
+        return isinstance(self.frame, SurfaceFrame)
 
     # ------------------------------------------------------------------ 2D
     @classmethod
@@ -472,6 +522,8 @@ class Domain:
         """
         if self.dim != 3 or self.is_sphere:
             raise NotImplementedError("generalised winding numbers are implemented for solids")
+        if self.is_surface:
+            raise NotImplementedError("a surface bounds no solid: no winding numbers")
         pts = self.frame.to_core(_as_points(points, 3, "points"), "points")
         return np.asarray(self._core.generalized_winding_numbers(pts))
 
@@ -509,7 +561,7 @@ class Domain:
         """Exact winding number of each point, and whether it lies on the boundary.
 
         On the sphere: 1 for points on it (to a relative ``1e-9`` of the radius), 0
-        elsewhere, and no boundary.
+        elsewhere, and no boundary. On a surface: 1 everywhere (sites may lie anywhere).
 
         Parameters
         ----------
@@ -521,6 +573,9 @@ class Domain:
             1 inside, 0 outside (0 as well on the boundary).
         on_boundary : ndarray of bool, shape (m,)
         """
+        if self.is_surface:
+            p = _as_points(points, 3, "points")
+            return np.ones(len(p), dtype=np.int32), np.zeros(len(p), dtype=bool)
         if self.is_sphere:
             p = _as_points(points, 3, "points")
             r = np.linalg.norm(p, axis=1)
@@ -546,6 +601,8 @@ class Domain:
         # its index from the same arrays, so diagrams in another process are bitwise equal.
         if self.is_sphere:
             return Domain.sphere, (self.radius,)
+        if self.is_surface:
+            return Domain.from_surface, (self.vertices, self.faces)
         simplices = self._core.segments if self.dim == 2 else self._core.faces
         return _unpickle, (
             self.dim,
@@ -561,6 +618,8 @@ class Domain:
             return f"<hcvt.Domain sphere, radius={self.radius:.6g}>"
         if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):
             kind = f"box periodic={self.periodic}"
+        elif self.is_surface:
+            return f"<hcvt.Domain surface, area={self.volume:.6g}>"
         else:
             kind = "polygon" if self.dim == 2 else "solid"
         crs = ""

@@ -34,6 +34,7 @@ def load_domain(
     feature: int | None = None,
     query: str | None = None,
     crs: Any = None,
+    surface: bool = False,
 ) -> Domain:
     """Read a domain from a file, or from a GeoDataFrame / GeoSeries.
 
@@ -62,6 +63,9 @@ def load_domain(
     crs : pyproj.CRS, str or int, optional
         Polygons: the coordinates' CRS, replacing the one the data declares (for data
         that declares none, or the wrong one). It must be projected.
+    surface : bool, default False
+        Meshes: the triangle surface itself (:meth:`Domain.from_surface`, restricted
+        Voronoi diagrams on it) instead of the solid it bounds; open meshes allowed.
 
     Returns
     -------
@@ -100,7 +104,13 @@ def load_domain(
         if given:
             raise ValueError(f"{', '.join(given)}: for polygon data only, not {path.name}")
         vertices, faces = read_mesh(path)
+        if surface:
+            if repair:
+                raise ValueError("repair: for solids only, not with surface=True")
+            return Domain.from_surface(vertices, faces)
         return Domain.from_mesh(vertices, faces, repair=repair)
+    if surface:
+        raise ValueError(f"surface=True: for triangle meshes only, not {path.name}")
     plain = all(value is None for value in gis.values())
     if suffix in POLYGON_SUFFIXES and plain:
         geometry, declared = read_polygon_and_crs(path)

@@ -33,6 +33,7 @@ from scipy.stats import qmc
 from hcvt.density import DensityLike, evaluate
 from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain, polygon_boundary
+from hcvt.geometry.surface_points import sample_by_area
 from hcvt.seeding.cover import Cover, cover
 from hcvt.seeding.sphere import SPHERE_METHODS, fibonacci, icosahedral, random_sphere
 
@@ -118,6 +119,8 @@ def initialise(
         (normalised normal vectors), ``fibonacci`` the golden-spiral lattice,
         ``icosahedral`` the subdivided icosahedron (``n = 10·4^k + 2`` only), each scaled
         to the radius (:mod:`hcvt.seeding.sphere`).
+        On a surface (:meth:`hcvt.Domain.from_surface`, ``random`` only): points uniform
+        by area on its triangles (a triangle drawn by area, then a point uniform in it).
 
     Returns
     -------
@@ -152,6 +155,8 @@ def initialise(
     n = check_count(n, domain.dim)
     if domain.is_sphere:
         return _on_sphere(domain, n, method, random_state(seed, rng), density)
+    if domain.is_surface:
+        return _on_surface(domain, n, method, random_state(seed, rng), density)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     state = random_state(seed, rng)
@@ -191,6 +196,23 @@ def _on_sphere(
     else:
         unit = icosahedral(n)
     return np.ascontiguousarray(unit * domain.radius)
+
+
+def _on_surface(
+    domain: Domain,
+    n: int,
+    method: str,
+    state: int | np.random.Generator | None,
+    density: DensityLike,
+) -> NDArray[np.float64]:
+    """``initialise`` on a surface: ``n`` points uniform by area on its triangles."""
+    if method != "random":
+        raise ValueError(f"unknown method {method!r} on a surface; expected 'random'")
+    if density is not None:
+        raise InvalidDensityError("densities on a surface are not implemented yet")
+    generator = np.random.default_rng(state)
+    points, _ = sample_by_area(domain.vertices, domain.faces, n, generator)
+    return _distinct(domain, points)
 
 
 #: Sites are checked for coincidence when two of ``n`` uniform points would share a

@@ -16,6 +16,8 @@
 //! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |
 //! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
 //! | `periodic_box.rs` | [`PeriodicBox`], a box periodic along some or all axes: cells among the sites' images in a band, each neighbour with its image shift (DESIGN §14) |
+//! | `surface.rs` | [`Surface`], a triangle surface as a domain kind: restricted Voronoi cells, the surface's triangles clipped by each convex cell (DESIGN §12) |
+//! | `polygon_clip.rs` | one Sutherland–Hodgman step, shared by the surface's pieces and the mesh's boundary pieces |
 //! | `sphere.rs` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
@@ -38,9 +40,11 @@ mod mesh;
 mod order;
 mod periodic_box;
 mod polygon_cell;
+mod polygon_clip;
 mod polyhedron_cell;
 mod power;
 mod sphere;
+mod surface;
 mod voronoi_cell;
 mod weighted;
 
@@ -64,6 +68,7 @@ pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
 use power::Power;
 pub use sphere::{Sphere, ON_SPHERE_TOL};
+pub use surface::{RestrictedDelaunay, Surface};
 use voronoi_cell::{voronoi_cell, CellScratch};
 
 /// How to treat unusual input.

@@ -134,6 +134,11 @@ impl<const D: usize> Bvh<D> {
         }
     }
 
+    /// The box of node `i` (an empty box for a bad index).
+    pub fn node_bounds(&self, i: usize) -> Aabb<D> {
+        self.nodes.get(i).map_or_else(Aabb::empty, |n| n.bounds)
+    }
+
     /// Box of the whole hierarchy.
     pub fn bounds(&self) -> Aabb<D> {
         self.nodes.first().map_or_else(Aabb::empty, |n| n.bounds)

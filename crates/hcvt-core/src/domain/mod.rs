@@ -6,6 +6,7 @@
 //! needs: the signed cones from any point sum to the indicator of the domain.
 
 mod bvh;
+mod closest;
 mod winding;
 mod winding_grid;
 
@@ -15,6 +16,7 @@ use crate::error::CoreError;
 use crate::geometry::{dot, sub, Aabb, Euclid, Space};
 use crate::moments::{ConeMoments, Moments};
 pub use bvh::Bvh;
+pub use closest::TriangleSet;
 pub use winding::{generalized_winding_number, WindingNumber};
 
 /// A domain bounded by a closed, oriented cycle of `(D-1)`-simplices.
@@ -57,6 +59,32 @@ impl Polygon {
     }
 }
 
+/// Refuses an empty list of simplices, non-finite coordinates and out-of-range indices:
+/// what every set of simplices over vertices (a boundary, a surface) is checked for first.
+pub(crate) fn check_indexed<const D: usize, const K: usize>(
+    vertices: &[[f64; D]],
+    simplices: &[[u32; K]],
+) -> Result<(), CoreError> {
+    if simplices.is_empty() {
+        return Err(CoreError::EmptyBoundary);
+    }
+    for (index, v) in vertices.iter().enumerate() {
+        if let Some(&value) = v.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteVertex { index, value });
+        }
+    }
+    for (element, s) in simplices.iter().enumerate() {
+        if let Some(&vertex) = s.iter().find(|&&v| v as usize >= vertices.len()) {
+            return Err(CoreError::VertexIndexOutOfRange {
+                element,
+                vertex,
+                count: vertices.len(),
+            });
+        }
+    }
+    Ok(())
+}
+
 impl<const D: usize> Boundary<D>
 where
     Euclid: Space<D> + ConeMoments<D>,
@@ -68,23 +96,7 @@ where
     /// encloses no positive volume (inside out). It does not look for self-intersections:
     /// the front ends (shapely in 2D, the mesh checks in 3D) do.
     pub fn new(vertices: Vec<[f64; D]>, simplices: Vec<[u32; D]>) -> Result<Self, CoreError> {
-        if simplices.is_empty() {
-            return Err(CoreError::EmptyBoundary);
-        }
-        for (index, v) in vertices.iter().enumerate() {
-            if let Some(&value) = v.iter().find(|x| !x.is_finite()) {
-                return Err(CoreError::NonFiniteVertex { index, value });
-            }
-        }
-        for (element, s) in simplices.iter().enumerate() {
-            if let Some(&vertex) = s.iter().find(|&&v| v as usize >= vertices.len()) {
-                return Err(CoreError::VertexIndexOutOfRange {
-                    element,
-                    vertex,
-                    count: vertices.len(),
-                });
-            }
-        }
+        check_indexed(&vertices, &simplices)?;
         check_closed(&simplices)?;
         let boxes = simplices
             .iter()

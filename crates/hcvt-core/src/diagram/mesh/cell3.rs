@@ -8,6 +8,7 @@ use super::planar::{bridge_holes, clip_ring, Node, PlanarScratch, Segment};
 use super::{bisector_side, gen_of, CellFaces, CellGeometry, Side};
 use crate::diagram::clip::boundary_candidates;
 use crate::diagram::convex_cell::{ConvexCell, Face};
+use crate::diagram::polygon_clip::clip_polygon;
 use crate::diagram::PolyhedronCell;
 use crate::domain::{Solid, WindingNumber};
 use crate::geometry::{add, cross, dot, sub, Euclid, Space};
@@ -244,21 +245,17 @@ impl PolyhedronCell {
                 }
                 _ => (dot(h.normal, n.x) - h.offset, false),
             };
-            let m = s.polygon.len();
             s.sides.clear();
             s.sides.extend(s.polygon.iter().map(side));
             let sides = &s.sides;
             if sides.iter().all(|&(d, _)| d <= 0.0) {
                 continue;
             }
-            s.clipped.clear();
-            for k in 0..m {
-                let (u, w) = (s.polygon[k], s.polygon[(k + 1) % m]);
-                let ((su, zu), (sw, zw)) = (sides[k], sides[(k + 1) % m]);
-                if su <= 0.0 {
-                    s.clipped.push(u);
-                }
-                if (su <= 0.0) != (sw <= 0.0) {
+            clip_polygon(
+                &s.polygon,
+                sides,
+                &mut s.clipped,
+                |&u, &w, (su, zu), (sw, zw)| {
                     // A mesh vertex on the bisector is where the cut passes.
                     let mut node = if zu {
                         u
@@ -282,9 +279,9 @@ impl PolyhedronCell {
                         }
                     };
                     node.out = if su <= 0.0 { gen } else { u.out };
-                    s.clipped.push(node);
-                }
-            }
+                    node
+                },
+            );
             std::mem::swap(&mut s.polygon, &mut s.clipped);
             if s.polygon.len() < 3 {
                 return;

@@ -1,0 +1,69 @@
+"""Points on a triangle surface: uniform random samples by area, and nearest points.
+
+Used by :func:`hcvt.initialise` on a surface (exactly ``n`` sites, random by area), by
+:func:`hcvt.cvt` on a surface (its sites move freely in space and are projected onto the
+surface at the end, as in Yan et al. 2009) and by :func:`hcvt.surface_quality` (sampled
+Hausdorff distances). The nearest points come from the core's BVH
+(``_core.closest_points``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hcvt import _core
+
+
+def triangle_areas(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> NDArray[np.float64]:
+    """Area of each triangle (F,), from vertices (V, 3) and faces (F, 3)."""
+    a, b, c = (vertices[faces[:, k]] for k in range(3))
+    return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+def sample_by_area(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.intp],
+    n: int,
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """``n`` points uniform by area on the triangles, and the triangle of each (n,).
+
+    A triangle is drawn with probability proportional to its area, then a point uniform
+    in it (the square-root map of two uniforms to barycentric coordinates).
+    """
+    areas = triangle_areas(vertices, faces)
+    cumulative = np.cumsum(areas)
+    which = np.searchsorted(cumulative, rng.random(n) * cumulative[-1], side="right")
+    which = np.minimum(which, len(faces) - 1)
+    r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
+    a, b, c = (vertices[faces[which, k]] for k in range(3))
+    points = (1.0 - r1)[:, None] * a + (r1 * (1.0 - r2))[:, None] * b + (r1 * r2)[:, None] * c
+    return np.ascontiguousarray(points), which
+
+
+def closest_points(
+    vertices: ArrayLike, faces: ArrayLike, points: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """The nearest point of the triangles to each of ``points`` (m, 3), and its triangle.
+
+    Parameters
+    ----------
+    vertices : array_like of float, shape (V, 3)
+    faces : array_like of int, shape (F, 3)
+        Any triangles (no manifold or orientation checks).
+    points : array_like of float, shape (m, 3)
+
+    Returns
+    -------
+    nearest : ndarray, shape (m, 3)
+    triangle : ndarray of intp, shape (m,)
+    """
+    v = np.ascontiguousarray(vertices, dtype=np.float64)
+    f = np.ascontiguousarray(faces, dtype=np.uint32)
+    p = np.ascontiguousarray(points, dtype=np.float64)
+    nearest, triangle = _core.closest_points(v, f, p)
+    return np.asarray(nearest), np.asarray(triangle)
+
+
+__all__ = ["closest_points", "sample_by_area", "triangle_areas"]
