@@ -30,7 +30,8 @@ cheese 10k by default; ``--cases bunny fandisk cheese -n 1000`` for the 1k table
    element size set so that the tetrahedra have about ``n`` vertices, each of which
    becomes one dual cell; where gmsh cannot reparametrise the surface (the bunny: "wrong
    topology") or gives no mesh within ``GMSH_SECONDS`` (fandisk, cheese), the input
-   triangles are kept as the boundary mesh, so the dual has more cells than ``n``), written as a version 2.2 ``.msh``, ``gmshToFoam``, then
+   triangles are kept as the boundary mesh, so the dual has more cells than ``n``),
+   written as a version 2.2 ``.msh``, ``gmshToFoam``, then
    ``polyDualMesh -overwrite <feature angle>`` (60 degrees by default); checkMesh and
    laplacianFoam on it as on hcvt's meshes.
 

@@ -34,8 +34,8 @@ from hcvt.seeding import (
     initialise,
     regular_cvt,
 )
-from hcvt.transport import TransportResult, optimal_transport
 from hcvt.surface import RemeshError, RemeshResult, SurfaceQuality, remesh, surface_quality
+from hcvt.transport import TransportResult, optimal_transport
 
 __all__ = [
     "CVTResult",

@@ -20,8 +20,8 @@ from hcvt.core_results import (
     MeshPartArrays,
     MeshQualityArrays,
     PartCellsArrays,
-    TransportArrays,
     RestrictedDelaunayArrays,
+    TransportArrays,
 )
 
 __all__ = [
