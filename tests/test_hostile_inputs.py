@@ -569,11 +569,147 @@ SPECIFIC: dict[str, list[Row]] = {
             Raises(ValueError, "more than the .* GB of memory"),
         ),
     ],
+    "surface": [
+        (
+            "surface: NaN vertex",
+            lambda: hcvt.Domain.from_surface(poisoned_cube(NAN), CUBE_FACES),
+            Raises(InvalidDomainError, "NaN or infinite"),
+        ),
+        (
+            "surface: a degenerate triangle",
+            lambda: hcvt.Domain.from_surface(CUBE_VERTICES, [*CUBE_FACES, (0, 0, 1)]),
+            Raises(InvalidDomainError, "1 degenerate triangle"),
+        ),
+        (
+            "surface: a repeated triangle",
+            lambda: hcvt.Domain.from_surface(CUBE_VERTICES, [*CUBE_FACES, CUBE_FACES[0]]),
+            Raises(InvalidDomainError, "1 repeated triangle"),
+        ),
+        (
+            "surface: one triangle flipped",
+            lambda: hcvt.Domain.from_surface(
+                CUBE_VERTICES, [*CUBE_FACES[:-1], tuple(reversed(CUBE_FACES[-1]))]
+            ),
+            Raises(InvalidDomainError, "inconsistent orientation"),
+        ),
+        (
+            "surface: a face index past the end",
+            lambda: hcvt.Domain.from_surface(CUBE_VERTICES, [*CUBE_FACES, (0, 1, 99)]),
+            Raises(InvalidDomainError, "missing vertices"),
+        ),
+        (
+            "surface: vertices in 2D",
+            lambda: hcvt.Domain.from_surface(np.asarray(CUBE_VERTICES)[:, :2], CUBE_FACES),
+            Raises(InvalidDomainError, r"shape \(V, 3\)"),
+        ),
+        (
+            "surface: NaN coordinate in a site",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0.0), (NAN, 0.0, 0.0)]),
+            Raises(InvalidSitesError, "site 1 has a non-finite coordinate"),
+        ),
+        (
+            "surface: two sites at the same point",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0), (0.2, 0.2, 0), (0.5, 0.5, 0)]),
+            Raises(InvalidSitesError, "sites 0 and 2 coincide"),
+        ),
+        (
+            "surface: a site far away gets an empty cell",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0.0), (100.0, 100.0, 100.0)]),
+            Gives("areas 6 and 0", lambda r: np.array_equal(r.volume, [6.0, 0.0])),
+        ),
+        (
+            "surface: a site inside the cube takes the faces nearer it",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0.5), (0.5, 0.5, 0.0)]),
+            Gives("areas 4 and 2", lambda r: np.allclose(r.volume, [4.0, 2.0], rtol=1e-14)),
+        ),
+        (
+            "surface: one site: its cell is the surface",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0.0)]),
+            Gives("area 6", lambda r: math.isclose(r.volume[0], 6.0, rel_tol=1e-14)),
+        ),
+        (
+            "surface: a density is refused with a message",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0)], density=lambda x: x[:, 0]),
+            Raises(InvalidDensityError, "densities on a surface are not implemented yet"),
+        ),
+        (
+            "surface: Newton is refused with a message (was a panic)",
+            lambda: hcvt.cvt(cube_surface(), [(0.5, 0.5, 0.0), (0.2, 0.2, 0.0)], "newton"),
+            Raises(ValueError, "not summed on a triangle surface"),
+        ),
+        (
+            "surface: weights are refused with a message",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0), (0.2, 0.2, 0)], weights=[0, 1]),
+            Raises(ValueError, "not supported on the sphere or a triangle surface"),
+        ),
+        (
+            "surface: cell geometry is refused with a message",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0.0), (0.2, 0.2, 0.0)]).mesh(),
+            Raises(NotImplementedError, "restricted Voronoi cells on a surface"),
+        ),
+        (
+            "surface: remesh with n = 0",
+            lambda: hcvt.remesh(cube_surface(), 0),
+            Raises(ValueError, "n must be a positive integer"),
+        ),
+    ],
+    "power": [
+        (
+            "power: a NaN weight",
+            lambda: hcvt.voronoi(square(), [(0.2, 0.2), (0.7, 0.7)], weights=[0.0, NAN]),
+            Raises(ValueError, "weight 1 is not finite"),
+        ),
+        (
+            "power: weights of the wrong length",
+            lambda: hcvt.voronoi(square(), [(0.2, 0.2), (0.7, 0.7)], weights=[0.0]),
+            Raises(ValueError, r"weights must have shape \(2,\)"),
+        ),
+        (
+            "power: a weight that empties the other cell",
+            lambda: hcvt.voronoi(square(), [(0.2, 0.2), (0.7, 0.7)], weights=[0.0, 100.0]),
+            Gives("areas 0 and 1", lambda r: np.array_equal(r.volume, [0.0, 1.0])),
+        ),
+        (
+            "power: weights on the sphere are refused",
+            lambda: hcvt.voronoi(sphere(), [(0, 0, 2.0), (2.0, 0, 0)], weights=[0.0, 0.1]),
+            Raises(ValueError, "not supported on the sphere"),
+        ),
+        (
+            "transport: masses that do not sum to the domain's",
+            lambda: hcvt.optimal_transport(square(), [(0.2, 0.2), (0.7, 0.7)], [0.3, 0.3]),
+            Raises(ValueError, "the masses sum to 0.6, the domain's mass is 1"),
+        ),
+        (
+            "transport: a negative mass",
+            lambda: hcvt.optimal_transport(square(), [(0.2, 0.2), (0.7, 0.7)], [1.5, -0.5]),
+            Raises(ValueError, "mass 1 must be finite and positive"),
+        ),
+        (
+            "transport: a NaN mass",
+            lambda: hcvt.optimal_transport(square(), [(0.2, 0.2), (0.7, 0.7)], [NAN, 0.5]),
+            Raises(ValueError, "mass 0 is not finite"),
+        ),
+        (
+            "transport: one site takes the whole domain",
+            lambda: hcvt.optimal_transport(square(), [(0.2, 0.2)], [1.0]),
+            Gives("area 1", lambda r: math.isclose(r.diagram.volume[0], 1.0)),
+        ),
+    ],
 }
 
 
 def sphere() -> hcvt.Domain:
     return hcvt.Domain.sphere(2.0)
+
+
+def cube_surface() -> hcvt.Domain:
+    return hcvt.Domain.from_surface(CUBE_VERTICES, CUBE_FACES)
+
+
+def poisoned_cube(value: float) -> np.ndarray:
+    vertices = np.array(CUBE_VERTICES, dtype=float)
+    vertices[3, 0] = value
+    return vertices
 
 
 # ---------------------------------------------------------------------- readers

@@ -432,7 +432,8 @@ def as_weights(values: ArrayLike, n: int, name: str = "weights") -> NDArray[np.f
     out = np.array(arr, dtype=np.float64, order="C", copy=True)
     if not np.all(np.isfinite(out)):
         bad = int(np.flatnonzero(~np.isfinite(out))[0])
-        raise ValueError(f"{name.rstrip('s')} {bad} is not finite ({out[bad]})")
+        one = {"masses": "mass"}.get(name, name.removesuffix("s"))
+        raise ValueError(f"{one} {bad} is not finite ({out[bad]})")
     return out
 
 

@@ -144,6 +144,13 @@ pub trait DomainKind<const D: usize>: Sync {
         0.0
     }
 
+    /// The core sums Newton's Hessian for this kind: the flat kinds (cells of dimension
+    /// `D`) and the sphere (its Riemannian Hessian); not yet a triangle surface, whose
+    /// Newton is refused with a message instead of reading faces it has not measured.
+    fn sums_hessian(&self) -> bool {
+        self.cell_dim() == D
+    }
+
     /// Newton's first trust region may be as large as the model's own step (its
     /// `TrustRegion::open`, in `optimise/newton.rs`): a domain without boundary (no site
     /// can be moved out of it) whose runs often start near a CVT. `false` by default.

@@ -229,7 +229,9 @@ fn checked_weights<'a, const D: usize, K: DomainKind<D>>(
     }
     if domain.cell_dim() != D {
         return Err(CoreError::InvalidWeights {
-            reason: "power diagrams (weights) are not supported on the sphere".to_string(),
+            reason: "power diagrams (weights) are not supported on the sphere or a triangle \
+                     surface yet"
+                .to_string(),
         });
     }
     Ok(Some(weights))

@@ -690,6 +690,11 @@ impl DomainKind<3> for Sphere {
         true
     }
 
+    /// The Riemannian Hessian (arc face moments, [`DomainKind::curvature_term`]).
+    fn sums_hessian(&self) -> bool {
+        true
+    }
+
     fn retract(&self, x: [f64; 3]) -> [f64; 3] {
         let r2 = norm2(x);
         if r2 > 0.0 {

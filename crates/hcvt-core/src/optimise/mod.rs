@@ -496,6 +496,13 @@ pub fn cvt<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
+    if settings.method == Method::Newton && !domain.sums_hessian() {
+        return Err(CoreError::InvalidSettings {
+            reason: "Newton's Hessian is not summed on a triangle surface yet: use method \
+                     'lbfgs' or 'lloyd'"
+                .into(),
+        });
+    }
     if settings.method == Method::Newton && domain.cell_dim() != D && settings.density.is_some() {
         return Err(CoreError::InvalidSettings {
             reason: "Newton's Hessian on the sphere is not weighted by a density yet: use \
