@@ -221,8 +221,18 @@ def _failing_interior(mesh: PolyMesh, cells: list[int]) -> int:
     return int((bad & both).sum())
 
 
-def _subset(mesh: PolyMesh, kept: NDArray[np.intp]) -> PolyMesh:
-    """The faces ``kept`` of ``mesh``, in order (cells and points as they are)."""
+def _subset(
+    mesh: PolyMesh,
+    kept: NDArray[np.intp],
+    owner: NDArray[np.intp] | None = None,
+    neighbour: NDArray[np.intp] | None = None,
+) -> PolyMesh:
+    """The faces ``kept`` of ``mesh``, in order (cells and points as they are).
+
+    ``owner``/``neighbour`` (one per face of ``mesh``) replace its own where given.
+    """
+    owner = mesh.owner if owner is None else owner
+    neighbour = mesh.neighbour if neighbour is None else neighbour
     sizes = mesh.face_sizes[kept]
     offsets = np.zeros(len(kept) + 1, dtype=np.intp)
     np.cumsum(sizes, out=offsets[1:])
@@ -232,8 +242,8 @@ def _subset(mesh: PolyMesh, kept: NDArray[np.intp]) -> PolyMesh:
         points=mesh.points,
         face_offsets=offsets,
         face_vertices=mesh.face_vertices[start + within],
-        owner=mesh.owner[kept],
-        neighbour=mesh.neighbour[kept],
+        owner=owner[kept],
+        neighbour=neighbour[kept],
         boundary_element=mesh.boundary_element[kept],
         n_cells=mesh.n_cells,
     )
@@ -515,19 +525,4 @@ def _vector_area(xyz: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def _renamed(mesh: PolyMesh, owner: NDArray[np.intp], neighbour: NDArray[np.intp]) -> PolyMesh:
     """``mesh`` with new owners and neighbours; faces with one cell on both sides dropped."""
-    keep = owner != neighbour
-    kept = np.flatnonzero(keep)
-    sizes = mesh.face_sizes[kept]
-    offsets = np.zeros(len(kept) + 1, dtype=np.intp)
-    np.cumsum(sizes, out=offsets[1:])
-    start = np.repeat(mesh.face_offsets[kept], sizes)
-    within = np.arange(offsets[-1]) - np.repeat(offsets[:-1], sizes)
-    return PolyMesh(
-        points=mesh.points,
-        face_offsets=offsets,
-        face_vertices=mesh.face_vertices[start + within],
-        owner=owner[kept],
-        neighbour=neighbour[kept],
-        boundary_element=mesh.boundary_element[kept],
-        n_cells=mesh.n_cells,
-    )
+    return _subset(mesh, np.flatnonzero(owner != neighbour), owner, neighbour)
