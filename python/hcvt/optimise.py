@@ -63,10 +63,10 @@ def fastest_method(
     Newton (the exact Hessian, truncated CG in a trust region) wherever the core sums its
     Hessian: polygons, solids, plain boxes and the sphere (its Riemannian Hessian), without
     a density or with a :class:`~hcvt.density.Polynomial` (the sphere takes none), in one
-    process. It needs 3-5x fewer diagrams than L-BFGS from random sites and was 2.3-4.2x
-    faster to the paper's rule and 2.6-3.7x to the default rule in every row of
-    ``docs/results/bench_cvt.txt`` (square 1k, 5k; star 2k, 10k; ball 1k, 5k; medians of 3
-    seeds), faster in 10 of the 12 hierarchical rows of
+    process. It needs 3-5x fewer diagrams than L-BFGS from random sites and was 2.6-3.7x
+    faster to the paper's rule in every row of ``docs/results/bench_cvt.txt`` (square 1k,
+    5k; star 2k, 10k; ball 1k, 5k; medians of 3 seeds) and 2.6-3.4x to the default rule in
+    the four rows where L-BFGS reached it, and faster in all six hierarchical rows of
     ``docs/results/bench_hierarchy.txt``, and on the sphere it converges the icosahedral
     MPAS sizes in 5 diagrams against L-BFGS's 33-118 (``benchmarks/sphere.py``).
     Elsewhere L-BFGS: a periodic box or a triangle surface (no Hessian summed there yet), a
