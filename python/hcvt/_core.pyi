@@ -253,6 +253,9 @@ def cvt(
     function: _Function | None = None,
     quadrature_degree: int = 4,
     frame: tuple[Sequence[float], float] | None = None,
+    volumes: _Float1 | None = None,
+    normalise: bool = False,
+    volume_tol: float | None = None,
 ) -> CvtArrays: ...
 
 # The optimiser's settings, checked once for every driver: the tol to use.

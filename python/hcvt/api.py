@@ -146,6 +146,9 @@ def cvt(
     sites_per_partition: int | None = None,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    volumes: ArrayLike | None = None,
+    normalise: bool = False,
+    volume_tol: float = optimise.VOLUME_TOL,
 ) -> CVTResult:
     """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``.
 
@@ -207,6 +210,25 @@ def cvt(
         (InvalidDensityError). A callable is called once per diagram, with the GIL.
     quadrature_degree : int, default 4
         Degree (1 to 5) of the simplex rule that samples a callable density.
+    volumes : array_like of float, shape (n,), optional
+        Prescribed cell volumes (masses ``∫ρ`` with a ``density``), positive, L^d: a
+        capacity-constrained CVT, the sites at the centroids of the cells of a *power*
+        diagram whose cell ``i`` has volume ``volumes[i]`` (Bourne, Kok, Roper, Spanjer
+        2020: optimal-transport weights for the present sites, warm-started, then sites to
+        their power cells' centroids, repeated; ``hcvt-core/src/optimise/capacity.rs``).
+        ``method`` must be None or ``"lloyd"`` (the alternation is the only method offered;
+        :func:`hcvt.optimise.fastest_method` does not apply). They must sum to the domain's
+        volume (to 1e-9 relative) unless ``normalise``. On polygons, solids and boxes,
+        periodic or not; not with ``client`` (NotImplementedError), the sphere or a surface.
+        The result's ``diagram`` is the power diagram, ``weights`` its weights; the
+        history has one record per outer iteration with ``max_volume_error`` and
+        ``newton_steps`` (the transport's) besides the gaps; it stops when every cell is
+        within ``volume_tol`` of its volume *and* the rule holds, both for that diagram.
+    normalise : bool, default False
+        With ``volumes``: treat them as relative sizes, scaled to the domain's volume (as
+        :func:`hcvt.optimal_transport`'s ``normalise``).
+    volume_tol : float, default 1e-8
+        With ``volumes``: every cell's ``|V_i - v_i| / v_i`` at most this.
 
     Returns
     -------
@@ -251,6 +273,13 @@ def cvt(
         "density": density,
         "quadrature_degree": quadrature_degree,
     }
+    if volumes is not None:
+        if client is not None:
+            raise NotImplementedError(
+                "volumes= (capacity-constrained CVTs) is not implemented on dask partitions "
+                "(client=): run without client"
+            )
+        options |= {"volumes": volumes, "normalise": normalise, "volume_tol": volume_tol}
     if client is not None and (domain.is_sphere or domain.is_surface):
         raise NotImplementedError(
             "partitioned CVTs on the sphere or a surface are not implemented yet"

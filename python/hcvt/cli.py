@@ -34,7 +34,7 @@ from hcvt.experiments import reproduce as run_experiment
 from hcvt.geometry.shapes import BUILTIN, builtin_domain
 from hcvt.lazy import load
 from hcvt.mesh import merged_boundary, mesh_quality
-from hcvt.optimise import RULES, default_tol, fastest_method
+from hcvt.optimise import RULES, capacity_method, default_tol, fastest_method
 from hcvt.seeding.sphere import icosahedral_level
 
 METHODS = ("hierarchical", "regular", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
@@ -42,6 +42,8 @@ OPTIMISERS = ("lbfgs", "newton", "lloyd")
 INITS = ("random", "halton", "hammersley", "lattice", "fibonacci", "icosahedral")
 #: The built-in sphere, of radius --radius (not a shape of hcvt.geometry.shapes: it has one).
 SPHERE = "sphere"
+#: Built-in boxes (hcvt.Domain.box), periodic with --periodic: the unit cube and square.
+BOXES = {"box": 3, "box2d": 2}
 
 
 class _OneLineErrors(click.Group):
@@ -63,14 +65,19 @@ def main() -> None:
     """Regular centroidal Voronoi tessellations of polygons and closed meshes."""
 
 
-def _load(input_: str, repair: bool, radius: float = 1.0):
+def _load(input_: str, repair: bool, radius: float = 1.0, periodic: bool = False):
 
+    if input_ in BOXES:
+        d = BOXES[input_]
+        return hcvt.Domain.box(np.zeros(d), np.ones(d), periodic=periodic)
+    if periodic:
+        raise click.UsageError(f"--periodic takes the boxes {', '.join(BOXES)}, not {input_!r}")
     if input_ == SPHERE:
         return hcvt.Domain.sphere(radius)
     if input_ in BUILTIN:
         return builtin_domain(input_)
     if not Path(input_).suffix and not Path(input_).exists():
-        known = ", ".join(sorted([*BUILTIN, SPHERE]))
+        known = ", ".join(sorted([*BUILTIN, SPHERE, *BOXES]))
         raise ValueError(f"{input_!r} is no file and no built-in shape ({known})")
     return hcvt.load_domain(input_, repair=repair)
 
@@ -98,6 +105,27 @@ def _load(input_: str, repair: bool, radius: float = 1.0):
     show_default=True,
     help="INPUT sphere: its radius; lengths and areas of --out .nc in its units (MPAS-A "
     "grid files: 1, scaled by the model; MPAS-Ocean: 6371229 m, MPAS-Tools' Earth).",
+)
+@click.option(
+    "--periodic",
+    is_flag=True,
+    help="INPUT box (the unit cube) or box2d (the unit square): periodic along every axis.",
+)
+@click.option(
+    "--volumes",
+    "volumes_spec",
+    default=None,
+    help="Prescribed cell volumes (a capacity-constrained CVT of power cells; --method lbfgs "
+    "on the transport cost, the default, or lloyd, Bourne et al.'s alternation): "
+    "lognormal:SIGMA (drawn from --seed, log-normal with that sigma) or FILE (.npy, or one "
+    "value per line); relative sizes, scaled to the domain's volume.",
+)
+@click.option(
+    "--volume-tol",
+    type=float,
+    default=1e-8,
+    show_default=True,
+    help="With --volumes: every cell's volume within this of its target, relatively.",
 )
 @click.option("--subdivisions", type=int, default=None, help="Hierarchy levels s.")
 @click.option(
@@ -200,6 +228,9 @@ def run(
     method: str | None,
     init: str | None,
     radius: float,
+    periodic: bool,
+    volumes_spec: str | None,
+    volume_tol: float,
     subdivisions: int | None,
     optimiser: str | None,
     moves: int,
@@ -228,7 +259,14 @@ def run(
     pieces = cells_path is not None and Path(cells_path).suffix.lower() == ".pvtu"
     if pieces and scheduler is None:
         raise click.UsageError("--cells .pvtu (one piece per part) needs --scheduler")
-    domain = _load(input_, repair, radius)
+    if volumes_spec is not None:
+        if method not in (None, "lloyd", "lbfgs") or scheduler is not None:
+            raise click.UsageError(
+                "--volumes takes --method lloyd (Bourne et al.'s alternation) or lbfgs, in one "
+                f"process, not --method {method}" + (" with --scheduler" if scheduler else "")
+            )
+        method = capacity_method(method)
+    domain = _load(input_, repair, radius, periodic)
     method, init = _defaults(domain, n, method, init)
     _check_outputs(domain, out, plot)
     density = _density(density_spec, sizing_spec, domain.dim)
@@ -278,6 +316,10 @@ def run(
         partitioned = _client(scheduler) if scheduler is not None else contextlib.nullcontext()
         with partitioned as client:
             extra = weighted
+            if volumes_spec is not None:
+                volumes = _volumes(volumes_spec, n, seed)
+                extra = {**weighted, "volumes": volumes, "normalise": True}
+                extra["volume_tol"] = volume_tol
             if client is not None:
                 extra = {**weighted, "client": client, "sites_per_partition": sites_per_partition}
             if pieces:
@@ -327,6 +369,10 @@ def run(
         info["tol"] = default_tol(rule) if tol is None else tol
     if history is not None:
         info.update({key: _scalar(history[key][-1]) for key in CONVERGENCE_FIELDS})
+    if history is not None and "max_volume_error" in history:
+        info["volumes"] = volumes_spec
+        info["max_volume_error"] = _scalar(history["max_volume_error"][-1])
+        info["newton_steps"] = int(np.sum(history["newton_steps"]))
     click.echo(
         f"n = {info['n']}  mean G = {info['mean_G']:.6f}  energy = {info['energy']:.6g}  "
         f"iterations = {iterations}  seconds = {seconds:.2f}"
@@ -342,6 +388,11 @@ def run(
         click.echo(
             f"rule = {rule}  RMS gap = {info['rms_gap']:.2e}  max gap = {info['max_gap']:.2e}  "
             f"|g|/|X| = {info['grad_norm']:.2e}  pinned = {info['pinned']}"
+        )
+    if "max_volume_error" in info:
+        click.echo(
+            f"volumes ({volumes_spec}): max relative error = {info['max_volume_error']:.2e}  "
+            f"Newton steps = {info['newton_steps']}"
         )
     if out and Path(out).suffix.lower() == ".nc":
         hcvt.write_mpas(diagram, out)
@@ -547,6 +598,33 @@ def _function(spec: str) -> Any:
 
 #: The last iterate's convergence measures, written to the summary (``hcvt.cvt`` docs).
 CONVERGENCE_FIELDS = ("rms_gap", "max_gap", "grad_norm", "pinned")
+
+
+def _volumes(spec: str, n: int, seed: int) -> np.ndarray:
+    """--volumes: ``lognormal:SIGMA`` drawn from ``seed``, or a file of n values.
+
+    The draws come from a child of ``seed``'s SeedSequence, so they are independent of the
+    initial sites drawn from ``seed`` itself.
+    """
+    if spec.startswith("lognormal:"):
+        try:
+            sigma = float(spec.removeprefix("lognormal:"))
+        except ValueError:
+            raise click.UsageError(
+                f"--volumes lognormal:SIGMA needs a number, got {spec!r}"
+            ) from None
+        if not (np.isfinite(sigma) and sigma >= 0):
+            raise click.UsageError(f"--volumes lognormal:SIGMA needs SIGMA >= 0, got {sigma}")
+        rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+        return rng.lognormal(0.0, sigma, n)
+    path = Path(spec)
+    if not path.exists():
+        raise click.UsageError(f"--volumes: {spec!r} is neither lognormal:SIGMA nor a file")
+    values = np.load(path) if path.suffix.lower() == ".npy" else np.loadtxt(path, ndmin=1)
+    values = np.asarray(values, dtype=np.float64).ravel()
+    if values.shape != (n,):
+        raise click.UsageError(f"--volumes {spec}: {values.size} values for {n} sites")
+    return values
 
 
 def _scalar(value: Any) -> float | int:

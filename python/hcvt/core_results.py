@@ -146,6 +146,8 @@ class CvtHistory(TypedDict):
     seconds: Floats
     evaluations: Indices
     step: list[str]
+    max_volume_error: NotRequired[Floats]  # with volumes: after each outer iteration
+    newton_steps: NotRequired[Indices]  # with volumes: the transport's Newton steps
 
 
 class CvtArrays(TypedDict):
@@ -157,6 +159,8 @@ class CvtArrays(TypedDict):
     stop_reason: str
     iterations: int
     evaluations: int
+    weights: NotRequired[Floats]  # (n,), with volumes: the power diagram's
+    targets: NotRequired[Floats]  # (n,), with volumes: scaled when normalised
 
 
 class TransportHistory(TypedDict):

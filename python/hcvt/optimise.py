@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hcvt import _core
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, Polynomial, core_arguments
-from hcvt.diagram import Diagram, as_sites
+from hcvt.diagram import Diagram, as_sites, as_weights
 from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.surface_points import closest_points
@@ -48,6 +48,10 @@ RULES = ("gap", "paper")
 GAP_TOL = 1e-7
 #: Default tolerance of ``rule="paper"`` on ``‖g‖/‖X‖`` in input coordinates (the paper's).
 PAPER_TOL = 1e-10
+#: Default tolerance of ``volumes=`` on every cell's ``|V_i - v_i| / v_i``.
+VOLUME_TOL = 1e-8
+#: The method of ``volumes=`` when none is given.
+CAPACITY_METHOD = "lbfgs"
 
 
 def default_tol(rule: str) -> float:
@@ -127,6 +131,11 @@ class CVTResult(Shows):
         Diagrams computed (one per energy-and-gradient evaluation).
     seconds : float
         Wall time of the optimisation.
+    weights : ndarray of float64, shape (n,), or None
+        With ``volumes``: the weights of the final power diagram, L² (``diagram`` is that
+        power diagram); else None. The history then also has ``max_volume_error``
+        (``max_i |V_i - v_i| / v_i`` of each outer iteration's diagram) and
+        ``newton_steps`` (its transport's Newton steps); one record per outer iteration.
     """
 
     sites: NDArray[np.float64]
@@ -139,6 +148,7 @@ class CVTResult(Shows):
     iterations: int
     evaluations: int
     seconds: float
+    weights: NDArray[np.float64] | None = field(default=None, repr=False)
 
     @property
     def mean_G(self) -> float:  # noqa: N802 (the paper's G)
@@ -181,18 +191,31 @@ def cvt(
     progress: bool = False,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    volumes: ArrayLike | None = None,
+    normalise: bool = False,
+    volume_tol: float = VOLUME_TOL,
 ) -> CVTResult:
     """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``, in this process.
 
     :func:`hcvt.cvt` without ``client``, which documents the parameters; ``method=None``
-    is :func:`fastest_method`.
+    is :func:`fastest_method`, or with ``volumes`` Bourne et al.'s alternation (``"lloyd"``).
     """
+    if volumes is not None:
+        method = capacity_method(method)
     method = method or fastest_method(domain, density)
     # The core checks the settings for both drivers (and tells the rule's default tol).
     tol = _core.check_settings(method, rule, tol, max_iter, memory)
     points = as_sites(sites, domain.dim)
     frame = domain.frame  # the core works in it; sites, energy and history map back
     weighted = core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree)
+    if volumes is not None:
+        if domain.is_sphere or domain.is_surface:
+            raise ValueError("volumes= needs power diagrams: not on the sphere or a surface")
+        weighted |= {
+            "volumes": frame.quantity_to_core("masses", check_volumes(volumes, len(points))),
+            "normalise": bool(normalise),
+            "volume_tol": float(volume_tol),
+        }
     bar = ProgressBar(rule, tol) if progress else None
     observe = frame.observer(chain_observers(callback, bar))
     try:
@@ -225,9 +248,12 @@ def cvt(
     if any(domain.periodic):
         # Wrapped by the core in its frame; again here, where rounding may touch `hi`.
         sites_out = domain.wrap(sites_out)
+    weights = frame.to_input("weights", out["weights"]) if "weights" in out else None
     return CVTResult(
         sites=sites_out,
-        diagram=Diagram(domain, sites_out, out["diagram"], density, core_sites=out["sites"]),
+        diagram=Diagram(
+            domain, sites_out, out["diagram"], density, core_sites=out["sites"], weights=weights
+        ),
         history=history,
         rule=rule,
         tol=float(tol),
@@ -236,7 +262,33 @@ def cvt(
         iterations=int(out["iterations"]),
         evaluations=int(out["evaluations"]),
         seconds=float(history["seconds"][-1]),
+        weights=weights,
     )
+
+
+def capacity_method(method: str | None) -> str:
+    """The method of a CVT with prescribed volumes (``method=None``: ``"lbfgs"``).
+
+    ``"lloyd"`` is Bourne et al.'s alternation (transport, then sites to centroids);
+    ``"lbfgs"`` is L-BFGS on the transport cost, each trial a warm-started transport.
+    :func:`fastest_method` does not apply.
+    """
+    if method not in (None, "lloyd", "lbfgs"):
+        raise ValueError(
+            "volumes= takes method None, 'lloyd' (Bourne et al.'s alternation: optimal "
+            "transport, then sites to centroids) or 'lbfgs' (on the transport cost), "
+            f"got {method!r}"
+        )
+    return method or CAPACITY_METHOD
+
+
+def check_volumes(volumes: ArrayLike, n: int) -> NDArray[np.float64]:
+    """``volumes`` as float64 (n,), each finite and positive; else ValueError naming the row."""
+    values = as_weights(volumes, n, "volumes")
+    if np.any(values <= 0):
+        bad = int(np.flatnonzero(values <= 0)[0])
+        raise ValueError(f"volume {bad} must be positive, got {values[bad]}")
+    return values
 
 
 def chain_observers(
@@ -305,4 +357,13 @@ class ProgressBar:
         self._progress.stop()
 
 
-__all__ = ["CVTResult", "GAP_TOL", "PAPER_TOL", "RULES", "cvt", "default_tol", "fastest_method"]
+__all__ = [
+    "CVTResult",
+    "GAP_TOL",
+    "PAPER_TOL",
+    "RULES",
+    "VOLUME_TOL",
+    "cvt",
+    "default_tol",
+    "fastest_method",
+]

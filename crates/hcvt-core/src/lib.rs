@@ -49,8 +49,9 @@ pub use error::CoreError;
 pub use geometry::{Aabb, Euclid, Space};
 pub use moments::{tetra_moments, triangle_moments, FaceMoments, Moments};
 pub use optimise::{
-    cvt, evaluate, lbfgs, lloyd, optimal_transport, Frame, Measures, Method, Named, Outcome, Point,
-    PointRequest, Record, Rule, Settings, Step, StopReason, Transport, TransportRecord,
-    TransportSettings,
+    capacity_cvt, cvt, evaluate, lbfgs, lloyd, optimal_transport, optimal_transport_from, Capacity,
+    CapacityRecord, CapacitySettings, Frame, Measures, Method, Named, Outcome, Point, PointRequest,
+    Record, Rule, Settings, Step, StopReason, Transport, TransportRecord, TransportSettings,
+    DEFAULT_VOLUME_TOL,
 };
 pub use quality::{mesh_quality, MeshArrays, MeshQuality};

@@ -14,8 +14,9 @@ use std::time::Duration;
 
 use hcvt_core::lbfgs::{self, LineSearch};
 use hcvt_core::{
-    cvt as core_cvt, lloyd, optimal_transport as core_transport, ConvexCell, DomainKind, Euclid,
-    Frame, Moments, Named, Outcome, Record, Settings, Space, TransportRecord, TransportSettings,
+    capacity_cvt, cvt as core_cvt, lloyd, optimal_transport as core_transport, CapacityRecord,
+    CapacitySettings, ConvexCell, DomainKind, Euclid, Frame, Moments, Named, Outcome, Record,
+    Settings, Space, TransportRecord, TransportSettings, DEFAULT_VOLUME_TOL,
 };
 use numpy::{
     PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
@@ -33,8 +34,12 @@ use crate::errors::to_py_err;
 /// CVT of `sites` (n, d) in `domain` (see `hcvt.cvt`): a dict with `sites`, `diagram` (the
 /// arrays of `voronoi`), `history` (a dict of per-iterate arrays), `stop_reason`.
 /// `callback(record)`, if given, gets a dict per iterate; a true return value stops.
+/// With `volumes` (n,): the capacity-constrained CVT (`hcvt_core::capacity_cvt`, method
+/// "lloyd"), every cell's volume within `volume_tol` (default 1e-8) of its target, scaled
+/// to the domain's when `normalise`; the dict also has `weights` and `targets` (n,), and
+/// the history `max_volume_error` and `newton_steps`.
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None, volumes=None, normalise=false, volume_tol=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt<'py>(
     py: Python<'py>,
@@ -50,13 +55,22 @@ pub fn cvt<'py>(
     function: Option<Py<PyAny>>,
     quadrature_degree: usize,
     frame: Option<(Vec<f64>, f64)>,
+    volumes: Option<PyReadonlyArray1<'py, f64>>,
+    normalise: bool,
+    volume_tol: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
+    let volumes = volumes.map(|v| Volumes {
+        values: v.as_array().to_vec(),
+        normalise,
+        tol: volume_tol.unwrap_or(DEFAULT_VOLUME_TOL),
+    });
     let job = Job {
         named: &named,
         frame: frame.map_or(Ok(Frame::default()), to_frame)?,
         callback,
         given: &Given::new(polynomial, function, quadrature_degree)?,
+        volumes,
     };
     by_kind!(domain, run(py, &sites, job))
 }
@@ -320,7 +334,20 @@ struct Job<'a> {
     frame: Frame,
     callback: Option<Py<PyAny>>,
     given: &'a Given,
+    /// Prescribed cell volumes: a capacity-constrained CVT.
+    volumes: Option<Volumes>,
 }
+
+/// The volumes of a capacity-constrained CVT and how they are read.
+struct Volumes {
+    values: Vec<f64>,
+    normalise: bool,
+    tol: f64,
+}
+
+/// Most Newton steps of one transport in a capacity-constrained CVT (as
+/// `hcvt.optimal_transport`'s default).
+const TRANSPORT_MAX_ITER: usize = 100;
 
 /// How often the waiting thread checks for Ctrl-C while the core works.
 const SIGNAL_POLL: Duration = Duration::from_millis(50);
@@ -344,6 +371,7 @@ where
         frame,
         callback,
         given,
+        volumes,
     } = job;
     let sites = rows::<f64, D>(sites, "sites")?;
     let density = given.density::<D>()?;
@@ -379,8 +407,23 @@ where
             let (done, finished) = mpsc::channel();
             let observer = &mut observer;
             let worker = scope.spawn(move || {
-                let outcome = crate::threads::run(|| {
-                    core_cvt::<D, C, _>(boundary, sites, settings, observer)
+                let outcome = crate::threads::run(|| match &volumes {
+                    None => core_cvt::<D, C, _>(boundary, sites, settings, observer)
+                        .map(|outcome| (outcome, None)),
+                    Some(v) => {
+                        let asked = CapacitySettings {
+                            cvt: *settings,
+                            volume_tol: v.tol,
+                            normalise: v.normalise,
+                            transport_max_iter: TRANSPORT_MAX_ITER,
+                        };
+                        capacity_cvt::<D, C, _>(boundary, sites, &v.values, &asked, observer).map(
+                            |c| {
+                                let extra = (c.weights, c.targets, c.transport);
+                                (c.outcome, Some(extra))
+                            },
+                        )
+                    }
                 });
                 // The receiver lives until the worker is joined; a send cannot fail.
                 let _ = done.send(outcome);
@@ -406,7 +449,30 @@ where
     if let Some(err) = raised.into_inner().ok().flatten() {
         return Err(err);
     }
-    outcome_dict(py, boundary, &outcome.map_err(|e| given.error(e))?)
+    let (outcome, capacity) = outcome.map_err(|e| given.error(e))?;
+    let out = outcome_dict(py, boundary, &outcome)?;
+    if let Some(c) = capacity {
+        capacity_items(py, &out, c)?;
+    }
+    Ok(out)
+}
+
+/// A capacity-constrained CVT's weights, targets and per-iteration transport columns.
+fn capacity_items(
+    py: Python<'_>,
+    out: &Bound<'_, PyDict>,
+    (weights, targets, transport): (Vec<f64>, Vec<f64>, Vec<CapacityRecord>),
+) -> PyResult<()> {
+    out.set_item("weights", PyArray1::from_vec(py, weights))?;
+    out.set_item("targets", PyArray1::from_vec(py, targets))?;
+    let history = out
+        .get_item("history")?
+        .ok_or_else(|| PyRuntimeError::new_err("the CVT's dict has no history"))?;
+    let errors = transport.iter().map(|r| r.max_volume_error);
+    history.set_item("max_volume_error", PyArray1::from_iter(py, errors))?;
+    let steps: Vec<usize> = transport.iter().map(|r| r.newton_steps).collect();
+    history.set_item("newton_steps", crate::arrays::to_intp(py, &steps)?)?;
+    Ok(())
 }
 
 /// Call the callback with a dict of the iterate; `true` (a true return value) asks to stop.

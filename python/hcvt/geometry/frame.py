@@ -110,6 +110,9 @@ UNITS: dict[str, Unit | None] = {
     "seconds": None,
     "evaluations": None,
     "step": None,
+    # a capacity-constrained CVT's (hcvt.cvt with volumes): relative error, counts
+    "max_volume_error": Unit(0, 0),
+    "newton_steps": None,
 }
 
 

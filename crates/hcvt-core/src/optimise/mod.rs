@@ -11,6 +11,7 @@
 //! | [`lloyd`] | Lloyd's `x_i ← c_i`, held inside the domain; reseeding of empty cells |
 //! | [`newton`] | Newton with the exact Hessian: truncated CG in a trust region (often 2–5× fewer diagrams) |
 //! | [`hessian`] | the exact Hessian, summed by the diagram over the faces between cells; its product |
+//! | `capacity` | capacity-constrained CVTs: sites at the centroids of power cells of prescribed volumes, by Bourne et al.'s alternation ([`capacity_cvt`]) |
 //! | `transport` | prescribed masses: the weights of a power diagram by damped Newton on the graph Laplacian ([`optimal_transport`], DESIGN §14) |
 //!
 //! **Stopping rules** ([`stopping`], DESIGN §7). By default a run stops when the RMS over
@@ -36,6 +37,7 @@
 //! Every step is sequential over the sites in index order and the diagram does not depend
 //! on the thread count, so neither does the result.
 
+mod capacity;
 mod hessian;
 pub mod lbfgs;
 pub mod lloyd;
@@ -53,11 +55,14 @@ use crate::diagram::{
 };
 use crate::error::CoreError;
 use crate::geometry::{Euclid, Space};
+pub use capacity::{capacity_cvt, Capacity, CapacityRecord, CapacitySettings, DEFAULT_VOLUME_TOL};
 use hessian::{Hessian, HessianTerms};
 use lbfgs::{LineSearch, Memory};
 use newton::TrustRegion;
 pub use stopping::{Frame, Measures, Rule};
-pub use transport::{optimal_transport, Transport, TransportRecord, TransportSettings};
+pub use transport::{
+    optimal_transport, optimal_transport_from, Transport, TransportRecord, TransportSettings,
+};
 
 /// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the
 /// energy (translating the domain and 2,000 random sites changed `E` by at most 2.4e-14
@@ -526,8 +531,36 @@ where
                 .into(),
         });
     }
-    // In a periodic box the iterates are not wrapped (the L-BFGS memory differences them;
-    // the diagram takes any site along a periodic axis), what the caller sees is.
+    along_morton_curve::<D, C, K>(domain, sites, observer, |along_curve, _, observe| {
+        let out = cvt_in_order::<D, C, K>(domain, along_curve, settings, observe)?;
+        Ok((out, Vec::new()))
+    })
+    .map(|(out, _)| out)
+}
+
+/// Per-site columns of a run besides its sites (weights, target volumes), in the run's
+/// order; [`along_morton_curve`] hands them back in the caller's.
+type SiteColumns = Vec<Vec<f64>>;
+
+/// `run` with the sites in the order of a Morton curve through their starting positions
+/// (`run` gets them, that order as indices into the caller's, and an observer that sees
+/// the caller's order); its outcome and per-site columns back in the caller's order. In a
+/// periodic box the iterates are not wrapped (the L-BFGS memory differences them; the
+/// diagram takes any site along a periodic axis), what the caller sees is. On an error,
+/// the first offending site in the caller's order, as a diagram of them names it.
+fn along_morton_curve<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: Vec<[f64; D]>,
+    observer: &mut Observer<'_, D>,
+    run: impl FnOnce(
+        Vec<[f64; D]>,
+        &[u32],
+        &mut Observer<'_, D>,
+    ) -> Result<(Outcome<D>, SiteColumns), CoreError>,
+) -> Result<(Outcome<D>, SiteColumns), CoreError>
+where
+    Euclid: Space<D>,
+{
     let wrap = |x: [f64; D]| domain.periodic().map_or(x, |torus| torus.wrap(x));
     let order = morton_order(&sites);
     let along_curve: Vec<[f64; D]> = order.iter().map(|&i| sites[i as usize]).collect();
@@ -538,22 +571,34 @@ where
         }
         observer(record, &caller_order)
     };
-    match cvt_in_order::<D, C, K>(domain, along_curve, settings, &mut observe) {
-        Ok(out) => {
+    match run(along_curve, &order, &mut observe) {
+        Ok((out, columns)) => {
             let mut sites = vec![[0.0; D]; out.sites.len()];
             for (&i, &x) in order.iter().zip(&out.sites) {
                 sites[i as usize] = wrap(x);
             }
+            let columns = columns
+                .into_iter()
+                .map(|column| {
+                    let mut back = vec![0.0; column.len()];
+                    for (&i, &v) in order.iter().zip(&column) {
+                        back[i as usize] = v;
+                    }
+                    back
+                })
+                .collect();
             let (diagram, faces) = out.diagram.reordered_faces(&order);
-            Ok(Outcome {
-                sites,
-                diagram,
-                hessian: out.hessian.map(|h| h.reordered(&order, &faces)),
-                history: out.history,
-                stop_reason: out.stop_reason,
-            })
+            Ok((
+                Outcome {
+                    sites,
+                    diagram,
+                    hessian: out.hessian.map(|h| h.reordered(&order, &faces)),
+                    history: out.history,
+                    stop_reason: out.stop_reason,
+                },
+                columns,
+            ))
         }
-        // The first offending site in the caller's order, as a diagram of them names it.
         Err(e) => match clipped_diagram::<D, C, K>(domain, &sites, &DiagramRequest::default()) {
             Err(first) => Err(first),
             Ok(_) => Err(e),

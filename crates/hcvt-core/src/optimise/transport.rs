@@ -108,6 +108,23 @@ pub fn optimal_transport<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
+    optimal_transport_from::<D, C, K>(domain, sites, masses, None, settings)
+}
+
+/// [`optimal_transport`] from the weights `start` (one per site, every cell non-empty;
+/// zero when `None`): a warm start, as the capacity-constrained CVT's alternation takes
+/// from its previous sites (`capacity`). The guard's floor is then half the smaller of the
+/// start's least mass and the least target.
+pub fn optimal_transport_from<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    masses: &[f64],
+    start: Option<&[f64]>,
+    settings: &TransportSettings<'_, D>,
+) -> Result<Transport<D>, CoreError>
+where
+    Euclid: Space<D>,
+{
     let n = sites.len();
     if domain.cell_dim() != D {
         return Err(CoreError::InvalidWeights {
@@ -129,7 +146,18 @@ where
             reason: format!("mass {i} must be finite and positive, got {}", masses[i]),
         });
     }
-    let mut weights = vec![0.0; n];
+    let mut weights = match start {
+        Some(w) if w.len() != n => {
+            return Err(CoreError::InvalidWeights {
+                reason: format!(
+                    "start weights: expected one per site ({n}), got {}",
+                    w.len()
+                ),
+            })
+        }
+        Some(w) => w.to_vec(),
+        None => vec![0.0; n],
+    };
     let mut current = Evaluation::new::<C, K>(domain, sites, &weights, settings.density)?;
     let total: f64 = current.masses.iter().sum();
     let given: f64 = masses.iter().sum();

@@ -1,0 +1,137 @@
+"""A periodic Laguerre polycrystal: N grains of log-normal volumes in the unit cube (torus).
+
+The capacity-constrained CVT of ``hcvt.cvt(box, sites, volumes=v, normalise=True)``
+(Bourne, Kok, Roper and Spanjer 2020's alternation: optimal-transport weights warm-started
+from the previous ones, then sites to their power cells' centroids) from uniform random
+sites, with grain volumes drawn log-normal (σ = 0.3 by default) and normalised to the box:
+every grain's volume to 1e-8 relative, sites at centroids to the default rule (RMS gap
+``|x_i - c_i| / V_i^(1/3)`` below 1e-7). Prints the time, the outer iterations, the
+Newton steps of all transports, the largest relative volume error (as the result reports
+it and as a power diagram of the returned weights computes it again), the RMS gap and the
+spread of the grain volumes.
+
+When ``Diagram.mesh()`` makes conforming meshes of power cells in a periodic box (not yet
+on every branch: the script says so and stops there), the grains are written as an
+OpenFOAM case (``--case``) and ``checkMesh`` runs on it when it is on PATH.
+
+The machine is shared with other jobs: timings are "under load" unless it is idle.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/polycrystal.py [--n 100000] [--sigma 0.3]
+        [--seed 0] [--threads 0] [--case DIR]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import hcvt
+from hcvt.export import write_openfoam
+from hcvt.optimise import CAPACITY_METHOD
+
+
+def polycrystal(
+    n: int, sigma: float, seed: int, method: str
+) -> tuple[hcvt.CVTResult, np.ndarray, float]:
+    """The converged run, the target volumes and its wall time in seconds."""
+    box = hcvt.Domain.box([0, 0, 0], [1, 1, 1], periodic=True)
+    rng = np.random.default_rng(seed)
+    sites = rng.random((n, 3))
+    volumes = rng.lognormal(0.0, sigma, n)
+    volumes /= volumes.sum()
+    start = time.perf_counter()
+    out = hcvt.cvt(box, sites, method, volumes=volumes, normalise=True)
+    return out, volumes, time.perf_counter() - start
+
+
+def write_case(out: hcvt.CVTResult, case: Path) -> None:
+    """The grains as an OpenFOAM case, checked by checkMesh, if the mesh can be made."""
+    try:
+        mesh = out.diagram.mesh()
+    except NotImplementedError as err:
+        print(f"OpenFOAM case: not written ({err})")
+        return
+    write_openfoam(mesh, case, domain=out.diagram.domain, binary=True)
+    print(f"OpenFOAM case: {case}")
+    if shutil.which("checkMesh") is None:
+        print("checkMesh: not on PATH")
+        return
+    env = {**os.environ}
+    env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
+    log = subprocess.run(
+        ["checkMesh", "-case", str(case)], capture_output=True, text=True, env=env, check=False
+    ).stdout
+    verdict = "Mesh OK" if "Mesh OK." in log else "FAILED"
+    failures = [line.strip() for line in log.splitlines() if "***" in line]
+    print(f"checkMesh: {verdict}" + "".join(f"\n  {f}" for f in failures))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--n", type=int, default=100_000, help="grains")
+    parser.add_argument("--sigma", type=float, default=0.3, help="log-normal sigma")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--threads", type=int, default=0, help="0: hcvt's default")
+    parser.add_argument("--case", type=Path, default=None, help="OpenFOAM case directory")
+    parser.add_argument(
+        "--methods",
+        nargs="+",
+        default=[CAPACITY_METHOD],
+        choices=["lloyd", "lbfgs"],
+        help="run each (the last one's grains are meshed); times printed as ratios to the first",
+    )
+    args = parser.parse_args()
+    if args.threads:
+        hcvt.set_num_threads(args.threads)
+    print(
+        f"periodic unit cube, {args.n} grains, log-normal sigma {args.sigma}, seed {args.seed}, "
+        f"{hcvt.get_num_threads()} threads (timings under load unless the machine is idle)"
+    )
+    first = None
+    for method in args.methods:
+        out, volumes, seconds = polycrystal(args.n, args.sigma, args.seed, method)
+        first = first or seconds
+        print(f"method {method}: {seconds / first:.2f}x the first method's time")
+        report(out, volumes, seconds)
+    if args.case is not None:
+        write_case(out, args.case)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            write_case(out, Path(tmp) / "polycrystal")
+
+
+def report(out: hcvt.CVTResult, volumes: np.ndarray, seconds: float) -> None:
+    """Time, iterations, Newton steps, volume errors and gaps of one run."""
+    history = out.history
+    again = hcvt.voronoi(out.diagram.domain, out.sites, weights=out.weights)
+    recomputed = float(np.max(np.abs(again.volume - volumes) / volumes))
+    print(
+        f"  {out.stop_reason}: {seconds:.1f} s, {out.iterations} outer iterations, "
+        f"{int(history['newton_steps'].sum())} Newton steps "
+        f"({int(history['newton_steps'][0])} in the first transport), "
+        f"{out.evaluations} diagrams"
+    )
+    print(
+        f"  max relative volume error {history['max_volume_error'][-1]:.2e} "
+        f"(recomputed from the weights: {recomputed:.2e}); RMS gap "
+        f"{history['rms_gap'][-1]:.2e}, max gap {history['max_gap'][-1]:.2e}"
+    )
+    print(
+        f"  grain volumes: max/min {volumes.max() / volumes.min():.2f}, "
+        f"coefficient of variation {volumes.std() / volumes.mean():.3f}; "
+        f"mean G {out.mean_G:.6f}"
+    )
+
+
+if __name__ == "__main__":
+    main()
