@@ -152,6 +152,25 @@ def test_bunny_cells_have_their_volumes_and_sites_at_centroids():
     assert np.median(out.history["newton_steps"][1:]) <= 3  # warm-started
 
 
+def test_bourne_et_al_alternation_reaches_the_same_rule():
+    """method="lloyd": transport, then sites to centroids, every step a Lloyd step."""
+    box = hcvt.Domain.box([0, 0], [2, 1], periodic=True)
+    n = 40
+    sites = np.random.default_rng(41).random((n, 2)) * [2, 1]
+    volumes = lognormal(n, seed=42)
+    volumes *= 2.0 / volumes.sum()
+    out = hcvt.cvt(box, sites, "lloyd", volumes=volumes)
+    assert out.converged
+    assert set(out.history["step"][1:]) == {"lloyd"}
+    again = hcvt.voronoi(box, out.sites, weights=out.weights)
+    np.testing.assert_array_less(np.abs(again.volume - volumes) / volumes, VOLUME_TOL)
+    gaps = rms_gap(out.sites, again.centroid, again.volume)
+    assert np.sqrt(np.mean(gaps**2)) < GAP_TOL
+    fast = hcvt.cvt(box, sites, volumes=volumes)
+    assert set(fast.history["step"][1:]) <= {"lbfgs", "lloyd"}
+    assert fast.iterations < out.iterations
+
+
 def _run(threads: int, domain, sites, volumes):
     before = hcvt.get_num_threads()
     try:

@@ -173,7 +173,8 @@ def cvt(
         or Lloyd's ``x_i <- c_i``. Default: the fastest the domain takes
         (:func:`hcvt.optimise.fastest_method`): Newton on polygons, solids, plain boxes
         and the sphere without a density or with a polynomial one (none on the sphere), in
-        one process; L-BFGS elsewhere (periodic boxes, a sampled density, ``client=``).
+        one process; L-BFGS elsewhere (periodic boxes, a sampled density, ``client=``)
+        and with ``volumes``.
     rule : {"gap", "paper"}
         Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
         (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates
@@ -213,11 +214,14 @@ def cvt(
     volumes : array_like of float, shape (n,), optional
         Prescribed cell volumes (masses ``∫ρ`` with a ``density``), positive, L^d: a
         capacity-constrained CVT, the sites at the centroids of the cells of a *power*
-        diagram whose cell ``i`` has volume ``volumes[i]`` (Bourne, Kok, Roper, Spanjer
-        2020: optimal-transport weights for the present sites, warm-started, then sites to
-        their power cells' centroids, repeated; ``hcvt-core/src/optimise/capacity.rs``).
-        ``method`` must be None or ``"lloyd"`` (the alternation is the only method offered;
-        :func:`hcvt.optimise.fastest_method` does not apply). They must sum to the domain's
+        diagram whose cell ``i`` has volume ``volumes[i]``
+        (``hcvt-core/src/optimise/capacity.rs``). ``method``: ``"lbfgs"`` (the default
+        here; :func:`hcvt.optimise.fastest_method` does not apply) runs L-BFGS on the
+        transport cost, whose gradient is ``2 v_i (x_i - c_i)``, every trial point a
+        warm-started optimal transport; ``"lloyd"`` is Bourne, Kok, Roper and Spanjer
+        2020's alternation (optimal-transport weights for the present sites, warm-started,
+        then sites to their power cells' centroids, repeated), 7-15x more outer
+        iterations; not ``"newton"``. They must sum to the domain's
         volume (to 1e-9 relative) unless ``normalise``. On polygons, solids and boxes,
         periodic or not; not with ``client`` (NotImplementedError), the sphere or a surface.
         The result's ``diagram`` is the power diagram, ``weights`` its weights; the
