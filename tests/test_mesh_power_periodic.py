@@ -152,3 +152,19 @@ def test_periodic_vtu_holds_the_unwrapped_cells(tmp_path):
     # that the cells were read whole.
     volumes = grid.compute_cell_sizes(length=False, area=False)["Volume"]
     assert abs(volumes.sum() - 1.0) < 1e-3
+
+
+def test_periodic_power_mesh_does_not_depend_on_threads():
+    domain = hcvt.Domain.box([0, 0, 0], [1, 1, 1], periodic=(True, False, True))
+    meshes = []
+    before = hcvt.get_num_threads()
+    try:
+        for threads in (1, 3):
+            hcvt.set_num_threads(threads)
+            meshes.append(_power(domain, 300, 1.0, seed=7).mesh())
+    finally:
+        hcvt.set_num_threads(before)
+    a, b = meshes
+    for name in ("points", "face_vertices", "owner", "neighbour", "periodic_partner"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert a.points.tobytes() == b.points.tobytes()

@@ -108,11 +108,7 @@ def _tiled(
 
 def bounded(domain: Domain) -> Domain:
     """``domain`` itself, or for a box the polygon or solid it is (what the core meshes)."""
-    if domain.is_sphere or domain.is_surface or domain.dim not in (2, 3):
-        return domain
-    from hcvt.geometry.domain import BOX_FACES  # noqa: F401  (a box's sides)
-
-    if type(domain._core).__name__ not in ("BoxDomain2", "BoxDomain3"):
+    if not isinstance(domain._core, (_core.BoxDomain2, _core.BoxDomain3)):
         return domain
     lo, hi = domain.bounds
     return _widened(lo, hi)
