@@ -218,8 +218,6 @@ def test_what_a_periodic_box_does_not_take_yet_is_refused():
         hcvt.cvt(torus, sites, "newton")
     with pytest.raises(hcvt.InvalidDensityError, match="periodic"):
         hcvt.voronoi(torus, sites, density=lambda p: 1 + p[:, 0])
-    with pytest.raises(hcvt.InvalidDomainError, match="box"):
-        hcvt.voronoi(torus, sites).mesh()
     with pytest.raises(hcvt.InvalidDomainError, match="bools"):
         hcvt.Domain.box([0, 0], [1, 1], periodic=(True, False, True))
     with pytest.raises(hcvt.InvalidDomainError):

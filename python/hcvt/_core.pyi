@@ -199,7 +199,12 @@ def optimal_transport(
     function: _Function | None = None,
     quadrature_degree: int = 4,
 ) -> TransportArrays: ...
-def mesh(domain: _Domain, sites: _Float2, allow_outside: bool = False) -> MeshArrays: ...
+def mesh(
+    domain: _Domain,
+    sites: _Float2,
+    allow_outside: bool = False,
+    weights: NDArray[np.float64] | None = None,
+) -> MeshArrays: ...
 
 # A part's mesh (hcvt.distributed.partition_mesh): the own cells' faces, owner and
 # neighbour indexing the sites given.

@@ -19,6 +19,7 @@ from hcvt.geometry.frame import Frame
 from hcvt.io.geo import to_geodataframe
 from hcvt.io.writers import to_pyvista
 from hcvt.mesh.cells import polygons, triangulated
+from hcvt.mesh.periodic import bounded, periodic_mesh
 from hcvt.mesh.polymesh import PolyMesh
 from hcvt.mesh.sphere import SphereMesh, spherical_mesh
 
@@ -271,6 +272,12 @@ class Diagram(Shows):
         boundary elements that make them. Each cell's volume and centroid recomputed from
         its faces agree with ``volume`` and ``centroid`` to round-off.
 
+        A power diagram (``weights``) is meshed alike, its vertices named by the power
+        bisectors; an empty cell has no faces (``n_cells`` stays the number of sites: the
+        writers leave such cells out and write each kept cell's site). In a box periodic
+        along some axes the cells are unwrapped around their wrapped sites and the faces
+        across periodic sides are paired (:mod:`hcvt.mesh.periodic`).
+
         Returns
         -------
         PolyMesh
@@ -287,15 +294,26 @@ class Diagram(Shows):
                 "cell geometry of restricted Voronoi cells on a surface: a later slice "
                 "(hcvt.remesh gives their restricted Delaunay triangulation)"
             )
-        if self.weights is not None and np.any(self.weights):
-            raise NotImplementedError("conforming meshes of power diagrams: a later slice")
+        if self._mesh is None and any(self.domain.periodic):
+            self._mesh = periodic_mesh(self)
         if self._mesh is None:
-            with self.domain.frame.input_errors():
+            # A box is meshed as the polygon or solid it is (boundary elements to name
+            # the vertices on its sides).
+            target = bounded(self.domain)
+            frame = target.frame
+            core_sites = self._core_sites if target is self.domain else frame.to_core(self.sites)
+            core_weights = None
+            if self.weights is not None and np.any(self.weights):
+                core_weights = frame.quantity_to_core("weights", self.weights)
+            with frame.input_errors():
                 arrays = _core.mesh(
-                    self.domain._core, self._core_sites, allow_outside=self._allow_outside
+                    target._core,
+                    core_sites,
+                    allow_outside=self._allow_outside,
+                    weights=core_weights,
                 )
             self._mesh = PolyMesh(
-                points=self.domain.frame.to_input("points", arrays["points"]),
+                points=frame.to_input("points", arrays["points"]),
                 face_offsets=arrays["face_offsets"],
                 face_vertices=arrays["face_vertices"],
                 owner=arrays["owner"],

@@ -39,10 +39,11 @@ pub mod sample;
 
 pub use density::{Density, Field, Quadratic};
 pub use diagram::{
-    clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, morton_order, BoxDomain,
-    Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals, FaceIntegrand, Matrix,
-    MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh, PolygonCell, PolyhedronCell,
-    Request, RestrictedDelaunay, SiteIndex, Sphere, Surface, ON_SPHERE_TOL,
+    clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, conforming_power_mesh,
+    morton_order, BoxDomain, Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals,
+    FaceIntegrand, Matrix, MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh,
+    PolygonCell, PolyhedronCell, Request, RestrictedDelaunay, SiteIndex, Sphere, Surface,
+    ON_SPHERE_TOL,
 };
 pub use domain::{generalized_winding_number, Boundary, Polygon, Solid, TriangleSet};
 pub use error::CoreError;

@@ -1,8 +1,8 @@
 //! The conforming mesh of a diagram's cells as numpy arrays (`hcvt.polymesh.PolyMesh`).
 
 use hcvt_core::{
-    conforming_mesh, conforming_mesh_part, Boundary, CoreError, MeshDomain, MeshPart, Options,
-    PolyMesh,
+    conforming_mesh, conforming_mesh_part, conforming_power_mesh, Boundary, CoreError, MeshDomain,
+    MeshPart, Options, PolyMesh,
 };
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -31,16 +31,20 @@ fn mesh_dict<'py, const D: usize>(
 }
 
 /// Conforming mesh of the clipped diagram of `sites` (n, d) in `domain`: polygons in a
-/// polygon, polyhedra in a solid (see `hcvt.Diagram.mesh`).
+/// polygon, polyhedra in a solid (see `hcvt.Diagram.mesh`); with `weights` (n,), of the
+/// power diagram of those weights (an empty cell has no faces).
 #[pyfunction]
-#[pyo3(signature = (domain, sites, allow_outside=false))]
+#[pyo3(signature = (domain, sites, allow_outside=false, weights=None))]
 pub fn mesh<'py>(
     py: Python<'py>,
     domain: AnyDomain<'py>,
     sites: PyReadonlyArray2<'py, f64>,
     allow_outside: bool,
+    weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    by_kind!(domain, bounded dim mesh_in(py, &sites, Options { allow_outside }))
+    let weights = weights.map(|w| w.as_array().to_vec());
+    let options = Options { allow_outside };
+    by_kind!(domain, bounded dim mesh_in(py, &sites, weights.as_deref(), options))
 }
 
 /// The faces of the cells `sites[own]` (n, d) in the conforming mesh of a problem of
@@ -72,6 +76,7 @@ fn mesh_in<'py, const D: usize>(
     domain: &Boundary<D>,
     py: Python<'py>,
     sites: &PyReadonlyArray2<'py, f64>,
+    weights: Option<&[f64]>,
     options: Options,
 ) -> PyResult<Bound<'py, PyDict>>
 where
@@ -79,7 +84,12 @@ where
 {
     let points = site_rows::<f64, D>(sites, "sites")?;
     let mesh = py
-        .detach(|| crate::threads::run(|| conforming_mesh(domain, &points, options)))
+        .detach(|| {
+            crate::threads::run(|| match weights {
+                None => conforming_mesh(domain, &points, options),
+                Some(w) => conforming_power_mesh(domain, &points, w, options),
+            })
+        })
         .map_err(to_py_err)?;
     mesh_dict(py, &mesh)
 }

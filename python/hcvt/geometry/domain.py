@@ -296,8 +296,9 @@ class Domain:
 
         Notes
         -----
-        Not yet on a box: a density, Newton's method, the conforming mesh
-        (:meth:`hcvt.Diagram.mesh`) and partitions (``client=``); each raises.
+        Not yet on a box: a density, Newton's method and partitions (``client=``); each
+        raises. The conforming mesh (:meth:`hcvt.Diagram.mesh`) pairs the faces across
+        periodic sides (:mod:`hcvt.mesh.periodic`).
 
         Examples
         --------

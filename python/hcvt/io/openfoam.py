@@ -117,6 +117,8 @@ def write_openfoam(
     site_of = np.arange(mesh.n_cells) if site is None else np.asarray(site, dtype=np.intp)
     if site_of.shape != (mesh.n_cells,):
         raise ValueError(f"site must have one entry per cell ({mesh.n_cells}), got {site_of.shape}")
+    if mesh.periodic_partner is not None:
+        return _write_periodic(mesh, Path(case), domain, site_of, cell_data, binary, thickness)
     if boundary_faces == "merged" and mesh.dim == 3:
         mesh, report = merged_boundary(mesh, domain, labels)
         if len(report.failing):
@@ -137,29 +139,51 @@ def write_openfoam(
         types.append("empty")
         if boundary_faces == "merged":
             compact, patch = _merged_sides(compact, patch)
-    points, faces, owner, neighbour, sizes = _upper_triangular(compact, patch, len(names))
-    root = Path(case)
+    return _write_case(Path(case), compact, patch, names, types, fields, binary)
+
+
+def _write_case(
+    root: Path,
+    mesh: PolyMesh,
+    patch: NDArray[np.intp],
+    names: list[str],
+    types: list[str],
+    fields: dict[str, NDArray[np.float64]],
+    binary: bool,
+    rank: NDArray[np.intp] | None = None,
+    extra: dict[str, str] | None = None,
+) -> Path:
+    """The case of a compact 3D ``mesh``: polyMesh in OpenFOAM's order, system, fields.
+
+    ``rank`` orders faces within patches (:func:`_upper_triangular`), ``extra`` adds
+    entries to patches (:func:`_write_boundary`).
+    """
+    points, faces, owner, neighbour, sizes = _upper_triangular(mesh, patch, len(names), rank)
     poly = root / "constant" / "polyMesh"
     poly.mkdir(parents=True, exist_ok=True)
     fmt = "binary" if binary else "ascii"
     note = (
-        f"nPoints:{len(points)} nCells:{compact.n_cells} nFaces:{len(owner)} "
+        f"nPoints:{len(points)} nCells:{mesh.n_cells} nFaces:{len(owner)} "
         f"nInternalFaces:{len(neighbour)}"
     )
     _write_list(poly / "points", "vectorField", points, fmt)
     _write_faces(poly / "faces", faces, fmt)
     _write_list(poly / "owner", "labelList", owner, fmt, note)
     _write_list(poly / "neighbour", "labelList", neighbour, fmt, note)
-    _write_boundary(poly / "boundary", names, types, sizes, len(neighbour))
+    _write_boundary(poly / "boundary", names, types, sizes, len(neighbour), extra)
     write_system(root)
+    cyclic = frozenset(n for n, t in zip(names, types, strict=True) if t == "cyclic")
     for name, values in fields.items():
-        _write_field(root / "0" / name, name, values, names)
+        _write_field(root / "0" / name, name, values, names, cyclic)
     return root
 
 
 # ----------------------------------------------------------------------------- ordering
 def _upper_triangular(
-    mesh: PolyMesh, patch: NDArray[np.intp], n_patches: int
+    mesh: PolyMesh,
+    patch: NDArray[np.intp],
+    n_patches: int,
+    rank: NDArray[np.intp] | None = None,
 ) -> tuple[
     NDArray[np.float64],
     tuple[NDArray[np.intp], NDArray[np.intp]],
@@ -170,14 +194,16 @@ def _upper_triangular(
     """Points, faces (offsets, vertices), owner, neighbour and patch sizes, reordered.
 
     OpenFOAM's order: interior faces with owner < neighbour sorted by (owner, neighbour),
-    then the boundary faces patch by patch (by owner within a patch).
+    then the boundary faces patch by patch (by owner within a patch, or by ``rank`` (f,)
+    when given: a cyclic patch's faces in the order of their twins').
     """
     owner, neighbour = mesh.owner.copy(), mesh.neighbour.copy()
     flip = mesh.interior & (owner > neighbour)
     owner[flip], neighbour[flip] = mesh.neighbour[flip], mesh.owner[flip]
     inner = mesh.interior
+    within = owner if rank is None else np.where(inner, owner, rank)
     # Sort keys: interior faces first (patch -1), then by patch, owner, neighbour, index.
-    order = np.lexsort((np.arange(mesh.n_faces), neighbour, owner, np.where(inner, -1, patch)))
+    order = np.lexsort((np.arange(mesh.n_faces), neighbour, within, np.where(inner, -1, patch)))
     sizes = mesh.face_sizes[order]
     offsets = np.zeros(len(order) + 1, dtype=np.intp)
     np.cumsum(sizes, out=offsets[1:])
@@ -357,15 +383,23 @@ def _write_faces(path: Path, faces: tuple[NDArray[np.intp], NDArray[np.intp]], f
 
 
 def _write_boundary(
-    path: Path, names: list[str], types: list[str], sizes: NDArray[np.intp], start: int
+    path: Path,
+    names: list[str],
+    types: list[str],
+    sizes: NDArray[np.intp],
+    start: int,
+    extra: dict[str, str] | None = None,
 ) -> None:
+    """The polyBoundaryMesh; ``extra`` adds entries to some patches (a cyclic's twin)."""
     entries = []
     for name, kind, size in zip(names, types, sizes.tolist(), strict=True):
-        group = f"    inGroups        List<word> 1({kind});\n" if kind == "wall" else ""
+        group = f"    inGroups        List<word> 1({kind});\n" if kind in ("wall", "cyclic") else ""
         entries.append(
             f"    {name}\n    {{\n        type            {kind};\n"
             + group.replace("    inGroups", "        inGroups")
-            + f"        nFaces          {size};\n        startFace       {start};\n    }}\n"
+            + f"        nFaces          {size};\n        startFace       {start};\n"
+            + (extra or {}).get(name, "")
+            + "    }\n"
         )
         start += size
     body = f"{len(names)}\n(\n" + "".join(entries) + ")\n"
@@ -374,17 +408,26 @@ def _write_boundary(
     )
 
 
-def _write_field(path: Path, name: str, values: NDArray[np.float64], patches: list[str]) -> None:
+def _write_field(
+    path: Path,
+    name: str,
+    values: NDArray[np.float64],
+    patches: list[str],
+    cyclic: frozenset[str] = frozenset(),
+) -> None:
     """A dimensionless volScalarField.
 
-    Its boundaries are zeroGradient (empty on the frontAndBack of an extruded 2D mesh).
+    Its boundaries are zeroGradient (empty on the frontAndBack of an extruded 2D mesh,
+    cyclic on the ``cyclic`` patches).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
     words = values.astype(str).tolist()
+
+    def kind(p: str) -> str:
+        return "empty" if p == "frontAndBack" else "cyclic" if p in cyclic else "zeroGradient"
+
     boundary = "".join(
-        f"    {p}\n    {{\n        type            "
-        f"{'empty' if p == 'frontAndBack' else 'zeroGradient'};\n    }}\n"
-        for p in patches
+        f"    {p}\n    {{\n        type            {kind(p)};\n    }}\n" for p in patches
     )
     body = (
         "dimensions      [0 0 0 0 0 0 0];\n\n"
@@ -440,3 +483,139 @@ def write_system(root: Path) -> None:
         ("fvSolution", _FV_SOLUTION),
     ):
         (system / name).write_text(foam_header("dictionary", name, "ascii", "system") + body)
+
+
+# ----------------------------------------------------------------------------- periodic
+_AXES = "xyz"
+
+
+def _write_periodic(
+    mesh: PolyMesh,
+    root: Path,
+    domain: Domain | None,
+    site_of: NDArray[np.intp],
+    cell_data: dict[str, ArrayLike] | None,
+    binary: bool,
+    thickness: float | None,
+) -> Path:
+    """Write a mesh of a periodic box (:mod:`hcvt.mesh.periodic`).
+
+    Each pair of opposite image shifts ``±k`` is a pair of ``cyclic`` patches
+    ``cyclic_<k>`` (``cyclic_xpym`` for (1, -1, 0); ``transform translational``,
+    ``separationVector`` the shift from the patch's faces to its twin's),
+    face ``q`` of one the twin of face ``q`` of the other, its first point the image of
+    the other's first point; faces on the sides of non-periodic axes in ``<axis>lo`` and
+    ``<axis>hi`` (``wall``). The boundary faces are written exact (planar pieces: a box
+    needs no merging).
+    """
+    if domain is None:
+        raise ValueError("a periodic mesh needs its domain (the box) to be written")
+    lo, hi = domain.bounds
+    period = np.where(np.array(domain.periodic), hi - lo, 0.0)
+    partner, image = mesh.periodic_partner, mesh.periodic_image
+    assert partner is not None and image is not None
+    compact, kept = mesh.compacted()
+    d = mesh.dim
+    names: list[str] = []
+    types: list[str] = []
+    extra: dict[str, str] = {}
+    patch = np.full(mesh.n_faces, -1, dtype=np.intp)
+    rank = np.arange(mesh.n_faces, dtype=np.intp)
+    wall = (mesh.neighbour < 0) & (partner < 0)
+    if np.any(wall):
+        side = _wall_side(mesh, lo, hi, wall)
+        for code in np.unique(side[wall]).tolist():
+            names.append(f"{_AXES[code // 2]}{'lo' if code % 2 == 0 else 'hi'}")
+            types.append("wall")
+            patch[wall & (side == code)] = len(names) - 1
+    periodic = np.flatnonzero(partner >= 0)
+    shifts = np.unique(image[periodic], axis=0)
+    for k in shifts:
+        first = next(v for v in k.tolist() if v != 0)
+        if first < 0:
+            continue  # the twin patch of +k
+        these = periodic[np.all(image[periodic] == k, axis=1)]
+        twins = partner[these]
+        name, twin = _cyclic_name(k), _cyclic_name(-k)
+        for members, label, other, sign in ((these, name, twin, -1.0), (twins, twin, name, 1.0)):
+            names.append(label)
+            types.append("cyclic")
+            patch[members] = len(names) - 1
+            vector = sign * k * period
+            words = " ".join(repr(float(x)) for x in (*vector, 0.0)[:3])
+            extra[label] = (
+                "        matchTolerance  0.0001;\n"
+                f"        neighbourPatch  {other};\n"
+                "        transform       translational;\n"
+                f"        separationVector ({words});\n"
+            )
+        rank[twins] = these  # each twin right after... in its own patch, in this order
+    fields = {"site": site_of[kept].astype(np.float64)}
+    for name, values in (cell_data or {}).items():
+        fields[name] = np.asarray(values, dtype=np.float64)[site_of[kept]]
+    if d == 2:
+        n_faces = compact.n_faces
+        compact, patch, names = _extrude(compact, patch, names, thickness)
+        types.append("empty")
+        caps = compact.n_faces - n_faces
+        rank = np.concatenate([rank, np.arange(n_faces, compact.n_faces)])
+        partner = np.concatenate([partner, np.full(caps, -1, dtype=np.intp)])
+        image = np.vstack(
+            [np.column_stack([image, np.zeros(len(image), np.int8)]), np.zeros((caps, 3), np.int8)]
+        )
+        period = np.append(period, 0.0)
+    compact = _twins_aligned(compact, partner, image, period)
+    return _write_case(root, compact, patch, names, types, fields, binary, rank, extra)
+
+
+def _cyclic_name(k: NDArray[np.int8]) -> str:
+    """``cyclic_xpym`` for the image shift (1, -1, 0) (p plus, m minus; a word)."""
+    return "cyclic_" + "".join(
+        f"{_AXES[a]}{'p' if v > 0 else 'm'}{abs(v) if abs(v) > 1 else ''}"
+        for a, v in enumerate(k.tolist())
+        if v != 0
+    )
+
+
+def _wall_side(
+    mesh: PolyMesh, lo: NDArray[np.float64], hi: NDArray[np.float64], wall: NDArray[np.bool_]
+) -> NDArray[np.intp]:
+    """For each wall face, ``2 * axis + (0 at lo, 1 at hi)``; -1 elsewhere."""
+    centre = mesh.face_geometry.centre
+    gap = np.concatenate([np.abs(centre - lo), np.abs(centre - hi)], axis=1)
+    best = np.argmin(gap, axis=1)
+    axis, at_hi = best % mesh.dim, best // mesh.dim
+    return np.where(wall, 2 * axis + at_hi, -1).astype(np.intp)
+
+
+def _twins_aligned(
+    mesh: PolyMesh,
+    partner: NDArray[np.intp],
+    image: NDArray[np.int8],
+    period: NDArray[np.float64],
+) -> PolyMesh:
+    """``mesh`` with its twin faces rotated to start at their twins' first points.
+
+    Each periodic face of negative shift (the twin patches) starts at the image of its
+    twin's first point: OpenFOAM matches the points of coupled faces in order.
+    """
+    vertices = mesh.face_vertices.copy()
+    offsets = mesh.face_offsets
+    first = np.array([next((v for v in k if v != 0), 0) for k in image.tolist()])
+    for f in np.flatnonzero((partner >= 0) & (first < 0)).tolist():
+        g = int(partner[f])
+        target = mesh.points[vertices[offsets[g]]] - image[g] * period
+        loop = vertices[offsets[f] : offsets[f + 1]]
+        start = int(np.argmin(np.sum((mesh.points[loop] - target) ** 2, axis=1)))
+        vertices[offsets[f] : offsets[f + 1]] = np.roll(loop, -start)
+    return PolyMesh(
+        points=mesh.points,
+        face_offsets=offsets,
+        face_vertices=vertices,
+        owner=mesh.owner,
+        neighbour=mesh.neighbour,
+        boundary_element=mesh.boundary_element,
+        n_cells=mesh.n_cells,
+        periodic_partner=partner,
+        periodic_image=image,
+    )

@@ -14,7 +14,8 @@ never changed):
 2. ``0/T`` is the linear field at the boundary face centres, ``fixedValue`` on every wall
    patch (``empty`` on the ``frontAndBack`` of an extruded 2D mesh), ``T`` spanning
    ``[-1, 1]`` over the face centres along the direction ``(1, 2, 3)`` (``(1, 2, 0)`` in
-   2D);
+   2D); in a periodic box (``cyclic`` patches) that direction with its components along
+   the periods (the patches' ``separationVector``) removed, the field periodic;
 3. ``laplacianFoam`` runs steady (``ddtSchemes steadyState``): ``steps`` steps of
    ``correctors`` non-orthogonal correctors each, every solve by PCG/DIC to an absolute
    tolerance of 1e-15 (so that the next solve's *initial* residual measures what the
@@ -184,10 +185,18 @@ def _run(
     face_centre = {
         name: _vectors(_patch_value(centres, name))
         for name, kind in patches.items()
-        if kind != "empty"
+        if kind not in ("empty", "cyclic")
     }
     two_d = any(kind == "empty" for kind in patches.values())
     direction = np.array([1.0, 2.0, 0.0 if two_d else 3.0])
+    # Periodic (cyclic) axes: the field is linear across the others only.
+    boundary = (case / "constant" / "polyMesh" / "boundary").read_text()
+    vector = rf"separationVector\s*\(\s*({_NUMBER})\s+({_NUMBER})\s+({_NUMBER})"
+    shifts = np.array(re.findall(vector, boundary), dtype=np.float64).reshape(-1, 3)
+    if len(shifts):
+        _, sigma, basis = np.linalg.svd(shifts)
+        span = basis[: int(np.sum(sigma > 1e-12 * sigma[0]))]
+        direction -= span.T @ (span @ direction)
     along = {name: c @ direction for name, c in face_centre.items()}
     values = np.concatenate([*along.values(), cell_centre @ direction])
     lo, hi = float(values.min()), float(values.max())
@@ -281,8 +290,8 @@ def _scalars(entry: str, n: int) -> NDArray[np.float64]:
 def _write_t(path: Path, patches: dict[str, str], values: dict[str, NDArray[np.float64]]) -> None:
     entries = []
     for name, kind in patches.items():
-        if kind == "empty":
-            entries.append(f"    {name}\n    {{\n        type            empty;\n    }}\n")
+        if kind in ("empty", "cyclic"):
+            entries.append(f"    {name}\n    {{\n        type            {kind};\n    }}\n")
             continue
         v = values[name]
         words = "\n".join(v.astype(str).tolist())

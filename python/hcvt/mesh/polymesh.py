@@ -72,6 +72,13 @@ class PolyMesh:
         (``Domain`` order); ``-1`` for an interior face.
     n_cells : int
         Number of cells (sites); a cell may have no faces (an empty cell).
+    periodic_partner : ndarray of intp, shape (f,), or None
+        In a periodic box (:mod:`hcvt.mesh.periodic`): for a periodic face (a boundary
+        face of the unwrapped cells), the index of the same face seen from the cell on its
+        other side; -1 for other faces. None outside periodic boxes.
+    periodic_image : ndarray of int8, shape (f, d), or None
+        With ``periodic_partner``: the whole periods that carry the other cell's site to
+        this face's side (zeros for other faces).
     """
 
     points: NDArray[np.float64]
@@ -81,6 +88,8 @@ class PolyMesh:
     neighbour: NDArray[np.intp]
     boundary_element: NDArray[np.intp]
     n_cells: int
+    periodic_partner: NDArray[np.intp] | None = None
+    periodic_image: NDArray[np.int8] | None = None
 
     def __post_init__(self) -> None:
         f = len(self.owner)
@@ -397,6 +406,8 @@ class PolyMesh:
             neighbour=renumber[self.neighbour],
             boundary_element=self.boundary_element,
             n_cells=len(kept),
+            periodic_partner=self.periodic_partner,
+            periodic_image=self.periodic_image,
         )
         return mesh, kept
 

@@ -61,7 +61,9 @@ pub use domain_kind::DomainKind;
 pub use faces::{FaceIntegrals, FaceIntegrand, Matrix};
 use faces::{FaceRow, FaceSums};
 pub use knn::SiteIndex;
-pub use mesh::{conforming_mesh, conforming_mesh_part, MeshDomain, MeshPart, PolyMesh};
+pub use mesh::{
+    conforming_mesh, conforming_mesh_part, conforming_power_mesh, MeshDomain, MeshPart, PolyMesh,
+};
 pub use order::morton_order;
 pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;

@@ -160,6 +160,11 @@ impl<'a, const D: usize> Power<'a, D> {
         }
     }
 
+    /// The weights, indexed like the sites.
+    pub(super) fn weights(&self) -> &'a [f64] {
+        self.weights
+    }
+
     /// `w_max − w_i ≥ 0`, `L²`.
     pub(super) fn slack(&self, i: usize) -> f64 {
         self.max - self.weights[i]

@@ -30,6 +30,7 @@ impl CellGeometry<2> for PolygonCell {
         &self,
         boundary: &Polygon,
         sites: &[[f64; 2]],
+        _weights: Option<&[f64]>,
         i: usize,
         winding: Option<i32>,
         out: &mut CellFaces<2>,

@@ -13,6 +13,9 @@ use crate::diagram::PolyhedronCell;
 use crate::domain::{Solid, WindingNumber};
 use crate::geometry::{add, cross, dot, sub, Euclid, Space};
 
+/// The sites and, for a power diagram, their weights.
+type Generators<'a> = (&'a [[f64; 3]], Option<&'a [f64]>);
+
 /// Buffers of one thread's 3D cells.
 #[derive(Debug, Default)]
 pub(crate) struct Scratch3 {
@@ -63,6 +66,7 @@ impl CellGeometry<3> for PolyhedronCell {
         &self,
         boundary: &Solid,
         sites: &[[f64; 3]],
+        weights: Option<&[f64]>,
         i: usize,
         winding: Option<i32>,
         out: &mut CellFaces<3>,
@@ -104,12 +108,21 @@ impl CellGeometry<3> for PolyhedronCell {
         for f in 0..s.faces.len() {
             let (p, a, b) = s.faces[f];
             if let (Face::Neighbor(j), h) = self.plane(p) {
-                self.bisector_face(boundary, sites, i, j, h.normal, (p, a, b), out, s);
+                self.bisector_face(
+                    boundary,
+                    (sites, weights),
+                    i,
+                    j,
+                    h.normal,
+                    (p, a, b),
+                    out,
+                    s,
+                );
             }
         }
         for k in 0..s.candidates.len() {
             let t = s.candidates[k];
-            self.boundary_piece(boundary, sites, i, t, out, s);
+            self.boundary_piece(boundary, (sites, weights), i, t, out, s);
         }
     }
 }
@@ -121,7 +134,7 @@ impl PolyhedronCell {
     fn bisector_face(
         &self,
         boundary: &Solid,
-        sites: &[[f64; 3]],
+        (sites, weights): Generators<'_>,
         i: usize,
         j: u32,
         normal: [f64; 3],
@@ -156,7 +169,7 @@ impl PolyhedronCell {
         }
         s.segments.clear();
         for &t in &s.candidates {
-            if let Some(seg) = slice(boundary, sites, i, j, t, normal, &proj) {
+            if let Some(seg) = slice(boundary, (sites, weights), i, j, t, normal, &proj) {
                 s.segments.push(seg);
             }
         }
@@ -211,7 +224,7 @@ impl PolyhedronCell {
     fn boundary_piece(
         &self,
         boundary: &Solid,
-        sites: &[[f64; 3]],
+        (sites, weights): Generators<'_>,
         i: usize,
         t: u32,
         out: &mut CellFaces<3>,
@@ -240,9 +253,13 @@ impl PolyhedronCell {
             // The side of a node: a mesh vertex against a bisector by the rule both cells
             // share, anything else against the cell's own plane.
             let side = |n: &BoundaryNode| match (n.vertex, face) {
-                (Some(v), Face::Neighbor(j)) => {
-                    bisector_side(sites, i, j as usize, boundary.vertices()[v as usize])
-                }
+                (Some(v), Face::Neighbor(j)) => bisector_side(
+                    sites,
+                    weights,
+                    i,
+                    j as usize,
+                    boundary.vertices()[v as usize],
+                ),
                 _ => (dot(h.normal, n.x) - h.offset, false),
             };
             s.sides.clear();
@@ -264,7 +281,7 @@ impl PolyhedronCell {
                     } else {
                         let x = match (u.vertex, w.vertex, face) {
                             (Some(a), Some(b), Face::Neighbor(j)) => {
-                                edge_crossing(boundary, sites, i, j, a, b)
+                                edge_crossing(boundary, (sites, weights), i, j, a, b)
                             }
                             _ => {
                                 let r = su / (su - sw);
@@ -300,7 +317,7 @@ impl PolyhedronCell {
 /// the bisector by [`bisector_side`], so both cells of the face cut alike.
 fn slice(
     boundary: &Solid,
-    sites: &[[f64; 3]],
+    (sites, weights): Generators<'_>,
     i: usize,
     j: u32,
     t: u32,
@@ -310,7 +327,7 @@ fn slice(
     let site = sites[i];
     let tri = boundary.simplices()[t as usize];
     let abs = boundary.simplex(t);
-    let sides = abs.map(|v| bisector_side(sites, i, j as usize, v));
+    let sides = abs.map(|v| bisector_side(sites, weights, i, j as usize, v));
     if sides.iter().all(|s| s.0 > 0.0) || sides.iter().all(|s| s.0 < 0.0) {
         return None;
     }
@@ -328,7 +345,7 @@ fn slice(
             (sub(abs[l], site), Key::vertex(tri[l]))
         } else {
             (
-                edge_crossing(boundary, sites, i, j, tri[k], tri[l]),
+                edge_crossing(boundary, (sites, weights), i, j, tri[k], tri[l]),
                 Key::meet(i as u32, &[Gen::Site(j), Gen::MeshEdge(tri[k], tri[l])]),
             )
         };
@@ -354,7 +371,7 @@ fn slice(
 /// (and the slice and the clipped triangle) get the same bits.
 fn edge_crossing(
     boundary: &Solid,
-    sites: &[[f64; 3]],
+    (sites, weights): Generators<'_>,
     i: usize,
     j: u32,
     a: u32,
@@ -363,8 +380,8 @@ fn edge_crossing(
     let (a, b) = (a.min(b), a.max(b));
     let vertices = boundary.vertices();
     let (pa, pb) = (vertices[a as usize], vertices[b as usize]);
-    let (da, _) = bisector_side(sites, i, j as usize, pa);
-    let (db, _) = bisector_side(sites, i, j as usize, pb);
+    let (da, _) = bisector_side(sites, weights, i, j as usize, pa);
+    let (db, _) = bisector_side(sites, weights, i, j as usize, pb);
     let r = da / (da - db);
     let (pa, pb) = (sub(pa, sites[i]), sub(pb, sites[i]));
     std::array::from_fn(|c| pa[c] + r * (pb[c] - pa[c]))

@@ -30,6 +30,7 @@ use rayon::prelude::*;
 
 use super::convex_cell::{ConvexCell, Face};
 use super::knn::{NearScratch, SiteIndex};
+use super::power::Power;
 use super::{checked_part, checked_windings, morton_order, voronoi_cell};
 use super::{CellScratch, Options};
 use super::{DomainKind, PolygonCell, PolyhedronCell};
@@ -96,11 +97,15 @@ pub(crate) trait CellGeometry<const D: usize>: ConvexCell<D> {
     type Scratch: Default + Send;
 
     /// The faces of this cell (of site `i`, relative to it) restricted to the domain,
-    /// appended to `out`; `winding` is the site's winding number.
+    /// appended to `out`; `winding` is the winding number of a point of the cell (its
+    /// site's, or for a power cell without its site, a vertex's), `weights` those of a
+    /// power diagram.
+    #[allow(clippy::too_many_arguments)]
     fn clipped_faces(
         &self,
         boundary: &Boundary<D>,
         sites: &[[f64; D]],
+        weights: Option<&[f64]>,
         i: usize,
         winding: Option<i32>,
         out: &mut CellFaces<D>,
@@ -124,15 +129,22 @@ pub(crate) fn gen_of(face: Face, p: u16) -> Gen {
 /// opposite signs); a point exactly on the bisector counts as nearer the larger index.
 /// The boundary's vertices are put on one side once and for all this way, and the two
 /// cells of a face slice and clip the boundary alike.
+///
+/// With `weights`, the power bisector (DESIGN §14): the Voronoi one shifted by
+/// `(w_hi − w_lo) / 2` (in units of `|z_hi − z_lo|`), the same number from either cell.
 pub(crate) fn bisector_side<const D: usize>(
     sites: &[[f64; D]],
+    weights: Option<&[f64]>,
     i: usize,
     j: usize,
     x: [f64; D],
 ) -> (f64, bool) {
     let (lo, hi) = (i.min(j), i.max(j));
     let mid = scale(add(sites[lo], sites[hi]), 0.5);
-    let d = dot(sub(x, mid), sub(sites[hi], sites[lo]));
+    let mut d = dot(sub(x, mid), sub(sites[hi], sites[lo]));
+    if let Some(w) = weights {
+        d += 0.5 * (w[hi] - w[lo]);
+    }
     let zero = d == 0.0;
     let d = if zero { f64::MIN_POSITIVE } else { d };
     (if i == lo { d } else { -d }, zero)
@@ -156,6 +168,7 @@ pub trait MeshDomain<const D: usize>: DomainKind<D> {
     fn mesh_cells(
         &self,
         sites: &[[f64; D]],
+        weights: Option<&[f64]>,
         subset: Option<(&[u32], usize)>,
         options: Options,
     ) -> Result<MeshPart<D>, CoreError>;
@@ -165,10 +178,11 @@ impl MeshDomain<2> for Polygon {
     fn mesh_cells(
         &self,
         sites: &[[f64; 2]],
+        weights: Option<&[f64]>,
         subset: Option<(&[u32], usize)>,
         options: Options,
     ) -> Result<MeshPart<2>, CoreError> {
-        mesh_cells::<2, PolygonCell>(self, sites, subset, options)
+        mesh_cells::<2, PolygonCell>(self, sites, weights, subset, options)
     }
 }
 
@@ -176,10 +190,11 @@ impl MeshDomain<3> for Solid {
     fn mesh_cells(
         &self,
         sites: &[[f64; 3]],
+        weights: Option<&[f64]>,
         subset: Option<(&[u32], usize)>,
         options: Options,
     ) -> Result<MeshPart<3>, CoreError> {
-        mesh_cells::<3, PolyhedronCell>(self, sites, subset, options)
+        mesh_cells::<3, PolyhedronCell>(self, sites, weights, subset, options)
     }
 }
 
@@ -193,7 +208,40 @@ pub fn conforming_mesh<const D: usize, K: MeshDomain<D>>(
     options: Options,
 ) -> Result<PolyMesh<D>, CoreError> {
     domain
-        .mesh_cells(sites, None, options)
+        .mesh_cells(sites, None, None, options)
+        .map(|part| part.mesh)
+}
+
+/// The conforming mesh of the power (Laguerre) diagram of `sites` with `weights` (one per
+/// site, `L²`, DESIGN §14) in `domain`: vertices named as for Voronoi cells (the power
+/// bisector is the Voronoi one shifted), an empty cell without faces. All-zero weights
+/// give [`conforming_mesh`] bit for bit.
+///
+/// Errors as [`conforming_mesh`], and [`CoreError::InvalidWeights`] for weights of the
+/// wrong length or not finite.
+pub fn conforming_power_mesh<const D: usize, K: MeshDomain<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    weights: &[f64],
+    options: Options,
+) -> Result<PolyMesh<D>, CoreError> {
+    if weights.len() != sites.len() {
+        return Err(CoreError::InvalidWeights {
+            reason: format!(
+                "weights: expected one per site ({}), got {}",
+                sites.len(),
+                weights.len()
+            ),
+        });
+    }
+    if let Some(index) = weights.iter().position(|w| !w.is_finite()) {
+        return Err(CoreError::InvalidWeights {
+            reason: format!("weight {index} is not finite ({})", weights[index]),
+        });
+    }
+    let weights = weights.iter().any(|&w| w != 0.0).then_some(weights);
+    domain
+        .mesh_cells(sites, weights, None, options)
         .map(|part| part.mesh)
 }
 
@@ -233,7 +281,7 @@ pub fn conforming_mesh_part<const D: usize, K: MeshDomain<D>>(
     total_sites: usize,
     options: Options,
 ) -> Result<MeshPart<D>, CoreError> {
-    domain.mesh_cells(sites, Some((own, total_sites)), options)
+    domain.mesh_cells(sites, None, Some((own, total_sites)), options)
 }
 
 /// A vertex of a cell is shared with every cell whose site is within its distance from
@@ -248,6 +296,7 @@ type Made<const D: usize> = (u32, Result<(CellFaces<D>, f64), CoreError>);
 fn mesh_cells<const D: usize, C: CellGeometry<D>>(
     boundary: &Boundary<D>,
     sites: &[[f64; D]],
+    weights: Option<&[f64]>,
     subset: Option<(&[u32], usize)>,
     options: Options,
 ) -> Result<MeshPart<D>, CoreError>
@@ -259,7 +308,17 @@ where
         let windings = checked_windings(boundary, sites, options)?;
         let index = SiteIndex::new(sites)?;
         let mut cells = Cells::new(n);
-        let made = cell_faces::<D, C>(boundary, &index, sites, n, &windings, &morton_order(sites));
+        let power = weights.map(|w| Power::new(w, sites));
+        let visit = morton_order(sites);
+        let made = cell_faces::<D, C>(
+            boundary,
+            &index,
+            sites,
+            power.as_ref(),
+            n,
+            &windings,
+            &visit,
+        );
         cells.take(made)?;
         return Ok(cells.assemble(sites, boundary.vertices(), None));
     };
@@ -276,7 +335,7 @@ where
         .map(|&k| own[k as usize])
         .collect();
     cells.take(cell_faces::<D, C>(
-        boundary, &index, sites, total, &windings, &visit,
+        boundary, &index, sites, None, total, &windings, &visit,
     ))?;
     // Rings until no new cell: a ring cell's faces toward the own cells may have vertices
     // the own cells lack (degenerate points), whose other cells are needed in turn.
@@ -294,18 +353,20 @@ where
             windings[j as usize] = w;
         }
         cells.take(cell_faces::<D, C>(
-            boundary, &index, sites, total, &windings, &ring,
+            boundary, &index, sites, None, total, &windings, &ring,
         ))?;
         frontier = ring;
     }
     Ok(cells.assemble(sites, boundary.vertices(), Some(&is_own)))
 }
 
-/// The faces and reach of the cells `visit` (in parallel batches; each cell alone).
+/// The faces and reach of the cells `visit` (in parallel batches; each cell alone); power
+/// cells with `power`.
 fn cell_faces<const D: usize, C: CellGeometry<D>>(
     boundary: &Boundary<D>,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
+    power: Option<&Power<'_, D>>,
     total_sites: usize,
     windings: &[Option<i32>],
     visit: &[u32],
@@ -328,7 +389,7 @@ where
                             boundary,
                             index,
                             sites,
-                            None,
+                            power,
                             total_sites,
                             i,
                             false,
@@ -336,14 +397,24 @@ where
                         )
                         .map(|(cell, _)| {
                             let mut faces = CellFaces::default();
-                            cell.clipped_faces(
-                                boundary,
-                                sites,
-                                i,
-                                windings[i],
-                                &mut faces,
-                                geometry,
-                            );
+                            if !cell.is_empty() {
+                                let winding = cell_winding(
+                                    boundary,
+                                    cell,
+                                    sites[i],
+                                    windings[i],
+                                    power.is_some(),
+                                );
+                                cell.clipped_faces(
+                                    boundary,
+                                    sites,
+                                    power.map(Power::weights),
+                                    i,
+                                    winding,
+                                    &mut faces,
+                                    geometry,
+                                );
+                            }
                             faces
                         });
                         (i as u32, made.map(|faces| (faces, scratch.reach2())))
@@ -353,6 +424,26 @@ where
         )
         .collect();
     batches.into_iter().flatten().collect()
+}
+
+/// The winding number of a point of `cell` (site `site`'s, `site_winding`): for a power
+/// cell that does not hold its site, that of its vertex mean instead (as the diagram
+/// measures such a cell from a point of its own).
+fn cell_winding<const D: usize, C: ConvexCell<D>>(
+    boundary: &Boundary<D>,
+    cell: &C,
+    site: [f64; D],
+    site_winding: Option<i32>,
+    power: bool,
+) -> Option<i32>
+where
+    Euclid: WindingNumber<D>,
+{
+    if power && cell.excludes(&[[0.0; D]]) {
+        Euclid::winding_number(boundary, &add(site, cell.vertex_mean()))
+    } else {
+        site_winding
+    }
 }
 
 /// The cells computed so far, indexed like the sites (empty where not computed).
