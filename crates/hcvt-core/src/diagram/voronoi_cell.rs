@@ -106,19 +106,12 @@ where
     let mut near = index.near(site, &mut scratch.near);
     let mut clipped = 0; // sites taken from the stream, the site itself included
     let mut last2: f64 = 0.0; // squared distance of the last site taken
-                              // The power cell's stopping distance is recomputed only once the radius has shrunk to
-                              // half its square since the last time: a stale one, for a larger radius, still bounds
-                              // it (and never grows, as the stream requires).
-    let mut power_stop = power.map(|p| (radius2, p.reach2(i, sites[i], radius2)));
-    let mut stop2 = |radius2: f64| match (power, power_stop.as_mut()) {
-        (Some(p), Some((at, stop))) => {
-            if radius2 < 0.5 * *at {
-                *at = radius2;
-                *stop = stop.min(p.reach2(i, sites[i], radius2));
-            }
-            *stop
-        }
-        _ => 4.0 * radius2,
+
+    // A power cell streams only to the bound for sites no heavier than its own; the
+    // heavier ones beyond are clipped by `Power::clip_heavier` after the stream.
+    let stop2 = |radius2: f64| match power {
+        Some(p) => p.stream_reach2(radius2),
+        None => 4.0 * radius2,
     };
     while let Some((j, dist2)) = near.next_within(stop2(radius2)) {
         last2 = dist2;
@@ -157,6 +150,26 @@ where
                 return Ok((cell, false));
             }
         }
+    }
+    if let Some(p) = power {
+        // Sites at the last distance not yet taken (a tie): the second pass skips every
+        // site within the distance streamed.
+        while let Some((j, dist2)) = near.next_within(last2) {
+            if j as usize != i {
+                let q = offset_to(sites, i, j)?;
+                cell.clip(&p.bisector(q, i, j as usize), Face::Neighbor(j));
+            }
+            last2 = last2.max(dist2);
+        }
+        radius2 = cell.max_dist2();
+        let covered2 = last2.max(stop2(radius2));
+        if !cell.is_empty() {
+            p.clip_heavier(cell, sites, i, covered2);
+        }
+        scratch.reach2 = covered2.max(p.global_reach2(i, radius2));
+        // An empty cell is measured as one inside the domain: nothing.
+        let empty = cell.is_empty();
+        return Ok((cell, inside || empty));
     }
     scratch.reach2 = last2.max(stop2(radius2));
     Ok((cell, inside))
