@@ -410,7 +410,7 @@ def _remesh(
     result = hcvt.remesh(domain, n, seed=seed, method=method or "lbfgs", **limits)
     q = result.quality
     click.echo(
-        f"n = {q.vertices}  triangles = {q.faces}  iterations = {result.cvt.iterations} "
+        f"n = {q.vertices}  triangles = {q.faces}  iterations = {result.iterations} "
         f"({result.cvt.stop_reason})  seconds = {result.seconds:.2f}"
     )
     click.echo(
@@ -426,7 +426,7 @@ def _remesh(
         "surface": True,
         "method": method or "lbfgs",
         "seed": seed,
-        "iterations": result.cvt.iterations,
+        "iterations": result.iterations,
         "stop_reason": result.cvt.stop_reason,
         "seconds": result.seconds,
         "quality": dataclasses.asdict(q),
