@@ -2,8 +2,9 @@
 
 For each model and n, three remeshers on the same input surface:
 
-- ``hcvt.remesh``: n sites random by area, a restricted CVT by L-BFGS (gap rule, tol
-  1e-4, at most ``--max-iter`` iterations), the restricted Delaunay triangulation;
+- ``hcvt.remesh``: n sites random by area, a restricted CVT by L-BFGS (gap rule at
+  remesh's default tol 5e-3, tighter while the triangulation has defects, at most
+  ``--max-iter`` iterations in all), the restricted Delaunay triangulation;
 - pyacvd 0.4.0 (approximated CVT by clustering the input's vertices, Valette et al.
   2008): ``Clustering(mesh)``, the input subdivided until it has at least 3n vertices
   (pyacvd's own advice: clusters of several vertices), ``cluster(n)``, ``create_mesh()``;
@@ -20,6 +21,11 @@ pyacvd; MeshLab is single-threaded). Timings are under load (other jobs share th
 machine): ratios are of runs taken in turn in the same process.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh.py [--quick] [--models bunny ...] [--n ...]
+
+``--pictures DIR`` also draws each case's three meshes side by side, triangles coloured by
+Q and shaded by a light, as ``DIR/remesh_<model>_<n>.png`` (matplotlib, off-screen; the
+pictures of docs/guide/surfaces.md: ``--models bunny fandisk --n 5000 --pictures
+docs/results``).
 """
 
 from __future__ import annotations
@@ -45,6 +51,16 @@ MODELS = {
     "fandisk": "fandisk.off",
     "armadillo": "armadillo.obj",
 }
+#: Pictures: the axis pointing up on screen, the camera's azimuth and elevation (degrees),
+#: the zoom (matplotlib's, of the box in its panel: above 1 a tilted box is cropped).
+VIEWS = {
+    "bunny": (1, 20.0, 15.0, 1.25),
+    "kitten": (2, 30.0, 15.0, 1.1),
+    "fandisk": (2, 35.0, 30.0, 0.9),
+    "armadillo": (1, 200.0, 10.0, 1.1),
+}
+#: The peers' names in the pictures' titles.
+TITLES = {"hcvt": "hcvt.remesh", "pyacvd": "pyacvd", "meshlab": "MeshLab isotropic"}
 #: MeshLab: how close the vertex count must come to n, and the most tuning runs.
 COUNT_RTOL = 0.01
 MAX_TUNING = 12
@@ -70,7 +86,7 @@ def run_hcvt(domain: hcvt.Domain, n: int, max_iter: int) -> tuple[dict, np.ndarr
     out = hcvt.remesh(domain, n, seed=0, max_iter=max_iter, samples=1000)
     info = {
         "seconds": out.seconds,  # the CVT and the triangulation, not the quality
-        "iterations": out.cvt.iterations,
+        "iterations": out.iterations,
         "stop": out.cvt.stop_reason,
         "defects": out.defects,
     }
@@ -127,6 +143,67 @@ def run_meshlab(
     return {"seconds": seconds, "tries": tries, "tuning_seconds": tuning, "length": length}, v, f
 
 
+def picture(model: str, n: int, meshes: dict, path: Path) -> None:
+    """The meshes of one case side by side, triangles coloured by Q, shaded by a light.
+
+    ``meshes`` maps a code to ``(vertices (V, 3), faces (F, 3), quality row)``. Drawn by
+    matplotlib (off-screen, no OpenGL): the painter's order of Poly3DCollection, fine
+    for these convex-ish views.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib import colormaps
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    from hcvt.surface.quality import triangle_quality
+
+    up, azimuth, elevation, zoom = VIEWS[model]
+    # Screen axes: the model's `up` axis becomes z (matplotlib's vertical).
+    order = [k for k in range(3) if k != up] + [up]
+    cmap, norm = colormaps["viridis"], plt.Normalize(0.3, 1.0)
+    fig = plt.figure(figsize=(5.0 * len(meshes), 5.4), dpi=130)
+    for column, (code, (vertices, faces, row)) in enumerate(meshes.items()):
+        v = np.asarray(vertices)[:, order]
+        f = np.asarray(faces)
+        corners = v[f]
+        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+        view = np.radians(azimuth)
+        light = np.array([np.cos(view), np.sin(view), 0.8])
+        light /= np.linalg.norm(light)
+        shade = 0.45 + 0.55 * np.abs(normals @ light)
+        colours = cmap(norm(triangle_quality(np.asarray(vertices), f)))
+        colours[:, :3] *= shade[:, None]
+        ax = fig.add_subplot(1, len(meshes), column + 1, projection="3d")
+        ax.add_collection3d(
+            Poly3DCollection(
+                corners, facecolors=colours, edgecolors=(0, 0, 0, 0.25), linewidths=0.1
+            )
+        )
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        for set_lim, a, b in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), lo, hi, strict=True):
+            set_lim(a, b)
+        ax.set_box_aspect(hi - lo, zoom=zoom)  # true proportions, filling the panel
+        ax.view_init(elev=elevation, azim=azimuth)
+        ax.set_axis_off()
+        ax.set_title(
+            f"{TITLES[code]}: {row['vertices']} vertices\nQ min {row['q_min']:.3f}, mean "
+            f"{row['q_mean']:.3f}, θmin {row['angle_min']:.1f}°\nHausdorff "
+            f"{row['hausdorff']:.3f}% of the diagonal",
+            fontsize=10,
+        )
+    bar = fig.colorbar(
+        plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=fig.axes, shrink=0.6, pad=0.02
+    )
+    bar.set_label("triangle quality Q (1 equilateral; below 0.3 in the darkest colour)")
+    fig.suptitle(f"{model}, n = {n}: triangles coloured by Q (benchmarks/remesh.py)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, bbox_inches="tight")
+    plt.close(fig)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--models", nargs="+", default=list(MODELS), choices=list(MODELS))
@@ -135,6 +212,7 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=200_000)
     parser.add_argument("--quick", action="store_true", help="bunny and fandisk at n = 5000")
     parser.add_argument("--json", type=Path, help="write the rows here")
+    parser.add_argument("--pictures", type=Path, help="draw each case's meshes into this folder")
     args = parser.parse_args()
     if args.quick:
         args.models, args.n = ["bunny", "fandisk"], [5000]
@@ -157,10 +235,12 @@ def main() -> None:
             results["pyacvd"] = run_pyacvd(v, f, n)
             results["meshlab"] = run_meshlab(v, f, domain.volume, n)
             base = results["hcvt"][0]["seconds"]
+            drawn = {}
             for code, (info, ov, of) in results.items():
                 q = quality(ov, of, reference, args.samples)
                 row = {"model": model, "n": n, "code": code, **info, **q}
                 rows.append(row)
+                drawn[code] = (ov, of, row)
                 print(
                     f"{model:10} {n:6d} {code:8} {q['vertices']:6d} {q['q_min']:6.3f} "
                     f"{q['q_mean']:6.3f} {q['angle_min']:6.2f} {q['below_30']:6.2f} "
@@ -176,6 +256,8 @@ def main() -> None:
                 "subdivisions",
                 flush=True,
             )
+            if args.pictures:
+                picture(model, n, drawn, args.pictures / f"remesh_{model}_{n}.png")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1, default=str))
 

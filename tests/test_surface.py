@@ -8,6 +8,7 @@ remeshed surface against the input's.
 
 from __future__ import annotations
 
+import json
 from functools import cache
 
 import numpy as np
@@ -308,6 +309,8 @@ def test_remeshing_an_open_surface_names_its_border_defects() -> None:
     assert np.all(out.cvt.diagram.boundary_measure[unused] > 0)
     assert len(unused) > 0  # this seed leaves one border site out (the limitation above)
     assert any(f"{len(unused)} site(s) in no triangle" in d for d in out.defects)
+    # The defects of the early stop sent the CVT on at tighter tolerances, within max_iter.
+    assert out.cvt.iterations < out.iterations <= 200 and out.cvt.tol < 5e-3
     with pytest.raises(hcvt.RemeshError, match="in no triangle, first site"):
         hcvt.remesh(domain, 1500, seed=1, check=True)
 
@@ -345,3 +348,43 @@ def test_topology_by_edge_counts() -> None:
     diagonal = np.linalg.norm(ball.vertices.max(axis=0) - ball.vertices.min(axis=0))
     assert q.hausdorff_from_reference == pytest.approx(0.0, abs=1e-12)
     assert q.hausdorff_to_reference > 100 * 2.0 / diagonal
+
+
+# ---------------------------------------------------------------------------- command line
+@needs_data
+def test_command_line_remeshes_a_mesh_file(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    trimesh = pytest.importorskip("trimesh")
+    pytest.importorskip("meshio")
+    out, summary = tmp_path / "kitten.ply", tmp_path / "s.json"
+    args = [
+        "run",
+        str(DATA_3D / "kitten.obj"),
+        "--surface",
+        "-n",
+        "400",
+        "--seed",
+        "2",
+        "--max-iter",
+        "40",
+    ]
+    result = CliRunner().invoke(
+        main, [*args, "--out", str(out), "--summary", str(summary)], catch_exceptions=False
+    )
+    assert result.exit_code == 0, result.output
+    # Read back by trimesh, which knows nothing of hcvt: exactly n vertices, in double
+    # precision, a watertight mesh of the kitten's genus 1 (χ = 0).
+    mesh = trimesh.load(out, process=False)
+    assert mesh.vertices.shape == (400, 3) and mesh.is_watertight and mesh.euler_number == 0
+    info = json.loads(summary.read_text())
+    q = hcvt.surface_quality(mesh.vertices, mesh.faces)
+    assert info["quality"]["q_min"] == pytest.approx(q.q_min, rel=1e-12)
+    assert f"Q min {q.q_min:.3f}" in result.output and "closed, genus 1" in result.output
+    # What the command does not take is refused by name, before any work.
+    refused = CliRunner().invoke(main, [*args, "--plot", str(tmp_path / "p.png")])
+    assert refused.exit_code == 2 and "--surface does not take --plot" in refused.output
+    refused = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "x.npy")])
+    assert refused.exit_code == 2 and "writes a mesh" in refused.output

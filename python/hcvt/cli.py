@@ -4,6 +4,7 @@ hcvt run star -n 2000 --plot star.png
 hcvt run polygon.geojson -n 10000 --method newton --init halton --out sites.npy
 hcvt run bunny.off -n 50000 --mesh case/ --cells cells.vtu
 hcvt run bunny.off -n 50000 --method newton --mesh case/ --mesh-boundary exact
+hcvt run bunny.off --surface -n 20000 --out remeshed.ply
 hcvt run square -n 1033 --method regular --moves 60 --plot square.png
 hcvt run sphere -n 2562 --radius 6371229 --out base_mesh.nc
 hcvt run unit-square -n 5000 --density "1 + 99*x^2" --plot graded.png
@@ -14,6 +15,7 @@ hcvt reproduce table4 --runs 10 --out results
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import importlib.util
 import json
 import os
@@ -157,6 +159,14 @@ def _load(input_: str, repair: bool, radius: float = 1.0, periodic: bool = False
 @click.option("--max-iter", type=int, default=10_000, show_default=True)
 @click.option("--repair", is_flag=True, help="Repair an invalid polygon or mesh first.")
 @click.option(
+    "--surface",
+    is_flag=True,
+    help="Remesh the triangle surface INPUT with exactly N vertices (hcvt.remesh: a "
+    "restricted CVT by --method lbfgs or lloyd, then the restricted Delaunay triangles); "
+    "--out writes the mesh (.ply, .off, .obj, .vtk, .vtu, .msh in double precision by "
+    "meshio; .stl, single by its format, by trimesh).",
+)
+@click.option(
     "--out",
     type=click.Path(dir_okay=False),
     help="Sites: .npy or .csv; on the sphere also .nc, an MPAS mesh file (hcvt.write_mpas).",
@@ -239,6 +249,7 @@ def run(
     tol: float | None,
     max_iter: int,
     repair: bool,
+    surface: bool,
     out: str | None,
     cells_path: str | None,
     mesh_dir: str | None,
@@ -252,6 +263,9 @@ def run(
     quadrature_degree: int,
 ) -> None:
     """CVT of N sites in INPUT: a built-in shape (square, star, sphere, ...) or a file."""
+    if surface:
+        _remesh(input_, n, method, seed, tol, max_iter, out, summary)
+        return
     if scheduler is not None and method not in PARTITIONED:
         raise click.UsageError(
             f"--scheduler runs the methods {', '.join(PARTITIONED)}, not {method!r}"
@@ -406,6 +420,92 @@ def run(
         _plot(diagram, plot)
     if summary:
         Path(summary).write_text(json.dumps(info, indent=2))
+
+
+#: ``run --surface``: the options it reads (the others are refused), the optimisers it takes.
+SURFACE_OPTIONS = {"input_", "n", "method", "seed", "tol", "max_iter", "surface", "out", "summary"}
+SURFACE_METHODS = ("lbfgs", "lloyd")
+
+
+def _remesh(
+    input_: str,
+    n: int,
+    method: str | None,
+    seed: int,
+    tol: float | None,
+    max_iter: int,
+    out: str | None,
+    summary: str | None,
+) -> None:
+    """``run --surface``: :func:`hcvt.remesh` of the mesh file INPUT, its quality printed."""
+    ctx = click.get_current_context()
+    given = sorted(
+        f"--{name.replace('_', '-')}"
+        for name in ctx.params
+        if name not in SURFACE_OPTIONS
+        and ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT
+    )
+    if given:
+        raise click.UsageError(f"--surface does not take {', '.join(given)}")
+    if method is not None and method not in SURFACE_METHODS:
+        raise click.UsageError(f"--surface remeshes by --method lbfgs or lloyd, not {method!r}")
+    if out and Path(out).suffix.lower() not in SURFACE_WRITERS:
+        raise ValueError(
+            f"--out with --surface writes a mesh ({', '.join(SURFACE_WRITERS)}), got {out}"
+        )
+    domain = hcvt.load_domain(input_, surface=True)
+    # --max-iter's default is the volume CVTs'; remesh has its own unless one is given.
+    limits: dict[str, Any] = {} if tol is None else {"tol": tol}
+    if ctx.get_parameter_source("max_iter") is not click.core.ParameterSource.DEFAULT:
+        limits["max_iter"] = max_iter
+    result = hcvt.remesh(domain, n, seed=seed, method=method or "lbfgs", **limits)
+    q = result.quality
+    click.echo(
+        f"n = {q.vertices}  triangles = {q.faces}  iterations = {result.iterations} "
+        f"({result.cvt.stop_reason})  seconds = {result.seconds:.2f}"
+    )
+    click.echo(
+        f"Q min {q.q_min:.3f} mean {q.q_mean:.3f}  angle min {q.angle_min:.1f} deg  "
+        f"{q.below_30:.2f}% of angles < 30 deg  Hausdorff {q.hausdorff:.3f}% of the diagonal  "
+        f"{'closed' if q.closed else 'manifold' if q.manifold else 'NOT manifold'}, "
+        f"genus {q.genus}, {q.components} component(s)"
+    )
+    for defect in result.defects:
+        click.echo(f"defect: {defect}")
+    info: dict[str, Any] = {
+        "input": input_,
+        "surface": True,
+        "method": method or "lbfgs",
+        "seed": seed,
+        "iterations": result.iterations,
+        "stop_reason": result.cvt.stop_reason,
+        "seconds": result.seconds,
+        "quality": dataclasses.asdict(q),
+        "defects": result.defects,
+    }
+    if out:
+        SURFACE_WRITERS[Path(out).suffix.lower()](Path(out), result.vertices, result.faces)
+        info["mesh"] = str(out)
+    if summary:
+        Path(summary).write_text(json.dumps(info, indent=2, default=str))
+
+
+def _write_trimesh(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    trimesh = load("trimesh")
+    trimesh.Trimesh(vertices, faces, process=False).export(path)
+
+
+def _write_meshio(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    meshio = load("meshio")
+    # int32 indices: PLY has no 64-bit integers (meshio would warn and cast).
+    meshio.write(path, meshio.Mesh(vertices, [("triangle", faces.astype(np.int32))]))
+
+
+#: ``run --surface --out``: the writer of each suffix.
+SURFACE_WRITERS = {
+    **dict.fromkeys((".ply", ".off", ".obj", ".vtk", ".vtu", ".msh"), _write_meshio),
+    ".stl": _write_trimesh,
+}
 
 
 def _defaults(domain: Any, n: int, method: str | None, init: str | None) -> tuple[str, str]:

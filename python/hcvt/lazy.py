@@ -22,6 +22,7 @@ LAZY = {
     "matplotlib.colors": None,
     "matplotlib.figure": None,
     "mpl_toolkits.mplot3d.art3d": None,
+    "meshio": None,  # mesh files trimesh does not write: hcvt run --surface --out .vtu
     "pyvista": "viz",  # interactive viewing: Diagram.to_pyvista()
     "pyproj": "geo",  # coordinate reference systems of GIS input: Domain.crs
     "geopandas": "geo",  # GIS files and GeoDataFrames: load_domain, Diagram.to_geopandas()

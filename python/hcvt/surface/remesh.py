@@ -4,7 +4,8 @@ Yan, Lévy, Liu, Sun, Wang, "Isotropic remeshing with fast and exact computation
 restricted Voronoi diagram", SGP 2009; DESIGN §12.
 
 ``n`` sites random by area on the surface; a CVT of the restricted Voronoi diagram
-(:func:`hcvt.cvt`, sites free in space, projected onto the surface at the end); then a
+(:func:`hcvt.cvt`, sites free in space, projected onto the surface at the end, to a
+loose tolerance, tightened while the triangulation has defects); then a
 triangle for each point where three cells meet on the surface, oriented by the surface's
 normal there (the core's ``restricted_delaunay``). Where every cell is a topological disc
 meeting its neighbours along single arcs (the closed-ball property, Edelsbrunner and Shah
@@ -52,6 +53,8 @@ class RemeshResult:
         edges in more than two triangles, a genus other than the input's. Empty when sound.
     seconds : float
         Wall time of the whole remeshing (CVT and triangulation; not the quality).
+    iterations : int
+        CVT iterations in all, over the rounds (``cvt`` is the last round's run).
     """
 
     vertices: NDArray[np.float64]
@@ -60,6 +63,17 @@ class RemeshResult:
     cvt: CVTResult
     defects: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    iterations: int = 0
+
+
+#: The CVT's default tolerance on the gap rule in :func:`remesh`: the quality has
+#: saturated there. Bunny, n = 5,000, L-BFGS, one thread under load: 18 iterations, 3.3 s
+#: CPU, Q min 0.641, least angle 32.9°, Hausdorff 0.466%, against 100 iterations at gap
+#: 7e-4 (Q min 0.656, 39.4°, 0.454%); fandisk and kitten alike (19 iterations).
+REMESH_TOL = 5e-3
+#: Rounds, each at a tolerance ``TIGHTER`` times the last, while the triangulation of an
+#: early stop has defects (a cell not yet a disc).
+TIGHTER_ROUNDS, TIGHTER = 3, 0.25
 
 
 def _defects(
@@ -104,7 +118,7 @@ def remesh(
     *,
     seed: int = 0,
     method: str = "lbfgs",
-    tol: float | None = 1e-4,
+    tol: float | None = REMESH_TOL,
     max_iter: int = 200,
     check: bool = False,
     samples: int = 200_000,
@@ -123,8 +137,10 @@ def remesh(
     method : {"lbfgs", "lloyd"}
         The CVT's optimiser (:func:`hcvt.cvt`).
     tol : float or None
-        The CVT's tolerance on the scale-free gap rule (default 1e-4: the triangulation no
-        longer changes much beyond it); None for the rule's default.
+        The CVT's tolerance on the scale-free gap rule (default :data:`REMESH_TOL`, 5e-3:
+        the triangle quality has saturated there); None for the rule's default. While
+        the triangulation then has defects, the CVT goes on from the projected sites at
+        a tolerance 4 times tighter, up to three times, within ``max_iter`` in all.
     max_iter : int
         The CVT's most iterations.
     check : bool
@@ -155,19 +171,28 @@ def remesh(
     if not surface.is_surface:
         raise ValueError("remesh takes a surface (hcvt.Domain.from_surface)")
     start = time.perf_counter()
+    input_topology = edge_topology(surface.faces, len(surface.vertices))
     sites = initialise(surface, n, method="random", seed=seed)
     run = cvt(surface, sites, method, tol=tol, max_iter=max_iter)
-    core_sites = surface.frame.to_core(run.sites)
-    rdt = _core.restricted_delaunay(surface._core, core_sites)
-    faces = np.asarray(rdt["triangles"], dtype=np.intp)
+    iterations = run.iterations
+    for round_ in range(TIGHTER_ROUNDS + 1):
+        core_sites = surface.frame.to_core(run.sites)
+        rdt = _core.restricted_delaunay(surface._core, core_sites)
+        faces = np.asarray(rdt["triangles"], dtype=np.intp)
+        defects = _defects(faces, n, np.asarray(rdt["repeated"]), input_topology)
+        if not defects or tol is None or iterations >= max_iter or round_ == TIGHTER_ROUNDS:
+            break
+        # Cells that are not yet discs (the closed-ball property fails) in an early
+        # stop: iterate on from the projected sites to a tighter gap.
+        tol *= TIGHTER
+        run = cvt(surface, run.sites, method, tol=tol, max_iter=max_iter - iterations)
+        iterations += run.iterations
     seconds = time.perf_counter() - start
-    reference = (surface.vertices, surface.faces)
-    input_topology = edge_topology(surface.faces, len(surface.vertices))
-    defects = _defects(faces, n, np.asarray(rdt["repeated"]), input_topology)
     if check and defects:
         raise RemeshError("restricted Delaunay triangulation: " + "; ".join(defects))
+    reference = (surface.vertices, surface.faces)
     quality = surface_quality(run.sites, faces, reference, samples=samples, seed=seed)
-    return RemeshResult(run.sites, faces, quality, run, defects, seconds)
+    return RemeshResult(run.sites, faces, quality, run, defects, seconds, iterations)
 
 
 __all__ = ["RemeshError", "RemeshResult", "remesh"]
