@@ -1,0 +1,116 @@
+"""Diagrams per Newton CVT to the paper's rule, per variant of the trust-region step.
+
+A load-independent measure of the optimiser: the number of diagrams (evaluations) each run
+needs from random sites to ``‖g‖/‖X‖ < 1e-10`` in input coordinates (the paper's rule), over
+``--seeds`` seeds per case (square 1k/5k, star 2k/10k, ball 1k/5k), printed as the median
+and the range. Beside it: the CG iterations (Hessian products) per diagram, and the wall
+time per diagram, which is measured on a machine shared with other jobs ("under load").
+
+A variant is a comma-separated set of flags handed to the core in ``HCVT_NEWTON_VARIANT``
+("base": none). Only the experimental build of commit "newton variants (experimental)" on
+branch ``newton`` reads the flags and prints the CG count per trial (``HCVT_NEWTON_DEBUG``);
+a later build ignores both and measures its own default (the CG column then reads "-").
+The flags there: ``bj`` block-Jacobi CG (inverse 2x2/3x3 diagonal blocks, the region in
+their norm), ``nm=M`` non-monotone acceptance against the last M energies, ``lloyd=G``
+Lloyd steps while the RMS gap is above G, ``interp=T`` a rejected step's radius shrunk
+to the minimiser of the quadratic through E(0), g.s, E(1) (at least T), and the region's
+factors ``shrink``, ``poor``, ``good``, ``grow``, ``stiffen``. Results and conclusions:
+``docs/results/newton_variants.txt``.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/newton_variants.py [--seeds 10]
+        [--variants base bj] [--cases square1k star10k]
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse
+import re
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import hcvt
+from hcvt.geometry import shapes
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+TOL = 1e-10  # the paper's rule, input coordinates
+
+
+def _ball() -> hcvt.Domain:
+    return hcvt.load_domain(DATA / "3d" / "sphere.ply")
+
+
+CASES: dict[str, tuple[Callable[[], hcvt.Domain], int]] = {
+    "square1k": (shapes.square, 1_000),
+    "square5k": (shapes.square, 5_000),
+    "star2k": (shapes.star, 2_000),
+    "star10k": (shapes.star, 10_000),
+    "ball1k": (_ball, 1_000),
+    "ball5k": (_ball, 5_000),
+}
+
+
+def run(domain: hcvt.Domain, sites, variant: str) -> tuple[int, int, float, bool]:
+    """One Newton CVT: diagrams, CG iterations (from the core's debug lines), seconds, converged."""
+    os.environ["HCVT_NEWTON_VARIANT"] = "" if variant == "base" else variant
+    os.environ["HCVT_NEWTON_DEBUG"] = "1"
+    with tempfile.TemporaryFile(mode="w+") as log:
+        saved = os.dup(2)
+        os.dup2(log.fileno(), 2)
+        try:
+            start = time.perf_counter()
+            res = hcvt.cvt(domain, sites, "newton", rule="paper", tol=TOL, max_iter=5_000)
+            seconds = time.perf_counter() - start
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        log.seek(0)
+        cg = sum(int(m) for m in re.findall(r"cg=(\d+)", log.read()))
+    return res.evaluations, cg, seconds, res.converged
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=10, help="random starts per case")
+    parser.add_argument("--variants", nargs="+", default=["base"], help="flag sets")
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    args = parser.parse_args()
+    print(
+        f"hcvt {hcvt.__version__}, {hcvt.get_num_threads()} threads, load average "
+        f"{os.getloadavg()[0]:.1f} at the start; Newton to ‖g‖/‖X‖ < {TOL:g}, random sites, "
+        f"seeds 0-{args.seeds - 1}. 'ms/diagram' is under load."
+    )
+    print(
+        f"{'case':<10}{'variant':<22}{'diagrams':>9}{'min':>6}{'max':>6}{'CG/diagram':>11}"
+        f"{'ms/diagram':>11}{'ratio':>7}"
+    )
+    for case in args.cases:
+        make, n = CASES[case]
+        domain = make()
+        starts = [hcvt.initialise(domain, n, method="random", seed=k) for k in range(args.seeds)]
+        base = None
+        for variant in args.variants:
+            runs = [run(domain, s, variant) for s in starts]
+            diagrams = [r[0] for r in runs]
+            median = statistics.median(diagrams)
+            base = base or median
+            cg_total = sum(r[1] for r in runs)
+            cg = f"{cg_total / sum(diagrams):.1f}" if cg_total else "-"
+            ms = 1e3 * statistics.median(r[2] / r[0] for r in runs)
+            failed = sum(not r[3] for r in runs)
+            print(
+                f"{case:<10}{variant:<22}{median:>9.1f}{min(diagrams):>6}{max(diagrams):>6}"
+                f"{cg:>11}{ms:>11.2f}{median / base:>7.2f}"
+                + (f"  [{failed} not converged]" if failed else ""),
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
