@@ -42,15 +42,15 @@ pub use diagram::{
     clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, morton_order, BoxDomain,
     Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals, FaceIntegrand, Matrix,
     MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh, PolygonCell, PolyhedronCell,
-    Request, RestrictedDelaunay, SiteIndex, Sphere, Surface, ON_SPHERE_TOL,
+    Request, RestrictedDelaunay, SiteIndex, Sphere, Surface, WarmStart, ON_SPHERE_TOL,
 };
 pub use domain::{generalized_winding_number, Boundary, Polygon, Solid, TriangleSet};
 pub use error::CoreError;
 pub use geometry::{Aabb, Euclid, Space};
 pub use moments::{tetra_moments, triangle_moments, FaceMoments, Moments};
 pub use optimise::{
-    cvt, evaluate, lbfgs, lloyd, optimal_transport, Frame, Measures, Method, Named, Outcome, Point,
-    PointRequest, Record, Rule, Settings, Step, StopReason, Transport, TransportRecord,
-    TransportSettings,
+    cvt, evaluate, evaluate_warm, lbfgs, lloyd, optimal_transport, Frame, Measures, Method, Named,
+    Outcome, Point, PointRequest, Record, Rule, Settings, Step, StopReason, Transport,
+    TransportRecord, TransportSettings,
 };
 pub use quality::{mesh_quality, MeshArrays, MeshQuality};
