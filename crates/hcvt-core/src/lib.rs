@@ -43,16 +43,16 @@ pub use diagram::{
     morton_order, BoxDomain, Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals,
     FaceIntegrand, Matrix, MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh,
     PolygonCell, PolyhedronCell, Request, RestrictedDelaunay, SiteIndex, Sphere, Surface,
-    ON_SPHERE_TOL,
+    WarmStart, ON_SPHERE_TOL,
 };
 pub use domain::{generalized_winding_number, Boundary, Polygon, Solid, TriangleSet};
 pub use error::CoreError;
 pub use geometry::{Aabb, Euclid, Space};
 pub use moments::{tetra_moments, triangle_moments, FaceMoments, Moments};
 pub use optimise::{
-    capacity_cvt, cvt, evaluate, lbfgs, lloyd, optimal_transport, optimal_transport_from, Capacity,
-    CapacityRecord, CapacitySettings, Frame, Measures, Method, Named, Outcome, Point, PointRequest,
-    Record, Rule, Settings, Step, StopReason, Transport, TransportRecord, TransportSettings,
-    DEFAULT_VOLUME_TOL,
+    capacity_cvt, cvt, evaluate, evaluate_warm, lbfgs, lloyd, optimal_transport,
+    optimal_transport_from, Capacity, CapacityRecord, CapacitySettings, Frame, Measures, Method,
+    Named, Outcome, Point, PointRequest, Record, Rule, Settings, Step, StopReason, Transport,
+    TransportRecord, TransportSettings, DEFAULT_VOLUME_TOL,
 };
 pub use quality::{mesh_quality, MeshArrays, MeshQuality};

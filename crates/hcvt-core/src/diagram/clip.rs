@@ -568,6 +568,8 @@ mod tests {
                     sites.len(),
                     i,
                     false,
+                    None,
+                    false,
                     &mut late,
                 )
                 .unwrap();
@@ -581,6 +583,8 @@ mod tests {
                     sites.len(),
                     i,
                     true,
+                    None,
+                    false,
                     &mut early,
                 )
                 .unwrap();

@@ -46,6 +46,38 @@ pub struct NearScratch {
     /// kd-tree answers and the sites returned at the last distance.
     tree: Vec<(u32, f64)>,
     at_last: Vec<u32>,
+    /// The largest squared distance the stream has vouched for: of each site returned,
+    /// and each limit it answered `None` for ([`NearSites::vouched2`]).
+    vouched2: f64,
+}
+
+impl NearScratch {
+    /// The next of the sorted sites, if one is left: `Some(None)` when it lies beyond
+    /// `limit2` (and stays next).
+    fn next_sorted(&mut self, limit2: f64) -> Option<Option<(u32, f64)>> {
+        let &(bits, j) = self.gathered[..self.sorted].get(self.next)?;
+        let dist2 = f64::from_bits(bits);
+        if dist2 > limit2 {
+            return Some(None);
+        }
+        self.next += 1;
+        Some(Some((j, dist2)))
+    }
+    /// Ready for a new stream.
+    fn reset(&mut self) {
+        self.gathered.clear();
+        self.next = 0;
+        self.sorted = 0;
+        self.covered = 0;
+        self.tree.clear();
+        self.at_last.clear();
+        self.vouched2 = 0.0;
+    }
+    /// The candidates of the last warm stream ([`SiteIndex::near_warm`]) within its
+    /// certified distance, nearest first.
+    pub fn certified(&self) -> impl Iterator<Item = u32> + '_ {
+        self.gathered[..self.sorted].iter().map(|&(_, j)| j)
+    }
 }
 
 impl<const D: usize> SiteIndex<D> {
@@ -67,12 +99,7 @@ impl<const D: usize> SiteIndex<D> {
 
     /// The sites in increasing squared distance from `p`, ties by index on the grid.
     pub fn near<'a>(&'a self, p: [f64; D], scratch: &'a mut NearScratch) -> NearSites<'a, D> {
-        scratch.gathered.clear();
-        scratch.next = 0;
-        scratch.sorted = 0;
-        scratch.covered = 0;
-        scratch.tree.clear();
-        scratch.at_last.clear();
+        scratch.reset();
         let state = match &self.kind {
             Kind::Grid(grid) => State::Grid(grid.ring_start(p)),
             Kind::Tree(..) => State::Tree {
@@ -86,6 +113,43 @@ impl<const D: usize> SiteIndex<D> {
             p,
             scratch,
             state,
+        }
+    }
+
+    /// [`SiteIndex::near`] from a warm start: `candidates` are sites known to include
+    /// every site within `certified2` of `p` (`p` is `sites[i]`, itself a candidate). They
+    /// are streamed in the grid's order, squared distance then index, as long as they are
+    /// certified; a request beyond `certified2` switches to the grid's own stream, which
+    /// returns the same sites in the same order. So the stream is the cold one bit for bit,
+    /// however far the sites moved. A kd-tree orders ties its own way: it streams cold.
+    pub fn near_warm<'a>(
+        &'a self,
+        p: [f64; D],
+        sites: &[[f64; D]],
+        candidates: &[u32],
+        certified2: f64,
+        scratch: &'a mut NearScratch,
+    ) -> NearSites<'a, D> {
+        // A NaN or empty certificate streams cold.
+        let certified = certified2.partial_cmp(&0.0) == Some(std::cmp::Ordering::Greater);
+        if !matches!(self.kind, Kind::Grid(_)) || !certified {
+            return self.near(p, scratch);
+        }
+        scratch.reset();
+        let gathered = &mut scratch.gathered;
+        for &j in candidates {
+            let dist2 = norm2(sub(sites[j as usize], p));
+            if dist2 <= certified2 {
+                gathered.push((dist2.to_bits(), j));
+            }
+        }
+        gathered.sort_unstable();
+        scratch.sorted = gathered.len();
+        NearSites {
+            index: self,
+            p,
+            scratch,
+            state: State::Warm { certified2 },
         }
     }
 
@@ -123,6 +187,10 @@ pub struct NearSites<'a, const D: usize> {
 
 enum State<const D: usize> {
     Grid(Rings<D>),
+    /// Certified candidates sorted in `gathered[..sorted]` ([`SiteIndex::near_warm`]).
+    Warm {
+        certified2: f64,
+    },
     Tree {
         k: usize,
         position: usize,
@@ -135,6 +203,35 @@ impl<const D: usize> NearSites<'_, D> {
     /// `limit2`, else `None` (and that site stays next). On the grid, `limit2` must not
     /// grow from call to call: farther sites are dropped as they are gathered.
     pub fn next_within(&mut self, limit2: f64) -> Option<(u32, f64)> {
+        let next = self.next_unvouched(limit2);
+        let vouched = next.map_or(limit2, |(_, dist2)| dist2);
+        self.scratch.vouched2 = self.scratch.vouched2.max(vouched);
+        next
+    }
+
+    /// The largest squared distance within which the stream has told every site so far:
+    /// that of each site returned, and each limit it answered `None` for. Another stream
+    /// that holds every site within it answers the same calls the same way.
+    pub fn vouched2(&self) -> f64 {
+        self.scratch.vouched2
+    }
+
+    /// Whether the stream still answers from a warm start's candidates.
+    pub fn is_warm(&self) -> bool {
+        matches!(self.state, State::Warm { .. })
+    }
+
+    fn next_unvouched(&mut self, limit2: f64) -> Option<(u32, f64)> {
+        if let State::Warm { certified2 } = self.state {
+            if let Some(next) = self.scratch.next_sorted(limit2) {
+                return next;
+            }
+            if limit2 <= certified2 {
+                // Every site not among the candidates lies beyond `certified2`.
+                return None;
+            }
+            self.go_cold(limit2);
+        }
         match &mut self.state {
             State::Grid(rings) => {
                 let Kind::Grid(grid) = &self.index.kind else {
@@ -162,7 +259,28 @@ impl<const D: usize> NearSites<'_, D> {
                 self.scratch.at_last.push(next.0);
                 Some(next)
             }
+            State::Warm { .. } => unreachable!("a warm stream answers above"),
         }
+    }
+
+    /// Leave the warm candidates for the grid's stream, skipping the sites already
+    /// returned: they are the grid's first ones, in its order.
+    fn go_cold(&mut self, limit2: f64) {
+        let Kind::Grid(grid) = &self.index.kind else {
+            unreachable!("a warm stream comes from a grid")
+        };
+        let returned = self.scratch.next;
+        let scratch = &mut *self.scratch;
+        scratch.gathered.clear();
+        scratch.next = 0;
+        scratch.sorted = 0;
+        scratch.covered = 0;
+        let mut rings = grid.ring_start(self.p);
+        for _ in 0..returned {
+            let skipped = grid.next_within(&mut rings, self.p, scratch, limit2);
+            debug_assert!(skipped.is_some(), "the certified sites come first");
+        }
+        self.state = State::Grid(rings);
     }
 }
 
@@ -296,14 +414,8 @@ impl<const D: usize> Grid<D> {
         limit2: f64,
     ) -> Option<(u32, f64)> {
         loop {
-            if scratch.next < scratch.sorted {
-                let (bits, j) = scratch.gathered[scratch.next];
-                let dist2 = f64::from_bits(bits);
-                if dist2 > limit2 {
-                    return None;
-                }
-                scratch.next += 1;
-                return Some((j, dist2));
+            if let Some(next) = scratch.next_sorted(limit2) {
+                return next;
             }
             if scratch.sorted < scratch.covered {
                 let pending = &mut scratch.gathered[scratch.sorted..scratch.covered];

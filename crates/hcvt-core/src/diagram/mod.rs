@@ -26,6 +26,7 @@
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | `convex_cell.rs`, `polygon_cell.rs`, `polyhedron_cell/` | the convex cell ([`ConvexCell`]) in 2D and 3D |
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
+//! | `warm.rs` | [`WarmStart`]: the previous diagram's near-site lists, which certify a cell's nearest sites without the index |
 //! | `power.rs` | a power diagram's weights: its planes and how far its cells look for sites (DESIGN §14) |
 //! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
 //! | `mesh/` | cell geometry and the conforming mesh of all cells ([`PolyMesh`], DESIGN §9) |
@@ -46,6 +47,7 @@ mod power;
 mod sphere;
 mod surface;
 mod voronoi_cell;
+mod warm;
 mod weighted;
 
 use rayon::prelude::*;
@@ -72,6 +74,8 @@ use power::Power;
 pub use sphere::{Sphere, ON_SPHERE_TOL};
 pub use surface::{RestrictedDelaunay, Surface};
 use voronoi_cell::{voronoi_cell, CellScratch};
+use warm::Moved;
+pub use warm::WarmStart;
 
 /// How to treat unusual input.
 #[derive(Debug, Clone, Copy, Default)]
@@ -126,6 +130,13 @@ struct Batch<const D: usize, C> {
     /// cell after cell.
     cone_counts: Vec<u32>,
     cones: Vec<Cone<D>>,
+    /// With [`Request::warm`]: each cell's near sites for the next diagram, their number
+    /// per cell and the squared distance within which they are complete.
+    near_counts: Vec<u32>,
+    near: Vec<u32>,
+    near_complete2: Vec<f64>,
+    /// Cells whose nearest sites came from the warm start alone.
+    warm_cells: usize,
     /// The error of the batch's first offending site in index order.
     error: Option<(usize, CoreError)>,
 }
@@ -150,6 +161,10 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             weighted: Vec::new(),
             cone_counts: Vec::new(),
             cones: Vec::new(),
+            near_counts: Vec::new(),
+            near: Vec::new(),
+            near_complete2: Vec::new(),
+            warm_cells: 0,
             error: None,
         }
     }
@@ -201,6 +216,10 @@ pub struct Request<'a, const D: usize> {
     /// faces) and possibly not holding its site. `None`, or all zero, is the Voronoi
     /// diagram bit for bit. Not on the sphere, nor for a part ([`clipped_cells`]).
     pub weights: Option<&'a [f64]>,
+    /// Start from a previous diagram's near-site lists (an empty [`WarmStart`] starts
+    /// cold) and return this diagram's in [`Clipped::warm`]: the cells are the cold ones
+    /// bit for bit, faster when the sites moved little. Ignored in a periodic box.
+    pub warm: Option<&'a WarmStart<D>>,
 }
 
 /// The weights of `request` checked against `n` sites in `domain`: `None` when absent or
@@ -255,6 +274,8 @@ pub struct Clipped<const D: usize, C> {
     pub cells: Vec<C>,
     /// With [`Request::integrand`], its sums over the faces between cells; empty otherwise.
     pub face_integrals: FaceIntegrals<D>,
+    /// With [`Request::warm`], this diagram's near-site lists for the next one.
+    pub warm: Option<WarmStart<D>>,
 }
 
 /// The clipped Voronoi diagram of `sites` in `domain`, with what `request` asks for.
@@ -299,13 +320,22 @@ where
     let index = SiteIndex::new(sites)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
-    let order = morton_order(sites);
+    let moved = request.warm.and_then(|w| w.moved(sites));
+    // A warm diagram visits the sites in the previous one's order (the cells do not
+    // depend on it); a sampled density is asked for its nodes batch by batch, as cold.
+    let sampled = matches!(density, Some(Density::Sampled { .. }));
+    let order = match (moved.as_ref(), request.warm) {
+        (Some(_), Some(warm)) if !sampled => warm.order().to_vec(),
+        _ => morton_order(sites),
+    };
     let visit = Visit {
         sites,
         index: &index,
         windings: &windings,
         power: weights.map(|w| Power::new(w, sites)),
         total_sites: sites.len(),
+        warm: request.warm.zip(moved.as_ref()),
+        record: request.warm.is_some(),
     };
     let integrand = request.integrand;
     let batches = visit.batches::<C, K>(
@@ -320,7 +350,8 @@ where
         weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
     }
     let out = assemble(
-        sites.len(),
+        sites,
+        order,
         batches,
         integrand.is_some(),
         request.keep_cells,
@@ -420,6 +451,10 @@ struct Visit<'a, const D: usize> {
     /// The weights of a power diagram, indexed like `sites`.
     power: Option<Power<'a, D>>,
     total_sites: usize,
+    /// A previous diagram's near-site lists and how far the sites moved since.
+    warm: Option<(&'a WarmStart<D>, &'a Moved)>,
+    /// Record each cell's near sites for the next diagram.
+    record: bool,
 }
 
 impl<const D: usize> Visit<'_, D>
@@ -453,6 +488,7 @@ where
                         // A power cell need not hold its site: the early cut by the
                         // boundary near the cell assumes it does (`cut_by_boundary`).
                         let convex_inside = convex && winding == Some(1) && self.power.is_none();
+                        let warm = self.warm.and_then(|(w, moved)| w.certified(i, moved));
                         let (cell, inside) = match voronoi_cell::<D, C, K>(
                             domain,
                             self.index,
@@ -461,6 +497,8 @@ where
                             self.total_sites,
                             i,
                             convex_inside,
+                            warm,
+                            self.record,
                             scratch,
                         ) {
                             Ok(found) => found,
@@ -490,6 +528,13 @@ where
                             batch.cells.push(cell.clone());
                         }
                         batch.reach2.push(scratch.reach2());
+                        if self.record {
+                            let (near, complete2, warm) = scratch.record();
+                            batch.near_counts.push(near.len() as u32);
+                            batch.near.extend_from_slice(near);
+                            batch.near_complete2.push(complete2);
+                            batch.warm_cells += usize::from(warm);
+                        }
                     }
                     batch
                 },
@@ -605,6 +650,8 @@ where
         windings: &windings,
         power: None,
         total_sites: total_sites.max(sites.len()),
+        warm: None,
+        record: false,
     };
     let mut batches =
         without_errors(visit.batches::<C, K>(domain, own, None, false, &weighted_sums))?;
@@ -644,11 +691,14 @@ where
 /// The diagram in index order from the batches (visiting order), the kept cells and the
 /// face integrals.
 fn assemble<const D: usize, C: ConvexCell<D>>(
-    n: usize,
+    sites: &[[f64; D]],
+    order: Vec<u32>,
     batches: Vec<Batch<D, C>>,
     integrals: bool,
     keep_cells: bool,
 ) -> Clipped<D, C> {
+    let n = sites.len();
+    let warm = warm_lists(sites, order, &batches);
     let mut diagram = Diagram {
         moments: vec![Moments::zero(); n],
         boundary_measure: vec![0.0; n],
@@ -708,7 +758,45 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
         diagram,
         cells: cells.into_iter().flatten().collect(),
         face_integrals: sums,
+        warm,
     }
+}
+
+/// The batches' near-site lists in site order, when they recorded them, with the order
+/// the sites were visited in.
+fn warm_lists<const D: usize, C>(
+    sites: &[[f64; D]],
+    order: Vec<u32>,
+    batches: &[Batch<D, C>],
+) -> Option<WarmStart<D>> {
+    if batches.iter().all(|b| b.near_counts.is_empty()) {
+        return None;
+    }
+    let n = sites.len();
+    let mut offsets = vec![0; n + 1];
+    let mut complete2 = vec![0.0; n];
+    for b in batches {
+        for (k, (&i, &count)) in b.sites.iter().zip(&b.near_counts).enumerate() {
+            offsets[i as usize + 1] = count as usize;
+            complete2[i as usize] = b.near_complete2[k];
+        }
+    }
+    for i in 0..n {
+        offsets[i + 1] += offsets[i];
+    }
+    let mut near = vec![0; offsets[n]];
+    for b in batches {
+        let mut at = 0;
+        for (&i, &count) in b.sites.iter().zip(&b.near_counts) {
+            let (from, count) = (offsets[i as usize], count as usize);
+            near[from..from + count].copy_from_slice(&b.near[at..at + count]);
+            at += count;
+        }
+    }
+    let warm_cells = batches.iter().map(|b| b.warm_cells).sum();
+    Some(WarmStart::from_lists(
+        sites, offsets, near, complete2, order, warm_cells,
+    ))
 }
 
 /// How far outside the domain's box an allowed outside site may lie, in units of the

@@ -365,6 +365,8 @@ where
                 .as_deref()
                 .map(|w| Power::new(w, &images.sites)),
             total_sites: images.sites.len(),
+            warm: None,
+            record: false,
         };
         let batches = visit.batches::<C, PeriodicBox<D>>(
             torus,
@@ -467,5 +469,6 @@ fn assemble_passes<const D: usize, C: ConvexCell<D>>(
         diagram,
         cells: cells.into_iter().flatten().collect(),
         face_integrals: Default::default(),
+        warm: None,
     }
 }

@@ -12,6 +12,7 @@ use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::knn::{NearScratch, SiteIndex};
 use super::power::Power;
+use super::warm::margin2;
 
 /// Margin of the starting box around the domain, relative to the domain's diagonal
 /// ([`DomainKind::start`]).
@@ -67,6 +68,11 @@ const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
 /// With `power`, the power cell (DESIGN §14): the planes and the stopping distance are
 /// [`Power`]'s, a vertex is checked against the site of least power there, and a cell that
 /// empties stops streaming (an empty cell: mass 0, no faces).
+///
+/// With `warm`, the site's list of near sites from a previous diagram and the squared
+/// distance within which it holds every site: the nearest sites are streamed from it,
+/// and the cell is the same bit for bit ([`SiteIndex::near_warm`]). With `record`, the
+/// cell's own list for the next diagram is left in [`CellScratch::record`].
 #[allow(clippy::too_many_arguments)]
 pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
@@ -76,8 +82,73 @@ pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     total_sites: usize,
     i: usize,
     convex_inside: bool,
+    warm: Option<(&[u32], f64)>,
+    record: bool,
     scratch: &'a mut CellScratch<C>,
 ) -> Result<(&'a C, bool), CoreError>
+where
+    Euclid: Space<D>,
+{
+    let (inside, stayed_warm, vouched2) = streamed_cell(
+        domain,
+        index,
+        sites,
+        power,
+        total_sites,
+        i,
+        convex_inside,
+        warm,
+        scratch,
+    )?;
+    if record {
+        remember(index, sites, i, stayed_warm, vouched2, warm, scratch);
+    }
+    let cell = scratch.cell.as_ref().expect("the cell just computed");
+    Ok((cell, inside))
+}
+
+/// Leave in `scratch.record` the sites near site `i` for the next diagram's warm start:
+/// a stream that stayed warm keeps its certified candidates; a cold one gathers the sites
+/// within a margin beyond the distance it read.
+fn remember<const D: usize, C>(
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    i: usize,
+    stayed_warm: bool,
+    vouched2: f64,
+    warm: Option<(&[u32], f64)>,
+    scratch: &mut CellScratch<C>,
+) {
+    scratch.record.clear();
+    scratch.record_warm = false;
+    if let (true, Some((_, certified2))) = (stayed_warm, warm) {
+        scratch.record.extend(scratch.near.certified());
+        scratch.record2 = certified2;
+        scratch.record_warm = true;
+        return;
+    }
+    let record2 = margin2(vouched2);
+    let mut near = index.near(sites[i], &mut scratch.near);
+    while let Some((j, _)) = near.next_within(record2) {
+        scratch.record.push(j);
+    }
+    scratch.record2 = record2;
+}
+
+/// The cell of [`voronoi_cell`] left in `scratch.cell`: whether it lies in the domain,
+/// whether its stream stayed warm, and the squared distance the stream vouched for.
+#[allow(clippy::too_many_arguments)]
+fn streamed_cell<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    index: &SiteIndex<D>,
+    sites: &[[f64; D]],
+    power: Option<&Power<'_, D>>,
+    total_sites: usize,
+    i: usize,
+    convex_inside: bool,
+    warm: Option<(&[u32], f64)>,
+    scratch: &mut CellScratch<C>,
+) -> Result<(bool, bool, f64), CoreError>
 where
     Euclid: Space<D>,
 {
@@ -103,7 +174,12 @@ where
         usize::MAX
     };
     let mut inside = false;
-    let mut near = index.near(site, &mut scratch.near);
+    let mut near = match warm {
+        Some((candidates, certified2)) => {
+            index.near_warm(site, sites, candidates, certified2, &mut scratch.near)
+        }
+        None => index.near(site, &mut scratch.near),
+    };
     let mut clipped = 0; // sites taken from the stream, the site itself included
     let mut last2: f64 = 0.0; // squared distance of the last site taken
 
@@ -126,7 +202,7 @@ where
                 if power.is_some() && cell.is_empty() {
                     // An empty power cell: no site can take anything more from it.
                     scratch.reach2 = last2;
-                    return Ok((cell, true));
+                    return Ok((true, near.is_warm(), near.vouched2()));
                 }
             }
         }
@@ -145,9 +221,10 @@ where
             let local2 = domain.local_radius2(cell, site);
             if local2 <= LOCAL_REACH2 * last2 {
                 localise(cell, local2.sqrt());
+                let (stayed_warm, vouched2) = (near.is_warm(), near.vouched2());
                 let reach = validate_vertices(cell, index, sites, power, i)?;
                 scratch.reach2 = last2.max(reach * reach);
-                return Ok((cell, false));
+                return Ok((false, stayed_warm, vouched2));
             }
         }
     }
@@ -172,7 +249,7 @@ where
         return Ok((cell, inside || empty));
     }
     scratch.reach2 = last2.max(stop2(radius2));
-    Ok((cell, inside))
+    Ok((inside, near.is_warm(), near.vouched2()))
 }
 
 /// Buffers of [`voronoi_cell`], reused from cell to cell so that the common cell allocates
@@ -183,9 +260,20 @@ pub struct CellScratch<C> {
     cell: Option<C>,
     candidates: Vec<u32>,
     reach2: f64,
+    /// The last cell's near sites for a warm start, complete within `record2`, `L²`.
+    record: Vec<u32>,
+    record2: f64,
+    /// Whether the last cell's stream stayed warm.
+    record_warm: bool,
 }
 
 impl<C> CellScratch<C> {
+    /// The near sites the last cell recorded for a warm start, the squared distance
+    /// within which they are every site (`L²`), and whether its stream stayed warm.
+    pub fn record(&self) -> (&[u32], f64, bool) {
+        (&self.record, self.record2, self.record_warm)
+    }
+
     /// The reach of the last cell computed ([`voronoi_cell_among`]), `L²`.
     pub fn reach2(&self) -> f64 {
         self.reach2
@@ -199,6 +287,9 @@ impl<C> Default for CellScratch<C> {
             cell: None,
             candidates: Vec::new(),
             reach2: 0.0,
+            record: Vec::new(),
+            record2: 0.0,
+            record_warm: false,
         }
     }
 }

@@ -393,6 +393,8 @@ where
                             total_sites,
                             i,
                             false,
+                            None,
+                            false,
                             scratch,
                         )
                         .map(|(cell, _)| {

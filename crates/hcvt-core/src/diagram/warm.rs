@@ -1,0 +1,131 @@
+//! Warm-started diagrams (issue 32): each cell's nearest-site stream answered from the
+//! sites that were near it in the previous diagram, bit for bit the cold stream.
+//!
+//! A cell reads the sites in increasing distance (ties by index) up to some distance `R`
+//! ([`super::knn::NearSites::vouched2`]). The previous diagram remembers, per site, a list
+//! of sites holding every site within `ρ_i` of it (`ρ_i` a little beyond the distance the
+//! cell read). When site `i` has moved by `δ_i` and every site by at most `δ`, a site `j`
+//! missing from the list was beyond `ρ_i` and is now beyond `ρ_i − δ_i − δ` from site `i`:
+//! the list is complete within that *certified* distance, and the stream takes its sites
+//! from it, sorted as the grid sorts them. A cell that asks farther falls back to the
+//! grid ([`super::knn::SiteIndex::near_warm`]). The cells are therefore the cold cells
+//! bit for bit whatever the previous diagram was; only the time changes.
+
+use rayon::prelude::*;
+
+use crate::geometry::{norm2, sub};
+
+/// The previous diagram's near-site lists, in site order, for [`super::Request::warm`].
+/// Empty (the default) starts cold; a state of another number of sites is ignored.
+#[derive(Debug, Clone, Default)]
+pub struct WarmStart<const D: usize> {
+    /// The sites of the diagram that recorded the lists, `L`.
+    sites: Vec<[f64; D]>,
+    /// The list of site `i` is `near[offsets[i]..offsets[i + 1]]` (itself included).
+    offsets: Vec<usize>,
+    near: Vec<u32>,
+    /// Per site, every site within this squared distance of it is on its list, `L²`.
+    complete2: Vec<f64>,
+    /// The order the diagram visited the sites in (Morton), which the next one reuses:
+    /// the sites moved little, and the order only decides which cells share a cache.
+    order: Vec<u32>,
+    /// Cells of the recording diagram whose nearest sites came from the warm start alone.
+    warm_cells: usize,
+}
+
+/// How far the sites moved since a [`WarmStart`] was recorded, `L`.
+pub(super) struct Moved {
+    each: Vec<f64>,
+    most: f64,
+}
+
+/// A cold cell remembers the sites within this factor of the distance it read, so that
+/// the next diagrams' sites can move by a fraction of it and still be certified: about
+/// 1.56 times the sites read in 2D (1.95 in 3D), gathered once per refresh.
+const MARGIN: f64 = 1.25;
+
+/// Relative slack on distances for their rounding (a few ulps each; generous).
+const ROUNDING: f64 = 1e-9;
+
+impl<const D: usize> WarmStart<D> {
+    /// Nothing remembered: the next diagram starts cold.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Sites remembered.
+    pub fn len(&self) -> usize {
+        self.sites.len()
+    }
+
+    /// Nothing remembered.
+    pub fn is_empty(&self) -> bool {
+        self.sites.is_empty()
+    }
+
+    /// Cells of the diagram that recorded this state whose nearest sites came from its
+    /// predecessor's lists alone (the others asked the index).
+    pub fn warm_cells(&self) -> usize {
+        self.warm_cells
+    }
+
+    /// Bytes held, for the memory accounts.
+    pub fn bytes(&self) -> usize {
+        self.sites.len() * std::mem::size_of::<[f64; D]>()
+            + self.offsets.len() * std::mem::size_of::<usize>()
+            + self.near.len() * std::mem::size_of::<u32>()
+            + self.complete2.len() * std::mem::size_of::<f64>()
+            + self.order.len() * std::mem::size_of::<u32>()
+    }
+
+    /// The order the recording diagram visited its sites in.
+    pub(super) fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    /// How far `sites` moved from the remembered ones; `None` when the state is for
+    /// another number of sites (or empty).
+    pub(super) fn moved(&self, sites: &[[f64; D]]) -> Option<Moved> {
+        if self.sites.is_empty() || self.sites.len() != sites.len() {
+            return None;
+        }
+        let each: Vec<f64> = (self.sites.par_iter().zip(sites))
+            .map(|(&old, &new)| norm2(sub(new, old)).sqrt() * (1.0 + ROUNDING))
+            .collect();
+        let most = each.iter().fold(0.0, |m: f64, &d| m.max(d));
+        most.is_finite().then_some(Moved { each, most })
+    }
+
+    /// Site `i`'s remembered list and the squared distance within which it still holds
+    /// every site after `moved`; `None` when nothing is certified.
+    pub(super) fn certified(&self, i: usize, moved: &Moved) -> Option<(&[u32], f64)> {
+        let complete = self.complete2[i].sqrt() * (1.0 - ROUNDING);
+        let r = (complete - (moved.each[i] + moved.most)) * (1.0 - ROUNDING);
+        (r > 0.0).then(|| (&self.near[self.offsets[i]..self.offsets[i + 1]], r * r))
+    }
+
+    /// The state of `sites` from their lists in site order: site `i`'s is
+    /// `near[offsets[i]..offsets[i + 1]]`, complete within `complete2[i]`.
+    pub(super) fn from_lists(
+        sites: &[[f64; D]],
+        offsets: Vec<usize>,
+        near: Vec<u32>,
+        complete2: Vec<f64>,
+        order: Vec<u32>,
+        warm_cells: usize,
+    ) -> Self {
+        Self {
+            sites: sites.to_vec(),
+            offsets,
+            near,
+            complete2,
+            order,
+            warm_cells,
+        }
+    }
+}
+
+/// The squared distance a cold cell's list covers, from the distance it read.
+pub(super) fn margin2(vouched2: f64) -> f64 {
+    vouched2 * MARGIN * MARGIN
+}
