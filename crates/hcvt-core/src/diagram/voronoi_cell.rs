@@ -246,7 +246,7 @@ where
         scratch.reach2 = covered2.max(p.global_reach2(i, radius2));
         // An empty cell is measured as one inside the domain: nothing.
         let empty = cell.is_empty();
-        return Ok((cell, inside || empty));
+        return Ok((inside || empty, near.is_warm(), near.vouched2()));
     }
     scratch.reach2 = last2.max(stop2(radius2));
     Ok((inside, near.is_warm(), near.vouched2()))

@@ -30,7 +30,7 @@
 use std::ops::ControlFlow;
 use std::time::Instant;
 
-use crate::diagram::{ConvexCell, DomainKind};
+use crate::diagram::{ConvexCell, DomainKind, WarmStart};
 use crate::error::CoreError;
 use crate::geometry::{Euclid, Space};
 
@@ -240,6 +240,7 @@ where
         evaluations: 0,
         history: Vec::new(),
         frame: cvt.frame,
+        warm: WarmStart::new(),
     };
     let mut memory = Memory::new(cvt.memory);
     let search = LineSearch::new(cvt.max_line_evaluations);
