@@ -220,7 +220,7 @@ def cvt(
         transport cost, whose gradient is ``2 v_i (x_i - c_i)``, every trial point a
         warm-started optimal transport; ``"lloyd"`` is Bourne, Kok, Roper and Spanjer
         2020's alternation (optimal-transport weights for the present sites, warm-started,
-        then sites to their power cells' centroids, repeated), 7-15x more outer
+        then sites to their power cells' centroids, repeated), 13-15x more outer
         iterations; not ``"newton"``. They must sum to the domain's
         volume (to 1e-9 relative) unless ``normalise``. On polygons, solids and boxes,
         periodic or not; not with ``client`` (NotImplementedError), the sphere or a surface.
