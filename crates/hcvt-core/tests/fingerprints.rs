@@ -282,16 +282,16 @@ const RUNS: &[(&str, u64)] = &[
         0x020f44fee88adc76,
     ),
     (
-        "Newton Gap star: 43 iterations, 58 diagrams",
-        0x44757dedadf3697d,
+        "Newton Gap star: 31 iterations, 34 diagrams",
+        0x67ad3ab2044ad2f1,
     ),
     (
-        "Newton Gap holes: 44 iterations, 58 diagrams",
-        0x7402d4948d018c88,
+        "Newton Gap holes: 47 iterations, 53 diagrams",
+        0xab42720bd38f95bb,
     ),
     (
-        "Newton Gap ball: 62 iterations, 73 diagrams",
-        0xba43e56d8ac74f3a,
+        "Newton Gap ball: 52 iterations, 57 diagrams",
+        0x451c89272b0d5277,
     ),
     (
         "Lbfgs Paper star: 165 iterations, 177 diagrams",
