@@ -31,7 +31,10 @@
 //! iterations 2.5-fold at 10,000 sites (ω = 1: 711 against 1,831 over the 7 Newton steps;
 //! ω = 1.4: 750) but each cost 3.5 times a diagonal one (two sequential sweeps against one
 //! parallel product), so the whole run was no faster (2.84 s and 2.26 s against 2.59 s,
-//! the machine under load): not used. Algebraic multigrid would cut the iterations at
+//! the machine under load): not used. Fusing each iteration's eight passes over the rows
+//! into three (the product with its dot product; the updates with the next dot product
+//! and the stopping test) left the CG's share of samples unchanged (12%, perf, 10,000
+//! sites): not used either. Algebraic multigrid would cut the iterations at
 //! 100k sites and more (not done).
 //! Products run in parallel rows and every dot product is summed in index order: the
 //! weights do not depend on the thread count.
