@@ -100,7 +100,9 @@ def _diagram_arrays(d: hcvt.Diagram) -> dict[str, Any]:
 
 
 def _mesh_arrays(mesh: Any) -> dict[str, Any]:
-    return {f.name: getattr(mesh, f.name) for f in dataclasses.fields(mesh)}
+    """The mesh's fields, less those it does not have (None: the periodic pairing, later)."""
+    fields = {f.name: getattr(mesh, f.name) for f in dataclasses.fields(mesh)}
+    return {name: value for name, value in fields.items() if value is not None}
 
 
 def _history(result: Any) -> dict[str, Any]:
