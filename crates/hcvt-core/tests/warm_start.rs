@@ -105,11 +105,23 @@ fn check_kind<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 ) where
     Euclid: Space<D>,
 {
-    let (fractions, _) = warm_chain::<D, C, K>(domain, sites, &[0.01, 0.01, 0.02, 1.0], None, what);
+    let steps = [0.01, 0.01, 0.02, 0.15, 1.0, 0.01, 0.01];
+    let (fractions, _) = warm_chain::<D, C, K>(domain, sites, &steps, None, what);
     assert_eq!(fractions[0], 0.0, "{what}: the first diagram is cold");
     assert!(fractions[1] > 0.9, "{what}: small steps {fractions:?}");
     assert!(fractions[2] > 0.9, "{what}: small steps {fractions:?}");
-    assert!(fractions[4] < 0.5, "{what}: a large step {fractions:?}");
+    // A step of 0.15 spacings: some cells fall back to the index, most stay warm.
+    assert!(
+        fractions[4] < 1.0 && fractions[4] > 0.5,
+        "{what}: {fractions:?}"
+    );
+    // A step of a spacing: the diagram goes cold and records nothing; the next records
+    // afresh, cold, and the one after is warm again.
+    assert_eq!(fractions[5..7], [0.0, 0.0], "{what}: a large step");
+    assert!(
+        fractions[7] > 0.9,
+        "{what}: small steps again {fractions:?}"
+    );
 }
 
 #[test]
@@ -150,12 +162,12 @@ fn a_warm_power_diagram_is_the_cold_one() {
     let (fractions, _) = warm_chain::<2, PolygonCell, _>(
         &square,
         sites,
-        &[0.01, 0.01, 1.0],
+        &[0.01, 0.01, 0.15],
         Some(&weights),
         "power",
     );
     assert!(fractions[1] > 0.9, "{fractions:?}");
-    assert!(fractions[3] < 0.5, "{fractions:?}");
+    assert!(fractions[3] < 1.0, "{fractions:?}");
 }
 
 /// A periodic box computes its cells among images: it ignores the warm start (and

@@ -335,7 +335,11 @@ where
         power: weights.map(|w| Power::new(w, sites)),
         total_sites: sites.len(),
         warm: request.warm.zip(moved.as_ref()),
-        record: request.warm.is_some(),
+        // Sites moved too far are not recorded: the next diagram starts from an empty
+        // state and records the lists afresh (cold).
+        record: request
+            .warm
+            .is_some_and(|w| w.len() != sites.len() || moved.is_some()),
     };
     let integrand = request.integrand;
     let batches = visit.batches::<C, K>(
@@ -358,6 +362,10 @@ where
     );
     if density.is_some() {
         weighted::check_masses(&out.diagram, sites)?;
+    }
+    let mut out = out;
+    if request.warm.is_some() && out.warm.is_none() {
+        out.warm = Some(WarmStart::new());
     }
     Ok(out)
 }

@@ -93,7 +93,20 @@ impl<const D: usize> WarmStart<D> {
             .map(|(&old, &new)| norm2(sub(new, old)).sqrt() * (1.0 + ROUNDING))
             .collect();
         let most = each.iter().fold(0.0, |m: f64, &d| m.max(d));
-        most.is_finite().then_some(Moved { each, most })
+        let moved = Moved { each, most };
+        // Large steps (Newton's and L-BFGS's early ones) leave few lists certified: the
+        // failed attempts and the refreshed lists would cost more than a cold diagram.
+        let likely = (0..sites.len())
+            .filter(|&i| self.likely_warm(i, &moved))
+            .count();
+        (most.is_finite() && 2 * likely >= sites.len()).then_some(moved)
+    }
+
+    /// Whether site `i`'s list likely still certifies its cell: its certified radius is
+    /// at least the part of the list's radius a cold cell reads (`1 / MARGIN`).
+    fn likely_warm(&self, i: usize, moved: &Moved) -> bool {
+        self.certified(i, moved)
+            .is_some_and(|(_, certified2)| certified2 * MARGIN * MARGIN >= self.complete2[i])
     }
 
     /// Site `i`'s remembered list and the squared distance within which it still holds
