@@ -548,9 +548,9 @@ SPECIFIC: dict[str, list[Row]] = {
             Gives("finite G", lambda r: bool(np.isfinite(r.G).all())),
         ),
         (
-            "sphere: a density is refused with a message",
+            "sphere: a density negative on a cell is named with its value",
             lambda: hcvt.voronoi(sphere(), [(0, 0, 2.0), (2.0, 0, 0)], density=lambda x: x[:, 0]),
-            Raises(InvalidDensityError, "densities on the sphere are not implemented yet"),
+            Raises(InvalidDensityError, "density is -"),
         ),
         (
             "sphere: two-site Newton CVT ends antipodal",

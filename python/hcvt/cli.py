@@ -98,7 +98,7 @@ def _load(input_: str, repair: bool, radius: float = 1.0, periodic: bool = False
     type=click.Choice(INITS),
     default=None,
     help="Initial sites (fibonacci, icosahedral: the sphere only) [default: random; on the "
-    "sphere icosahedral when N = 10*4^k + 2, else fibonacci].",
+    "sphere icosahedral when N = 10*4^k + 2, else fibonacci, and random with --density].",
 )
 @click.option(
     "--radius",
@@ -281,9 +281,9 @@ def run(
             )
         method = capacity_method(method)
     domain = _load(input_, repair, radius, periodic)
-    method, init = _defaults(domain, n, method, init)
-    _check_outputs(domain, out, plot)
     density = _density(density_spec, sizing_spec, domain.dim)
+    method, init = _defaults(domain, n, method, init, density)
+    _check_outputs(domain, out, plot)
     weighted: dict[str, Any] = (
         {} if density is None else {"density": density, "quadrature_degree": quadrature_degree}
     )
@@ -508,11 +508,16 @@ SURFACE_WRITERS = {
 }
 
 
-def _defaults(domain: Any, n: int, method: str | None, init: str | None) -> tuple[str, str]:
+def _defaults(
+    domain: Any, n: int, method: str | None, init: str | None, density: Any = None
+) -> tuple[str, str]:
     """--method and --init as given, or their defaults for the domain (see their help)."""
     if domain.is_sphere:
         fits = icosahedral_level(n) is not None
-        return method or fastest_method(domain), init or ("icosahedral" if fits else "fibonacci")
+        uniform = "icosahedral" if fits else "fibonacci"
+        # With a density the start is graded (random, ∝ ρ^(1/2)); the others are uniform.
+        start = uniform if density is None else "random"
+        return method or fastest_method(domain, density), init or start
     return method or "hierarchical", init or "random"
 
 

@@ -14,6 +14,13 @@ driven to the ρ-weighted centroids; asymptotically the cell size follows ``ρ^(
 - a :class:`SizingField` ``h(x)`` (target spacing), i.e. ``ρ = h^-(d+2)`` (CGAL's
   convention), so that the CVT's cell size follows ``h``.
 
+On :meth:`hcvt.Domain.sphere` (cells of dimension 2, so ``ρ = h^-4``) a callable is a
+function of position on the sphere of radius R, or a :class:`LonLatDensity` of longitude
+and latitude; it is sampled on each cell's spherical triangles by a triangle rule of
+``quadrature_degree`` through the radial projection and its Jacobian (no rule is exact
+there: the error falls as ``h^(degree+1)``; a constant is exact to round-off). A
+:class:`Polynomial` in x, y, z is sampled the same way.
+
 ρ must be finite and positive wherever it is evaluated, else :class:`InvalidDensityError`
 names the point. A callable is evaluated at quadrature points of the clipped cells' cone
 pieces; in a non-convex domain some of these pieces (whose contributions cancel) lie
@@ -232,6 +239,50 @@ class SizingField:
         return f"SizingField({self.h!r})"
 
 
+class LonLatDensity:
+    """A density on the sphere given as a function of longitude and latitude, in degrees.
+
+    A plain callable given as ``density=`` on :meth:`hcvt.Domain.sphere` is a function of
+    position, ``rho(points (m, 3)) -> (m,)`` with the points on the sphere of radius R (in
+    its unit); wrap a function of ``(lon, lat)`` in this class instead. It is itself that
+    function of position (so it works wherever a density is evaluated): the points'
+    longitude in ``(-180, 180]`` and latitude in ``[-90, 90]``, in degrees, each (m,),
+    go to ``fn``.
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(lon (m,), lat (m,)) -> (m,)``, vectorised, degrees.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hcvt.density import LonLatDensity
+    >>> rho = LonLatDensity(lambda lon, lat: 1.0 + np.cos(np.radians(lat)))
+    >>> rho(np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 2.0]])).round(12).tolist()
+    [2.0, 1.0]
+    """
+
+    def __init__(self, fn: Callable[[NDArray[np.float64], NDArray[np.float64]], ArrayLike]) -> None:
+        if not callable(fn):
+            raise TypeError(f"LonLatDensity needs a callable fn(lon, lat), got {fn!r}")
+        self.fn = fn
+
+    def __call__(self, points: ArrayLike) -> NDArray[np.float64]:
+        """ρ at ``points`` (m, 3) on a sphere about the origin, shape (m,)."""
+        x = np.asarray(points, dtype=np.float64)
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise InvalidDensityError(
+                f"a LonLatDensity is evaluated at points (m, 3) on the sphere, got {x.shape}"
+            )
+        lon = np.degrees(np.arctan2(x[:, 1], x[:, 0]))
+        lat = np.degrees(np.arctan2(x[:, 2], np.hypot(x[:, 0], x[:, 1])))
+        return np.asarray(self.fn(lon, lat), dtype=np.float64)
+
+    def __repr__(self) -> str:
+        return f"LonLatDensity({self.fn!r})"
+
+
 #: What ``density=`` accepts.
 DensityLike = Polynomial | SizingField | Callable[[NDArray[np.float64]], ArrayLike] | None
 
@@ -308,6 +359,7 @@ def grading_slope(
 __all__ = [
     "DEFAULT_QUADRATURE_DEGREE",
     "DensityLike",
+    "LonLatDensity",
     "Polynomial",
     "SizingField",
     "core_arguments",

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hcvt.density import Polynomial, SizingField
 from hcvt.errors import InvalidDensityError, InvalidSitesError
 from hcvt.geometry.frame import Frame
 
@@ -84,13 +85,30 @@ class SphereFrame(Frame):
         return np.ascontiguousarray(unit / r[:, None])
 
     def density_to_core(self, density: Any) -> Any:
-        """No density on the sphere yet: None passes, anything else raises."""
+        """A density on the sphere of radius R as one on the unit sphere.
+
+        A callable of position (a :class:`hcvt.density.LonLatDensity` is one) is called at
+        ``R x'``; a :class:`hcvt.density.SizingField` is ``h^-4`` (cells of dimension 2).
+        A constant :class:`hcvt.density.Polynomial` goes to the core as it is (the uniform
+        cells, scaled); any other polynomial is sampled as a callable (every value checked).
+        """
         if density is None:
             return None
-        raise InvalidDensityError(
-            "densities on the sphere are not implemented yet (DESIGN §13: a surface "
-            "quadrature through the gnomonic projection); pass density=None"
-        )
+        if isinstance(density, Polynomial):
+            if density.dim not in (None, 3):
+                raise InvalidDensityError(
+                    f"a polynomial density on the sphere is in x, y, z; got {density!r}"
+                )
+            if density.linear is None and density.quadratic is None:
+                return density  # a constant: the same for every radius
+            density = _as_function(density)
+        if not (callable(density) or isinstance(density, SizingField)):
+            raise TypeError(
+                "density on the sphere must be a vectorised callable rho(points (m, 3)), a "
+                "hcvt.density.LonLatDensity, a SizingField or a Polynomial, got "
+                f"{type(density).__name__}"
+            )
+        return super().density_to_core(density)
 
     def points_to_input(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """``R · x'``."""
@@ -106,6 +124,15 @@ class SphereFrame(Frame):
 
     def __repr__(self) -> str:
         return f"SphereFrame(radius={self.scale!r})"
+
+
+def _as_function(polynomial: Polynomial) -> Any:
+    """``polynomial`` as a plain callable of points (m, 3)."""
+
+    def rho(points: NDArray[np.float64]) -> NDArray[np.float64]:
+        return polynomial(points)
+
+    return rho
 
 
 def check_radius(radius: object) -> float:

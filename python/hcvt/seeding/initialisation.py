@@ -188,7 +188,12 @@ def _on_sphere(
             f"unknown method {method!r} on the sphere; expected one of {', '.join(SPHERE_METHODS)}"
         )
     if density is not None:
-        raise InvalidDensityError("densities on the sphere are not implemented yet")
+        if method != "random":
+            raise ValueError(
+                f"method {method!r} places sites uniformly; with a density use 'random' "
+                "(a CVT with the density then grades it)"
+            )
+        return _graded_on_sphere(domain, n, np.random.default_rng(state), density)
     if method == "random":
         unit = random_sphere(n, np.random.default_rng(state))
     elif method == "fibonacci":
@@ -196,6 +201,36 @@ def _on_sphere(
     else:
         unit = icosahedral(n)
     return np.ascontiguousarray(unit * domain.radius)
+
+
+def _graded_on_sphere(
+    domain: Domain, n: int, generator: np.random.Generator, density: DensityLike
+) -> NDArray[np.float64]:
+    """``n`` random points on the sphere with density ∝ ``ρ^(1/2)``, by rejection.
+
+    ``ρ^(1/2)`` is a CVT's point density on cells of dimension 2 (Gersho). The bound comes
+    from 4,096 probes; it is raised and the draws restarted if a value exceeds it.
+    """
+    probes = fibonacci(DENSITY_PROBES) * domain.radius
+    bound = DENSITY_BOUND_FACTOR * float(np.max(evaluate(density, probes) ** 0.5))
+    for _ in range(DENSITY_RESTARTS):
+        found: list[NDArray[np.float64]] = []
+        count, peak = 0, 0.0
+        while count < n:
+            points = random_sphere(int(min(MAX_BATCH, 2 * (n - count) + 64)), generator)
+            points = points * domain.radius
+            g = evaluate(density, points) ** 0.5
+            peak = max(peak, float(g.max()))
+            points = points[generator.random(len(points)) * bound < g]
+            found.append(points)
+            count += len(points)
+        if peak <= bound:
+            return np.ascontiguousarray(np.concatenate(found)[:n])
+        bound = DENSITY_BOUND_FACTOR * peak
+    raise InvalidDensityError(
+        f"the density's ρ^(1/2) kept rising above its bound over {DENSITY_RESTARTS} "
+        "restarts of the sampler: it is not bounded on the sphere"
+    )
 
 
 def _on_surface(

@@ -7,6 +7,7 @@ sphere's radius.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -118,3 +119,60 @@ def icosahedral(n: int) -> NDArray[np.float64]:
         )
         count += len(unique)
     return np.ascontiguousarray(np.concatenate(vertices))
+
+
+def distance_to_meridian(points: NDArray[np.float64], lon0: float = 0.0) -> NDArray[np.float64]:
+    """Arc distance (radians) from each of ``points`` (m, 3) to the meridian at ``lon0``.
+
+    The meridian is the half great circle from pole to pole at ``lon0`` degrees: the
+    distance is ``asin |x·n|`` (``n`` the normal of its plane) on the meridian's side of the
+    globe, the distance to the nearer pole on the other side. Shape (m,).
+    """
+    x = points / np.linalg.norm(points, axis=1)[:, None]
+    lon = math.radians(lon0)
+    normal = np.array([-math.sin(lon), math.cos(lon), 0.0])
+    towards = np.array([math.cos(lon), math.sin(lon), 0.0])
+    across = np.arcsin(np.clip(np.abs(x @ normal), 0.0, 1.0))
+    to_pole = np.arccos(np.clip(np.abs(x[:, 2]), 0.0, 1.0))
+    return np.where(x @ towards >= 0.0, across, to_pole)
+
+
+def meridian_band_width(
+    points: NDArray[np.float64],
+    fine: float,
+    coarse: float,
+    *,
+    lon0: float = 0.0,
+    half_band: float = 10.0,
+    transition: float = 10.0,
+) -> NDArray[np.float64]:
+    """A regionally refined cell width (MPAS style) at ``points`` (m, 3), shape (m,).
+
+    ``fine`` within ``half_band`` degrees of the meridian at ``lon0`` (a band of
+    ``2 · half_band``), ``coarse`` far from it, and between them a tanh ramp over
+    ``transition`` degrees: with ``δ`` the arc distance (:func:`distance_to_meridian`) and
+    ``s = (δ − half_band − transition/2) / (transition/4)``,
+    ``h = fine + (coarse − fine) (1 + tanh s) / 2`` (within 1.8% of ``coarse − fine`` of
+    each end at the band's edge and ``transition`` beyond it). Same unit as ``fine``.
+    """
+    delta = np.degrees(distance_to_meridian(points, lon0))
+    s = (delta - half_band - 0.5 * transition) / (0.25 * transition)
+    return np.asarray(fine + (coarse - fine) * 0.5 * (1.0 + np.tanh(s)), dtype=np.float64)
+
+
+def cells_for_width(
+    width: Callable[[NDArray[np.float64]], NDArray[np.float64]], radius: float
+) -> int:
+    """The number of hexagonal cells that tile the sphere of ``radius`` at a cell width.
+
+    A hexagon has area ``(√3/2) h²`` with ``h`` the distance between neighbouring sites;
+    ``width(points (m, 3)) -> (m,)`` is in the unit of ``radius``. ``∫ dA / ((√3/2) h²)``
+    by the midpoint rule on a 2,000 × 1,000 lon/lat grid.
+    """
+    lon = np.radians(np.linspace(-180.0, 180.0, 2001)[:-1] + 0.09)
+    lat = np.radians(np.linspace(-90.0, 90.0, 1001)[:-1] + 0.09)
+    lo, la = np.meshgrid(lon, lat)
+    x = np.stack([np.cos(la) * np.cos(lo), np.cos(la) * np.sin(lo), np.sin(la)], axis=-1)
+    h = width(x.reshape(-1, 3) * radius).reshape(la.shape)
+    area = np.cos(la) * math.radians(0.18) ** 2 * radius**2
+    return int(round(float(np.sum(area / (0.5 * math.sqrt(3.0) * h**2)))))

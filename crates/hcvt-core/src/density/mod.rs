@@ -139,13 +139,19 @@ impl<const D: usize> std::fmt::Debug for Density<'_, D> {
 pub const POLYNOMIAL_DEGREE: usize = 4;
 
 impl<const D: usize> Density<'_, D> {
-    /// The quadrature rule this density is integrated with.
+    /// The quadrature rule this density is integrated with in cells of dimension `D`.
     pub fn rule(&self) -> Result<Rule, CoreError> {
+        self.rule_in(D)
+    }
+
+    /// The quadrature rule on simplices of dimension `dim`: cells of dimension 2 in 3D
+    /// (the sphere) take triangle rules.
+    pub fn rule_in(&self, dim: usize) -> Result<Rule, CoreError> {
         let degree = match self {
             Self::Polynomial(_) => POLYNOMIAL_DEGREE,
             Self::Sampled { degree, .. } => *degree,
         };
-        quadrature::rule(D, degree).ok_or_else(|| CoreError::InvalidDensity {
+        quadrature::rule(dim, degree).ok_or_else(|| CoreError::InvalidDensity {
             reason: format!("quadrature degree must be 1 to {MAX_DEGREE}, got {degree}"),
         })
     }

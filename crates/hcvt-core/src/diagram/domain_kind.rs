@@ -16,6 +16,8 @@
 //! (`mesh`) still reads a [`Boundary`]'s simplices: the boundary pieces a mesh needs join
 //! this trait with the first kind that meshes otherwise.
 
+use crate::density::quadrature::Rule;
+use crate::density::{cone_node, sum_sampled, Cone};
 use crate::domain::{Boundary, WindingNumber};
 use crate::geometry::{Aabb, Euclid, Space};
 use crate::moments::Moments;
@@ -156,6 +158,28 @@ pub trait DomainKind<const D: usize>: Sync {
     /// can be moved out of it) whose runs often start near a CVT. `false` by default.
     fn trusts_newton(&self) -> bool {
         false
+    }
+
+    /// With a sampled density (DESIGN §8): the node of the rule's point `lambda` in the
+    /// piece `cone` of the cell of `site`, relative to the site. The cone simplex's own
+    /// point by default; the sphere maps a flat triangle onto the sphere
+    /// (`sphere_density.rs`). The rule has dimension [`DomainKind::cell_dim`].
+    fn sampled_node(&self, _site: [f64; D], cone: &Cone<D>, lambda: &[f64]) -> [f64; D] {
+        cone_node(&cone.0, lambda)
+    }
+
+    /// With a sampled density: the weighted moments about `site` of its cell (of
+    /// geometric moments `geometric`) from its pieces `cones` and the density's `values`
+    /// at their nodes (cone after cone, node after node). The rule's sums by default.
+    fn sampled_moments(
+        &self,
+        _site: [f64; D],
+        cones: &[Cone<D>],
+        rule: &Rule,
+        values: &[f64],
+        _geometric: &Moments<D>,
+    ) -> Moments<D> {
+        sum_sampled(cones, rule, values)
     }
 
     /// The point of the domain that stands for `x` after a step: `x` itself in a flat

@@ -19,6 +19,7 @@
 //! | `surface.rs` | [`Surface`], a triangle surface as a domain kind: restricted Voronoi cells, the surface's triangles clipped by each convex cell (DESIGN §12) |
 //! | `polygon_clip.rs` | one Sutherland–Hodgman step, shared by the surface's pieces and the mesh's boundary pieces |
 //! | `sphere.rs` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
+//! | `sphere_density.rs` | a density on the sphere: fan triangles mapped onto it, their rule's nodes and Jacobian, the sums with a constant exact |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
@@ -45,6 +46,7 @@ mod polygon_clip;
 mod polyhedron_cell;
 mod power;
 mod sphere;
+mod sphere_density;
 mod surface;
 mod voronoi_cell;
 mod warm;
@@ -351,7 +353,8 @@ where
     );
     let mut batches = without_errors(batches)?;
     if let Some(d @ Density::Sampled { field, .. }) = density {
-        weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
+        let rule = d.rule_in(domain.cell_dim())?;
+        weighted::sample(domain, *field, &rule, sites, &mut batches)?;
     }
     let out = assemble(
         sites,
@@ -664,7 +667,8 @@ where
     let mut batches =
         without_errors(visit.batches::<C, K>(domain, own, None, false, &weighted_sums))?;
     if let Some(d @ Density::Sampled { field, .. }) = density {
-        weighted::sample(*field, &d.rule()?, sites, &mut batches)?;
+        let rule = d.rule_in(domain.cell_dim())?;
+        weighted::sample(domain, *field, &rule, sites, &mut batches)?;
     }
     let rows = own.len();
     let mut reach2 = Vec::with_capacity(rows);

@@ -53,6 +53,12 @@
 //!   small), so that it keeps its relative precision when `A` and `ẑ·M` agree to many
 //!   digits (a cell of size `h` has energy `~h⁴` from terms `~h²`).
 //!
+//! **A density** (`sphere_density.rs`): the measure keeps each fan triangle as a piece
+//! ([`crate::density::Cone`]) when a density is on; a sampled field is evaluated at the
+//! nodes of a triangle rule mapped onto the sphere ([`DomainKind::sampled_node`]) and summed
+//! with the exact moments taking the cell's mean density ([`DomainKind::sampled_moments`]);
+//! a polynomial is sampled the same way at the degree-5 rule's nodes here.
+//!
 //! Moments are reported about the site like every other kind's: mass `A`, first
 //! `M − A ẑ`, second the energy; the neighbour face measures are the arc lengths. The cells
 //! have dimension 2 ([`DomainKind::cell_dim`]); the CVT's centroid is `M / |M|` (Du,
@@ -61,6 +67,8 @@
 
 use std::cell::RefCell;
 
+use crate::density::quadrature::{Rule, TRIANGLE_5};
+use crate::density::Cone;
 use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
 
@@ -68,6 +76,7 @@ use super::clip::MeasureScratch;
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::faces::{FaceRow, FaceSums};
+use super::sphere_density;
 
 /// How far from the unit sphere a site may lie, `| |x|² − 1 | ≤ 2·ON_SPHERE_TOL` (so
 /// `| |x| − 1 |` about `ON_SPHERE_TOL`): the sites are then taken as their directions. A
@@ -360,9 +369,11 @@ struct Sums {
 /// docs; its arcs are added to `faces`.
 fn measure_upper(
     poly: &SphericalPolygon,
+    frame: &SiteFrame,
     faces: &mut FaceSums<3>,
     arcs: Option<ArcRow<'_>>,
 ) -> Sums {
+    let keep_pieces = faces.weighted.is_on();
     let n = poly.vertices.len();
     let mut sums = Sums::default();
     if n < 3 {
@@ -396,6 +407,10 @@ fn measure_upper(
             let x = c[2] / den;
             sums.area += 2.0 * x.atan();
             sums.energy += 4.0 * atan_minus_x(x) + c[2] * rest / den - tms * normal[2];
+            if keep_pieces {
+                let y = [[0.0; 3], frame.global(ya), frame.global(yb)];
+                (faces.weighted.cones).push(sphere_density::triangle(frame.z, y));
+            }
         }
         ya = yb;
     }
@@ -408,6 +423,7 @@ fn measure_upper(
 /// the first moment.
 fn measure_lower(
     poly: &SphericalPolygon,
+    frame: &SiteFrame,
     faces: &mut FaceSums<3>,
     arcs: Option<ArcRow<'_>>,
 ) -> Sums {
@@ -422,6 +438,10 @@ fn measure_lower(
         let (a, b) = (v(k), v(k + 1));
         let det = dot(v0, cross(a, b));
         area += 2.0 * det.atan2(1.0 + dot(v0, a) + dot(a, b) + dot(b, v0));
+        if faces.weighted.is_on() && det != 0.0 {
+            let y = [v0, a, b].map(|v| sub(frame.global(v), frame.z));
+            (faces.weighted.cones).push(sphere_density::triangle(frame.z, y));
+        }
     }
     for k in 0..n {
         let (a, b) = (v(k), v(k + 1));
@@ -548,7 +568,7 @@ fn measure_polygons<C: ConvexCell<3>>(
     let arcs = row.map(|row| ArcRow { row, frame: &frame });
     let sums = with_polygon(|poly| {
         if cap_polygon(poly, cell, &frame) {
-            return measure_upper(poly, faces, arcs);
+            return measure_upper(poly, &frame, faces, arcs);
         }
         let mut sums = Sums::default();
         for sz in [1.0, -1.0] {
@@ -556,9 +576,9 @@ fn measure_polygons<C: ConvexCell<3>>(
                 poly.reset_to_octant(sx, sy, sz);
                 poly.clip_by_cell(cell, &frame);
                 let piece = if sz > 0.0 {
-                    measure_upper(poly, faces, arcs)
+                    measure_upper(poly, &frame, faces, arcs)
                 } else {
-                    measure_lower(poly, faces, arcs)
+                    measure_lower(poly, &frame, faces, arcs)
                 };
                 sums.area += piece.area;
                 sums.first = [
@@ -570,11 +590,30 @@ fn measure_polygons<C: ConvexCell<3>>(
         }
         sums
     });
-    Moments {
+    let moments = Moments {
         mass: sums.area,
         first: frame.global([sums.first[0], sums.first[1], -0.5 * sums.energy]),
         second: sums.energy,
+    };
+    if let Some(local) = faces.weighted.polynomial_about_site() {
+        // A polynomial is sampled here, at the sampled rule's nodes of degree 5.
+        let rule = TRIANGLE_5;
+        let w = &faces.weighted;
+        let values: Vec<f64> = (w.cones.iter())
+            .flat_map(|cone| {
+                rule.nodes()
+                    .map(move |(l, _)| local.value(node_at(site, cone, l)))
+            })
+            .collect();
+        let weighted = sphere_density::weighted_moments(site, &w.cones, &rule, &values, &moments);
+        faces.weighted.moments = weighted;
     }
+    moments
+}
+
+/// The node of `lambda` in the piece `cone` of the cell of `site`, relative to the site.
+fn node_at(site: [f64; 3], cone: &Cone<3>, lambda: &[f64]) -> [f64; 3] {
+    sphere_density::node(sphere_density::direction(site), cone, lambda).0
 }
 
 impl DomainKind<3> for Sphere {
@@ -695,6 +734,23 @@ impl DomainKind<3> for Sphere {
         true
     }
 
+    /// The rule's point on the sphere (`sphere_density.rs`).
+    fn sampled_node(&self, site: [f64; 3], cone: &Cone<3>, lambda: &[f64]) -> [f64; 3] {
+        node_at(site, cone, lambda)
+    }
+
+    /// The rule's sums with the constant part exact (`sphere_density.rs`).
+    fn sampled_moments(
+        &self,
+        site: [f64; 3],
+        cones: &[Cone<3>],
+        rule: &Rule,
+        values: &[f64],
+        geometric: &Moments<3>,
+    ) -> Moments<3> {
+        sphere_density::weighted_moments(site, cones, rule, values, geometric)
+    }
+
     fn retract(&self, x: [f64; 3]) -> [f64; 3] {
         let r2 = norm2(x);
         if r2 > 0.0 {
@@ -706,7 +762,7 @@ impl DomainKind<3> for Sphere {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::diagram::{clipped_cells, clipped_diagram, PolyhedronCell, Request};
     use crate::error::CoreError;
@@ -1229,22 +1285,10 @@ mod tests {
             let m = arc_moments(a, b, theta);
             let n = unit(cross(a, b));
             let u = cross(n, a);
-            // 20 Gauss–Legendre nodes on [0, θ], by Newton on the Legendre polynomial.
-            let k = 20;
+            // 20 Gauss–Legendre nodes on [0, θ].
             let (mut first, mut second) = ([0.0; 3], [[0.0; 3]; 3]);
-            for r in 1..=k {
-                let mut x = (PI * (r as f64 - 0.25) / (k as f64 + 0.5)).cos();
-                let mut dp = 0.0;
-                for _ in 0..100 {
-                    let (mut p0, mut p1) = (1.0, x);
-                    for l in 2..=k {
-                        let l = l as f64;
-                        (p0, p1) = (p1, ((2.0 * l - 1.0) * x * p1 - (l - 1.0) * p0) / l);
-                    }
-                    dp = k as f64 * (x * p1 - p0) / (x * x - 1.0);
-                    x -= p1 / dp;
-                }
-                let w = 2.0 / ((1.0 - x * x) * dp * dp) * 0.5 * theta;
+            for (x, w) in gauss_legendre(20) {
+                let w = w * 0.5 * theta;
                 let tt = 0.5 * theta * (x + 1.0);
                 let y = sub(add(scale(a, tt.cos()), scale(u, tt.sin())), [0.0, 0.0, 1.0]);
                 for p in 0..3 {
@@ -1267,6 +1311,26 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The `k` Gauss–Legendre nodes and weights on [−1, 1], by Newton on `P_k`.
+    pub(crate) fn gauss_legendre(k: usize) -> Vec<(f64, f64)> {
+        (1..=k)
+            .map(|r| {
+                let mut x = (PI * (r as f64 - 0.25) / (k as f64 + 0.5)).cos();
+                let mut dp = 0.0;
+                for _ in 0..100 {
+                    let (mut p0, mut p1) = (1.0, x);
+                    for l in 2..=k {
+                        let l = l as f64;
+                        (p0, p1) = (p1, ((2.0 * l - 1.0) * x * p1 - (l - 1.0) * p0) / l);
+                    }
+                    dp = k as f64 * (x * p1 - p0) / (x * x - 1.0);
+                    x -= p1 / dp;
+                }
+                (x, 2.0 / ((1.0 - x * x) * dp * dp))
+            })
+            .collect()
     }
 
     #[test]

@@ -6,8 +6,8 @@ use rayon::prelude::*;
 
 use crate::density::quadrature::{self, Rule};
 use crate::density::{
-    check_value, cone_node, polynomial_cone, polynomial_face_moments, sum_sampled, Cone, Density,
-    Field, Quadratic, POLYNOMIAL_DEGREE,
+    check_value, polynomial_cone, polynomial_face_moments, Cone, Density, Field, Quadratic,
+    POLYNOMIAL_DEGREE,
 };
 use crate::error::CoreError;
 use crate::geometry::{add, scale};
@@ -106,6 +106,15 @@ impl<const D: usize> WeightedSums<D> {
         }
     }
 
+    /// With a polynomial: the polynomial about the current cell's site (the sphere
+    /// samples it at its own nodes).
+    pub fn polynomial_about_site(&self) -> Option<&Quadratic<D>> {
+        match &self.kind {
+            Kind::Polynomial { local, .. } => Some(local),
+            _ => None,
+        }
+    }
+
     /// Begin the cell of the site at `site`: nothing summed yet.
     pub fn start_cell(&mut self, site: [f64; D]) {
         if let Kind::Polynomial { global, local, .. } = &mut self.kind {
@@ -143,8 +152,11 @@ impl<const D: usize> WeightedSums<D> {
 
 /// Evaluate `field` once at the nodes of `rule` in every cone simplex of every cell of
 /// `batches` (in batch order, then cell order: fixed by the sites, not by the threads),
-/// check every value, and replace each batch's cones by its cells' weighted moments.
-pub(super) fn sample<const D: usize, C: ConvexCell<D>>(
+/// check every value, and replace each batch's cones by its cells' weighted moments
+/// (nodes and sums as `domain` makes them: [`DomainKind::sampled_node`],
+/// [`DomainKind::sampled_moments`]).
+pub(super) fn sample<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     field: &dyn Field<D>,
     rule: &Rule,
     sites: &[[f64; D]],
@@ -169,7 +181,7 @@ pub(super) fn sample<const D: usize, C: ConvexCell<D>>(
     batches
         .par_iter()
         .zip(slices)
-        .for_each(|(b, out)| write_nodes(b, rule, sites, out));
+        .for_each(|(b, out)| write_nodes(domain, b, rule, sites, out));
     let values = field.values(points)?;
     if values.len() != total {
         return Err(CoreError::InvalidDensity {
@@ -181,7 +193,7 @@ pub(super) fn sample<const D: usize, C: ConvexCell<D>>(
     }
     if let Some(k) = values.iter().position(|&v| !(v.is_finite() && v > 0.0)) {
         // Name the point: find its cell and cone again.
-        return Err(bad_node(batches, rule, sites, k, values[k]));
+        return Err(bad_node(domain, batches, rule, sites, k, values[k]));
     }
     batches
         .par_iter_mut()
@@ -189,13 +201,16 @@ pub(super) fn sample<const D: usize, C: ConvexCell<D>>(
         .for_each(|(b, mut from)| {
             let mut at = 0;
             b.weighted.clear();
-            for &count in &b.cone_counts {
+            for (k, &count) in b.cone_counts.iter().enumerate() {
                 let count = count as usize;
                 let nodes = count * per_cone;
-                b.weighted.push(sum_sampled(
+                let site = sites[b.sites[k] as usize];
+                b.weighted.push(domain.sampled_moments(
+                    site,
                     &b.cones[at..at + count],
                     rule,
                     &values[from..from + nodes],
+                    &b.moments[k],
                 ));
                 at += count;
                 from += nodes;
@@ -206,7 +221,8 @@ pub(super) fn sample<const D: usize, C: ConvexCell<D>>(
 }
 
 /// The nodes of batch `b`'s cones in absolute coordinates, into `out`.
-fn write_nodes<const D: usize, C: ConvexCell<D>>(
+fn write_nodes<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     b: &Batch<D, C>,
     rule: &Rule,
     sites: &[[f64; D]],
@@ -216,9 +232,9 @@ fn write_nodes<const D: usize, C: ConvexCell<D>>(
     let mut at = 0;
     for (&i, &count) in b.sites.iter().zip(&b.cone_counts) {
         let site = sites[i as usize];
-        for (face, _) in &b.cones[at..at + count as usize] {
+        for cone in &b.cones[at..at + count as usize] {
             for ((lambda, _), x) in rule.nodes().zip(&mut slot) {
-                *x = add(site, cone_node(face, lambda));
+                *x = add(site, domain.sampled_node(site, cone, lambda));
             }
         }
         at += count as usize;
@@ -226,7 +242,8 @@ fn write_nodes<const D: usize, C: ConvexCell<D>>(
 }
 
 /// The error for a bad `value` at node `k` of the whole diagram.
-fn bad_node<const D: usize, C: ConvexCell<D>>(
+fn bad_node<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     batches: &[Batch<D, C>],
     rule: &Rule,
     sites: &[[f64; D]],
@@ -239,9 +256,10 @@ fn bad_node<const D: usize, C: ConvexCell<D>>(
         for (&i, &count) in b.sites.iter().zip(&b.cone_counts) {
             let nodes = count as usize * per_cone;
             if k < nodes {
-                let (face, _) = b.cones[at + k / per_cone];
+                let cone = &b.cones[at + k / per_cone];
                 let lambda = rule.nodes().nth(k % per_cone).map_or(&[][..], |n| n.0);
-                let point = add(sites[i as usize], cone_node(&face, lambda));
+                let site = sites[i as usize];
+                let point = add(site, domain.sampled_node(site, cone, lambda));
                 return CoreError::DensityValue {
                     point: point.to_vec(),
                     value,
