@@ -78,7 +78,7 @@ where
     let clipped = py
         .detach(|| crate::threads::run(|| clipped_diagram::<D, C, _>(domain, &points, &request)))
         .map_err(|e| asked.given.error(e))?;
-    let out = diagram_dict(py, domain, &clipped.diagram, &points)?;
+    let out = diagram_dict(py, domain, clipped.diagram, &points)?;
     if asked.keep_cells {
         C::cell_arrays(py, &clipped.cells, &points, &out)?;
     }
@@ -146,11 +146,13 @@ impl CellArrays<3> for PolyhedronCell {
 
 /// The arrays every diagram carries, in any dimension and kind: centroids retracted onto
 /// the domain (the sphere's `∫x/|∫x|`), second moments about them and `G` in the cells'
-/// dimension ([`DomainKind::central_second`], [`DomainKind::g_value`]).
+/// dimension ([`DomainKind::central_second`], [`DomainKind::g_value`]). The diagram is
+/// consumed: its arrays become numpy's without a copy where the types agree, and the
+/// others are dropped as soon as they are converted (issue 32: memory per site).
 pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
     py: Python<'py>,
     domain: &K,
-    diagram: &Diagram<D>,
+    diagram: Diagram<D>,
     sites: &[[f64; D]],
 ) -> PyResult<Bound<'py, PyDict>> {
     let out = PyDict::new(py);
@@ -177,15 +179,18 @@ pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
         .map(|(g, &x)| domain.tangent(x, g))
         .collect();
     out.set_item("gradient", to_array2(py, &gradient)?)?;
+    drop((diagram.moments, diagram.weighted));
     out.set_item(
         "boundary_measure",
-        PyArray1::from_vec(py, diagram.boundary_measure.clone()),
+        PyArray1::from_vec(py, diagram.boundary_measure),
     )?;
     out.set_item("neighbor_offsets", to_intp(py, &diagram.neighbor_offsets)?)?;
+    drop(diagram.neighbor_offsets);
     out.set_item("neighbor_sites", to_intp(py, &diagram.neighbor_sites)?)?;
+    drop(diagram.neighbor_sites);
     out.set_item(
         "neighbor_measures",
-        PyArray1::from_vec(py, diagram.neighbor_measures.clone()),
+        PyArray1::from_vec(py, diagram.neighbor_measures),
     )?;
     if !diagram.neighbor_images.is_empty() {
         // A periodic box: each neighbour's image shift (k, d), int8.

@@ -93,7 +93,7 @@ where
         .map(|&j| global.get(j as usize).copied().unwrap_or(usize::MAX))
         .collect();
     diagram.neighbor_sites.clear();
-    let out = diagram_dict(py, domain, &diagram, &own_sites)?;
+    let out = diagram_dict(py, domain, diagram, &own_sites)?;
     out.set_item("neighbor_sites", to_intp(py, &neighbors)?)?;
     out.set_item("first", to_array2(py, &firsts)?)?;
     out.set_item("reach2", PyArray1::from_vec(py, part.reach2))?;

@@ -436,7 +436,8 @@ fn assemble_passes<const D: usize, C: ConvexCell<D>>(
             let mut at = 0;
             for (k, &i) in b.sites.iter().enumerate() {
                 let (i, count) = (i as usize, b.face_counts[k] as usize);
-                let faces = &b.neighbors[at..at + count];
+                let faces = (b.neighbor_sites[at..at + count].iter())
+                    .zip(&b.neighbor_measures[at..at + count]);
                 at += count;
                 if last[i] != p as u32 {
                     continue;
@@ -444,7 +445,7 @@ fn assemble_passes<const D: usize, C: ConvexCell<D>>(
                 diagram.moments[i] = b.moments[k];
                 diagram.boundary_measure[i] = b.boundary_measure[k];
                 row.clear();
-                row.extend(faces.iter().map(|&(j, measure)| {
+                row.extend(faces.map(|(&j, &measure)| {
                     let (j, shift) = pass.images.image(j as usize);
                     (j, shift, measure)
                 }));
