@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -28,3 +30,12 @@ def random_inside(domain: hcvt.Domain, n: int, seed: int = 0) -> np.ndarray:
         found.append(p)
         count += len(p)
     return np.concatenate(found)[:n]
+
+
+def check_mesh_output(case: Path) -> str:
+    """What OpenFOAM's checkMesh prints for ``case`` (``WM_PROJECT_DIR`` set if missing)."""
+    env = {**os.environ}
+    env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
+    return subprocess.run(
+        ["checkMesh", "-case", str(case)], capture_output=True, text=True, env=env, check=True
+    ).stdout

@@ -8,10 +8,8 @@ are slow (a converged CVT each, 10-80 s on a shared machine).
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
@@ -19,20 +17,13 @@ import pytest
 import hcvt
 from hcvt.errors import InvalidMeshError
 from hcvt.io.solver import LaplaceCheck, OpenFOAMError, laplace_check
+from helpers import check_mesh_output
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 pytestmark = pytest.mark.skipif(
     shutil.which("laplacianFoam") is None, reason="needs OpenFOAM (laplacianFoam)"
 )
-
-
-def _check_mesh(case: Path) -> str:
-    env = {**os.environ}
-    env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
-    return subprocess.run(
-        ["checkMesh", "-case", str(case)], capture_output=True, text=True, env=env, check=True
-    ).stdout
 
 
 def _converged(path: Path, n: int = 1000) -> hcvt.Diagram:
@@ -57,9 +48,9 @@ def test_holed_polygon_extruded(tmp_path):
     # The side faces beyond a hole's corner, seen from behind by their cell's centre, are
     # joined with their neighbours by default: the exact edges fail checkMesh here (3
     # faces of skewness up to 4.75), the default passes.
-    assert "Mesh OK" in _check_mesh(tmp_path / "case")
+    assert "Mesh OK" in check_mesh_output(tmp_path / "case")
     hcvt.write_mesh(diagram, tmp_path / "exact", boundary_faces="exact")
-    assert "highly skew faces" in _check_mesh(tmp_path / "exact")
+    assert "highly skew faces" in check_mesh_output(tmp_path / "exact")
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +66,7 @@ def test_bunny_every_boundary_mode(bunny, tmp_path):
     assert exact.converged and exact.rms_error < 1e-2
     default = _solve(bunny, tmp_path / "default")
     assert default.converged and default.rms_error <= 2 * exact.rms_error
-    assert "Mesh OK." in _check_mesh(tmp_path / "default")
+    assert "Mesh OK." in check_mesh_output(tmp_path / "default")
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +94,7 @@ def test_default_mode_passes_checkmesh_on_the_cheese(cheese, tmp_path):
     # residual 5.0e-16, RMS 5.11e-3 (exact mode 6.25e-3).
     exact = _solve(cheese, tmp_path / "exact", boundary_faces="exact")
     hcvt.write_mesh(cheese, tmp_path / "case")
-    log = _check_mesh(tmp_path / "case")
+    log = check_mesh_output(tmp_path / "case")
     assert "Mesh OK." in log, re.findall(r"\*\*\*(.*)", log)
     result = laplace_check(tmp_path / "case")
     assert result.converged and result.residual < 1e-10 and result.cells == 1000

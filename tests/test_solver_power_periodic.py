@@ -8,10 +8,8 @@ as the Voronoi meshes of tests/test_solver.py.
 
 from __future__ import annotations
 
-import os
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -19,20 +17,13 @@ import pytest
 
 import hcvt
 from hcvt.io.solver import laplace_check
+from helpers import check_mesh_output
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 pytestmark = pytest.mark.skipif(
     shutil.which("laplacianFoam") is None, reason="needs OpenFOAM (laplacianFoam)"
 )
-
-
-def _check_mesh(case: Path) -> str:
-    env = {**os.environ}
-    env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
-    return subprocess.run(
-        ["checkMesh", "-case", str(case)], capture_output=True, text=True, env=env, check=True
-    ).stdout
 
 
 def _converged(domain: hcvt.Domain, n: int) -> hcvt.Diagram:
@@ -61,7 +52,7 @@ def test_periodic_box_solves_a_linear_field_exactly(periodic, cells, tmp_path):
     domain = hcvt.Domain.box([0.0] * len(periodic), hi, periodic=periodic)
     diagram = _converged(domain, cells)
     case = hcvt.write_mesh(diagram, tmp_path / "case")
-    log = _check_mesh(case)
+    log = check_mesh_output(case)
     assert "Mesh OK." in log, re.findall(r"\*\*\*(.*)", log)
     boundary = (case / "constant" / "polyMesh" / "boundary").read_text()
     assert boundary.count("type            cyclic;") >= 2
@@ -77,7 +68,7 @@ def test_torus_passes_checkmesh(power, tmp_path):
     if power:
         diagram = _power(diagram, 1.0)
     case = hcvt.write_mesh(diagram, tmp_path / "case")
-    log = _check_mesh(case)
+    log = check_mesh_output(case)
     assert "Mesh OK." in log, re.findall(r"\*\*\*(.*)", log)
     # Every cyclic patch matched its twin: 13 pairs at most in 3D, face counts equal.
     patches = re.findall(r"^\s+(cyclic_\w+)\s+(\d+)\s+(\d+)\s+ok", log, re.MULTILINE)
@@ -101,7 +92,7 @@ def test_power_mesh_passes_checkmesh_and_converges(name, tmp_path):
         domain = hcvt.load_domain(DATA / "3d" / name)
     diagram = _power(_converged(domain, 1000), 1.0)
     case = hcvt.write_mesh(diagram, tmp_path / "case")
-    log = _check_mesh(case)
+    log = check_mesh_output(case)
     assert "Mesh OK." in log, re.findall(r"\*\*\*(.*)", log)
     result = laplace_check(case)
     assert result.converged and result.residual < 1e-10 and result.cells == 1000
