@@ -458,8 +458,10 @@ SPECIFIC: dict[str, list[Row]] = {
             lambda: hcvt.voronoi(torus((1.0, 1.0)), [(0.5, 0.5), (0.2, 0.3)]).mesh(),
             Gives(
                 "two cells of area 1/2, periodic faces paired",
-                lambda m: np.allclose(m.cell_geometry.volume, 0.5, rtol=0, atol=1e-15)
-                and (m.periodic_partner >= 0).sum() == 10,
+                lambda m: (
+                    np.allclose(m.cell_geometry.volume, 0.5, rtol=0, atol=1e-15)
+                    and (m.periodic_partner >= 0).sum() == 10
+                ),
             ),
         ),
     ],
