@@ -10,9 +10,9 @@ Newton steps of all transports, the largest relative volume error (as the result
 it and as a power diagram of the returned weights computes it again), the RMS gap and the
 spread of the grain volumes.
 
-When ``Diagram.mesh()`` makes conforming meshes of power cells in a periodic box (not yet
-on every branch: the script says so and stops there), the grains are written as an
-OpenFOAM case (``--case``) and ``checkMesh`` runs on it when it is on PATH.
+The grains are then written as an OpenFOAM case with cyclic patch pairs (``--case``;
+``Diagram.mesh()`` of the periodic power diagram) and ``checkMesh`` runs on it when it is on
+PATH.
 
 The machine is shared with other jobs: timings are "under load" unless it is idle.
 Measured 2026-12-03 under heavy load (load average 15-20 on 2 cores, 2 threads): 300
