@@ -190,8 +190,8 @@ def test_bad_input_is_refused_by_row() -> None:
     with pytest.raises(InvalidSitesError, match="sites 3 and 12 coincide"):
         hcvt.voronoi(domain, sites)
     sites[12] = -sites[3]
-    with pytest.raises(InvalidDensityError):
-        hcvt.voronoi(domain, sites, density=lambda p: np.ones(len(p)))
+    with pytest.raises(InvalidDensityError, match="density is -1"):
+        hcvt.voronoi(domain, sites, density=lambda p: -np.ones(len(p)))
     with pytest.raises(NotImplementedError):
         hcvt.voronoi(domain, sites).mesh()
     for radius in (0.0, -1.0, math.inf, "1"):

@@ -17,7 +17,7 @@ band can not pass silently.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import shapely
@@ -25,14 +25,38 @@ from numpy.typing import NDArray
 
 from hcvt import _core
 from hcvt.errors import InvalidMeshError
+from hcvt.geometry.domain import BOX_FACES, Domain
 from hcvt.mesh.polymesh import PolyMesh
 
-if TYPE_CHECKING:
-    from hcvt.diagram import Diagram
-    from hcvt.geometry.domain import Domain
+
+class PeriodicCells(Protocol):
+    """What :func:`periodic_mesh` reads of a :class:`hcvt.Diagram`.
+
+    The diagram sits a layer above the meshes, so it is named here by its shape.
+    """
+
+    @property
+    def domain(self) -> Domain:
+        """The periodic box."""
+
+    @property
+    def sites(self) -> NDArray[np.float64]:
+        """Sites (n, d), anywhere along the periodic axes."""
+
+    @property
+    def neighbor_sites(self) -> NDArray[np.intp]:
+        """The other site of each face (m,)."""
+
+    @property
+    def neighbor_images(self) -> NDArray[np.int8] | None:
+        """The image shift of each face's neighbour (m, d)."""
+
+    @property
+    def weights(self) -> NDArray[np.float64] | None:
+        """Power weights (n,), or None."""
 
 
-def periodic_mesh(diagram: Diagram) -> PolyMesh:
+def periodic_mesh(diagram: PeriodicCells) -> PolyMesh:
     """The mesh of ``diagram``'s cells in its periodic box, periodic faces paired.
 
     Returns
@@ -116,8 +140,6 @@ def bounded(domain: Domain) -> Domain:
 
 def _widened(lo: NDArray[np.float64], hi: NDArray[np.float64]) -> Domain:
     """The box ``[lo, hi]`` as a convex polygon (2D) or solid of 12 triangles (3D)."""
-    from hcvt.geometry.domain import BOX_FACES, Domain
-
     if len(lo) == 2:
         return Domain.from_polygon(shapely.box(lo[0], lo[1], hi[0], hi[1]))
     corners = Domain.box(lo, hi).vertices
