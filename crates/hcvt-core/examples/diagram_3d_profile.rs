@@ -8,25 +8,14 @@
 //! `hessian` (the diagrams carry the Hessian), `cvt` (then an L-BFGS CVT from those sites)
 //! or `newton` (a Newton CVT).
 
+#[path = "common/rows.rs"]
+mod rows;
+
 use std::ops::ControlFlow;
 use std::time::Instant;
 
 use hcvt_core::{cvt, evaluate, Method, PointRequest, PolyhedronCell, Settings, Solid};
-
-/// Rows of whitespace-separated numbers.
-fn read_rows<T: std::str::FromStr, const N: usize>(path: &str) -> Vec<[T; N]> {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    text.lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let mut it = l.split_whitespace().map(|x| {
-                x.parse::<T>()
-                    .unwrap_or_else(|_| panic!("{path}: bad number {x}"))
-            });
-            std::array::from_fn(|_| it.next().expect("short row"))
-        })
-        .collect()
-}
+use rows::read_rows;
 
 fn main() -> Result<(), hcvt_core::CoreError> {
     let args: Vec<String> = std::env::args().skip(1).collect();

@@ -9,6 +9,9 @@
 //! diagrams and once warm-started, `repeats` times (default 3). Prints one line per
 //! diagram timing and checks the two chains bitwise equal (exits non-zero otherwise).
 
+#[path = "common/rows.rs"]
+mod rows;
+
 use std::ops::ControlFlow;
 use std::time::Instant;
 
@@ -18,21 +21,7 @@ use hcvt_core::{
     cvt, evaluate, evaluate_warm, ConvexCell, CoreError, DomainKind, Euclid, Method, Point,
     PointRequest, Polygon, PolygonCell, PolyhedronCell, Settings, Solid, Space, WarmStart,
 };
-
-/// Rows of whitespace-separated numbers.
-fn read_rows<T: std::str::FromStr, const N: usize>(path: &str) -> Vec<[T; N]> {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    text.lines()
-        .filter(|l| !l.trim().is_empty())
-        .map(|l| {
-            let mut it = l.split_whitespace().map(|x| {
-                x.parse::<T>()
-                    .unwrap_or_else(|_| panic!("{path}: bad number {x}"))
-            });
-            std::array::from_fn(|_| it.next().expect("short row"))
-        })
-        .collect()
-}
+use rows::read_rows;
 
 /// Median of `values` (sorted in place).
 fn median(values: &mut [f64]) -> f64 {
