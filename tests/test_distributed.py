@@ -614,3 +614,64 @@ def test_lloyd_and_lbfgs_in_a_domain_far_from_the_origin(client, holes):
             assert np.abs(got.sites - expected.sites).max() <= 64 * ulp
         # L-BFGS: the partitioned line search is not the core's; it must still descend
         assert np.all(np.diff(got.history["energy"]) < 0), method
+
+
+# --------------------------------------------------------------------------- the sphere
+
+
+def _skip_three_kinds(client) -> None:
+    if len(client.scheduler_info()["workers"]) == 3:
+        pytest.skip("the sphere, power and periodic kinds: 1 and 2 workers (time budget)")
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    """The unit sphere and 1,500 random sites on it."""
+    domain = hcvt.Domain.sphere(1.0)
+    return domain, hcvt.initialise(domain, n=1500, method="random", seed=8)
+
+
+def test_sphere_partitioned_diagram_is_bitwise_the_single_process_one(client, sphere):
+    """Areas, centroids, arc lengths, neighbours and the tangent gradient of every cell."""
+    _skip_three_kinds(client)
+    domain, sites = sphere
+    parted = partitioned_voronoi(domain, sites, client, sites_per_partition=300)
+    assert parted.parts >= 5
+    assert_bitwise(parted.gather(), hcvt.voronoi(domain, sites))
+    assert sum(parted.rounds.cells[1:]) < 0.3 * len(sites)
+
+
+def test_sphere_lloyd_is_bitwise_the_single_process_lloyd(client, sphere):
+    """Each part's sites go back to the core as they came out of its retraction (not
+    normalised again): the iterates are the single process's, bit for bit."""
+    _skip_three_kinds(client)
+    domain, sites = sphere
+    expected = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=6)
+    got = hcvt.cvt(
+        domain, sites, "lloyd", tol=0, max_iter=6, client=client, sites_per_partition=400
+    )
+    assert np.array_equal(got.sites, expected.sites)
+    assert_bitwise(got.diagram, expected.diagram)
+    np.testing.assert_allclose(got.history["energy"], expected.history["energy"], rtol=1e-13)
+    np.testing.assert_allclose(got.history["rms_gap"], expected.history["rms_gap"], rtol=1e-12)
+
+
+_SPHERE_LBFGS: dict[str, object] = {}
+
+
+def test_sphere_lbfgs_is_bitwise_the_same_for_any_number_of_workers(client, sphere):
+    _skip_three_kinds(client)
+    domain, sites = sphere
+    res = partitioned_cvt(domain, sites, "lbfgs", client, max_iter=5, sites_per_partition=400)
+    assert np.all(np.diff(res.history["energy"]) < 0)
+    assert "lbfgs" in list(res.history["step"])
+    got = res.gather()
+    # Trial sites are retracted by the core: every iterate stays on the sphere.
+    np.testing.assert_allclose(np.linalg.norm(got.sites, axis=1), 1.0, rtol=0, atol=4e-16)
+    seen = _SPHERE_LBFGS.setdefault("run", got)
+    assert np.array_equal(got.sites, seen.sites)
+    assert np.array_equal(got.history["energy"], seen.history["energy"])
+    # hcvt.voronoi pushes the sites onto the sphere once more: equal to round-off.
+    again = hcvt.voronoi(domain, got.sites)
+    assert np.array_equal(got.diagram.neighbors, again.neighbors)
+    np.testing.assert_allclose(got.diagram.volume, again.volume, rtol=1e-12)

@@ -105,10 +105,8 @@ def voronoi(
     >>> diagram.G.round(6)
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
-    if client is not None and (domain.is_sphere or domain.is_surface):
-        raise NotImplementedError(
-            "partitioned diagrams on the sphere or a surface are not implemented yet"
-        )
+    if client is not None and domain.is_surface:
+        raise NotImplementedError("partitioned diagrams on a surface are not implemented yet")
     if client is not None and weights is not None:
         raise NotImplementedError("partitioned power diagrams (weights) are not implemented yet")
     if client is None:
@@ -284,10 +282,8 @@ def cvt(
                 "(client=): run without client"
             )
         options |= {"volumes": volumes, "normalise": normalise, "volume_tol": volume_tol}
-    if client is not None and (domain.is_sphere or domain.is_surface):
-        raise NotImplementedError(
-            "partitioned CVTs on the sphere or a surface are not implemented yet"
-        )
+    if client is not None and domain.is_surface:
+        raise NotImplementedError("partitioned CVTs on a surface are not implemented yet")
     if client is None:
         return optimise.cvt(domain, sites, method, **options)
     method = method or optimise.fastest_method(domain, density, partitioned=True)

@@ -74,7 +74,8 @@ class _Cluster:
         self.domain = domain
         self.n = n
         self.allow_outside = allow_outside
-        self.h = (domain.volume / n) ** (1.0 / domain.dim)
+        # Spacing and halo by the cells' dimension (2 on the sphere, whose area is `volume`).
+        self.h = (domain.volume / n) ** (1.0 / domain.cell_dim)
         self.density = density
         self.quadrature_degree = quadrature_degree
         if density is not None:
@@ -116,7 +117,7 @@ class _Cluster:
         boxes, counts = self.boxes(parts)
         reach_boxes = list(boxes)  # boxes stays the box of each part's sites
         nonempty = [p for p in range(len(parts)) if counts[p] > 0]
-        rho = {p: HALO_SPACINGS[self.domain.dim] * self.h for p in nonempty}
+        rho = {p: HALO_SPACINGS[self.domain.cell_dim] * self.h for p in nonempty}
         cells: list[Any] = [self.submit(pt.empty_cells, self.domain.dim)] * len(parts)
         previous: dict[int, Any] = {}
         pending = list(nonempty)
@@ -275,7 +276,10 @@ class PartitionedDiagram:
             take = starts + np.arange(len(starts))
             neighbor_sites[take] = f["neighbor_sites"]
             neighbor_measures[take] = f["neighbor_measures"]
-        arrays["gradient"] = arrays.pop("first") * -2.0
+        first = arrays.pop("first")
+        # The core's tangent gradient on the sphere; -2 first, exactly, elsewhere.
+        if "gradient" not in arrays:
+            arrays["gradient"] = first * -2.0
         arrays.update(
             energy=self.energy,
             neighbor_offsets=offsets,
@@ -350,7 +354,7 @@ def partitioned_voronoi(
     ``sites_per_partition``, with a ``density`` too (a callable must give each point's
     value whatever the other points of the call: module docs).
     """
-    points = as_sites(sites, domain.dim)
+    points = domain.frame.onto_domain(as_sites(sites, domain.dim))
     start = time.perf_counter()
     cluster = _Cluster(client, domain, len(points), allow_outside, density, quadrature_degree)
     split_at = time.perf_counter()
@@ -645,7 +649,7 @@ def partitioned_cvt(
             f"a partitioned CVT runs 'lbfgs' or 'lloyd' (Newton needs a halo exchange per "
             f"Hessian product), got {method!r}"
         )
-    points = as_sites(sites, domain.dim)
+    points = domain.frame.onto_domain(as_sites(sites, domain.dim))
     cluster = _Cluster(client, domain, len(points), False, density, quadrature_degree)
     split = pt.kd_split(points, sites_per_partition)
     temporary = None

@@ -434,20 +434,18 @@ def part_cells(
     with frame.input_errors():
         out = _core.partition_cells(
             domain._core,
-            frame.to_core(sites),
+            frame.steps_to_core(sites),
             rows,
             own.astype(np.uint32),
             int(total_sites),
             allow_outside=allow_outside,
             **core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree),
         )
-    # Kept once: the energy is summed by the client, the gradient is -2 first.
+    # Kept once: the energy is summed by the client, the gradient is -2 first but on the
+    # sphere (the core's projection onto the tangent plane).
+    dropped = ("energy",) if domain.is_sphere else ("energy", "gradient")
     cells = _in_row_order(
-        {
-            key: frame.to_input(key, value)
-            for key, value in out.items()
-            if key not in ("energy", "gradient")
-        },
+        {key: frame.to_input(key, value) for key, value in out.items() if key not in dropped},
         visit,
     )
     reach = np.sqrt(frame.to_input("reach2", cells.pop("reach2")))
@@ -544,7 +542,13 @@ def _replace_rows(
 
 
 def gradient_of(cells: PartCells) -> NDArray[np.float64]:
-    """``∂E/∂x_i = -2 ∫ρ(x - x_i)`` of each cell, (k, d): the core's, bit for bit."""
+    """``∂E/∂x_i = -2 ∫ρ(x - x_i)`` of each cell, (k, d): the core's, bit for bit.
+
+    On the sphere the core's projection of it onto each site's tangent plane, kept with
+    the cells.
+    """
+    if "gradient" in cells.arrays:
+        return cells.arrays["gradient"]
     return cells.arrays["first"] * -2.0
 
 
@@ -578,12 +582,12 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     a = cells.arrays
     volume, mass, first = a["volume"], a["mass"], a["first"]
     gradient = gradient_of(cells)
-    d = domain.dim
+    d = domain.cell_dim
     # The core's domain is in its frame: positions and quantities go in and come back.
     frame = domain.frame
     shift, pinned, precond = _core.step_fields(
         domain._core,
-        _arg(frame.to_core(part.sites)),
+        _arg(frame.steps_to_core(part.sites)),
         _arg(frame.quantity_to_core("mass", mass)),
         _arg(frame.quantity_to_core("first", first)),
         _arg(frame.quantity_to_core("boundary_measure", a["boundary_measure"])),
@@ -591,7 +595,12 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     shift, precond = frame.to_input("shift", shift), frame.to_input("precond", precond)
     counted = ~pinned & (volume > 0) & (mass > 0)
     m, v = mass[counted], volume[counted]
-    r = np.sqrt((first[counted] ** 2).sum(axis=1)) / m / v ** (1.0 / d)
+    # |x - c| = |m1| / m; on the sphere the tangent part of m1, |g| / 2 (as the core).
+    if d == domain.dim:
+        offset = np.sqrt((first[counted] ** 2).sum(axis=1)) / m
+    else:
+        offset = np.sqrt((gradient[counted] ** 2).sum(axis=1)) / (2.0 * m)
+    r = offset / v ** (1.0 / d)
     g = a["G"][~np.isnan(a["G"])]
     partials = {
         "energy": math.fsum(a["energy_terms"]),
@@ -617,7 +626,7 @@ def lloyd_part(domain: Domain, part: Part) -> Part:
     frame = domain.frame
     shift = frame.quantity_to_core("shift", part.fields["shift"])
     sites = frame.to_input(
-        "sites", _core.lloyd_step(domain._core, _arg(frame.to_core(part.sites)), _arg(shift))
+        "sites", _core.lloyd_step(domain._core, _arg(frame.steps_to_core(part.sites)), _arg(shift))
     )
     fields = {k: v for k, v in part.fields.items() if k in ("s", "y")}
     return Part(part.index, part.rows, sites, fields)
@@ -674,7 +683,7 @@ def lbfgs_direction(
     frame = domain.frame  # P'v' = Pv / s and s' = s / s: the same coefficients serve
     direction = _core.lbfgs_direction(
         domain._core,
-        _arg(frame.to_core(part.sites)),
+        _arg(frame.steps_to_core(part.sites)),
         _arg(frame.quantity_to_core("gradient", g)),
         _arg(frame.quantity_to_core("pair_s", part.fields.get("s", empty))),
         _arg(frame.quantity_to_core("pair_y", part.fields.get("y", empty))),
@@ -689,8 +698,17 @@ def lbfgs_direction(
 
 
 def trial_part(domain: Domain, part: Part, t: float) -> tuple[Part, bool]:
-    """The sites ``x + t·direction`` (no fields) and whether all are inside or on."""
+    """The sites ``x + t·direction`` (no fields) and whether all are inside or on.
+
+    On the sphere the core's retraction takes them back onto it, as the single process
+    does with its trial sites.
+    """
     sites = part.sites + t * part.fields["direction"]
+    if domain.is_sphere:
+        frame = domain.frame
+        # The Lloyd step by no move is the core's retraction alone.
+        core = _arg(frame.steps_to_core(sites))
+        sites = frame.to_input("sites", _core.lloyd_step(domain._core, core, np.zeros_like(core)))
     return Part(part.index, part.rows, sites), bool(inside_or_on(domain, sites).all())
 
 
