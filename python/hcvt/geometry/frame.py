@@ -94,6 +94,7 @@ UNITS: dict[str, Unit | None] = {
     # not quantities: indices and counts
     "neighbor_offsets": None,
     "neighbor_sites": None,
+    "neighbor_images": None,  # image shifts k, integers
     "face_offsets": None,
     "face_vertices": None,
     "owner": None,
