@@ -614,3 +614,138 @@ def test_lloyd_and_lbfgs_in_a_domain_far_from_the_origin(client, holes):
             assert np.abs(got.sites - expected.sites).max() <= 64 * ulp
         # L-BFGS: the partitioned line search is not the core's; it must still descend
         assert np.all(np.diff(got.history["energy"]) < 0), method
+
+
+# --------------------------------------------------------------------------- the sphere
+
+
+def _skip_three_kinds(client) -> None:
+    if len(client.scheduler_info()["workers"]) == 3:
+        pytest.skip("the sphere, power and periodic kinds: 1 and 2 workers (time budget)")
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    """The unit sphere and 1,500 random sites on it."""
+    domain = hcvt.Domain.sphere(1.0)
+    return domain, hcvt.initialise(domain, n=1500, method="random", seed=8)
+
+
+def test_sphere_partitioned_diagram_is_bitwise_the_single_process_one(client, sphere):
+    """Areas, centroids, arc lengths, neighbours and the tangent gradient of every cell."""
+    _skip_three_kinds(client)
+    domain, sites = sphere
+    parted = partitioned_voronoi(domain, sites, client, sites_per_partition=300)
+    assert parted.parts >= 5
+    assert_bitwise(parted.gather(), hcvt.voronoi(domain, sites))
+    assert sum(parted.rounds.cells[1:]) < 0.3 * len(sites)
+
+
+def test_sphere_lloyd_is_bitwise_the_single_process_lloyd(client, sphere):
+    """Each part's sites go back to the core as they came out of its retraction (not
+    normalised again): the iterates are the single process's, bit for bit."""
+    _skip_three_kinds(client)
+    domain, sites = sphere
+    expected = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=6)
+    got = hcvt.cvt(
+        domain, sites, "lloyd", tol=0, max_iter=6, client=client, sites_per_partition=400
+    )
+    assert np.array_equal(got.sites, expected.sites)
+    assert_bitwise(got.diagram, expected.diagram)
+    np.testing.assert_allclose(got.history["energy"], expected.history["energy"], rtol=1e-13)
+    np.testing.assert_allclose(got.history["rms_gap"], expected.history["rms_gap"], rtol=1e-12)
+
+
+_SPHERE_LBFGS: dict[str, object] = {}
+
+
+def test_sphere_lbfgs_is_bitwise_the_same_for_any_number_of_workers(client, sphere):
+    _skip_three_kinds(client)
+    domain, sites = sphere
+    res = partitioned_cvt(domain, sites, "lbfgs", client, max_iter=5, sites_per_partition=400)
+    assert np.all(np.diff(res.history["energy"]) < 0)
+    assert "lbfgs" in list(res.history["step"])
+    got = res.gather()
+    # Trial sites are retracted by the core: every iterate stays on the sphere.
+    np.testing.assert_allclose(np.linalg.norm(got.sites, axis=1), 1.0, rtol=0, atol=4e-16)
+    seen = _SPHERE_LBFGS.setdefault("run", got)
+    assert np.array_equal(got.sites, seen.sites)
+    assert np.array_equal(got.history["energy"], seen.history["energy"])
+    # hcvt.voronoi pushes the sites onto the sphere once more: equal to round-off.
+    again = hcvt.voronoi(domain, got.sites)
+    assert np.array_equal(got.diagram.neighbors, again.neighbors)
+    np.testing.assert_allclose(got.diagram.volume, again.volume, rtol=1e-12)
+
+
+# ---------------------------------------------------------------------- power diagrams
+
+
+def test_power_partitioned_diagram_is_bitwise_the_single_process_one(client, holes):
+    """Random weights leave cells empty, and one heavy site's cell reaches over several
+    parts' halos: its neighbours are certified only by the bound of the largest weight
+    (DESIGN §14), so they are computed again among wider balls."""
+    _skip_three_kinds(client)
+    rng = np.random.default_rng(4)
+    box = hcvt.Domain.box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
+    for domain, sites in ((holes[0], holes[1][:600]), (box, rng.random((500, 3)))):
+        h2 = (domain.volume / len(sites)) ** (2 / domain.dim)
+        weights = rng.uniform(0.0, 2.0 * h2, len(sites))
+        weights[7] = 40.0 * h2
+        expected = hcvt.voronoi(domain, sites, weights=weights)
+        assert (expected.volume == 0).sum() >= 5  # empty cells: no faces, G NaN
+        assert expected.volume[7] > 15 * domain.volume / len(sites)
+        parted = partitioned_voronoi(
+            domain, sites, client, sites_per_partition=120, weights=weights
+        )
+        assert parted.parts >= 4
+        got = parted.gather()
+        assert_bitwise(got, expected)
+        assert np.array_equal(got.weights, expected.weights)
+        assert len(parted.rounds.cells) > 1  # the heavy cell's neighbours went again
+    got = hcvt.voronoi(box, sites, weights=weights, client=client, sites_per_partition=200)
+    assert_bitwise(got, expected)
+
+
+# ----------------------------------------------------------------------- periodic boxes
+
+
+def _periodic_cases():
+    """Boxes periodic along all axes or some, random sites, some given a period away."""
+    rng = np.random.default_rng(6)
+    square = rng.random((700, 2)) * [2.0, 1.0]
+    square[:6, 0] += 2.0  # outside [lo, hi) along a periodic axis: stands for its image
+    cube = rng.random((450, 3))
+    cube[:6, 2] -= 1.0
+    return [
+        (hcvt.Domain.box([0.0, 0.0], [2.0, 1.0], periodic=True), square),
+        (hcvt.Domain.box([0.0, 0.0], [2.0, 1.0], periodic=(True, False)), square),
+        (hcvt.Domain.box([0.0, 0.0, 0.0], [1.0, 1.0, 1.0], periodic=(False, True, True)), cube),
+    ]
+
+
+def test_periodic_partitioned_diagram_is_bitwise_the_single_process_one(client):
+    """Halos wrap across the periodic sides: every face, with its neighbour's image shift,
+    is the single process's, bit for bit."""
+    _skip_three_kinds(client)
+    for domain, sites in _periodic_cases():
+        expected = hcvt.voronoi(domain, sites)
+        parted = partitioned_voronoi(domain, sites, client, sites_per_partition=120)
+        assert parted.parts >= 4
+        got = parted.gather()
+        assert_bitwise(got, expected)
+        assert np.array_equal(got.neighbor_images, expected.neighbor_images)
+        across = np.any(expected.neighbor_images != 0, axis=1)
+        assert across.sum() > 50  # many faces across a periodic side
+        assert got.volume.sum() == pytest.approx(domain.volume, rel=1e-12)
+
+
+def test_periodic_lloyd_is_bitwise_the_single_process_lloyd(client):
+    _skip_three_kinds(client)
+    for domain, sites in _periodic_cases()[1:]:
+        expected = hcvt.cvt(domain, sites, "lloyd", tol=0, max_iter=4)
+        got = hcvt.cvt(
+            domain, sites, "lloyd", tol=0, max_iter=4, client=client, sites_per_partition=150
+        )
+        assert np.array_equal(got.sites, expected.sites)
+        assert_bitwise(got.diagram, expected.diagram)
+        np.testing.assert_allclose(got.history["energy"], expected.history["energy"], rtol=1e-13)

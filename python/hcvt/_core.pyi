@@ -171,8 +171,8 @@ def restricted_delaunay(surface: SurfaceDomain, sites: _Float2) -> RestrictedDel
 _Coefficients = tuple[float, Sequence[float], Sequence[Sequence[float]]]
 _Function = Callable[[NDArray[np.float64]], ArrayLike]
 
-# Each function takes any kind of domain: a polygon (d = 2), a solid (d = 3), a box (mesh,
-# mesh_part and the steps of a partitioned run raise InvalidDomainError for a box) or the
+# Each function takes any kind of domain: a polygon (d = 2), a solid (d = 3), a box (mesh
+# and mesh_part raise InvalidDomainError for a box) or the
 # unit sphere or a triangle surface (sites in 3D, cells of dimension 2; mesh and mesh_part
 # refuse them); the dicts
 # it returns are typed in hcvt.core_results.
@@ -241,6 +241,8 @@ def partition_cells(
     polynomial: _Coefficients | None = None,
     function: _Function | None = None,
     quadrature_degree: int = 4,
+    weights: NDArray[np.float64] | None = None,
+    power_whole: tuple[list[float], list[float], float] | None = None,
 ) -> PartCellsArrays: ...
 
 # `frame=(centre, scale)`: the sites are in the frame x' = (x - centre) / scale, and

@@ -70,7 +70,7 @@ def voronoi(
     weights : array_like of float, shape (n,), optional
         The power (Laguerre) diagram of these weights, L²: cell ``i`` is ``{x : |x - z_i|²
         - w_i <= |x - z_j|² - w_j}`` inside the domain, on every flat domain kind (not on
-        the sphere, nor with ``client`` yet). A cell may be empty (volume 0, no
+        the sphere; with ``client`` bitwise too). A cell may be empty (volume 0, no
         neighbours, G NaN) and need not hold its site; ``weights=0`` is the Voronoi
         diagram bit for bit. :func:`hcvt.optimal_transport` finds the weights that give
         each cell a prescribed mass. ``Diagram.mesh()`` of a power diagram is not
@@ -105,12 +105,8 @@ def voronoi(
     >>> diagram.G.round(6)
     array([0.083333, 0.083333, 0.083333, 0.083333])
     """
-    if client is not None and (domain.is_sphere or domain.is_surface):
-        raise NotImplementedError(
-            "partitioned diagrams on the sphere or a surface are not implemented yet"
-        )
-    if client is not None and weights is not None:
-        raise NotImplementedError("partitioned power diagrams (weights) are not implemented yet")
+    if client is not None and domain.is_surface:
+        raise NotImplementedError("partitioned diagrams on a surface are not implemented yet")
     if client is None:
         return diagram.voronoi(
             domain,
@@ -128,6 +124,7 @@ def voronoi(
         allow_outside=allow_outside,
         density=density,
         quadrature_degree=quadrature_degree,
+        weights=weights,
     ).gather()
 
 
@@ -284,10 +281,8 @@ def cvt(
                 "(client=): run without client"
             )
         options |= {"volumes": volumes, "normalise": normalise, "volume_tol": volume_tol}
-    if client is not None and (domain.is_sphere or domain.is_surface):
-        raise NotImplementedError(
-            "partitioned CVTs on the sphere or a surface are not implemented yet"
-        )
+    if client is not None and domain.is_surface:
+        raise NotImplementedError("partitioned CVTs on a surface are not implemented yet")
     if client is None:
         return optimise.cvt(domain, sites, method, **options)
     method = method or optimise.fastest_method(domain, density, partitioned=True)

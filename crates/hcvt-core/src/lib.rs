@@ -42,8 +42,8 @@ pub use diagram::{
     clipped_cells, clipped_diagram, conforming_mesh, conforming_mesh_part, conforming_power_mesh,
     morton_order, BoxDomain, Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals,
     FaceIntegrand, Matrix, MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh,
-    PolygonCell, PolyhedronCell, Request, RestrictedDelaunay, SiteIndex, Sphere, Surface,
-    WarmStart, ON_SPHERE_TOL,
+    PolygonCell, PolyhedronCell, PowerWhole, Request, RestrictedDelaunay, SiteIndex, Sphere,
+    Surface, WarmStart, ON_SPHERE_TOL,
 };
 pub use domain::{generalized_winding_number, Boundary, Polygon, Solid, TriangleSet};
 pub use error::CoreError;

@@ -374,7 +374,7 @@ pub enum AnyDomain<'py> {
 /// `by_kind!(domain, f(args…))` calls `f::<D, Cell, _>(&kind, args…)` for the dimension
 /// `D`, convex cell type and domain kind of `domain` (an [`AnyDomain`]; `f` is generic over
 /// [`DomainKind`]). `by_kind!(domain, dim f(args…))` calls `f::<D, _>(&kind, args…)` for
-/// the steps of a partitioned run (a box is refused: its runs are not partitioned yet);
+/// the steps of a partitioned run (a surface is refused: its runs are not partitioned);
 /// `by_kind!(domain, bounded dim f(args…))` calls `f::<D>(&boundary, args…)` for jobs
 /// that read a [`hcvt_core::Boundary`] of simplices (the conforming mesh): boxes and the sphere are
 /// refused.
@@ -402,16 +402,12 @@ macro_rules! by_kind {
             $crate::domain::AnyDomain::Polygon(d) => $f::<2, _>(&d.0, $($arg),*),
             $crate::domain::AnyDomain::Solid(d) => $f::<3, _>(&d.0, $($arg),*),
             $crate::domain::AnyDomain::Sphere(d) => $f::<3, _>(&d.0, $($arg),*),
-            $crate::domain::AnyDomain::Box2(_) | $crate::domain::AnyDomain::Box3(_) => {
-                Err($crate::errors::InvalidDomainError::new_err(
-                    "the steps of a partitioned run take a polygon, a solid or the sphere, \
-                     not a box",
-                ))
-            }
+            $crate::domain::AnyDomain::Box2(d) => $f::<2, _>(&d.0, $($arg),*),
+            $crate::domain::AnyDomain::Box3(d) => $f::<3, _>(&d.0, $($arg),*),
             $crate::domain::AnyDomain::Surface(_) => {
                 Err($crate::errors::InvalidDomainError::new_err(
-                    "the steps of a partitioned run take a polygon, a solid or the sphere, \
-                     not a surface",
+                    "the steps of a partitioned run take a polygon, a solid, a box or the \
+                     sphere, not a surface",
                 ))
             }
         }

@@ -1,7 +1,7 @@
 //! One partition's cells among its own sites and a halo (`hcvt.distributed`).
 
 use hcvt_core::{
-    clipped_cells, ConvexCell, DomainKind, Euclid, Options, PartCells, Request, Space,
+    clipped_cells, ConvexCell, DomainKind, Euclid, Options, PartCells, PowerWhole, Request, Space,
 };
 use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -16,9 +16,11 @@ use crate::domain::{by_kind, AnyDomain};
 /// whose row numbers are `rows` (n,), increasing: a diagram dict with one row per own site
 /// and neighbours in the problem's rows, plus `first` (k, d), each cell's first moment
 /// about its site (ρ-weighted with a density, as `mass`, `centroid` and `energy_terms`),
-/// and `reach2` (k,) (see `hcvt.distributed`). The density as for `voronoi`.
+/// and `reach2` (k,) (see `hcvt.distributed`). The density as for `voronoi`. A part of a
+/// power diagram takes `weights` (n,), indexed like `sites`, and `power_whole`, the whole
+/// problem's `(lo (d,), hi (d,), largest weight)` of its sites (`hcvt_core::PowerWhole`).
 #[pyfunction]
-#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4))]
+#[pyo3(signature = (domain, sites, rows, own, total_sites, allow_outside=false, polynomial=None, function=None, quadrature_degree=4, weights=None, power_whole=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn partition_cells<'py>(
     py: Python<'py>,
@@ -31,12 +33,17 @@ pub fn partition_cells<'py>(
     polynomial: Option<Coefficients>,
     function: Option<Py<PyAny>>,
     quadrature_degree: usize,
+    weights: Option<PyReadonlyArray1<'py, f64>>,
+    power_whole: Option<(Vec<f64>, Vec<f64>, f64)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let given = Given::new(polynomial, function, quadrature_degree)?;
+    let weights = weights.as_ref().map(|w| w.as_slice()).transpose()?;
     let job = Part {
         total_sites,
         allow_outside,
         given: &given,
+        weights,
+        power_whole: power_whole.as_ref(),
     };
     by_kind!(domain, cells_dict(py, sites, rows, own, job))
 }
@@ -46,6 +53,30 @@ struct Part<'a> {
     total_sites: usize,
     allow_outside: bool,
     given: &'a Given,
+    weights: Option<&'a [f64]>,
+    power_whole: Option<&'a (Vec<f64>, Vec<f64>, f64)>,
+}
+
+/// The whole problem's box and largest weight as the core takes them, checked.
+fn power_whole<const D: usize>(
+    given: (&[f64], &[f64], f64),
+    sites: usize,
+) -> PyResult<PowerWhole<D>> {
+    let (lo, hi, max_weight) = given;
+    let corner = |v: &[f64], what: &str| -> PyResult<[f64; D]> {
+        <[f64; D]>::try_from(v).map_err(|_| {
+            pyo3::exceptions::PyValueError::new_err(format!(
+                "power_whole: {what} must have {D} values, got {}",
+                v.len()
+            ))
+        })
+    };
+    Ok(PowerWhole {
+        lo: corner(lo, "lo")?,
+        hi: corner(hi, "hi")?,
+        sites,
+        max_weight,
+    })
 }
 
 fn cells_dict<'py, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
@@ -68,13 +99,25 @@ where
             allow_outside: job.allow_outside,
         },
         density: density.as_ref(),
+        weights: job.weights,
         ..Request::default()
     };
     let total_sites = job.total_sites;
+    let whole = job
+        .power_whole
+        .map(|(lo, hi, w)| power_whole::<D>((lo, hi, *w), total_sites))
+        .transpose()?;
     let part: PartCells<D> = py
         .detach(|| {
             crate::threads::run(|| {
-                clipped_cells::<D, C, _>(domain, &points, &own, total_sites, &request)
+                clipped_cells::<D, C, _>(
+                    domain,
+                    &points,
+                    &own,
+                    total_sites,
+                    &request,
+                    whole.as_ref(),
+                )
             })
         })
         .map_err(|e| {

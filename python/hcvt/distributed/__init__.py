@@ -13,6 +13,29 @@ reach (a ball per cell), and so on until every cell is certified or its part hol
 site. The per-cell arrays are then bitwise
 those of :func:`hcvt.voronoi` in one process (module docs of :mod:`hcvt.distributed.partition`).
 
+**Domain kinds.** Polygons, solids, boxes, the sphere (``h`` by the cells' dimension 2),
+and boxes periodic along some axes or all; not surfaces.
+
+- *Periodic boxes*: halos and balls are taken among the sites wrapped into the box, by the
+  images ``x + k∘L``, ``k`` in ``{-1, 0, 1}`` on the periodic axes (:class:`~hcvt.
+  distributed.partition.Torus`), so a part near a side gets the sites across it. The core
+  computes the part's cells among the images of the sites it was given, in a band grown
+  until it covers each cell's reach (as for the whole diagram, ``periodic_box.rs``), sites
+  before images and images by site and shift as in the whole problem; each neighbour
+  comes with its image shift (``neighbor_images``). Lloyd runs keep the sites as the core
+  moves them (unwrapped) and :meth:`PartitionedCVTResult.gather` wraps them, as
+  :func:`hcvt.cvt` does.
+- *The sphere*: a part's sites go back to the core as its steps left them
+  (``Frame.steps_to_core``: not normalised again), so Lloyd is bitwise for a radius that
+  is a power of two (1 included); the gradient is the core's tangent one, the L-BFGS
+  trial sites are retracted by the core.
+- *Power diagrams* (``weights=``, :func:`partitioned_voronoi` only): the weights are sent
+  to every worker; a part's cells take the whole problem's box of sites and largest weight
+  (``hcvt_core::PowerWhole``), so their grid of weights is the whole problem's block for
+  block (the heavier sites are clipped in the same order) and each cell's reach bounds the
+  heavier sites by the largest weight of all (DESIGN §14): a heavy site far away is inside
+  the reach, and the rounds fetch it. Not in a periodic box yet.
+
 **Sums.** Energy, mean G, the stopping measures and the L-BFGS dot products are summed per
 part with :func:`math.fsum` in row order, then over the parts in part order. They differ
 from the single process's sequential sums by round-off (energies agree to about 1e-15

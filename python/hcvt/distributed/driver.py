@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from hcvt import _core
 from hcvt.core_results import DiagramArrays
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
-from hcvt.diagram import Diagram, as_sites
+from hcvt.diagram import Diagram, as_sites, as_weights
 from hcvt.distributed import partition as pt
 from hcvt.distributed import partition_mesh
 from hcvt.errors import InvalidDomainError, InvalidSitesError
@@ -69,12 +69,23 @@ class _Cluster:
         allow_outside: bool = False,
         density: DensityLike = None,
         quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+        power: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
     ):
         self.client = client
         self.domain = domain
         self.n = n
+        #: A power diagram's weights in L (n,), or None.
+        self.weights = None if power is None else power[0]
+        #: A periodic box's axes: halos wrap across its sides.
+        self.torus = pt.Torus.of(domain)
+        if self.torus is not None and power is not None and np.any(power[0]):
+            raise NotImplementedError(
+                "partitioned power diagrams in a periodic box are not implemented yet"
+            )
+        self._power = _power_whole(domain, *power) if power is not None else None
         self.allow_outside = allow_outside
-        self.h = (domain.volume / n) ** (1.0 / domain.dim)
+        # Spacing and halo by the cells' dimension (2 on the sphere, whose area is `volume`).
+        self.h = (domain.volume / n) ** (1.0 / domain.cell_dim)
         self.density = density
         self.quadrature_degree = quadrature_degree
         if density is not None:
@@ -97,6 +108,13 @@ class _Cluster:
                 "density": self.client.scatter(self.density, broadcast=True, hash=False),
                 "quadrature_degree": self.quadrature_degree,
             }
+        if self._power is not None:
+            # Every part reads the weights of its own and halo rows from the whole array.
+            core_weights, whole = self._power
+            self.weighting["weights"] = self.client.scatter(
+                core_weights, broadcast=True, hash=False
+            )
+            self.weighting["power_whole"] = whole
 
     def submit(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
         return self.client.submit(fn, *args, pure=False, **kwargs)
@@ -108,15 +126,16 @@ class _Cluster:
         return self.submit(operator.getitem, future, k)
 
     def boxes(self, parts: list[Any]) -> tuple[list[Any], list[int]]:
-        info = self.gather([self.submit(_box_and_count, p) for p in parts])
+        info = self.gather([self.submit(_box_and_count, p, self.torus) for p in parts])
         return [b for b, _ in info], [c for _, c in info]
 
     def cells(self, parts: list[Any]) -> tuple[list[Any], Rounds]:
         """The certified cells of every part (futures of :class:`PartCells`)."""
         boxes, counts = self.boxes(parts)
         reach_boxes = list(boxes)  # boxes stays the box of each part's sites
+        torus = self.torus
         nonempty = [p for p in range(len(parts)) if counts[p] > 0]
-        rho = {p: HALO_SPACINGS[self.domain.dim] * self.h for p in nonempty}
+        rho = {p: HALO_SPACINGS[self.domain.cell_dim] * self.h for p in nonempty}
         cells: list[Any] = [self.submit(pt.empty_cells, self.domain.dim)] * len(parts)
         previous: dict[int, Any] = {}
         pending = list(nonempty)
@@ -128,20 +147,19 @@ class _Cluster:
                 # Where part p's halo must reach: its sites' box widened by rho, or later
                 # the box of the balls of its cells not certified.
                 lo, hi = reach_boxes[p][0] - rho[p], reach_boxes[p][1] + rho[p]
-                neighbours = [
-                    q
-                    for q in nonempty
-                    if q != p and np.all(boxes[q][0] <= hi) and np.all(boxes[q][1] >= lo)
-                ]
+                neighbours = [q for q in nonempty if q != p and _meets(boxes[q], lo, hi, torus)]
                 if p in balls:
                     # Later rounds: a ball around each cell not certified, past its reach.
                     centres, radii = self.item(balls[p], 0), self.item(balls[p], 1)
                     slices = [
-                        self.submit(pt.ball_slice, parts[q], centres, radii) for q in neighbours
+                        self.submit(pt.ball_slice, parts[q], centres, radii, torus)
+                        for q in neighbours
                     ]
                     cover: Any = radii
                 else:
-                    slices = [self.submit(pt.halo_slice, parts[q], lo, hi) for q in neighbours]
+                    slices = [
+                        self.submit(pt.halo_slice, parts[q], lo, hi, torus) for q in neighbours
+                    ]
                     cover = rho[p]
                 cells[p] = self.submit(
                     pt.part_cells,
@@ -171,8 +189,37 @@ class _Cluster:
         return cells, rounds
 
 
-def _box_and_count(part: pt.Part) -> tuple[Any, int]:
-    return part.box(), len(part.rows)
+def _power_whole(
+    domain: Domain, weights: NDArray[np.float64], points: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], tuple[list[float], list[float], float]] | None:
+    """The weights in the core's frame and the whole problem's box and largest weight.
+
+    ``(core weights (n,), (lo, hi, largest weight))`` (``hcvt_core::PowerWhole``), or None
+    for weights all zero (the Voronoi diagram, as one process computes it).
+    """
+    if not np.any(weights):
+        return None
+    frame = domain.frame
+    core = frame.steps_to_core(points)
+    core_weights = np.ascontiguousarray(frame.quantity_to_core("weights", weights))
+    whole = (core.min(axis=0).tolist(), core.max(axis=0).tolist(), float(core_weights.max()))
+    return core_weights, whole
+
+
+def _box_and_count(part: pt.Part, torus: pt.Torus | None) -> tuple[Any, int]:
+    return pt.box_of(part, torus), len(part.rows)
+
+
+def _meets(
+    box: tuple[NDArray[np.float64], NDArray[np.float64]],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+    torus: pt.Torus | None,
+) -> bool:
+    """Whether a part's ``box`` (an image of it in a periodic box) meets ``[lo, hi]``."""
+    if torus is not None:
+        return torus.overlaps(box, lo, hi)
+    return bool(np.all(box[0] <= hi) and np.all(box[1] >= lo))
 
 
 def _status(cells: pt.PartCells) -> pt.Status:
@@ -192,6 +239,30 @@ def _energy_partial(cells: pt.PartCells) -> tuple[float, float, int]:
 
 def _peak_rss() -> float:
     return pt.peak_rss_mb()
+
+
+def _wrapped_with_centroids(
+    domain: Domain, sites: NDArray[np.float64], arrays: dict[str, Any], first: Any
+) -> NDArray[np.float64]:
+    """``sites`` (n, d) wrapped into a periodic box, ``arrays["centroid"]`` moved with them.
+
+    The core's ``site + first / mass`` about the wrapped site (in its frame), as the
+    single-process CVT reports it.
+    """
+    wrapped = domain.wrap(sites)
+    moved = np.any(wrapped != sites, axis=1)
+    if moved.any():
+        # An empty cell's centroid is its site; the others', the site plus the shift.
+        centroid = np.array(arrays["centroid"])
+        centroid[moved] = wrapped[moved]
+        rows = np.flatnonzero(moved & (arrays["mass"] != 0))
+        frame = domain.frame
+        w = frame.to_core(wrapped[rows])
+        m = frame.quantity_to_core("mass", arrays["mass"][rows])
+        f = frame.quantity_to_core("first", first[rows])
+        centroid[rows] = frame.to_input("centroid", w + f * (1.0 / m)[:, None])
+        arrays["centroid"] = centroid
+    return wrapped
 
 
 class PartitionedDiagram:
@@ -244,6 +315,13 @@ class PartitionedDiagram:
         Part by part, so the client holds one part's cells beside the result. ``energy``
         is this object's (summed per part).
         """
+        return self._gather(wrap=False)
+
+    def _gather(self, wrap: bool) -> Diagram:
+        """:meth:`gather`; with ``wrap`` the sites wrapped into a periodic box.
+
+        As a single-process CVT returns them (the cells are those of the sites as held).
+        """
         domain, n, d = self._cluster.domain, self.n, self._cluster.domain.dim
         sites = np.empty((n, d))
         rows_of: list[NDArray[np.int64]] = []
@@ -263,26 +341,30 @@ class PartitionedDiagram:
                     arrays[key] = np.empty((n, *value.shape[1:]), dtype=value.dtype)
                 arrays[key][p.rows] = value
             counts[p.rows] = np.diff(c.arrays["neighbor_offsets"])
-            faces.append((p.rows, {k: c.arrays[k] for k in pt.FACE_ARRAYS}))
+            faces.append((p.rows, {k: c.arrays[k] for k in pt.FACE_ARRAYS if k in c.arrays}))
         offsets = np.zeros(n + 1, dtype=np.intp)
         np.cumsum(counts, out=offsets[1:])
-        neighbor_sites = np.empty(offsets[-1], dtype=np.intp)
-        neighbor_measures = np.empty(offsets[-1])
+        face_arrays: dict[str, Any] = {
+            "neighbor_sites": np.empty(offsets[-1], dtype=np.intp),
+            "neighbor_measures": np.empty(offsets[-1]),
+        }
+        if any(domain.periodic):
+            face_arrays["neighbor_images"] = np.empty((offsets[-1], d), dtype=np.int8)
         for rows, f in faces:
             # Entry e of row k of the part goes to offsets[rows[k]] + e.
             local = np.diff(np.append(0, np.cumsum(counts[rows])))
             starts = np.repeat(offsets[rows] - np.cumsum(local) + local, local)
             take = starts + np.arange(len(starts))
-            neighbor_sites[take] = f["neighbor_sites"]
-            neighbor_measures[take] = f["neighbor_measures"]
-        arrays["gradient"] = arrays.pop("first") * -2.0
-        arrays.update(
-            energy=self.energy,
-            neighbor_offsets=offsets,
-            neighbor_sites=neighbor_sites,
-            neighbor_measures=neighbor_measures,
-        )
+            for key, values in face_arrays.items():
+                values[take] = f[key]
+        first = arrays.pop("first")
+        # The core's tangent gradient on the sphere; -2 first, exactly, elsewhere.
+        if "gradient" not in arrays:
+            arrays["gradient"] = first * -2.0
+        arrays.update(energy=self.energy, neighbor_offsets=offsets, **face_arrays)
         allow_outside = self._cluster.allow_outside
+        if wrap and any(domain.periodic):
+            sites = _wrapped_with_centroids(domain, sites, arrays, first)
         return Diagram(
             domain,
             sites,
@@ -290,6 +372,7 @@ class PartitionedDiagram:
             self._cluster.density,
             allow_outside=allow_outside,
             frame=Frame.identity(d),  # the parts' arrays are in L already
+            weights=self._cluster.weights,
         )
 
     def write(self, directory: str | Path) -> list[str]:
@@ -317,6 +400,8 @@ class PartitionedDiagram:
         (:mod:`hcvt.distributed.partition_mesh`). Returns the index's path; the halo sites of each
         round are in ``self.piece_rounds``.
         """
+        if self._cluster.weights is not None:
+            raise NotImplementedError("the mesh of a partitioned power diagram is not written yet")
         # The piece also computes the ring of cells across its border (their vertices
         # are shared): two spacings more keep that ring inside the first halo.
         rho = (HALO_SPACINGS[self._cluster.domain.dim] + RING_SPACINGS) * self._cluster.h
@@ -341,6 +426,7 @@ def partitioned_voronoi(
     allow_outside: bool = False,
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    weights: ArrayLike | None = None,
 ) -> PartitionedDiagram:
     """The clipped diagram of ``sites`` with its cells computed and kept on dask workers.
 
@@ -348,11 +434,15 @@ def partitioned_voronoi(
     ``sites_per_partition`` the most sites one part holds (module docs). Per-cell arrays
     are bitwise those of :func:`hcvt.voronoi` for any number of workers and any
     ``sites_per_partition``, with a ``density`` too (a callable must give each point's
-    value whatever the other points of the call: module docs).
+    value whatever the other points of the call: module docs), and with ``weights`` (the
+    power diagram, (n,) in L²; the whole array is sent to every worker).
     """
-    points = as_sites(sites, domain.dim)
+    points = domain.frame.onto_domain(as_sites(sites, domain.dim))
+    power = None if weights is None else (as_weights(weights, len(points)), points)
     start = time.perf_counter()
-    cluster = _Cluster(client, domain, len(points), allow_outside, density, quadrature_degree)
+    cluster = _Cluster(
+        client, domain, len(points), allow_outside, density, quadrature_degree, power
+    )
     split_at = time.perf_counter()
     made = pt.make_parts(points, pt.kd_split(points, sites_per_partition))
     scatter_at = time.perf_counter()
@@ -596,8 +686,11 @@ class PartitionedCVTResult:
         return self.stop_reason == "converged"
 
     def gather(self) -> Any:
-        """A :class:`hcvt.CVTResult` with the sites and diagram gathered on the client."""
-        diagram = self.diagram.gather()
+        """A :class:`hcvt.CVTResult` with the sites and diagram gathered on the client.
+
+        In a periodic box the sites are wrapped into it, as :func:`hcvt.cvt` returns them.
+        """
+        diagram = self.diagram._gather(wrap=True)
         return CVTResult(
             sites=diagram.sites,
             diagram=diagram,
@@ -645,7 +738,7 @@ def partitioned_cvt(
             f"a partitioned CVT runs 'lbfgs' or 'lloyd' (Newton needs a halo exchange per "
             f"Hessian product), got {method!r}"
         )
-    points = as_sites(sites, domain.dim)
+    points = domain.frame.onto_domain(as_sites(sites, domain.dim))
     cluster = _Cluster(client, domain, len(points), False, density, quadrature_degree)
     split = pt.kd_split(points, sites_per_partition)
     temporary = None

@@ -138,6 +138,92 @@ def _median_plane(points: NDArray[np.float64]) -> tuple[int, float] | None:
     return None
 
 
+@dataclass(frozen=True)
+class Torus:
+    """The periodic axes of a box (DESIGN §14): halos that wrap across its sides.
+
+    A site stands for all its images ``x + k∘L``. The halos are selected on the sites
+    wrapped into ``[lo, hi)`` (:meth:`wrap`, as the core wraps them), where the images
+    with ``k`` in ``{-1, 0, 1}`` along the periodic axes hold the nearest image of every
+    site to any point of the box and every image inside a box that overlaps it and is
+    shorter than a period (a longer one takes every site along that axis).
+
+    Attributes
+    ----------
+    lo, hi : ndarray, shape (d,)
+        The box, L.
+    periodic : ndarray of bool, shape (d,)
+        Which axes are periodic.
+    """
+
+    lo: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    periodic: NDArray[np.bool_]
+
+    @classmethod
+    def of(cls, domain: Domain) -> Torus | None:
+        """The torus of a box periodic along some axis, else None."""
+        if not any(domain.periodic):
+            return None
+        lo, hi = domain.bounds
+        return cls(lo, hi, np.asarray(domain.periodic, dtype=bool))
+
+    @property
+    def periods(self) -> NDArray[np.float64]:
+        """``hi - lo`` along the periodic axes, 0 along the others, shape (d,)."""
+        return np.where(self.periodic, self.hi - self.lo, 0.0)
+
+    def wrap(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``points`` (m, d) moved by whole periods into ``[lo, hi)`` (``Domain.wrap``)."""
+        out = np.array(points, dtype=np.float64)
+        for k in np.flatnonzero(self.periodic):
+            x = self.lo[k] + np.mod(out[:, k] - self.lo[k], self.hi[k] - self.lo[k])
+            out[:, k] = np.where(x < self.hi[k], x, self.lo[k])
+        return out
+
+    def shifts(self) -> NDArray[np.float64]:
+        """``k∘L`` for every ``k`` in ``{-1, 0, 1}`` along the periodic axes, (s, d)."""
+        steps = [np.array([-1.0, 0.0, 1.0]) if p else np.zeros(1) for p in self.periodic]
+        grid = np.stack(np.meshgrid(*steps, indexing="ij"), axis=-1).reshape(-1, len(steps))
+        return np.asarray(grid * self.periods)
+
+    def in_box(
+        self, points: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64]
+    ) -> NDArray[np.bool_]:
+        """Whether an image of each of ``points`` (m, d) lies in ``[lo, hi]``, shape (m,).
+
+        The box is a product: along each axis separately, some image in its interval.
+        """
+        w = self.wrap(points)
+        inside = np.ones(len(w), dtype=bool)
+        for k in range(w.shape[1]):
+            period = self.hi[k] - self.lo[k]
+            if self.periodic[k] and hi[k] - lo[k] >= period:
+                continue
+            steps = (-period, 0.0, period) if self.periodic[k] else (0.0,)
+            inside &= np.any([(w[:, k] + s >= lo[k]) & (w[:, k] + s <= hi[k]) for s in steps], 0)
+        return inside
+
+    def overlaps(
+        self,
+        box: tuple[NDArray[np.float64], NDArray[np.float64]],
+        lo: NDArray[np.float64],
+        hi: NDArray[np.float64],
+    ) -> bool:
+        """Whether an image of ``box`` (of wrapped sites) meets ``[lo, hi]``."""
+        return any(
+            bool(np.all(box[0] + s <= hi) and np.all(box[1] + s >= lo)) for s in self.shifts()
+        )
+
+
+def box_of(part: Part, torus: Torus | None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(lo, hi)`` of ``part``'s sites, wrapped into a periodic box's ``torus``."""
+    if torus is None or len(part.sites) == 0:
+        return part.box()
+    wrapped = torus.wrap(part.sites)
+    return wrapped.min(axis=0), wrapped.max(axis=0)
+
+
 @dataclass
 class Part:
     """One partition's sites and the per-row arrays that travel with them.
@@ -179,10 +265,16 @@ def make_parts(sites: NDArray[np.float64], split: KdSplit) -> list[Part]:
 
 
 def halo_slice(
-    part: Part, lo: NDArray[np.float64], hi: NDArray[np.float64]
+    part: Part, lo: NDArray[np.float64], hi: NDArray[np.float64], torus: Torus | None = None
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Rows and sites of ``part`` inside the closed box ``[lo, hi]``."""
-    inside = np.all((part.sites >= lo) & (part.sites <= hi), axis=1)
+    """Rows and sites of ``part`` inside the closed box ``[lo, hi]``.
+
+    In a periodic box's ``torus``: an image of them inside (the sites as the part holds them).
+    """
+    if torus is not None:
+        inside = torus.in_box(part.sites, lo, hi)
+    else:
+        inside = np.all((part.sites >= lo) & (part.sites <= hi), axis=1)
     return part.rows[inside], part.sites[inside]
 
 
@@ -262,11 +354,35 @@ def empty_cells(d: int) -> PartCells:
 
 
 def ball_slice(
-    part: Part, centres: NDArray[np.float64], radii: NDArray[np.float64]
+    part: Part,
+    centres: NDArray[np.float64],
+    radii: NDArray[np.float64],
+    torus: Torus | None = None,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Rows and sites of ``part`` within ``radii`` of any of ``centres``, and maybe more."""
-    near = _in_balls(part.sites, centres, radii)
+    """Rows and sites of ``part`` within ``radii`` of any of ``centres``, and maybe more.
+
+    In a periodic box's ``torus``: an image of them, ``centres`` wrapped.
+    """
+    near = _in_torus_balls(part.sites, centres, radii, torus)
     return part.rows[near], part.sites[near]
+
+
+def _in_torus_balls(
+    points: NDArray[np.float64],
+    centres: NDArray[np.float64],
+    radii: NDArray[np.float64],
+    torus: Torus | None,
+) -> NDArray[np.intp]:
+    """:func:`_in_balls`, in a periodic box's ``torus`` by the images of ``centres``.
+
+    The images of the (wrapped) centres next to the box hold the nearest image of every
+    wrapped point.
+    """
+    if torus is None:
+        return _in_balls(points, centres, radii)
+    wrapped = torus.wrap(points)
+    found = [_in_balls(wrapped, centres + s, radii) for s in torus.shifts()]
+    return np.unique(np.concatenate(found)).astype(np.intp)
 
 
 def _in_balls(
@@ -380,8 +496,9 @@ def _spread_bits(values: NDArray[np.uint64], d: int) -> NDArray[np.uint64]:
     return out
 
 
-#: The per-face arrays of a part's cells (CSR rows by `neighbor_offsets`).
-FACE_ARRAYS = ("neighbor_sites", "neighbor_measures")
+#: The per-face arrays of a part's cells (CSR rows by `neighbor_offsets`); the image shift
+#: of each neighbour only in a periodic box.
+FACE_ARRAYS = ("neighbor_sites", "neighbor_measures", "neighbor_images")
 
 
 def part_cells(
@@ -394,6 +511,8 @@ def part_cells(
     *slices: tuple[NDArray[np.int64], NDArray[np.float64]],
     density: DensityLike = None,
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
+    weights: NDArray[np.float64] | None = None,
+    power_whole: tuple[list[float], list[float], float] | None = None,
 ) -> PartCells:
     """The cells of ``part`` among its sites and ``slices`` of its neighbours' sites.
 
@@ -412,15 +531,22 @@ def part_cells(
     ``energy_terms`` and ``first`` are ρ-weighted as in one process; a callable is called
     once per part and round, on the quadrature nodes of the cells computed. The reach,
     and so the halo, does not depend on ρ.
+
+    A power diagram's part takes ``weights`` (n,), the whole problem's in the core's frame
+    (indexed by row), and ``power_whole``, the whole problem's ``(lo, hi, largest weight)``
+    in that frame: its cells then bound the reach of heavier sites by the largest weight
+    of all (DESIGN §14), and are the whole power diagram's cells, bit for bit, once
+    certified.
     """
     if len(part.rows) == 0:
         return empty_cells(part.sites.shape[1])
+    torus = Torus.of(domain)
     if previous is None:
         todo = np.arange(len(part.rows))
         present = todo
     else:
         todo = np.flatnonzero(~previous.certified)
-        present = np.union1d(_in_balls(part.sites, *previous.balls()), todo)
+        present = np.union1d(_in_torus_balls(part.sites, *previous.balls(), torus), todo)
     rows = np.concatenate([part.rows[present]] + [r for r, _ in slices])
     sites = np.concatenate([part.sites[present]] + [s for _, s in slices])
     order = np.argsort(rows, kind="stable")
@@ -434,34 +560,37 @@ def part_cells(
     with frame.input_errors():
         out = _core.partition_cells(
             domain._core,
-            frame.to_core(sites),
+            frame.steps_to_core(sites),
             rows,
             own.astype(np.uint32),
             int(total_sites),
             allow_outside=allow_outside,
+            weights=None if weights is None else np.ascontiguousarray(weights[rows]),
+            power_whole=power_whole,
             **core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree),
         )
-    # Kept once: the energy is summed by the client, the gradient is -2 first.
+    # Kept once: the energy is summed by the client, the gradient is -2 first but on the
+    # sphere (the core's projection onto the tangent plane).
+    dropped = ("energy",) if domain.is_sphere else ("energy", "gradient")
     cells = _in_row_order(
-        {
-            key: frame.to_input(key, value)
-            for key, value in out.items()
-            if key not in ("energy", "gradient")
-        },
+        {key: frame.to_input(key, value) for key, value in out.items() if key not in dropped},
         visit,
     )
     reach = np.sqrt(frame.to_input("reach2", cells.pop("reach2")))
+    # Halos and balls are about the sites wrapped into a periodic box (the core's reach is
+    # about its site wrapped, among the images of the sites given).
+    own_sites = part.sites if torus is None else torus.wrap(part.sites)
     if len(rows) == total_sites:
         certified = np.full(len(todo), True)
     elif previous is None:
-        lo, hi = part.box()
-        room = room_in_box(part.sites, lo - cover, hi + cover)
+        lo, hi = box_of(part, torus)
+        room = room_in_box(own_sites[todo], lo - cover, hi + cover)
         certified = reach < COVER_FRACTION * room
     else:
         certified = reach < COVER_FRACTION * cover
     halo = len(rows) - len(present)
     if previous is None:
-        return PartCells(cells, reach, certified, halo, len(todo), part.sites)
+        return PartCells(cells, reach, certified, halo, len(todo), own_sites)
     # In place: the earlier round is superseded, and a part's cells are held once (twice
     # for all parts at a time was the peak of a 20M-site run). Running this again on the
     # updated object finds nothing to do, so a retried task gives the same cells.
@@ -506,7 +635,8 @@ def _in_row_order(
     where[visit] = np.arange(len(visit))
     take = np.repeat(offsets[where] - new_offsets[:-1], counts) + np.arange(new_offsets[-1])
     for key in FACE_ARRAYS:
-        out[key] = cells[key][take]
+        if key in cells:
+            out[key] = cells[key][take]
     out["neighbor_offsets"] = new_offsets
     return out
 
@@ -532,7 +662,9 @@ def _replace_rows(
     replaced = np.zeros(len(counts), dtype=bool)
     replaced[todo] = True
     for key in FACE_ARRAYS:
-        values = np.empty(offsets[-1], dtype=old[key].dtype)
+        if key not in old:
+            continue
+        values = np.empty((offsets[-1], *old[key].shape[1:]), dtype=old[key].dtype)
         keep = np.repeat(~replaced, counts)
         old_keep = np.repeat(~replaced, np.diff(old["neighbor_offsets"]))
         values[keep] = old[key][old_keep]
@@ -544,7 +676,13 @@ def _replace_rows(
 
 
 def gradient_of(cells: PartCells) -> NDArray[np.float64]:
-    """``∂E/∂x_i = -2 ∫ρ(x - x_i)`` of each cell, (k, d): the core's, bit for bit."""
+    """``∂E/∂x_i = -2 ∫ρ(x - x_i)`` of each cell, (k, d): the core's, bit for bit.
+
+    On the sphere the core's projection of it onto each site's tangent plane, kept with
+    the cells.
+    """
+    if "gradient" in cells.arrays:
+        return cells.arrays["gradient"]
     return cells.arrays["first"] * -2.0
 
 
@@ -578,12 +716,12 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     a = cells.arrays
     volume, mass, first = a["volume"], a["mass"], a["first"]
     gradient = gradient_of(cells)
-    d = domain.dim
+    d = domain.cell_dim
     # The core's domain is in its frame: positions and quantities go in and come back.
     frame = domain.frame
     shift, pinned, precond = _core.step_fields(
         domain._core,
-        _arg(frame.to_core(part.sites)),
+        _arg(frame.steps_to_core(part.sites)),
         _arg(frame.quantity_to_core("mass", mass)),
         _arg(frame.quantity_to_core("first", first)),
         _arg(frame.quantity_to_core("boundary_measure", a["boundary_measure"])),
@@ -591,7 +729,12 @@ def absorb(domain: Domain, part: Part, cells: PartCells) -> tuple[Part, dict[str
     shift, precond = frame.to_input("shift", shift), frame.to_input("precond", precond)
     counted = ~pinned & (volume > 0) & (mass > 0)
     m, v = mass[counted], volume[counted]
-    r = np.sqrt((first[counted] ** 2).sum(axis=1)) / m / v ** (1.0 / d)
+    # |x - c| = |m1| / m; on the sphere the tangent part of m1, |g| / 2 (as the core).
+    if d == domain.dim:
+        offset = np.sqrt((first[counted] ** 2).sum(axis=1)) / m
+    else:
+        offset = np.sqrt((gradient[counted] ** 2).sum(axis=1)) / (2.0 * m)
+    r = offset / v ** (1.0 / d)
     g = a["G"][~np.isnan(a["G"])]
     partials = {
         "energy": math.fsum(a["energy_terms"]),
@@ -617,7 +760,7 @@ def lloyd_part(domain: Domain, part: Part) -> Part:
     frame = domain.frame
     shift = frame.quantity_to_core("shift", part.fields["shift"])
     sites = frame.to_input(
-        "sites", _core.lloyd_step(domain._core, _arg(frame.to_core(part.sites)), _arg(shift))
+        "sites", _core.lloyd_step(domain._core, _arg(frame.steps_to_core(part.sites)), _arg(shift))
     )
     fields = {k: v for k, v in part.fields.items() if k in ("s", "y")}
     return Part(part.index, part.rows, sites, fields)
@@ -674,7 +817,7 @@ def lbfgs_direction(
     frame = domain.frame  # P'v' = Pv / s and s' = s / s: the same coefficients serve
     direction = _core.lbfgs_direction(
         domain._core,
-        _arg(frame.to_core(part.sites)),
+        _arg(frame.steps_to_core(part.sites)),
         _arg(frame.quantity_to_core("gradient", g)),
         _arg(frame.quantity_to_core("pair_s", part.fields.get("s", empty))),
         _arg(frame.quantity_to_core("pair_y", part.fields.get("y", empty))),
@@ -689,8 +832,17 @@ def lbfgs_direction(
 
 
 def trial_part(domain: Domain, part: Part, t: float) -> tuple[Part, bool]:
-    """The sites ``x + t·direction`` (no fields) and whether all are inside or on."""
+    """The sites ``x + t·direction`` (no fields) and whether all are inside or on.
+
+    On the sphere the core's retraction takes them back onto it, as the single process
+    does with its trial sites.
+    """
     sites = part.sites + t * part.fields["direction"]
+    if domain.is_sphere:
+        frame = domain.frame
+        # The Lloyd step by no move is the core's retraction alone.
+        core = _arg(frame.steps_to_core(sites))
+        sites = frame.to_input("sites", _core.lloyd_step(domain._core, core, np.zeros_like(core)))
     return Part(part.index, part.rows, sites), bool(inside_or_on(domain, sites).all())
 
 

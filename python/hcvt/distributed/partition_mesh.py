@@ -106,7 +106,7 @@ def piece_mesh(
     with frame.input_errors():
         out = _core.mesh_part(
             domain._core,
-            frame.to_core(sites),
+            frame.steps_to_core(sites),
             rows.astype(np.int64),
             own.astype(np.uint32),
             int(total_sites),

@@ -296,9 +296,11 @@ class Domain:
 
         Notes
         -----
-        Not yet on a box: a density, Newton's method and partitions (``client=``); each
-        raises. The conforming mesh (:meth:`hcvt.Diagram.mesh`) pairs the faces across
-        periodic sides (:mod:`hcvt.mesh.periodic`).
+        Partitions (``client=``) take a box, periodic or not (halos wrap across the
+        periodic sides). Not yet on a box: a density, Newton's method and partitioned power
+        diagrams of a periodic box; each raises. The conforming mesh
+        (:meth:`hcvt.Diagram.mesh`) pairs the faces across periodic sides
+        (:mod:`hcvt.mesh.periodic`).
 
         Examples
         --------

@@ -94,6 +94,7 @@ UNITS: dict[str, Unit | None] = {
     # not quantities: indices and counts
     "neighbor_offsets": None,
     "neighbor_sites": None,
+    "neighbor_images": None,  # image shifts k, integers
     "face_offsets": None,
     "face_vertices": None,
     "owner": None,
@@ -199,6 +200,23 @@ class Frame:
                 f"its frame: {int(lost.sum())} such row(s)"
             )
         return out
+
+    def steps_to_core(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Sites (m, d) a run's own steps left in the domain, as :meth:`to_core` maps them.
+
+        A partitioned run's parts hold sites that came out of the core's steps: they go
+        back as positions (on the sphere without being pushed onto it again, since a second
+        normalisation would move them off the single process's iterates by round-off).
+        """
+        return self.to_core(points)
+
+    def onto_domain(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``points`` (m, d) as the core takes them, in L again: unchanged here.
+
+        On the sphere they are pushed onto it, once, as :meth:`to_core` does for one
+        process (:meth:`steps_to_core` then leaves them there).
+        """
+        return points
 
     def quantity_to_core(self, name: str, value: NDArray[np.float64]) -> NDArray[np.float64]:
         """A quantity ``name`` (:data:`UNITS`) in L as the core takes it.

@@ -84,6 +84,18 @@ class SphereFrame(Frame):
             )
         return np.ascontiguousarray(unit / r[:, None])
 
+    def steps_to_core(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``x / R``, not normalised: sites from the core's own steps (already retracted).
+
+        Exact, so bitwise the single process's iterates, for a radius that is a power of
+        two (1 included); other radii round once per step.
+        """
+        return np.ascontiguousarray(np.asarray(points, dtype=np.float64) / self.scale)
+
+    def onto_domain(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """``R x / |x|`` after :meth:`to_core`'s check: the sites the core takes, in L."""
+        return self.points_to_input(self.to_core(points))
+
     def density_to_core(self, density: Any) -> Any:
         """A density on the sphere of radius R as one on the unit sphere.
 

@@ -73,6 +73,7 @@ pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
 use power::Power;
+pub use power::PowerWhole;
 pub use sphere::{Sphere, ON_SPHERE_TOL};
 pub use surface::{RestrictedDelaunay, Surface};
 use voronoi_cell::{voronoi_cell, CellScratch};
@@ -628,6 +629,7 @@ pub fn clipped_cells<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     own: &[u32],
     total_sites: usize,
     request: &Request<'_, D>,
+    power_whole: Option<&PowerWhole<D>>,
 ) -> Result<PartCells<D>, CoreError>
 where
     Euclid: Space<D>,
@@ -638,16 +640,13 @@ where
                 .to_string(),
         });
     }
-    if domain.periodic().is_some() {
-        return Err(CoreError::InvalidSettings {
-            reason: "the cells of a part of a periodic box are not computed yet".to_string(),
-        });
+    if let Some(torus) = domain.periodic() {
+        if sites.is_empty() || own.is_empty() {
+            return Ok(PartCells::default());
+        }
+        return periodic_box::clipped_cells::<D, C>(torus, sites, own, total_sites, request);
     }
-    if checked_weights(domain, sites.len(), request)?.is_some() {
-        return Err(CoreError::InvalidWeights {
-            reason: "the cells of a part of a power diagram are not computed yet".to_string(),
-        });
-    }
+    let power = part_power(domain, sites, request, power_whole)?;
     let (options, density) = (request.options, request.density);
     if sites.is_empty() || own.is_empty() {
         return Ok(PartCells::default());
@@ -662,7 +661,8 @@ where
                 density: None,
                 ..*request
             };
-            let mut part = clipped_cells::<D, C, K>(domain, sites, own, total_sites, &uniform)?;
+            let mut part =
+                clipped_cells::<D, C, K>(domain, sites, own, total_sites, &uniform, power_whole)?;
             part.diagram.weighted = weighted::scaled(&part.diagram.moments, q.constant);
             return Ok(part);
         }
@@ -673,7 +673,7 @@ where
         sites,
         index: &index,
         windings: &windings,
-        power: None,
+        power,
         total_sites: total_sites.max(sites.len()),
         warm: None,
         record: false,
@@ -710,6 +710,38 @@ where
         weighted::check_masses(&diagram, &own_sites)?;
     }
     Ok(PartCells { diagram, reach2 })
+}
+
+/// The weights of a part of a power diagram (`request.weights`, indexed like `sites`) with
+/// the whole problem's box and largest weight: both or neither. Weights all zero in the
+/// part are still a power diagram's when the whole problem's are not (a far heavier site
+/// may reach its cells), so the driver passes `whole` only for a power diagram.
+fn part_power<'a, const D: usize, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    request: &Request<'a, D>,
+    whole: Option<&PowerWhole<D>>,
+) -> Result<Option<Power<'a, D>>, CoreError> {
+    let (weights, whole) = match (request.weights, whole) {
+        (None, None) => return Ok(None),
+        (Some(weights), Some(whole)) => (weights, whole),
+        _ => {
+            return Err(CoreError::InvalidWeights {
+                reason: "the cells of a part of a power diagram take its weights and the whole \
+                         problem's box and largest weight, both or neither"
+                    .to_string(),
+            })
+        }
+    };
+    checked_weights(domain, sites.len(), request)?;
+    if domain.cell_dim() != D {
+        return Err(CoreError::InvalidWeights {
+            reason: "power diagrams (weights) are not supported on the sphere or a triangle \
+                     surface yet"
+                .to_string(),
+        });
+    }
+    Ok(Some(Power::in_part(weights, sites, whole)))
 }
 
 /// The diagram in index order from the batches (visiting order), the kept cells and the
@@ -979,6 +1011,7 @@ mod tests {
                 &own,
                 sites.len(),
                 &Request::default(),
+                None,
             )
             .unwrap();
             let mut here = 0;
@@ -1069,9 +1102,15 @@ mod tests {
             let own: Vec<u32> = (0..rows.len() as u32)
                 .filter(|&k| local[k as usize][0] < 0.4)
                 .collect();
-            let part =
-                clipped_cells::<2, PolygonCell, _>(&square, &local, &own, sites.len(), &request)
-                    .unwrap();
+            let part = clipped_cells::<2, PolygonCell, _>(
+                &square,
+                &local,
+                &own,
+                sites.len(),
+                &request,
+                None,
+            )
+            .unwrap();
             assert_eq!(part.diagram.weighted.len(), own.len());
             let mut exact = 0;
             for (k, &o) in own.iter().enumerate() {

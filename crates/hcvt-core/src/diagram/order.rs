@@ -46,6 +46,32 @@ impl<const D: usize> Diagram<D> {
         self.reordered_faces(order).0
     }
 
+    /// The rows `rows` of this diagram, in that order (neighbours keep their numbering):
+    /// a part's own cells out of a diagram over its sites and halo.
+    pub fn rows(&self, rows: &[u32]) -> Self {
+        let mut out = Diagram {
+            neighbor_offsets: vec![0],
+            ..Diagram::default()
+        };
+        let images = !self.neighbor_images.is_empty();
+        for &i in rows {
+            let i = i as usize;
+            out.moments.push(self.moments[i]);
+            if let Some(&w) = self.weighted.get(i) {
+                out.weighted.push(w);
+            }
+            out.boundary_measure.push(self.boundary_measure[i]);
+            let faces = self.neighbor_offsets[i]..self.neighbor_offsets[i + 1];
+            (out.neighbor_sites).extend_from_slice(&self.neighbor_sites[faces.clone()]);
+            (out.neighbor_measures).extend_from_slice(&self.neighbor_measures[faces.clone()]);
+            if images {
+                (out.neighbor_images).extend_from_slice(&self.neighbor_images[faces]);
+            }
+            out.neighbor_offsets.push(out.neighbor_sites.len());
+        }
+        out
+    }
+
     /// [`Diagram::reordered`], and for each of its face entries the entry it was: what a
     /// caller needs to move its own per-face data along (the optimiser's Hessian).
     pub fn reordered_faces(&self, order: &[u32]) -> (Self, Vec<usize>) {

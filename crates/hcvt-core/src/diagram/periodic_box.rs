@@ -49,8 +49,8 @@ use super::faces::FaceRow;
 use super::voronoi_cell::BOX_MARGIN;
 use super::weighted::WeightedSums;
 use super::{
-    checked_windings, morton_order, without_errors, Batch, Clipped, Diagram, Power, Request,
-    SiteIndex, Visit,
+    checked_part, checked_windings, morton_order, without_errors, Batch, Clipped, Diagram,
+    PartCells, Power, Request, SiteIndex, Visit,
 };
 
 /// Width of the first band of images, in mean spacings `(V/n)^{1/d}`, per dimension. The
@@ -339,17 +339,104 @@ where
     let wrapped: Vec<[f64; D]> = sites.iter().map(|&s| torus.wrap(s)).collect();
     let windings = checked_windings(torus, &wrapped, request.options)?;
     let n = sites.len();
-    let spacing = (torus.volume() / n as f64).powf(1.0 / D as f64);
+    let passes = band_passes::<D, C>(
+        torus,
+        &wrapped,
+        &windings,
+        morton_order(&wrapped),
+        weights,
+        request.keep_cells,
+        n,
+    )?;
+    Ok(assemble_passes(n, passes, request.keep_cells))
+}
+
+/// [`super::clipped_cells`] in a periodic box: the cells of the sites `own` among
+/// `sites` (a part and its halo, some of the problem's `total_sites` sites), each among
+/// the images of the sites given in a band grown until it covers the cell's reach (as
+/// [`clipped_diagram`] does for all the sites), neighbours named by their index in
+/// `sites` and their image shift. The sites and their images stand in the same relative
+/// order as in the whole problem (sites by index, then images by site and shift), so a
+/// cell whose reach (in the torus) the sites given cover is the whole problem's, bit for
+/// bit. Not with a density or weights yet.
+pub(super) fn clipped_cells<const D: usize, C: ConvexCell<D>>(
+    torus: &PeriodicBox<D>,
+    sites: &[[f64; D]],
+    own: &[u32],
+    total_sites: usize,
+    request: &Request<'_, D>,
+) -> Result<PartCells<D>, CoreError>
+where
+    Euclid: Space<D>,
+{
+    if request.density.is_some() {
+        return Err(CoreError::InvalidDensity {
+            reason: "a periodic box takes no density yet".into(),
+        });
+    }
+    if request.weights.is_some() {
+        return Err(CoreError::InvalidWeights {
+            reason: "the cells of a part of a periodic power diagram are not computed yet".into(),
+        });
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    let wrapped: Vec<[f64; D]> = sites.iter().map(|&s| torus.wrap(s)).collect();
+    let (windings, _) = checked_part(torus, &wrapped, own, request.options)?;
+    let n = sites.len();
+    let passes = band_passes::<D, C>(
+        torus,
+        &wrapped,
+        &windings,
+        own.to_vec(),
+        None,
+        false,
+        total_sites.max(n),
+    )?;
+    // Each cell's reach from the last pass that computed it (the one whose band covered it).
+    let mut reach2 = vec![0.0; n];
+    for pass in &passes {
+        for b in &pass.batches {
+            for (&i, &r2) in b.sites.iter().zip(&b.reach2) {
+                reach2[i as usize] = r2;
+            }
+        }
+    }
+    let whole = assemble_passes::<D, C>(n, passes, false).diagram;
+    Ok(PartCells {
+        diagram: whole.rows(own),
+        reach2: own.iter().map(|&i| reach2[i as usize]).collect(),
+    })
+}
+
+/// The cells of the wrapped sites `visit_order` among `wrapped` and their images in a
+/// band ([`Images`]); the cells whose reach passes the band's cover computed again with
+/// the band doubled, until none does (the band of a problem of `total_sites` sites).
+fn band_passes<const D: usize, C: ConvexCell<D>>(
+    torus: &PeriodicBox<D>,
+    wrapped: &[[f64; D]],
+    windings: &[Option<i32>],
+    mut visit_order: Vec<u32>,
+    weights: Option<&[f64]>,
+    keep_cells: bool,
+    total_sites: usize,
+) -> Result<Vec<Pass<D, C>>, CoreError>
+where
+    Euclid: Space<D>,
+{
+    let spacing = (torus.volume() / total_sites as f64).powf(1.0 / D as f64);
     let full = torus.largest_period();
     let none = WeightedSums::new(None)?;
-    let mut visit_order = morton_order(&wrapped);
     let mut band = FIRST_BAND.get(D).copied().unwrap_or(3.0) * spacing;
     let mut passes: Vec<Pass<D, C>> = Vec::new();
     while !visit_order.is_empty() {
         if band >= full {
             band = f64::INFINITY;
         }
-        let images = Images::new(torus, &wrapped, band);
+        let images = Images::new(torus, wrapped, band);
         let index = SiteIndex::new(&images.sites)?;
         // Each image carries its site's weight.
         let image_weights: Option<Vec<f64>> = weights.map(|w| {
@@ -360,21 +447,16 @@ where
         let visit = Visit {
             sites: &images.sites,
             index: &index,
-            windings: &windings,
+            windings,
             power: image_weights
                 .as_deref()
                 .map(|w| Power::new(w, &images.sites)),
-            total_sites: images.sites.len(),
+            total_sites: images.sites.len().max(total_sites),
             warm: None,
             record: false,
         };
-        let batches = visit.batches::<C, PeriodicBox<D>>(
-            torus,
-            &visit_order,
-            None,
-            request.keep_cells,
-            &none,
-        );
+        let batches =
+            visit.batches::<C, PeriodicBox<D>>(torus, &visit_order, None, keep_cells, &none);
         let batches = without_errors(batches)
             .map_err(|e| e.with_site_rows(|j| images.image(j).0 as usize))?;
         // The cells to compute again, in the order they were visited.
@@ -387,7 +469,7 @@ where
         passes.push(Pass { images, batches });
         band *= 2.0;
     }
-    Ok(assemble_passes(n, passes, request.keep_cells))
+    Ok(passes)
 }
 
 /// The cells of one band of images.

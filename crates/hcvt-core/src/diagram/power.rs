@@ -80,17 +80,53 @@ struct MaxGrid<const D: usize> {
 /// power diagram's time at 10,000 sites (169 blocks a cell).
 const COARSE: usize = 4;
 
+/// What the cells of a part of a power diagram need of the whole problem
+/// ([`super::clipped_cells`]): its sites' box, their number and their largest weight. The
+/// part's grid ([`MaxGrid`]) is then the whole problem's, block for block, so its second
+/// pass clips the heavier sites in the same order; every block's largest weight is taken
+/// as `max_weight` (the part does not hold every site of a block), an upper bound that
+/// only reads more blocks: the sites clipped, and their order, are those of the whole
+/// problem whenever the part holds every site within the cell's reach.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PowerWhole<const D: usize> {
+    /// The smallest coordinate of all the problem's sites along each axis, `L`.
+    pub lo: [f64; D],
+    /// The largest, `L`.
+    pub hi: [f64; D],
+    /// The number of the problem's sites.
+    pub sites: usize,
+    /// The largest weight of all, `L²`.
+    pub max_weight: f64,
+}
+
+impl<const D: usize> PowerWhole<D> {
+    /// The whole problem's box, count and largest weight, as [`Power::new`] takes them.
+    pub fn of(sites: &[[f64; D]], weights: &[f64]) -> Self {
+        Self {
+            lo: std::array::from_fn(|k| sites.iter().fold(f64::INFINITY, |m, s| m.min(s[k]))),
+            hi: std::array::from_fn(|k| sites.iter().fold(f64::NEG_INFINITY, |m, s| m.max(s[k]))),
+            sites: sites.len(),
+            max_weight: weights.iter().fold(f64::NEG_INFINITY, |m, &w| m.max(w)),
+        }
+    }
+}
+
 impl<const D: usize> MaxGrid<D> {
+    /// The grid of `sites` (the whole problem) holding their weights.
     fn new(sites: &[[f64; D]], weights: &[f64]) -> Self {
-        let lo: [f64; D] =
-            std::array::from_fn(|k| sites.iter().fold(f64::INFINITY, |m, s| m.min(s[k])));
-        let hi: [f64; D] =
-            std::array::from_fn(|k| sites.iter().fold(f64::NEG_INFINITY, |m, s| m.max(s[k])));
+        Self::of_whole(sites, weights, &PowerWhole::of(sites, weights), false)
+    }
+
+    /// The grid of the problem `whole` holding `sites` (all or some of its sites), with
+    /// each block's largest weight that of its sites, or `whole.max_weight` for every block
+    /// (`cap`, a part).
+    fn of_whole(sites: &[[f64; D]], weights: &[f64], whole: &PowerWhole<D>, cap: bool) -> Self {
+        let (lo, hi) = (whole.lo, whole.hi);
         let extent: [f64; D] = std::array::from_fn(|k| hi[k] - lo[k]);
         let largest = extent.iter().fold(0.0, |m: f64, &e| m.max(e));
         // The box's volume, its flat sides counted as a hundredth of the largest.
         let volume: f64 = extent.iter().map(|&e| e.max(0.01 * largest)).product();
-        let blocks = (sites.len() as f64 / SITES_PER_BLOCK).max(1.0);
+        let blocks = (whole.sites as f64 / SITES_PER_BLOCK).max(1.0);
         let mut side = (volume / blocks).powf(1.0 / D as f64);
         if !(side > 0.0 && side.is_finite()) {
             side = 1.0; // a single site (or all at one point): one block
@@ -115,6 +151,10 @@ impl<const D: usize> MaxGrid<D> {
             grid.starts[b + 1] += 1;
             let c = grid.coarse_flat(grid.block(s).map(|x| x / COARSE));
             grid.coarse_max[c] = grid.coarse_max[c].max(w);
+        }
+        if cap {
+            grid.max.fill(whole.max_weight);
+            grid.coarse_max.fill(whole.max_weight);
         }
         for b in 0..blocks {
             grid.starts[b + 1] += grid.starts[b];
@@ -257,6 +297,16 @@ impl<'a, const D: usize> Power<'a, D> {
             weights,
             max,
             grid: MaxGrid::new(sites, weights),
+        }
+    }
+
+    /// Weights indexed like `sites`, some of the sites of the problem `whole` (a part and
+    /// its halo): the planes, bounds and order of [`Power::new`] over the whole problem.
+    pub(super) fn in_part(weights: &'a [f64], sites: &[[f64; D]], whole: &PowerWhole<D>) -> Self {
+        Self {
+            weights,
+            max: whole.max_weight,
+            grid: MaxGrid::of_whole(sites, weights, whole, true),
         }
     }
 

@@ -1028,9 +1028,15 @@ pub(super) mod tests {
         let n = 20_000;
         let sites = random_sites(n, 5);
         let own: Vec<u32> = (0..n as u32).collect();
-        let part =
-            clipped_cells::<3, PolyhedronCell, _>(&Sphere, &sites, &own, n, &Request::default())
-                .unwrap();
+        let part = clipped_cells::<3, PolyhedronCell, _>(
+            &Sphere,
+            &sites,
+            &own,
+            n,
+            &Request::default(),
+            None,
+        )
+        .unwrap();
         let h2 = 4.0 * PI / n as f64;
         let worst = part.reach2.iter().fold(0.0_f64, |m, &r| m.max(r)) / h2;
         let mean = part.reach2.iter().sum::<f64>() / n as f64 / h2;
