@@ -180,11 +180,6 @@ def representable(unit: np.ndarray, power: int, size: float) -> bool | None:
     return None
 
 
-def _periodic_mesh_off_frame(kind: str, offset: float) -> bool:
-    """Whether this case is the periodic 3D mesh's known frame defect (see its use)."""
-    return kind.startswith("periodic 3D") and offset >= 1e6
-
-
 def compare_or_refused(
     read: Callable[[], np.ndarray], unit: np.ndarray, power: int, size: float, rel: float
 ) -> float:
@@ -239,22 +234,19 @@ def test_cells_meshes_and_cvt_match_the_unit_problem(kind, offset, size, units):
         np.testing.assert_array_equal(diagram.neighbor_images, unit.neighbor_images)
 
     # the conforming mesh: the same vertices, mapped back, and the same cell volumes
-    off_frame = False
+    # (a periodic box's mesh is tiled in the domain's frame: before, in input coordinates,
+    # the 3D one at offsets of 1e6 and more merged vertices differently, 822 points
+    # against the unit's 811)
     if k.mesh_refused is not None:
         with pytest.raises(k.mesh_refused[0], match=k.mesh_refused[1]):
             diagram.mesh()
-    elif off_frame := _periodic_mesh_off_frame(kind, offset):
-        # Known defect (2026-12-03): the 3D periodic mesh (hcvt.mesh.periodic) tiles images
-        # in input coordinates, not in the domain's frame, and at offsets of 1e6 and more
-        # merges degenerate vertices differently (822 points against the unit's 811).
-        # Asserted so that a fix shows up here.
-        assert diagram.mesh().points.shape != unit.mesh().points.shape
     else:
         mesh, unit_mesh = diagram.mesh(), unit.mesh()
         assert mesh.points.shape == unit_mesh.points.shape
         assert np.max(np.abs(back(mesh.points, offset, size) - unit_mesh.points)) <= C * delta
         np.testing.assert_array_equal(mesh.face_vertices, unit_mesh.face_vertices)
-    if k.meshes and representable(unit.volume, d, size) and not off_frame:
+        _same_periodic_pairs(mesh, unit_mesh)
+    if k.meshes and representable(unit.volume, d, size):
         # measured from the points in L: the points carry the round-off δ of their position
         from_mesh = mesh.cell_geometry.volume / size**d
         worst = np.max(np.abs(from_mesh - unit.volume) / unit.volume)
@@ -270,6 +262,15 @@ def test_cells_meshes_and_cvt_match_the_unit_problem(kind, offset, size, units):
     compare_or_refused(
         lambda: result.history["energy"], unit_cvt.history["energy"], d + 2, size, 1e3 * rel
     )
+
+
+def _same_periodic_pairs(mesh: hcvt.PolyMesh, unit_mesh: hcvt.PolyMesh) -> None:
+    """The same faces between the same cells, periodic faces paired alike (or neither)."""
+    for name in ("owner", "neighbour", "face_offsets", "periodic_partner", "periodic_image"):
+        got, expected = getattr(mesh, name), getattr(unit_mesh, name)
+        assert (got is None) == (expected is None), name
+        if got is not None:
+            np.testing.assert_array_equal(got, expected, err_msg=name)
 
 
 @pytest.mark.parametrize("size", SIZES)
