@@ -341,12 +341,8 @@ class Domain:
         input's coordinates: ``lo + (x − lo) mod (hi − lo)``, and ``lo`` where rounding
         lands on ``hi``.
         """
-        pts = _as_points(points, self.dim, "points").copy()
         lo, hi = self.bounds
-        for k in np.flatnonzero(self.periodic):
-            x = lo[k] + np.mod(pts[:, k] - lo[k], hi[k] - lo[k])
-            pts[:, k] = np.where(x < hi[k], x, lo[k])
-        return pts
+        return wrapped(_as_points(points, self.dim, "points"), lo, hi, self.periodic)
 
     # ------------------------------------------------------------------ 3D
     @classmethod
@@ -630,6 +626,21 @@ class Domain:
             authority = self.crs.to_authority()
             crs = f", crs={authority[0]}:{authority[1]}" if authority else f", crs={self.crs.name}"
         return f"<hcvt.Domain {kind}, volume={self.volume:.6g}{crs}>"
+
+
+def wrapped(
+    points: NDArray[np.float64], lo: ArrayLike, hi: ArrayLike, periodic: ArrayLike
+) -> NDArray[np.float64]:
+    """``points`` (m, d) moved by whole periods into ``[lo, hi)`` along the ``periodic`` axes.
+
+    ``lo + (x − lo) mod (hi − lo)``, and ``lo`` where rounding lands on ``hi``; a copy.
+    """
+    pts = np.array(points, dtype=np.float64)
+    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
+    for k in np.flatnonzero(periodic):
+        x = lo[k] + np.mod(pts[:, k] - lo[k], hi[k] - lo[k])
+        pts[:, k] = np.where(x < hi[k], x, lo[k])
+    return pts
 
 
 def _surface(dataset: Any) -> Any:

@@ -17,6 +17,7 @@ band can not pass silently.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Protocol
 
 import numpy as np
@@ -25,7 +26,7 @@ from numpy.typing import NDArray
 
 from hcvt import _core
 from hcvt.errors import InvalidMeshError
-from hcvt.geometry.domain import BOX_FACES, Domain
+from hcvt.geometry.domain import BOX_FACES, Domain, wrapped
 from hcvt.mesh.polymesh import PolyMesh
 
 
@@ -71,10 +72,14 @@ def periodic_mesh(diagram: PeriodicCells) -> PolyMesh:
         of non-periodic axes are boundary faces as in a box.
     """
     domain = diagram.domain
-    lo, hi = (np.asarray(c, dtype=np.float64) for c in domain.bounds)
+    # Everything below is in the domain's frame (hcvt.geometry.frame), as the diagram
+    # was computed: images tiled by whole periods there are the same at any position and
+    # scale of the box (in input coordinates, a box at 1e6 rounds each image's shift).
+    frame = domain.frame
+    lo, hi = frame.to_core(np.array(domain.bounds, dtype=np.float64), "corners")
     periodic = np.array(domain.periodic, dtype=bool)
     period = np.where(periodic, hi - lo, 0.0)
-    sites = domain.wrap(diagram.sites)
+    sites = wrapped(frame.to_core(diagram.sites), lo, hi, periodic)
     n, d = sites.shape
     images = diagram.neighbor_images
     assert images is not None
@@ -84,7 +89,9 @@ def periodic_mesh(diagram: PeriodicCells) -> PolyMesh:
     size = float(np.max(hi - lo))
     band = np.where(periodic, np.maximum(beyond, 0.0) + 1e-9 * size, 0.0)
     spacing = (float(np.prod(hi - lo)) / n) ** (1.0 / d)
-    weights = diagram.weights if diagram.weights is not None and np.any(diagram.weights) else None
+    weights = None
+    if diagram.weights is not None and np.any(diagram.weights):
+        weights = frame.quantity_to_core("weights", diagram.weights)
     # Only the images the central cells need: filling the widened box with images (so
     # that the outermost cells are small) cost more than it saved (10k sites: 12.9 s
     # instead of 8.3 s, under load).
@@ -93,11 +100,11 @@ def periodic_mesh(diagram: PeriodicCells) -> PolyMesh:
         margin = np.where(periodic, band + extra, 0.0)
         mesh = _central_mesh(sites, weights, lo, hi, periodic, band, margin)
         if mesh is not None:
-            return mesh
+            return replace(mesh, points=frame.points_to_input(mesh.points))
         extra *= 2.0
     raise InvalidMeshError(
         "periodic mesh: a cell reaches the sides of the widened box however wide "
-        f"(last margin {margin.tolist()}); too few sites for the box?"
+        f"(last margin {(margin * frame.scale).tolist()}); too few sites for the box?"
     )
 
 
@@ -155,7 +162,11 @@ def _central_mesh(
     band: NDArray[np.float64],
     margin: NDArray[np.float64],
 ) -> PolyMesh | None:
-    """The central cells' mesh, or None when a side of the widened box cuts one."""
+    """The central cells' mesh, or None when a side of the widened box cuts one.
+
+    Positions (sites, ``lo``, ``hi``, band and margin) and weights in the periodic box's
+    frame, and so the mesh's points.
+    """
     n, d = sites.shape
     tiled, origin, image = _tiled(sites, lo, hi, periodic, band)
     box = _widened(lo - margin, hi + margin)

@@ -29,16 +29,15 @@
 //! the returned diagram satisfies both conditions at once.
 
 use std::ops::ControlFlow;
-use std::time::Instant;
 
-use crate::diagram::{ConvexCell, DomainKind, WarmStart};
+use crate::diagram::{ConvexCell, DomainKind};
 use crate::error::CoreError;
 use crate::geometry::{Euclid, Space};
 
 use super::lbfgs::{self, LineSearch, Memory};
 use super::{
-    along_morton_curve, lloyd, mean_spacing, optimal_transport_from, Method, Observer, Outcome,
-    Point, PointRequest, Settings, Step, StopReason, Tracker, TransportSettings,
+    along_morton_curve, lloyd, optimal_transport_from, Method, Observer, Outcome, Point,
+    PointRequest, Settings, Step, StopReason, Tracker, TransportSettings,
 };
 
 /// Default tolerance on `max_i |V_i − v_i| / v_i`.
@@ -101,28 +100,7 @@ pub fn capacity_cvt<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
-    if settings.cvt.method == Method::Newton {
-        return Err(CoreError::InvalidSettings {
-            reason: "prescribed volumes take method 'lloyd' (Bourne et al.'s alternation) or \
-                     'lbfgs' (on the transport cost), not 'newton'"
-                .into(),
-        });
-    }
-    if volumes.len() != sites.len() {
-        return Err(CoreError::InvalidWeights {
-            reason: format!(
-                "volumes: expected one per site ({}), got {}",
-                sites.len(),
-                volumes.len()
-            ),
-        });
-    }
-    // Checked here, in the caller's order, so that the row named is the caller's.
-    if let Some(i) = volumes.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
-        return Err(CoreError::InvalidWeights {
-            reason: format!("volume {i} must be finite and positive, got {}", volumes[i]),
-        });
-    }
+    check_arguments(settings, sites.len(), volumes)?;
     let mut transport = Vec::new();
     let (outcome, mut columns) =
         along_morton_curve::<D, C, K>(domain, sites, observer, |along_curve, order, observe| {
@@ -139,6 +117,36 @@ where
         targets,
         transport,
     })
+}
+
+/// The method (the alternation or L-BFGS, not Newton) and one finite, positive volume per
+/// site, checked in the caller's order so that the row named is the caller's.
+fn check_arguments<const D: usize>(
+    settings: &CapacitySettings<'_, D>,
+    n: usize,
+    volumes: &[f64],
+) -> Result<(), CoreError> {
+    if settings.cvt.method == Method::Newton {
+        return Err(CoreError::InvalidSettings {
+            reason: "prescribed volumes take method 'lloyd' (Bourne et al.'s alternation) or \
+                     'lbfgs' (on the transport cost), not 'newton'"
+                .into(),
+        });
+    }
+    if volumes.len() != n {
+        return Err(CoreError::InvalidWeights {
+            reason: format!(
+                "volumes: expected one per site ({n}), got {}",
+                volumes.len()
+            ),
+        });
+    }
+    if let Some(i) = volumes.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+        return Err(CoreError::InvalidWeights {
+            reason: format!("volume {i} must be finite and positive, got {}", volumes[i]),
+        });
+    }
+    Ok(())
 }
 
 /// A point of the alternation: sites with the power diagram that gives their cells the
@@ -231,18 +239,11 @@ where
         density: cvt.density,
         normalise: settings.normalise,
     };
-    let mut tracker = Tracker {
-        request: PointRequest {
-            hessian: false,
-            density: cvt.density,
-        },
-        h: mean_spacing(domain, sites.len()),
-        start: Instant::now(),
-        evaluations: 0,
-        history: Vec::new(),
-        frame: cvt.frame,
-        warm: WarmStart::new(),
+    let request = PointRequest {
+        hessian: false,
+        density: cvt.density,
     };
+    let mut tracker = Tracker::new(domain, sites.len(), request, cvt.frame);
     let mut memory = Memory::new(cvt.memory);
     let search = LineSearch::new(cvt.max_line_evaluations);
     let mut records = Vec::new();

@@ -462,7 +462,28 @@ struct Tracker<'a, const D: usize> {
     warm: WarmStart<D>,
 }
 
-impl<const D: usize> Tracker<'_, D> {
+impl<'a, const D: usize> Tracker<'a, D> {
+    /// A run of `n` sites in `domain` that has computed nothing yet, its clock started.
+    fn new<K: DomainKind<D>>(
+        domain: &K,
+        n: usize,
+        request: PointRequest<'a, D>,
+        frame: Frame,
+    ) -> Self
+    where
+        Euclid: Space<D>,
+    {
+        Self {
+            request,
+            h: mean_spacing(domain, n),
+            start: Instant::now(),
+            evaluations: 0,
+            history: Vec::new(),
+            frame,
+            warm: WarmStart::new(),
+        }
+    }
+
     fn evaluate<C: ConvexCell<D>, K: DomainKind<D>>(
         &mut self,
         domain: &K,
@@ -657,18 +678,11 @@ fn cvt_in_order<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
-    let mut tracker = Tracker {
-        request: PointRequest {
-            hessian: settings.method == Method::Newton,
-            density: settings.density,
-        },
-        h: mean_spacing(domain, sites.len()),
-        start: Instant::now(),
-        evaluations: 0,
-        history: Vec::new(),
-        frame: settings.frame,
-        warm: WarmStart::new(),
+    let request = PointRequest {
+        hessian: settings.method == Method::Newton,
+        density: settings.density,
     };
+    let mut tracker = Tracker::new(domain, sites.len(), request, settings.frame);
     let mut point = tracker.evaluate::<C, K>(domain, sites)?;
     let mut solver = Solver {
         method: settings.method,
