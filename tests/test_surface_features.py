@@ -15,7 +15,13 @@ import numpy as np
 import pytest
 
 import hcvt
-from hcvt.surface.features import detect_features, plan_feature_sites, site_spacing
+from hcvt.surface.features import (
+    FeatureSites,
+    detect_features,
+    plan_feature_sites,
+    restore_segments,
+    site_spacing,
+)
 from hcvt.surface.quality import edge_topology
 from helpers import DATA
 
@@ -71,8 +77,8 @@ def test_the_box_remeshed_keeps_its_edges() -> None:
 def test_features_bring_the_fandisk_closer() -> None:
     domain = fandisk()
     n = 1500
-    plain = hcvt.remesh(domain, n, seed=1, samples=50_000)
-    sharp = hcvt.remesh(domain, n, seed=1, samples=50_000, features=40.0)
+    plain = hcvt.remesh(domain, n, seed=1, samples=20_000)
+    sharp = hcvt.remesh(domain, n, seed=1, samples=20_000, features=40.0)
     assert sharp.vertices.shape == (n, 3) and sharp.defects == []
     topology = edge_topology(sharp.faces, n)
     assert topology["manifold"] and topology["closed"] and topology["genus"] == 0
@@ -97,6 +103,20 @@ def test_features_bring_the_fandisk_closer() -> None:
     assert all(found.get(tuple(s)) == 2 for s in wanted)
     lengths = np.linalg.norm(sharp.vertices[wanted][:, 0] - sharp.vertices[wanted][:, 1], axis=1)
     assert np.median(lengths) < site_spacing(domain.volume, n)
+
+
+def test_a_segment_crossed_by_one_diagonal_is_flipped_in() -> None:
+    # Free sites c (0) below and d (1) above the segment a (2) - b (3) on the x axis; the
+    # triangles (a, c, d) and (d, c, b) join c-d across it.
+    vertices = np.array([[1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    plan = FeatureSites(vertices[2:], np.array([[0, 1]]))
+    faces = restore_segments(np.array([[2, 0, 1], [1, 0, 3]]), vertices, plan)
+    assert faces.tolist() == [[2, 0, 3], [2, 3, 1]]
+    # A non-convex quadrilateral (d below the segment, both triangles still counter-
+    # clockwise) is left alone: the flip would fold (a, b, d) over.
+    vertices[1] = [1.5, -0.2, 0.0]
+    kept = np.array([[2, 0, 1], [1, 0, 3]])
+    assert restore_segments(kept, vertices, plan).tolist() == kept.tolist()
 
 
 @pytest.mark.parametrize("angle", [-10.0, float("nan"), 0.0, 180.0, float("inf")])

@@ -26,7 +26,13 @@ from hcvt import _core
 from hcvt.geometry.domain import Domain
 from hcvt.optimise import CVTResult, cvt
 from hcvt.seeding.initialisation import initialise
-from hcvt.surface.features import FeatureSites, constrained_cvt, plan_feature_sites, segment_defects
+from hcvt.surface.features import (
+    FeatureSites,
+    constrained_cvt,
+    plan_feature_sites,
+    restore_segments,
+    segment_defects,
+)
 from hcvt.surface.quality import SurfaceQuality, edge_topology, surface_quality
 
 
@@ -211,6 +217,8 @@ def remesh(
         core_sites = surface.frame.to_core(run.sites)
         rdt = _core.restricted_delaunay(surface._core, core_sites)
         faces = np.asarray(rdt["triangles"], dtype=np.intp)
+        if plan is not None:
+            faces = restore_segments(faces, run.sites, plan)
         defects = _defects(faces, n, np.asarray(rdt["repeated"]), input_topology)
         if plan is not None:
             defects += segment_defects(faces, plan, n)
