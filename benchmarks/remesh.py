@@ -22,6 +22,10 @@ machine): ratios are of runs taken in turn in the same process.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh.py [--quick] [--models bunny ...] [--n ...]
 
+``--features ANGLE`` keeps the sharp edges above ANGLE degrees in both hcvt
+(``hcvt.remesh(features=ANGLE)``) and MeshLab (its ``featuredeg``, 30 by default otherwise);
+pyacvd has no such option.
+
 ``--pictures DIR`` also draws each case's three meshes side by side, triangles coloured by
 Q and shaded by a light, as ``DIR/remesh_<model>_<n>.png`` (matplotlib, off-screen; the
 pictures of docs/guide/surfaces.md: ``--models bunny fandisk --n 5000 --pictures
@@ -82,8 +86,10 @@ def quality(vertices: np.ndarray, faces: np.ndarray, reference: tuple, samples: 
     }
 
 
-def run_hcvt(domain: hcvt.Domain, n: int, max_iter: int) -> tuple[dict, np.ndarray, np.ndarray]:
-    out = hcvt.remesh(domain, n, seed=0, max_iter=max_iter, samples=1000)
+def run_hcvt(
+    domain: hcvt.Domain, n: int, max_iter: int, features: float | None = None
+) -> tuple[dict, np.ndarray, np.ndarray]:
+    out = hcvt.remesh(domain, n, seed=0, max_iter=max_iter, samples=1000, features=features)
     info = {
         "seconds": out.seconds,  # the CVT and the triangulation, not the quality
         "iterations": out.iterations,
@@ -114,26 +120,29 @@ def run_pyacvd(
 
 
 def meshlab_once(
-    vertices: np.ndarray, faces: np.ndarray, length: float
+    vertices: np.ndarray, faces: np.ndarray, length: float, features: float | None = None
 ) -> tuple[float, np.ndarray, np.ndarray]:
     import pymeshlab
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertices, faces))
     start = time.perf_counter()
-    ms.meshing_isotropic_explicit_remeshing(iterations=10, targetlen=pymeshlab.PureValue(length))
+    crease = {} if features is None else {"featuredeg": features}
+    ms.meshing_isotropic_explicit_remeshing(
+        iterations=10, targetlen=pymeshlab.PureValue(length), **crease
+    )
     seconds = time.perf_counter() - start
     m = ms.current_mesh()
     return seconds, m.vertex_matrix(), m.face_matrix()
 
 
 def run_meshlab(
-    vertices: np.ndarray, faces: np.ndarray, area: float, n: int
+    vertices: np.ndarray, faces: np.ndarray, area: float, n: int, features: float | None = None
 ) -> tuple[dict, np.ndarray, np.ndarray]:
     length = math.sqrt(2.0 * area / (math.sqrt(3.0) * n))
     tuning, tries = 0.0, 0
     while True:
-        seconds, v, f = meshlab_once(vertices, faces, length)
+        seconds, v, f = meshlab_once(vertices, faces, length, features)
         tries += 1
         count = len(v)
         if abs(count - n) <= COUNT_RTOL * n or tries == MAX_TUNING:
@@ -213,6 +222,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="bunny and fandisk at n = 5000")
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--pictures", type=Path, help="draw each case's meshes into this folder")
+    parser.add_argument("--features", type=float, help="keep sharp edges above this angle (°)")
     args = parser.parse_args()
     if args.quick:
         args.models, args.n = ["bunny", "fandisk"], [5000]
@@ -223,6 +233,8 @@ def main() -> None:
         f"{'%<30':>6} {'H %':>6} {'manif':>5} {'genus':>5} {'s':>8} {'s/hcvt':>7}"
     )
     print("under load: other jobs share this 2-core machine; ratios are in-run")
+    if args.features is not None:
+        print(f"sharp features above {args.features}° kept by hcvt and MeshLab")
     print(header)
     for model in args.models:
         domain = hcvt.load_domain(DATA / MODELS[model], surface=True)
@@ -230,10 +242,10 @@ def main() -> None:
         reference = (v, f)
         for n in args.n:
             results = {}
-            info, rv, rf = run_hcvt(domain, n, args.max_iter)
+            info, rv, rf = run_hcvt(domain, n, args.max_iter, args.features)
             results["hcvt"] = (info, rv, rf)
             results["pyacvd"] = run_pyacvd(v, f, n)
-            results["meshlab"] = run_meshlab(v, f, domain.volume, n)
+            results["meshlab"] = run_meshlab(v, f, domain.volume, n, args.features)
             base = results["hcvt"][0]["seconds"]
             drawn = {}
             for code, (info, ov, of) in results.items():

@@ -167,6 +167,13 @@ def _load(input_: str, repair: bool, radius: float = 1.0, periodic: bool = False
     "meshio; .stl, single by its format, by trimesh).",
 )
 @click.option(
+    "--features",
+    type=float,
+    default=None,
+    help="With --surface: keep the sharp edges, those whose triangles' normals differ by "
+    "more than this many degrees (hcvt.remesh(features=...)).",
+)
+@click.option(
     "--out",
     type=click.Path(dir_okay=False),
     help="Sites: .npy or .csv; on the sphere also .nc, an MPAS mesh file (hcvt.write_mpas).",
@@ -250,6 +257,7 @@ def run(
     max_iter: int,
     repair: bool,
     surface: bool,
+    features: float | None,
     out: str | None,
     cells_path: str | None,
     mesh_dir: str | None,
@@ -264,8 +272,10 @@ def run(
 ) -> None:
     """CVT of N sites in INPUT: a built-in shape (square, star, sphere, ...) or a file."""
     if surface:
-        _remesh(input_, n, method, seed, tol, max_iter, out, summary)
+        _remesh(input_, n, method, seed, tol, max_iter, out, summary, features)
         return
+    if features is not None:
+        raise click.UsageError("--features keeps sharp edges in remeshing: it needs --surface")
     if scheduler is not None and method not in PARTITIONED:
         raise click.UsageError(
             f"--scheduler runs the methods {', '.join(PARTITIONED)}, not {method!r}"
@@ -423,7 +433,10 @@ def run(
 
 
 #: ``run --surface``: the options it reads (the others are refused), the optimisers it takes.
-SURFACE_OPTIONS = {"input_", "n", "method", "seed", "tol", "max_iter", "surface", "out", "summary"}
+SURFACE_OPTIONS = {
+    *("input_", "n", "method", "seed", "tol", "max_iter", "surface", "out", "summary"),
+    "features",
+}
 SURFACE_METHODS = ("lbfgs", "lloyd")
 
 
@@ -436,6 +449,7 @@ def _remesh(
     max_iter: int,
     out: str | None,
     summary: str | None,
+    features: float | None = None,
 ) -> None:
     """``run --surface``: :func:`hcvt.remesh` of the mesh file INPUT, its quality printed."""
     ctx = click.get_current_context()
@@ -458,7 +472,9 @@ def _remesh(
     limits: dict[str, Any] = {} if tol is None else {"tol": tol}
     if ctx.get_parameter_source("max_iter") is not click.core.ParameterSource.DEFAULT:
         limits["max_iter"] = max_iter
-    result = hcvt.remesh(domain, n, seed=seed, method=method or "lbfgs", **limits)
+    result = hcvt.remesh(
+        domain, n, seed=seed, method=method or "lbfgs", features=features, **limits
+    )
     q = result.quality
     click.echo(
         f"n = {q.vertices}  triangles = {q.faces}  iterations = {result.iterations} "
@@ -477,6 +493,7 @@ def _remesh(
         "surface": True,
         "method": method or "lbfgs",
         "seed": seed,
+        "features": features,
         "iterations": result.iterations,
         "stop_reason": result.cvt.stop_reason,
         "seconds": result.seconds,

@@ -26,6 +26,13 @@ from hcvt import _core
 from hcvt.geometry.domain import Domain
 from hcvt.optimise import CVTResult, cvt
 from hcvt.seeding.initialisation import initialise
+from hcvt.surface.features import (
+    FeatureSites,
+    constrained_cvt,
+    plan_feature_sites,
+    restore_segments,
+    segment_defects,
+)
 from hcvt.surface.quality import SurfaceQuality, edge_topology, surface_quality
 
 
@@ -112,6 +119,25 @@ def _defects(
     return out
 
 
+def _cvt(
+    surface: Domain,
+    sites: NDArray[np.float64],
+    plan: FeatureSites | None,
+    method: str,
+    tol: float | None,
+    max_iter: int,
+) -> CVTResult:
+    """The CVT of :func:`remesh`: :func:`hcvt.cvt`, or one holding the features' sites.
+
+    With ``plan``, the last ``len(plan.points)`` sites do not move
+    (:func:`hcvt.surface.features.constrained_cvt`).
+    """
+    if plan is None:
+        return cvt(surface, sites, method, tol=tol, max_iter=max_iter)
+    tol = _core.check_settings(method, "gap", tol, max_iter, 7)
+    return constrained_cvt(surface, sites, len(plan.points), method, tol=tol, max_iter=max_iter)
+
+
 def remesh(
     surface: Domain,
     n: int,
@@ -122,6 +148,7 @@ def remesh(
     max_iter: int = 200,
     check: bool = False,
     samples: int = 200_000,
+    features: float | None = None,
 ) -> RemeshResult:
     """Remesh ``surface`` isotropically with exactly ``n`` vertices.
 
@@ -148,6 +175,12 @@ def remesh(
         manifold mesh of the surface, instead of listing them in ``defects``.
     samples : int
         Points per mesh for the sampled Hausdorff distance of ``quality``.
+    features : float or None
+        Keep the sharp features: edges whose triangles' normals differ by more than this
+        many degrees (in (0, 180)), and the border of an open surface, chained into curves.
+        Their corners and sites about 0.7 spacings apart along them are held fixed through
+        the CVT, so the triangulation runs along them (:mod:`hcvt.surface.features`; a
+        segment of a curve missing from the triangles is a defect). None: no features.
 
     Returns
     -------
@@ -156,7 +189,8 @@ def remesh(
     Raises
     ------
     ValueError
-        ``surface`` is not a surface.
+        ``surface`` is not a surface; ``features`` is not an angle in (0, 180) degrees, or
+        the features take all ``n`` sites.
     RemeshError
         With ``check=True``: the triangulation has defects (module docs).
 
@@ -172,20 +206,28 @@ def remesh(
         raise ValueError("remesh takes a surface (hcvt.Domain.from_surface)")
     start = time.perf_counter()
     input_topology = edge_topology(surface.faces, len(surface.vertices))
-    sites = initialise(surface, n, method="random", seed=seed)
-    run = cvt(surface, sites, method, tol=tol, max_iter=max_iter)
+    plan = None if features is None else plan_feature_sites(surface, n, features)
+    held = 0 if plan is None else len(plan.points)
+    sites = initialise(surface, n - held, method="random", seed=seed)
+    if plan is not None:  # the free sites first, then the fixed ones on the features
+        sites = np.vstack([sites, plan.points])
+    run = _cvt(surface, sites, plan, method, tol, max_iter)
     iterations = run.iterations
     for round_ in range(TIGHTER_ROUNDS + 1):
         core_sites = surface.frame.to_core(run.sites)
         rdt = _core.restricted_delaunay(surface._core, core_sites)
         faces = np.asarray(rdt["triangles"], dtype=np.intp)
+        if plan is not None:
+            faces = restore_segments(faces, run.sites, plan)
         defects = _defects(faces, n, np.asarray(rdt["repeated"]), input_topology)
+        if plan is not None:
+            defects += segment_defects(faces, plan, n)
         if not defects or tol is None or iterations >= max_iter or round_ == TIGHTER_ROUNDS:
             break
         # Cells that are not yet discs (the closed-ball property fails) in an early
         # stop: iterate on from the projected sites to a tighter gap.
         tol *= TIGHTER
-        run = cvt(surface, run.sites, method, tol=tol, max_iter=max_iter - iterations)
+        run = _cvt(surface, run.sites, plan, method, tol, max_iter - iterations)
         iterations += run.iterations
     seconds = time.perf_counter() - start
     if check and defects:
