@@ -14,37 +14,52 @@
 //! `‖ν − m‖` drops to at most `(1 − t/2)` of what it was. Their theorem: the iteration
 //! converges globally, and locally quadratically (`t = 1`).
 //!
-//! **Linear solver.** `L` is symmetric positive semi-definite with the constants as kernel
-//! (a connected diagram) and `ν − m` sums to zero, so the system is consistent: conjugate
-//! gradients preconditioned by `L`'s diagonal solve it as it is (Kaasschieter 1988; a drift
-//! along the kernel shifts every weight alike, which changes no cell). Not with one weight
-//! fixed: the fixed row's equation then holds only through the sum of all the others, and
-//! their residuals, each small, add up in that one cell and emptied it (5,000 random
-//! sites). Chosen over a
-//! direct factorisation (pysdot's default here is scipy's `spsolve`) because `L` has about
-//! 6 (2D) or 15 (3D) entries per row and CG needs only its products, one pass over the
-//! diagram's face list in parallel rows, with no dependency; and because the system is
-//! solved only as accurately as the step needs (inexact Newton: each cell's residual
-//! within `min(0.1, e) · e` of its target, `e` the present largest relative error), so
-//! early steps take few iterations. Symmetric successive over-relaxation in the Morton
-//! order of the sites (its couplings split before and after each row, branch-free) cut the
-//! iterations 2.5-fold at 10,000 sites (ω = 1: 711 against 1,831 over the 7 Newton steps;
-//! ω = 1.4: 750) but each cost 3.5 times a diagonal one (two sequential sweeps against one
-//! parallel product), so the whole run was no faster (2.84 s and 2.26 s against 2.59 s,
-//! the machine under load): not used. Fusing each iteration's eight passes over the rows
-//! into three (the product with its dot product; the updates with the next dot product
-//! and the stopping test) left the CG's share of samples unchanged (12%, perf, 10,000
-//! sites): not used either. Algebraic multigrid would cut the iterations at
-//! 100k sites and more (not done).
-//! Products run in parallel rows and every dot product is summed in index order: the
-//! weights do not depend on the thread count.
+//! **Linear solver: sparse Cholesky (faer), conjugate gradients as the fallback.** `L` is
+//! symmetric positive semi-definite with the constants as kernel (a connected diagram) and
+//! `ν − m` sums to zero, so the system is consistent. In 2D it is solved directly
+//! (`Laplacian::direct`): the symmetrised `L` with the weight of its best-connected cell
+//! held fixed, factorised by faer's supernodal Cholesky after an AMD ordering (17 to 21
+//! entries a row in the factor at 10,000 sites), serially. Its residual is then checked
+//! cell by cell against the inexact-Newton goal below and, if short of it, polished by
+//! the conjugate gradients, which also solve every system the factorisation does not take:
+//! a face graph that is not connected, or a factor fuller than `MAX_FILL_PER_ROW` (3D:
+//! 200 to 250 entries a row at 5,000 sites in the unit cube, where CG needs 6 to 104
+//! iterations a step). Why: profiled (perf, one thread, equal masses in the unit square),
+//! diagonal-preconditioned CG took about a quarter of the run at 10,000 sites (1,831
+//! iterations over 7 steps) and over half at 100,000 (5,166 iterations), its iterations
+//! growing with the diagram's diameter; the factorisation took none of them, and the exact
+//! steps converged in one Newton step (and diagram) fewer. Measured figures: the guide's
+//! volumes page. With one weight fixed CG had emptied a cell (5,000 random sites: the
+//! fixed row's equation holds only through the sum of the others' small residuals); a
+//! direct solve leaves round-off there.
+//!
+//! The conjugate gradients are preconditioned by `L`'s diagonal and solve the singular
+//! system as it is (Kaasschieter 1988; a drift along the kernel shifts every weight
+//! alike, which changes no cell), only as accurately as the step needs (inexact Newton:
+//! each cell's residual within `min(0.1, e) · e` of its target, `e` the present largest
+//! relative error). Tried for them and not kept: symmetric successive over-relaxation in
+//! the Morton order (2.5-fold fewer iterations at 10,000 sites, each 3.5 times dearer:
+//! no faster), and fusing each iteration's eight passes over the rows into three (CG's
+//! share of samples unchanged). Products run in parallel rows and every dot product is
+//! summed in index order, and the factorisation runs on one thread: the weights do not
+//! depend on the thread count.
+//!
+//! **Diagrams.** The sites do not move: each diagram is warm-started from the previous
+//! one's near-site lists (`diagram::warm`; the same cells bit for bit).
 
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering,
+};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat};
+use faer::{Conj, MatMut, Par, Side};
 use rayon::prelude::*;
 
 use crate::density::Density;
 use crate::diagram::{
     clipped_diagram, ConvexCell, Diagram, DomainKind, FaceIntegrals, FaceIntegrand, Matrix,
-    Request as DiagramRequest,
+    Request as DiagramRequest, WarmStart,
 };
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
@@ -166,7 +181,11 @@ where
         Some(w) => w.to_vec(),
         None => vec![0.0; n],
     };
-    let mut current = Evaluation::new::<C, K>(domain, sites, &weights, settings.density)?;
+    // The sites stay put: every diagram streams each cell's near sites from the previous
+    // diagram's lists (the same cells bit for bit, `diagram::warm`).
+    let mut near = WarmStart::new();
+    let mut current =
+        Evaluation::new::<C, K>(domain, sites, &weights, settings.density, &mut near)?;
     let total: f64 = current.masses.iter().sum();
     let given: f64 = masses.iter().sum();
     let targets: Vec<f64> = if settings.normalise {
@@ -208,7 +227,8 @@ where
         // min(0.1, error) of the present one (superlinear convergence), and no smaller
         // than round-off allows.
         let goal = (error * error.min(0.1)).max(0.01 * settings.tol);
-        let (direction, cg_iterations) = laplacian.solve(&residual, &targets, goal);
+        let start = laplacian.direct(&residual);
+        let (direction, cg_iterations) = laplacian.solve(&residual, &targets, goal, start);
         let norm = norm_of(&residual);
         let mut step = 1.0;
         let mut diagrams = 0;
@@ -218,7 +238,8 @@ where
                 .zip(&direction)
                 .map(|(w, d)| w + step * d)
                 .collect();
-            let evaluation = Evaluation::new::<C, K>(domain, sites, &trial, settings.density)?;
+            let evaluation =
+                Evaluation::new::<C, K>(domain, sites, &trial, settings.density, &mut near)?;
             diagrams += 1;
             let min_mass = evaluation
                 .masses
@@ -298,21 +319,26 @@ impl<const D: usize> Evaluation<D> {
         sites: &[[f64; D]],
         weights: &[f64],
         density: Option<&Density<'_, D>>,
+        near: &mut WarmStart<D>,
     ) -> Result<Self, CoreError>
     where
         Euclid: Space<D>,
     {
         let integrand = density.map(|_| FaceMass);
-        let clipped = clipped_diagram::<D, C, K>(
+        let mut clipped = clipped_diagram::<D, C, K>(
             domain,
             sites,
             &DiagramRequest {
                 density,
                 weights: Some(weights),
                 integrand: integrand.as_ref().map(|f| f as &dyn FaceIntegrand<D>),
+                warm: Some(near),
                 ..DiagramRequest::default()
             },
         )?;
+        if let Some(lists) = clipped.warm.take() {
+            *near = lists;
+        }
         let masses = clipped.diagram.masses();
         Ok(Self {
             diagram: clipped.diagram,
@@ -415,17 +441,31 @@ impl<'a, const D: usize> Laplacian<'a, D> {
             });
     }
 
-    /// `δ` with `L δ = b` (`b` summing to zero), by conjugate gradients
-    /// preconditioned by the diagonal, until every row's residual is within `goal` of its
+    /// `δ` with `L δ = b` (`b` summing to zero), by conjugate gradients from `start`
+    /// (zero when `None`) preconditioned by the diagonal, until every row's residual is within `goal` of its
     /// cell's target mass, relatively (`|r_i| ≤ goal · ν_i`): an ℓ2 criterion would let
     /// the error of the whole system fall on the smallest cells and empty them in the
     /// step. Returns the iterations taken too.
-    fn solve(&self, b: &[f64], targets: &[f64], goal: f64) -> (Vec<f64>, usize) {
+    fn solve(
+        &self,
+        b: &[f64],
+        targets: &[f64],
+        goal: f64,
+        start: Option<Vec<f64>>,
+    ) -> (Vec<f64>, usize) {
         let n = b.len();
-        let mut x = vec![0.0; n];
         // `b` onto the range of `L`: its mean (round-off) removed.
         let mean = b.iter().sum::<f64>() / n as f64;
         let mut r: Vec<f64> = b.iter().map(|b| b - mean).collect();
+        let mut x = match start {
+            Some(x) => {
+                let mut lx = vec![0.0; n];
+                self.product(&x, &mut lx);
+                r.iter_mut().zip(&lx).for_each(|(r, l)| *r -= l);
+                x
+            }
+            None => vec![0.0; n],
+        };
         let done = |r: &[f64]| r.iter().zip(targets).all(|(r, t)| r.abs() <= goal * t);
         let inverse: Vec<f64> = self
             .diagonal
@@ -458,5 +498,173 @@ impl<'a, const D: usize> Laplacian<'a, D> {
             iterations += 1;
         }
         (x, iterations)
+    }
+}
+
+/// A factorisation whose factor holds more than this many entries a row (supernodal
+/// storage) is not carried out: the conjugate gradients solve the system instead. 2D
+/// diagrams gave 17 to 21 with AMD at 10,000 sites; 3D ones 200 to 250 at 5,000, where CG
+/// needs only 6 to 104 iterations a step.
+const MAX_FILL_PER_ROW: usize = 60;
+
+impl<const D: usize> Laplacian<'_, D> {
+    /// `δ` with `L δ = b` by a sparse Cholesky factorisation (faer, serial), or `None`
+    /// when it does not apply: a diagram whose face graph is not connected, a factor too
+    /// full (`MAX_FILL_PER_ROW`) or a failed factorisation. `L` is singular by the
+    /// constants; one weight, of the cell with the largest coupling, is held fixed (its
+    /// row and column replaced by the identity): the others' equations then hold to
+    /// round-off, and the fixed cell's through their sum, `b` summing to zero. The matrix
+    /// is symmetrised, each face's coupling read from its lower-numbered cell and the
+    /// diagonal summed from the couplings, so that it is exactly positive semi-definite.
+    /// The fill-reducing ordering is AMD's, computed afresh each step: the first step's
+    /// ordering kept for the later ones let the factor grow from 17 to 165 entries a row
+    /// (10,000 sites; AMD's own gives 19 to 21), the faces having moved.
+    fn direct(&self, b: &[f64]) -> Option<Vec<f64>> {
+        let n = b.len();
+        if n < 2 {
+            return None;
+        }
+        let (matrix, fixed) = self.grounded()?;
+        let par = Par::Seq;
+        let symbolic = factorize_symbolic_cholesky(
+            matrix.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams::default(),
+        )
+        .ok()?;
+        if symbolic.len_val() > MAX_FILL_PER_ROW * n {
+            return None;
+        }
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+        let mut memory = MemBuffer::try_new(scratch).ok()?;
+        let mut values = vec![0.0; symbolic.len_val()];
+        let factor = symbolic
+            .factorize_numeric_llt(
+                &mut values,
+                matrix.as_ref(),
+                Side::Lower,
+                LltRegularization::default(),
+                par,
+                MemStack::new(&mut memory),
+                Default::default(),
+            )
+            .ok()?;
+        let mean = b.iter().sum::<f64>() / n as f64;
+        let mut x: Vec<f64> = b.iter().map(|b| b - mean).collect();
+        x[fixed] = 0.0;
+        factor.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut x, n, 1),
+            par,
+            MemStack::new(&mut memory),
+        );
+        x.iter().all(|x| x.is_finite()).then_some(x)
+    }
+
+    /// The symmetrised Laplacian's lower triangle in compressed columns with the row and
+    /// column of the cell with the largest diagonal replaced by the identity, and that
+    /// cell; `None` when the face graph is not connected (a zero coupling counts as none).
+    fn grounded(&self) -> Option<(SparseColMat<usize, f64>, usize)> {
+        let d = self.diagram;
+        let n = d.len();
+        // Each column's couplings to higher-numbered cells, merged (a periodic cell can
+        // meet one neighbour through two of its images).
+        let mut lower_ptr = Vec::with_capacity(n + 1);
+        let mut lower: Vec<(usize, f64)> = Vec::with_capacity(d.neighbor_sites.len() / 2 + n);
+        let mut diagonal = vec![0.0; n];
+        let mut components = Components::new(n);
+        lower_ptr.push(0);
+        for i in 0..n {
+            let from = lower.len();
+            for e in d.neighbor_offsets[i]..d.neighbor_offsets[i + 1] {
+                let j = d.neighbor_sites[e] as usize;
+                if j > i && self.edge[e] > 0.0 {
+                    lower.push((j, self.edge[e]));
+                }
+            }
+            lower[from..].sort_unstable_by_key(|&(j, _)| j);
+            let mut kept = from;
+            for k in from..lower.len() {
+                if kept > from && lower[kept - 1].0 == lower[k].0 {
+                    lower[kept - 1].1 += lower[k].1;
+                } else {
+                    lower[kept] = lower[k];
+                    kept += 1;
+                }
+            }
+            lower.truncate(kept);
+            for &(j, c) in &lower[from..] {
+                diagonal[i] += c;
+                diagonal[j] += c;
+                components.join(i, j);
+            }
+            lower_ptr.push(lower.len());
+        }
+        if !components.connected() {
+            return None;
+        }
+        let fixed = (0..n).fold(0, |best, i| {
+            if diagonal[i] > diagonal[best] {
+                i
+            } else {
+                best
+            }
+        });
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut rows = Vec::with_capacity(lower.len() + n);
+        let mut values = Vec::with_capacity(lower.len() + n);
+        col_ptr.push(0);
+        for i in 0..n {
+            rows.push(i);
+            if i == fixed {
+                values.push(1.0);
+            } else {
+                values.push(diagonal[i]);
+                for &(j, c) in &lower[lower_ptr[i]..lower_ptr[i + 1]] {
+                    if j != fixed {
+                        rows.push(j);
+                        values.push(-c);
+                    }
+                }
+            }
+            col_ptr.push(rows.len());
+        }
+        let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows);
+        Some((SparseColMat::new(pattern, values), fixed))
+    }
+}
+
+/// Union–find over the cells, to tell whether the face graph is connected.
+struct Components {
+    parent: Vec<usize>,
+}
+
+impl Components {
+    fn new(n: usize) -> Self {
+        Self {
+            parent: (0..n).collect(),
+        }
+    }
+
+    fn root(&mut self, mut i: usize) -> usize {
+        while self.parent[i] != i {
+            self.parent[i] = self.parent[self.parent[i]];
+            i = self.parent[i];
+        }
+        i
+    }
+
+    fn join(&mut self, i: usize, j: usize) {
+        let (a, b) = (self.root(i), self.root(j));
+        if a != b {
+            self.parent[a.max(b)] = a.min(b);
+        }
+    }
+
+    fn connected(&mut self) -> bool {
+        (0..self.parent.len()).all(|i| self.root(i) == 0)
     }
 }
