@@ -21,6 +21,21 @@ Lloyd's alternation 599 s (5,821 iterations; 7.7x); 2,000 grains, L-BFGS 590 s (
 iterations, 1,544 Newton steps, 2,325 diagrams), largest volume error 9.4e-11, RMS gap
 9.6e-8. A 10,000-grain run did not finish in 20 minutes under that load (stopped).
 
+Levers tried for issue 34 (1,000 grains, seed 0, under load; main's run: 331 outer
+iterations, 700 Newton steps, 1,038 diagrams), none kept. The outer L-BFGS iterations are
+the cost, and they are sensitive to anything that perturbs the trajectory, most of them
+(152 of 331) spent with the RMS gap between 1e-4 and 1e-3:
+
+- inexact transports (volume tolerance ``volume_tol · gap / tol`` within [1e-8, 1e-3],
+  exact in the last iteration): 471 iterations, 632 Newton steps, 1,134 diagrams; the
+  tolerance ten times tighter 506 / 1,424 diagrams, a hundred times 462 / 1,381; only the
+  first transport loose 360 / 1,163. (Smaller cases gained: 150 grains in the periodic cube
+  477 -> 337 diagrams in the same 152 iterations, 200 in the periodic square 621 -> 477.)
+- a better start, sites at a CVT of the box first: to a gap of 1e-2, 429 iterations and
+  1,348 diagrams (+10 Voronoi diagrams); to 1e-3, 638 and 2,007 (+77).
+- L-BFGS memory 3 or 15 instead of the default 7: 356 and 493 iterations, 1,132 and
+  1,580 diagrams.
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/polycrystal.py [--n 100000] [--sigma 0.3]
         [--seed 0] [--threads 0] [--case DIR]
 """
