@@ -77,9 +77,10 @@ def fastest_method(
     band density (2,584 sites, R = 6371 km, graded random start, seed 0, under load) Newton
     took 146 diagrams / 22 s to the default rule where L-BFGS had not reached it after 500 /
     49 s, and 97 / 14 s to the paper's against L-BFGS's 200-300 / 20-30 s
-    (``benchmarks/sphere_density_newton.py`` runs the 3 seeds and 10,000 sites). Elsewhere L-BFGS: a periodic box or a
-    triangle surface (no Hessian summed there yet), a sampled density in a flat domain (its
-    Hessian is not exact), a partitioned run (``client=``: L-BFGS and Lloyd only).
+    (``benchmarks/sphere_density_newton.py`` runs the 3 seeds and 10,000 sites).
+    Elsewhere L-BFGS: a periodic box or a triangle surface (no Hessian summed there yet), a
+    sampled density in a flat domain (its Hessian is not exact), a partitioned run
+    (``client=``: L-BFGS and Lloyd only).
 
     Returns
     -------
