@@ -168,10 +168,10 @@ def cvt(
         5 diagrams from icosahedral sites), L-BFGS (memory ``memory``, strong-Wolfe line
         search, preconditioned so that its first step is a Lloyd step; the paper's method)
         or Lloyd's ``x_i <- c_i``. Default: the fastest the domain takes
-        (:func:`hcvt.optimise.fastest_method`): Newton on polygons, solids, plain boxes
-        and the sphere without a density or with a polynomial one (none on the sphere), in
-        one process; L-BFGS elsewhere (periodic boxes, a sampled density, ``client=``)
-        and with ``volumes``.
+        (:func:`hcvt.optimise.fastest_method`): Newton on polygons, solids and plain
+        boxes without a density or with a polynomial one, and on the sphere with any
+        density, in one process; L-BFGS elsewhere (periodic boxes, a sampled density in a
+        flat domain, ``client=``) and with ``volumes``.
     rule : {"gap", "paper"}
         Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
         (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates
@@ -204,8 +204,10 @@ def cvt(
         Lloyd moves each site to its ρ-weighted centroid and L-BFGS follows the ρ-weighted
         gradient; both rules apply unchanged (``h_i`` stays the geometric ``V_i^(1/d)``).
         Newton's Hessian weighs its face terms by ρ on each face, exactly for a
-        :class:`~hcvt.density.Polynomial`; with a callable Newton is not offered
-        (InvalidDensityError). A callable is called once per diagram, with the GIL.
+        :class:`~hcvt.density.Polynomial`; with a callable Newton is not offered in a flat
+        domain (InvalidDensityError); on the sphere it is, its arcs sampled at 3
+        Gauss–Legendre nodes in the same call as the cells. A callable is called once per
+        diagram, with the GIL.
     quadrature_degree : int, default 4
         Degree (1 to 5) of the simplex rule that samples a callable density.
     volumes : array_like of float, shape (n,), optional

@@ -66,25 +66,29 @@ def fastest_method(
 
     Newton (the exact Hessian, truncated CG in a trust region) wherever the core sums its
     Hessian: polygons, solids, plain boxes and the sphere (its Riemannian Hessian), without
-    a density or with a :class:`~hcvt.density.Polynomial` (on the sphere: without one), in one
-    process. It needs 3-5x fewer diagrams than L-BFGS from random sites and was 2.6-3.7x
-    faster to the paper's rule in every row of ``docs/results/bench_cvt.txt`` (square 1k,
-    5k; star 2k, 10k; ball 1k, 5k; medians of 3 seeds) and 2.6-3.4x to the default rule in
-    the four rows where L-BFGS reached it, and faster in all six hierarchical rows of
-    ``docs/results/bench_hierarchy.txt``, and on the sphere it converges the icosahedral
-    MPAS sizes in 5 diagrams against L-BFGS's 33-118 (``benchmarks/sphere.py``).
+    a density or with a :class:`~hcvt.density.Polynomial` (on the sphere: with any density,
+    its arcs weighted by ρ at Gauss–Legendre nodes), in one process. It needs 3-5x fewer
+    diagrams than L-BFGS from random sites and was 2.6-3.7x faster to the paper's rule in
+    every row of ``docs/results/bench_cvt.txt`` (square 1k, 5k; star 2k, 10k; ball 1k, 5k;
+    medians of 3 seeds) and 2.6-3.4x to the default rule in the four rows where L-BFGS
+    reached it, and faster in all six hierarchical rows of
+    ``docs/results/bench_hierarchy.txt``; on the sphere it converges the icosahedral MPAS
+    sizes in 5 diagrams against L-BFGS's 33-118 (``benchmarks/sphere.py``); with the 4:1
+    band density (2,584 sites, R = 6371 km, graded random start, seed 0, under load) Newton
+    took 146 diagrams / 22 s to the default rule where L-BFGS had not reached it after 500 /
+    49 s, and 97 / 14 s to the paper's against L-BFGS's 200-300 / 20-30 s
+    (``benchmarks/sphere_density_newton.py`` runs the 3 seeds and 10,000 sites).
     Elsewhere L-BFGS: a periodic box or a triangle surface (no Hessian summed there yet), a
-    sampled density (its Hessian is not exact), the sphere with any density (its Hessian is
-    not weighted yet), a partitioned run (``client=``: L-BFGS and Lloyd only).
+    sampled density in a flat domain (its Hessian is not exact), a partitioned run
+    (``client=``: L-BFGS and Lloyd only).
 
     Returns
     -------
     str
         ``"newton"`` or ``"lbfgs"``.
     """
-    exact_hessian = density is None or isinstance(density, Polynomial)
-    if domain.is_sphere and density is not None:
-        exact_hessian = False  # the sphere's Hessian is not weighted by a density yet
+    # On the sphere every density is sampled, its arcs too, and Newton measured faster.
+    exact_hessian = density is None or isinstance(density, Polynomial) or domain.is_sphere
     summed = not any(domain.periodic) and not domain.is_surface
     if not summed or not exact_hessian or partitioned:
         return "lbfgs"

@@ -147,7 +147,7 @@ impl<const D: usize> FaceSums<D> {
 
     /// [`FaceSums::add_moments`] with the face's `measure` apart from its moments `m`
     /// (weighted by a density, DESIGN §8).
-    fn add_weighted_moments(
+    pub(super) fn add_weighted_moments(
         &mut self,
         face: Face,
         sign: f64,

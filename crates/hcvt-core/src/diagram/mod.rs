@@ -136,6 +136,10 @@ struct Batch<const D: usize, C> {
     /// cell after cell.
     cone_counts: Vec<u32>,
     cones: Vec<Cone<D>>,
+    /// With a sampled density and a face integrand on the sphere: each cell's number of
+    /// deferred faces, and the faces, cell after cell.
+    face_node_counts: Vec<u32>,
+    face_nodes: Vec<weighted::FaceNodes<D>>,
     /// With [`Request::warm`]: each cell's near sites for the next diagram, their number
     /// per cell and the squared distance within which they are complete.
     near_counts: Vec<u32>,
@@ -168,6 +172,8 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             weighted: Vec::new(),
             cone_counts: Vec::new(),
             cones: Vec::new(),
+            face_node_counts: Vec::new(),
+            face_nodes: Vec::new(),
             near_counts: Vec::new(),
             near: Vec::new(),
             near_complete2: Vec::new(),
@@ -193,6 +199,10 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
         if w.is_sampled() {
             self.cone_counts.push(w.cones.len() as u32);
             self.cones.extend_from_slice(&w.cones);
+            if integrals {
+                self.face_node_counts.push(w.faces.len() as u32);
+                self.face_nodes.extend_from_slice(&w.faces);
+            }
         } else if w.is_on() {
             self.weighted.push(w.moments);
         }
@@ -368,7 +378,7 @@ where
     let mut batches = without_errors(batches)?;
     if let Some(d @ Density::Sampled { field, .. }) = density {
         let rule = d.rule_in(domain.cell_dim())?;
-        weighted::sample(domain, *field, &rule, sites, &mut batches)?;
+        weighted::sample(domain, *field, &rule, sites, &mut batches, integrand)?;
     }
     let out = assemble(
         sites,
@@ -682,7 +692,7 @@ where
         without_errors(visit.batches::<C, K>(domain, own, None, false, &weighted_sums))?;
     if let Some(d @ Density::Sampled { field, .. }) = density {
         let rule = d.rule_in(domain.cell_dim())?;
-        weighted::sample(domain, *field, &rule, sites, &mut batches)?;
+        weighted::sample(domain, *field, &rule, sites, &mut batches, None)?;
     }
     let rows = own.len();
     let mut reach2 = Vec::with_capacity(rows);

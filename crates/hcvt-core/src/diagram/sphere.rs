@@ -67,7 +67,7 @@
 
 use std::cell::RefCell;
 
-use crate::density::quadrature::{Rule, TRIANGLE_5};
+use crate::density::quadrature::{Rule, SEGMENT_5, TRIANGLE_5};
 use crate::density::Cone;
 use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
@@ -77,6 +77,7 @@ use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::faces::{FaceRow, FaceSums};
 use super::sphere_density;
+use super::weighted::{FaceNodes, FACE_NODES};
 
 /// How far from the unit sphere a site may lie, `| |x|² − 1 | ≤ 2·ON_SPHERE_TOL` (so
 /// `| |x| − 1 |` about `ON_SPHERE_TOL`): the sites are then taken as their directions. A
@@ -470,7 +471,9 @@ struct ArcRow<'a> {
 
 /// Add the arc from `ends[0]` to `ends[1]` (unit, in the site's frame, `theta` long, made by
 /// `face`) to `faces`: its length, and with `arcs` its moments about the site
-/// ([`arc_moments`]) for the row's integrand.
+/// ([`arc_moments`]) for the row's integrand. With a density the moments are ρ-weighted
+/// ([`arc_nodes`]): a polynomial's at once, a field's once it is sampled (the arc waits in
+/// the cell's weighted sums, its entry in the row zero until then).
 fn add_arc(
     faces: &mut FaceSums<3>,
     arcs: Option<ArcRow<'_>>,
@@ -478,15 +481,56 @@ fn add_arc(
     ends: [[f64; 3]; 2],
     theta: f64,
 ) {
-    match (arcs, face) {
-        (Some(arcs), Face::Neighbor(_)) => {
-            let local = arc_moments(ends[0], ends[1], theta);
-            faces.add_moments(face, 1.0, &arcs.frame.global_moments(&local), arcs.row);
+    let (Some(arcs), Face::Neighbor(j)) = (arcs, face) else {
+        faces.add(face, theta);
+        return;
+    };
+    let local = arc_moments(ends[0], ends[1], theta);
+    let geometric = arcs.frame.global_moments(&local);
+    if !faces.weighted.is_on() {
+        faces.add_moments(face, 1.0, &geometric, arcs.row);
+        return;
+    }
+    let arc = FaceNodes {
+        neighbor: j,
+        nodes: arc_nodes(ends, theta).map(|(y, w)| (arcs.frame.global(y), w)),
+        geometric,
+    };
+    match faces.weighted.polynomial_about_site() {
+        Some(rho) => {
+            let values = arc.nodes.map(|(y, _)| rho.value(y));
+            let weighted = arc.weighted(&values);
+            faces.add_weighted_moments(face, 1.0, theta, &weighted, arcs.row);
         }
-        _ => {
-            faces.add(face, theta);
+        None => {
+            let zero = FaceMoments::zero();
+            faces.add_weighted_moments(face, 1.0, theta, &zero, arcs.row);
+            faces.weighted.faces.push(arc);
         }
     }
+}
+
+/// The nodes `y = x − ẑ` of the 3-point Gauss–Legendre rule ([`SEGMENT_5`]) on the arc
+/// from `ends[0]` to `ends[1]` (unit, in the site's frame, `theta < π` long), with their
+/// weights (arc length): along the arc as [`arc_moments`] writes it, no cancellation. The
+/// rule is of degree 5 in the arc's angle: a polynomial ρ of degree 2 makes `ρ y yᵀ` a
+/// trigonometric polynomial of degree 4 in it, integrated to a relative `O(θ⁶)`.
+fn arc_nodes(ends: [[f64; 3]; 2], theta: f64) -> [([f64; 3], f64); FACE_NODES] {
+    let [a, b] = ends;
+    let n = cross(a, b);
+    let u = cross(scale(n, 1.0 / norm2(n).sqrt()), a);
+    let ya = [a[0], a[1], -(a[0] * a[0] + a[1] * a[1]) / (1.0 + a[2])];
+    std::array::from_fn(|k| {
+        let t = theta * SEGMENT_5.points[k];
+        let (s, c) = t.sin_cos();
+        let w = 2.0 * (0.5 * t).sin().powi(2);
+        let y = [
+            ya[0] * c + u[0] * s,
+            ya[1] * c + u[1] * s,
+            ya[2] * c + u[2] * s - w,
+        ];
+        (y, theta * SEGMENT_5.weights[k])
+    })
 }
 
 /// The length, `∫ y ds` and `∫ y yᵀ ds` (`y = x − ẑ`) of the great-circle arc from `a` to

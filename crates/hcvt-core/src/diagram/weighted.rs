@@ -14,7 +14,58 @@ use crate::geometry::{add, scale};
 use crate::moments::{FaceMoments, Moments};
 
 use super::domain_kind::DomainKind;
+use super::faces::FaceIntegrand;
 use super::{Batch, ConvexCell, Diagram};
+
+/// Nodes per [`FaceNodes`]: those of [`quadrature::SEGMENT_5`] (3-point Gauss–Legendre).
+pub const FACE_NODES: usize = 3;
+
+/// A face piece whose ρ-weighted moments wait for a sampled field's values: the sphere's
+/// arcs, for Newton's Hessian (DESIGN §13). Its neighbour, its nodes relative to the site
+/// with the measure each stands for, and its geometric moments (exact).
+#[derive(Debug, Clone, Copy)]
+pub struct FaceNodes<const D: usize> {
+    /// The cell across the face.
+    pub neighbor: u32,
+    /// `(x − site, weight)` per node, `(L, L^(d−1))`.
+    pub nodes: [([f64; D], f64); FACE_NODES],
+    /// `∫1`, `∫y`, `∫y yᵀ` over the face, exact.
+    pub geometric: FaceMoments<D>,
+}
+
+impl<const D: usize> FaceNodes<D> {
+    /// The face's ρ-weighted moments from ρ's `values` at its nodes: the rule's sums
+    /// `Q[ρ f] + ρ̄ (G − Q[f])` with `ρ̄ = Q[ρ]/Q[1]`, so that a constant is exact to
+    /// round-off (as the sphere's cells are, `sphere_density.rs`).
+    pub fn weighted(&self, values: &[f64]) -> FaceMoments<D> {
+        let (mut rho, mut one) = (FaceMoments::zero(), FaceMoments::zero());
+        for (&(y, w), &v) in self.nodes.iter().zip(values) {
+            let term = FaceMoments {
+                measure: w,
+                first: scale(y, w),
+                second: y.map(|a| scale(y, w * a)),
+            };
+            add_face_scaled(&mut one, &term, 1.0);
+            add_face_scaled(&mut rho, &term, v);
+        }
+        if one.measure <= 0.0 {
+            return rho;
+        }
+        let mean = rho.measure / one.measure;
+        add_face_scaled(&mut rho, &self.geometric, mean);
+        add_face_scaled(&mut rho, &one, -mean);
+        rho
+    }
+}
+
+/// `m += c · term`, every moment.
+fn add_face_scaled<const D: usize>(m: &mut FaceMoments<D>, term: &FaceMoments<D>, c: f64) {
+    m.measure += c * term.measure;
+    m.first = add(m.first, scale(term.first, c));
+    for (row, t) in m.second.iter_mut().zip(&term.second) {
+        *row = add(*row, scale(*t, c));
+    }
+}
 
 /// What is summed.
 #[derive(Debug, Clone, Copy)]
@@ -41,6 +92,9 @@ pub struct WeightedSums<const D: usize> {
     pub moments: Moments<D>,
     /// With a field: the cell's cone simplices.
     pub cones: Vec<Cone<D>>,
+    /// With a field and a face integrand on the sphere: the cell's arcs, weighted once the
+    /// field is sampled.
+    pub faces: Vec<FaceNodes<D>>,
 }
 
 impl<const D: usize> Default for WeightedSums<D> {
@@ -49,6 +103,7 @@ impl<const D: usize> Default for WeightedSums<D> {
             kind: Kind::Off,
             moments: Moments::zero(),
             cones: Vec::new(),
+            faces: Vec::new(),
         }
     }
 }
@@ -127,6 +182,7 @@ impl<const D: usize> WeightedSums<D> {
     pub fn clear(&mut self) {
         self.moments = Moments::zero();
         self.cones.clear();
+        self.faces.clear();
     }
 
     /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex.
@@ -151,30 +207,34 @@ impl<const D: usize> WeightedSums<D> {
 }
 
 /// Evaluate `field` once at the nodes of `rule` in every cone simplex of every cell of
-/// `batches` (in batch order, then cell order: fixed by the sites, not by the threads),
+/// `batches`, and at the nodes of their deferred faces ([`FaceNodes`]) (in batch order, a
+/// batch's cones then its faces, cell after cell: fixed by the sites, not by the threads),
 /// check every value, and replace each batch's cones by its cells' weighted moments
 /// (nodes and sums as `domain` makes them: [`DomainKind::sampled_node`],
-/// [`DomainKind::sampled_moments`]).
+/// [`DomainKind::sampled_moments`]) and add its faces' weighted moments to `integrand`'s
+/// sums.
 pub(super) fn sample<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     field: &dyn Field<D>,
     rule: &Rule,
     sites: &[[f64; D]],
     batches: &mut [Batch<D, C>],
+    integrand: Option<&dyn FaceIntegrand<D>>,
 ) -> Result<(), CoreError> {
     let per_cone = rule.weights.len();
+    let nodes_of = |b: &Batch<D, C>| b.cones.len() * per_cone + b.face_nodes.len() * FACE_NODES;
     let mut offsets = Vec::with_capacity(batches.len());
     let mut total = 0;
     for b in batches.iter() {
         offsets.push(total);
-        total += b.cones.len() * per_cone;
+        total += nodes_of(b);
     }
     // The nodes in absolute coordinates, made in parallel into one buffer.
     let mut points = vec![[0.0; D]; total];
     let mut slices = Vec::with_capacity(batches.len());
     let mut rest = points.as_mut_slice();
     for b in batches.iter() {
-        let (head, tail) = rest.split_at_mut(b.cones.len() * per_cone);
+        let (head, tail) = rest.split_at_mut(nodes_of(b));
         slices.push(head);
         rest = tail;
     }
@@ -216,11 +276,50 @@ pub(super) fn sample<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
                 from += nodes;
             }
             b.cones = Vec::new();
+            if let Some(integrand) = integrand {
+                add_weighted_faces(b, integrand, &values[from..]);
+            }
+            b.face_nodes = Vec::new();
         });
     Ok(())
 }
 
-/// The nodes of batch `b`'s cones in absolute coordinates, into `out`.
+/// Add the weighted moments of batch `b`'s deferred faces, from ρ's `values` at their
+/// nodes, to its rows' sums of `integrand`, in the order the faces were met.
+fn add_weighted_faces<const D: usize, C>(
+    b: &mut Batch<D, C>,
+    integrand: &dyn FaceIntegrand<D>,
+    values: &[f64],
+) {
+    let (mut first_face, mut at) = (0, 0);
+    let mut values = values.chunks_exact(FACE_NODES);
+    for (k, (&count, &faces)) in b.face_counts.iter().zip(&b.face_node_counts).enumerate() {
+        let row = first_face..first_face + count as usize;
+        let i = b.sites[k] as usize;
+        for f in &b.face_nodes[at..at + faces as usize] {
+            let v = values.next().expect("one set of values per face");
+            // A face of no positive measure in all was dropped from the row.
+            let Some(e) = (row.clone()).find(|&e| b.neighbor_sites[e] == f.neighbor) else {
+                continue;
+            };
+            let m = f.weighted(v);
+            let j = f.neighbor as usize;
+            integrand.add(
+                i,
+                j,
+                1.0,
+                &m,
+                &mut b.face_integrals[e],
+                &mut b.cell_integrals[k],
+            );
+        }
+        first_face = row.end;
+        at += faces as usize;
+    }
+}
+
+/// The nodes of batch `b`'s cones, then of its deferred faces, in absolute coordinates,
+/// into `out`.
 fn write_nodes<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     b: &Batch<D, C>,
@@ -239,6 +338,22 @@ fn write_nodes<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
         }
         at += count as usize;
     }
+    for (site, f) in face_sites(b, sites) {
+        for (&(y, _), x) in f.nodes.iter().zip(&mut slot) {
+            *x = add(site, y);
+        }
+    }
+}
+
+/// Batch `b`'s deferred faces, each with its cell's site.
+fn face_sites<'a, const D: usize, C>(
+    b: &'a Batch<D, C>,
+    sites: &'a [[f64; D]],
+) -> impl Iterator<Item = ([f64; D], &'a FaceNodes<D>)> + 'a {
+    let cells = b.sites.iter().zip(&b.face_node_counts);
+    cells
+        .flat_map(|(&i, &count)| std::iter::repeat_n(sites[i as usize], count as usize))
+        .zip(&b.face_nodes)
 }
 
 /// The error for a bad `value` at node `k` of the whole diagram.
@@ -251,6 +366,10 @@ fn bad_node<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     value: f64,
 ) -> CoreError {
     let per_cone = rule.weights.len();
+    let named = |point: [f64; D]| CoreError::DensityValue {
+        point: point.to_vec(),
+        value,
+    };
     for b in batches {
         let mut at = 0;
         for (&i, &count) in b.sites.iter().zip(&b.cone_counts) {
@@ -259,14 +378,16 @@ fn bad_node<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
                 let cone = &b.cones[at + k / per_cone];
                 let lambda = rule.nodes().nth(k % per_cone).map_or(&[][..], |n| n.0);
                 let site = sites[i as usize];
-                let point = add(site, domain.sampled_node(site, cone, lambda));
-                return CoreError::DensityValue {
-                    point: point.to_vec(),
-                    value,
-                };
+                return named(add(site, domain.sampled_node(site, cone, lambda)));
             }
             k -= nodes;
             at += count as usize;
+        }
+        for (site, f) in face_sites(b, sites) {
+            if k < FACE_NODES {
+                return named(add(site, f.nodes[k].0));
+            }
+            k -= FACE_NODES;
         }
     }
     CoreError::InvalidDensity {

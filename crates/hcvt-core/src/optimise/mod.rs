@@ -552,8 +552,9 @@ impl<'a, const D: usize> Tracker<'a, D> {
 /// moves each site to its ρ-weighted centroid, L-BFGS follows the ρ-weighted gradient
 /// `2 m_i (x_i − c_i)`, and both stopping rules apply unchanged (the gap's `V_i` stays
 /// geometric). Newton's Hessian weighs its face terms by ρ on each face, exactly for a
-/// polynomial; with a sampled field Newton is refused (its face terms would need the field
-/// on every face too).
+/// polynomial; with a sampled field Newton is refused in a flat domain (its face terms
+/// would need the field on every face too). On the sphere both are sampled, the arcs by
+/// Gauss–Legendre at nodes asked of the field in the diagram's one call.
 pub fn cvt<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: Vec<[f64; D]>,
@@ -570,15 +571,10 @@ where
                 .into(),
         });
     }
-    if settings.method == Method::Newton && domain.cell_dim() != D && settings.density.is_some() {
-        return Err(CoreError::InvalidSettings {
-            reason: "Newton's Hessian on the sphere is not weighted by a density yet: use \
-                     method 'lbfgs' or 'lloyd'"
-                .into(),
-        });
-    }
+    // On the sphere every density is sampled, and its arcs too (`sphere.rs`).
     if matches!(settings.density, Some(Density::Sampled { .. }))
         && settings.method == Method::Newton
+        && domain.cell_dim() == D
     {
         return Err(CoreError::InvalidDensity {
             reason: "Newton needs the Hessian, which is weighted exactly only by a polynomial \
