@@ -19,12 +19,12 @@ A variable-resolution mesh (``--refined``, issue 35): cell width 30 km within 10
 Greenwich meridian and 240 km far from it on the Earth (R = 6371 km), with a tanh ramp over
 the next 10° (:func:`hcvt.seeding.sphere.meridian_band_width`), as ``ρ = (h_fine/h)⁴``
 (:class:`hcvt.density.SizingField`); ``n`` cells from ``∫ dA / ((√3/2) h²)`` (80,595),
-a start graded by ``ρ^(1/2)`` (``--refined-route random``) or the hierarchy with the
-density (``--refined-route hierarchical``: coarse CVTs subdivided along the spherical
-Delaunay edges), L-BFGS (``--refined-method``) to ``--tol``; it prints the time, iterations,
-diagrams, RMS gap, cells that are not hexagons, and the grid spacing (mean dcEdge per
-cell) over the requested width, median and 5-95% per band (within 8° of the meridian;
-beyond 22°).
+the hierarchy with the density (``--refined-route hierarchical``, the default: coarse
+CVTs subdivided along the spherical Delaunay edges) or a start graded by ``ρ^(1/2)``
+(``--refined-route random``), L-BFGS (``--refined-method``) to ``--tol``; it prints the
+time, iterations, diagrams, RMS gap, cells that are not hexagons, and the grid spacing
+(mean dcEdge per cell) over the requested width, median and 5-95% per band (within 8° of
+the meridian; beyond 22°).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/sphere.py [--sizes 2562 40962]
         [--starts icosahedral random] [--methods newton lbfgs] [--recipe-sizes 2562]
@@ -215,7 +215,7 @@ def main() -> None:
     parser.add_argument(
         "--refined-route",
         choices=["random", "hierarchical"],
-        default="random",
+        default="hierarchical",
         help="graded random start, or hierarchical_cvt with the density",
     )
     parser.add_argument("--refined-method", default=None, help="optimiser (default: fastest)")
