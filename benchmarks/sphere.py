@@ -19,13 +19,16 @@ A variable-resolution mesh (``--refined``, issue 35): cell width 30 km within 10
 Greenwich meridian and 240 km far from it on the Earth (R = 6371 km), with a tanh ramp over
 the next 10° (:func:`hcvt.seeding.sphere.meridian_band_width`), as ``ρ = (h_fine/h)⁴``
 (:class:`hcvt.density.SizingField`); ``n`` cells from ``∫ dA / ((√3/2) h²)`` (80,595),
-a start graded by ``ρ^(1/2)``, L-BFGS to the default rule; it prints the time, and the grid
-spacing (mean dcEdge per cell) over the requested width, median and 5-95% per band (within
-8° of the meridian; beyond 22°).
+the hierarchy with the density (``--refined-route hierarchical``, the default: coarse
+CVTs subdivided along the spherical Delaunay edges) or a start graded by ``ρ^(1/2)``
+(``--refined-route random``), L-BFGS (``--refined-method``) to ``--tol``; it prints the
+time, iterations, diagrams, RMS gap, cells that are not hexagons, and the grid spacing
+(mean dcEdge per cell) over the requested width, median and 5-95% per band (within 8° of
+the meridian; beyond 22°).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/sphere.py [--sizes 2562 40962]
         [--starts icosahedral random] [--methods newton lbfgs] [--recipe-sizes 2562]
-        [--refined] [--refined-fine 30 --refined-coarse 240]
+        [--refined] [--refined-fine 30 --refined-coarse 240] [--refined-route hierarchical]
 """
 
 from __future__ import annotations
@@ -128,7 +131,9 @@ def row(name: str, r: dict[str, float]) -> str:
     )
 
 
-def run_refined(fine: float, coarse: float, tol: float, degree: int) -> None:
+def run_refined(
+    fine: float, coarse: float, tol: float, degree: int, route: str, method: str | None
+) -> None:
     """The band-refined Earth mesh: time, convergence and spacing per band (module docs)."""
     radius = 6371.0
 
@@ -143,21 +148,45 @@ def run_refined(fine: float, coarse: float, tol: float, degree: int) -> None:
         f"{n} cells"
     )
     t0 = time.perf_counter()
-    sites = hcvt.initialise(earth, n, method="random", seed=0, density=density)
-    t1 = time.perf_counter()
-    res = hcvt.cvt(
-        earth, sites, density=density, tol=tol, max_iter=20_000, quadrature_degree=degree
-    )
-    t2 = time.perf_counter()
+    if route == "hierarchical":
+        result = hcvt.hierarchical_cvt(
+            earth,
+            n,
+            density=density,
+            tol=tol,
+            method=method,
+            quadrature_degree=degree,
+            max_iter=20_000,
+        )
+        diagram, sites_out = result.diagram, result.sites
+        levels = [(lv.n, lv.iterations, int(lv.history["evaluations"][-1])) for lv in result.levels]
+        iterations = sum(lv.iterations for lv in result.levels)
+        diagrams = sum(d for _, _, d in levels)
+        gap = float(result.levels[-1].history["rms_gap"][-1])
+        print(f"  levels (sites, iterations, diagrams): {levels}")
+    else:
+        sites = hcvt.initialise(earth, n, method="random", seed=0, density=density)
+        res = hcvt.cvt(
+            earth,
+            sites,
+            density=density,
+            tol=tol,
+            max_iter=20_000,
+            method=method,
+            quadrature_degree=degree,
+        )
+        diagram, sites_out = res.diagram, res.sites
+        iterations, diagrams = res.iterations, res.evaluations
+        gap = float(res.history["rms_gap"][-1])
+    seconds = time.perf_counter() - t0
     print(
-        f"  start {t1 - t0:.2f} s, L-BFGS {t2 - t1:.1f} s (under load), {res.iterations} it, "
-        f"{res.evaluations} diagrams, RMS gap {res.history['rms_gap'][-1]:.1e}, "
-        f"converged {res.converged}"
+        f"  {route} start: {seconds:.1f} s (under load), {iterations} it, {diagrams} diagrams, "
+        f"RMS gap {gap:.1e}"
     )
-    quality = hcvt.sphere_quality(res.diagram, width=width(res.sites))
+    quality = hcvt.sphere_quality(diagram, width=width(sites_out))
     ratio = quality.spacing_ratio
     assert ratio is not None
-    delta = np.degrees(distance_to_meridian(res.sites))
+    delta = np.degrees(distance_to_meridian(sites_out))
     for name, where in (("band (< 8 deg)", delta < 8.0), ("far (> 22 deg)", delta > 22.0)):
         r = ratio[where]
         spacing = np.median(quality.grid_spacing[where])
@@ -166,7 +195,8 @@ def run_refined(fine: float, coarse: float, tol: float, degree: int) -> None:
             f"spacing / width median {np.median(r):.4f} (5-95%: {np.percentile(r, 5):.3f}-"
             f"{np.percentile(r, 95):.3f})"
         )
-    print(f"  cells by sides: {quality.summary()['sides']}")
+    sides = quality.summary()["sides"]
+    print(f"  cells by sides: {sides}, not hexagons {n - sides.get('6', 0)}")
 
 
 def main() -> None:
@@ -182,13 +212,27 @@ def main() -> None:
     parser.add_argument("--refined-fine", type=float, default=30.0)
     parser.add_argument("--refined-coarse", type=float, default=240.0)
     parser.add_argument("--quadrature-degree", type=int, default=4)
+    parser.add_argument(
+        "--refined-route",
+        choices=["random", "hierarchical"],
+        default="hierarchical",
+        help="graded random start, or hierarchical_cvt with the density",
+    )
+    parser.add_argument("--refined-method", default=None, help="optimiser (default: fastest)")
     args = parser.parse_args()
     print(
         f"hcvt threads: {hcvt.get_num_threads()}  OPENBLAS_NUM_THREADS: "
         f"{os.environ.get('OPENBLAS_NUM_THREADS')}  (timings under load: shared machine)"
     )
     if args.refined or args.refined_only:
-        run_refined(args.refined_fine, args.refined_coarse, args.tol, args.quadrature_degree)
+        run_refined(
+            args.refined_fine,
+            args.refined_coarse,
+            args.tol,
+            args.quadrature_degree,
+            args.refined_route,
+            args.refined_method,
+        )
     for n in [] if args.refined_only else args.sizes:
         for start in args.starts:
             sites = start_sites(n, start)
