@@ -3,7 +3,7 @@
 For each model and n, three remeshers on the same input surface:
 
 - ``hcvt.remesh``: n sites random by area, a restricted CVT by L-BFGS (gap rule at
-  remesh's default tol 5e-3, tighter while the triangulation has defects, at most
+  remesh's default tol 1e-2, tighter while the triangulation has defects, at most
   ``--max-iter`` iterations in all), the restricted Delaunay triangulation;
 - pyacvd 0.4.0 (approximated CVT by clustering the input's vertices, Valette et al.
   2008): ``Clustering(mesh)``, the input subdivided until it has at least 3n vertices

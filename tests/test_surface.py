@@ -19,6 +19,7 @@ import hcvt
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry.surface_points import closest_points
 from hcvt.surface.quality import edge_topology, triangle_quality
+from hcvt.surface.remesh import REMESH_TOL
 from helpers import DATA
 
 DATA_3D = DATA / "3d"
@@ -310,7 +311,7 @@ def test_remeshing_an_open_surface_names_its_border_defects() -> None:
     assert len(unused) > 0  # this seed leaves one border site out (the limitation above)
     assert any(f"{len(unused)} site(s) in no triangle" in d for d in out.defects)
     # The defects of the early stop sent the CVT on at tighter tolerances, within max_iter.
-    assert out.cvt.iterations < out.iterations <= 200 and out.cvt.tol < 5e-3
+    assert out.cvt.iterations < out.iterations <= 200 and out.cvt.tol < REMESH_TOL
     with pytest.raises(hcvt.RemeshError, match="in no triangle, first site"):
         hcvt.remesh(domain, 1500, seed=1, check=True)
 

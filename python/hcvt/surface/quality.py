@@ -120,12 +120,22 @@ def edge_topology(faces: NDArray[np.intp], n_vertices: int) -> dict[str, Any]:
     """Edge counts, orientation, components, border loops, Euler characteristic and genus."""
     directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
     undirected = np.sort(directed, axis=1)
-    edges, inverse, counts = np.unique(undirected, axis=0, return_inverse=True, return_counts=True)
+    # Edges as one integer each, a·m + b (m above every index): the rows' lexicographic
+    # order, and np.unique of a 1D array is several times faster than of rows.
+    m = np.int64(max(n_vertices, int(faces.max()) + 1 if len(faces) else 1))
+    keys, inverse, counts = np.unique(
+        undirected[:, 0].astype(np.int64) * m + undirected[:, 1],
+        return_inverse=True,
+        return_counts=True,
+    )
+    edges = np.stack([keys // m, keys % m], axis=1).astype(undirected.dtype)
     inverse = inverse.ravel()
     border = edges[counts == 1]
     nonmanifold = int(np.sum(counts >= 3))
     # Consistent orientation: no directed edge twice.
-    _, directed_counts = np.unique(directed, axis=0, return_counts=True)
+    _, directed_counts = np.unique(
+        directed[:, 0].astype(np.int64) * m + directed[:, 1], return_counts=True
+    )
     consistent = bool(np.all(directed_counts == 1))
     used = np.unique(faces)
     # Components by shared edges: faces joined through each edge's faces.

@@ -85,6 +85,31 @@ pub trait DomainKind<const D: usize>: Sync {
     /// localised cell must be validated.
     fn local_radius2<C: ConvexCell<D>>(&self, cell: &C, site: [f64; D]) -> f64;
 
+    /// For a kind whose cells matter only where they meet the domain through the points
+    /// of [`DomainKind::validation_points`] (a surface): after this many neighbours the
+    /// driver validates those points at once (each must have the site as a nearest site,
+    /// else the cell is cut by the nearer site), instead of streaming on to the security
+    /// radius or localising the cell. `None` (the default): stream on.
+    fn validate_part_after(&self) -> Option<usize> {
+        None
+    }
+
+    /// The points (relative to `site`) whose nearest site must be `site` for a validated
+    /// `cell` to be exact where it meets the domain, into `points`; `false` (the default):
+    /// the cell's own vertices. A kind whose cells are pieces of lower dimension (a
+    /// surface) gives the vertices of the pieces: each piece is convex, so it lies in the
+    /// Voronoi cell once its vertices do. `first`: the first call for this cell; the
+    /// later calls see the same cell cut further.
+    fn validation_points<C: ConvexCell<D>>(
+        &self,
+        _cell: &C,
+        _site: [f64; D],
+        _first: bool,
+        _points: &mut Vec<[f64; D]>,
+    ) -> bool {
+        false
+    }
+
     /// (b) The exact moments of `cell ∩ Ω` about the site, its faces measured into
     /// `scratch` (and the integrand of `row` summed over them). `winding` is the site's
     /// [`DomainKind::locate`].

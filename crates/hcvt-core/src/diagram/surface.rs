@@ -18,10 +18,14 @@
 //! a site on a surface is a needle along the normal until sites across the model cut it:
 //! its bounding box would take in much of the model, the pruned walk does not.
 //!
-//! **Stopping early.** The part of the cell on the surface bounds where the cell matters:
-//! [`DomainKind::local_radius2`] gives its exact farthest point (from the clipped pieces)
-//! to the driver, which localises the cell to the box holding it and validates the
-//! cell's vertices by their nearest sites.
+//! **Stopping early.** Only the cell's pieces of the surface matter. After
+//! `VALIDATE_PART_K` neighbours the driver checks their vertices' nearest sites
+//! ([`DomainKind::validation_points`]) and cuts the cell by any nearer site until each
+//! vertex has the cell's site as a nearest one: each piece is convex, so it then lies in
+//! the Voronoi cell, and the cell's part on the surface is exact while the rest of the
+//! 3D cell (a needle along the normal, open until sites across the model cut it) need not
+//! be. The triangles the first check's walk met are recorded per thread ([`Triangles`]):
+//! the later checks and the measure clip only those.
 
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -36,6 +40,16 @@ use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::faces::{FaceRow, FaceSums};
 use super::polygon_clip::clip_polygon;
+
+/// Neighbours a cell streams before its pieces are validated
+/// ([`DomainKind::validate_part_after`]): a restricted cell has about six, as a planar one.
+/// A diagram of 5,000 sites on the bunny (perf samples, six diagrams, one thread, under
+/// load): streaming on to 64 neighbours, localising and validating took 4,886 (random
+/// sites) and 5,064 (a CVT's); validating the pieces after 8 neighbours 11,807 and 3,321
+/// (cells still open sideways have large pieces), after 12 4,815 and 3,020, after 16
+/// 3,729 and 2,756, after 20 3,348 and 2,942, after 24 3,585 and 2,806, after 32 3,748
+/// and 2,937.
+const VALIDATE_PART_K: usize = 20;
 
 /// A surface of triangles in 3D: closed or open, any number of components, checked
 /// (finite, indices in range, no degenerate or repeated triangles, every edge in at most
@@ -190,10 +204,15 @@ impl Surface {
     /// Call `f(t, piece)` for every triangle `t` that meets `cell` (relative to `site`),
     /// with `piece` the triangle clipped by the cell's planes (relative to the site,
     /// counter-clockwise as the triangle), in the BVH's fixed order.
+    ///
+    /// `triangles` says where the triangles come from ([`Triangles`]): a walk of the
+    /// BVH, or those an earlier walk for the same site and a larger cell met (in the
+    /// walk's order).
     fn for_each_piece<C: ConvexCell<3>>(
         &self,
         cell: &C,
         site: [f64; 3],
+        triangles: Triangles,
         mut f: impl FnMut(u32, &[Node]),
     ) {
         if cell.is_empty() {
@@ -206,40 +225,84 @@ impl Surface {
                 hi: add(b.hi, site),
             }
         };
+        let key = site.map(f64::to_bits);
         with_buffers(|buffers| {
             let Buffers {
                 polygon,
                 spare,
                 sides,
                 planes,
+                met,
+                met_by,
             } = buffers;
             planes.clear();
             cell.for_each_plane(|face, h| planes.push((face, *h)));
-            self.set.bvh().walk(|node, is_leaf| {
-                let bounds = self.set.bvh().node_bounds(node);
-                if !bounds.overlaps(&reach) || box_outside(planes, &bounds, site) {
+            let mut piece = |t: u32| {
+                let rel = self.corners(t).map(|v| sub(v, site));
+                let outside = |(_, h): &(Face, HalfSpace<3>)| {
+                    rel.iter().all(|&v| dot(h.normal, v) > h.offset)
+                };
+                if planes.iter().any(outside) {
                     return false;
                 }
-                if !is_leaf {
-                    return true;
+                clip_triangle(planes, rel, polygon, spare, sides);
+                if polygon.len() < 3 {
+                    return false;
                 }
-                for &t in self.set.bvh().node_items(node) {
-                    let rel = self.corners(t).map(|v| sub(v, site));
-                    let outside = |(_, h): &(Face, HalfSpace<3>)| {
-                        rel.iter().all(|&v| dot(h.normal, v) > h.offset)
-                    };
-                    if planes.iter().any(outside) {
-                        continue;
-                    }
-                    clip_triangle(planes, rel, polygon, spare, sides);
-                    if polygon.len() >= 3 {
-                        f(t, polygon);
-                    }
+                f(t, polygon);
+                true
+            };
+            if matches!(triangles, Triangles::Met | Triangles::LastMet) && *met_by == Some(key) {
+                for &t in met.iter() {
+                    piece(t);
                 }
-                false
-            });
+            } else {
+                let record = triangles == Triangles::Record;
+                if record {
+                    met.clear();
+                }
+                let bvh = self.set.bvh();
+                bvh.walk(|node, is_leaf| {
+                    let bounds = bvh.node_bounds(node);
+                    if !bounds.overlaps(&reach) || box_outside(planes, &bounds, site) {
+                        return false;
+                    }
+                    if !is_leaf {
+                        return true;
+                    }
+                    for &t in bvh.node_items(node) {
+                        if piece(t) && record {
+                            met.push(t);
+                        }
+                    }
+                    false
+                });
+            }
+            match triangles {
+                Triangles::Record => *met_by = Some(key),
+                Triangles::LastMet => *met_by = None,
+                Triangles::Walk | Triangles::Met => {}
+            }
         });
     }
+}
+
+/// Where [`Surface::for_each_piece`] finds the triangles of a cell. The driver validates
+/// a cell (or asks its radius, [`DomainKind::local_radius2`], then localises and
+/// validates it), which only shrinks it, and measures it last: the first validation (the
+/// radius) walks the BVH and records the triangles the cell met, the later validations
+/// and the measure clip only those (a triangle that missed the larger cell misses the
+/// smaller one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Triangles {
+    /// Walk the BVH.
+    Walk,
+    /// Walk the BVH and record the triangles met, for this site.
+    Record,
+    /// The recorded triangles if they are this site's, else walk.
+    Met,
+    /// As `Met`, then forget them: the cell is done.
+    LastMet,
 }
 
 /// Some plane of `planes` (relative to `site`) has the whole box `b` (absolute) strictly
@@ -318,6 +381,9 @@ struct Buffers {
     sides: Vec<(f64, bool)>,
     /// The cell's planes, relative to its site.
     planes: Vec<(Face, HalfSpace<3>)>,
+    /// The triangles a walk met for the site of bits `met_by` ([`Triangles`]).
+    met: Vec<u32>,
+    met_by: Option<[u64; 3]>,
 }
 
 thread_local! {
@@ -442,7 +508,7 @@ impl Surface {
     /// other cells `j < k` on the surface, with `i < j`: `([i, j, k], point, face)`.
     fn meeting_points<C: ConvexCell<3>>(&self, i: u32, cell: &C, site: [f64; 3]) -> Vec<Meeting> {
         let mut out = Vec::new();
-        self.for_each_piece(cell, site, |t, polygon| {
+        self.for_each_piece(cell, site, Triangles::Walk, |t, polygon| {
             let n = polygon.len();
             for k in 0..n {
                 let before = polygon[(k + n - 1) % n].out;
@@ -501,12 +567,42 @@ impl DomainKind<3> for Surface {
     /// for their round-off; 0 when no triangle meets the cell.
     fn local_radius2<C: ConvexCell<3>>(&self, cell: &C, site: [f64; 3]) -> f64 {
         let mut r2: f64 = 0.0;
-        self.for_each_piece(cell, site, |_, polygon| {
+        self.for_each_piece(cell, site, Triangles::Record, |_, polygon| {
             for node in polygon {
                 r2 = r2.max(norm2(node.x));
             }
         });
         r2 * (1.0 + 1e-10)
+    }
+
+    /// Its cells matter only on the surface: after `VALIDATE_PART_K` neighbours a
+    /// cell's pieces are validated ([`DomainKind::validation_points`]) rather than the
+    /// stream going on (the 3D cell is a needle along the normal, open until sites
+    /// across the model cut it) to be localised and its vertices validated.
+    fn validate_part_after(&self) -> Option<usize> {
+        Some(VALIDATE_PART_K)
+    }
+
+    /// The vertices of the cell's pieces of the surface: the cell's part on the surface
+    /// lies in the Voronoi cell once they do (each piece is convex), and the rest of the
+    /// 3D cell (the needle along the normal) need not be exact.
+    fn validation_points<C: ConvexCell<3>>(
+        &self,
+        cell: &C,
+        site: [f64; 3],
+        first: bool,
+        points: &mut Vec<[f64; 3]>,
+    ) -> bool {
+        points.clear();
+        let triangles = if first {
+            Triangles::Record
+        } else {
+            Triangles::Met
+        };
+        self.for_each_piece(cell, site, triangles, |_, polygon| {
+            points.extend(polygon.iter().map(|node| node.x));
+        });
+        true
     }
 
     /// The moments of the cell's part of the surface about the site (mass the area), its
@@ -523,7 +619,7 @@ impl DomainKind<3> for Surface {
         let faces = &mut scratch.faces;
         faces.clear();
         let mut total = Moments::zero();
-        self.for_each_piece(cell, site, |t, polygon| {
+        self.for_each_piece(cell, site, Triangles::LastMet, |t, polygon| {
             add_piece(self, t, polygon, &mut total, faces);
         });
         total

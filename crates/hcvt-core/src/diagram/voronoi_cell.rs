@@ -47,7 +47,9 @@ const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
 /// Only the cell's part inside the domain matters, so every `LOCALISE_K` neighbours, while
 /// they do not suffice and that part lies near the site (`LOCAL_REACH2`), the cell is cut
 /// to a box that holds that part ([`localise`]) and finished by checking its vertices'
-/// nearest sites ([`validate_vertices`]).
+/// nearest sites ([`validate_vertices`]). A kind whose cells matter only where they meet
+/// it (a surface) has its part of the cell validated after
+/// [`DomainKind::validate_part_after`] neighbours instead.
 ///
 /// With `convex_inside` (the domain is convex and the site strictly inside it), a cell
 /// still open after `PRECLIP_K` neighbours is instead cut by the nearby boundary planes:
@@ -189,6 +191,9 @@ where
         Some(p) => p.stream_reach2(radius2),
         None => 4.0 * radius2,
     };
+    // A kind that validates its cells' parts early (`DomainKind::validate_part_after`;
+    // not power cells).
+    let validate_after = domain.validate_part_after().filter(|_| power.is_none());
     while let Some((j, dist2)) = near.next_within(stop2(radius2)) {
         last2 = dist2;
         if j as usize != i {
@@ -207,6 +212,12 @@ where
             }
         }
         clipped += 1;
+        if validate_after == Some(clipped) && clipped < total_sites && !cell.is_empty() {
+            let (stayed_warm, vouched2) = (near.is_warm(), near.vouched2());
+            let reach = validate_vertices(domain, cell, index, sites, power, i)?;
+            scratch.reach2 = last2.max(reach * reach);
+            return Ok((false, stayed_warm, vouched2));
+        }
         if clipped % preclip_after == 0 && clipped < total_sites && !inside {
             // Every `PRECLIP_K` neighbours until the domain can cut the cell (a solid's
             // and a box's always can at once; a sphere's cell once it is closed).
@@ -222,7 +233,7 @@ where
             if local2 <= LOCAL_REACH2 * last2 {
                 localise(cell, local2.sqrt());
                 let (stayed_warm, vouched2) = (near.is_warm(), near.vouched2());
-                let reach = validate_vertices(cell, index, sites, power, i)?;
+                let reach = validate_vertices(domain, cell, index, sites, power, i)?;
                 scratch.reach2 = last2.max(reach * reach);
                 return Ok((false, stayed_warm, vouched2));
             }
@@ -327,7 +338,9 @@ const MAX_VALIDATIONS: usize = 100_000;
 
 /// Clip `cell` until each of its vertices has site `i` as a nearest site, so that the cell
 /// (the convex hull of its vertices) lies in the Voronoi cell; as it already contains the
-/// Voronoi cell's part in the box it started from, the two are then equal there.
+/// Voronoi cell's part in the box it started from, the two are then equal there. A kind
+/// may name other points to check ([`DomainKind::validation_points`]: a surface's pieces,
+/// whose hulls then lie in the Voronoi cell, which is all its cells need).
 ///
 /// Used instead of the security radius for cells localised by [`localise`]: each vertex
 /// asks the index for its own nearest site, so the work follows where the cell is, not
@@ -339,7 +352,8 @@ const MAX_VALIDATIONS: usize = 100_000;
 ///
 /// With `power`, each vertex is checked against the site of least power there
 /// ([`least_power`]), and `δ` is the distance within which that search read sites.
-fn validate_vertices<const D: usize, C: ConvexCell<D>>(
+fn validate_vertices<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
     cell: &mut C,
     index: &SiteIndex<D>,
     sites: &[[f64; D]],
@@ -351,9 +365,12 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>>(
     let mut used: Vec<u32> = Vec::new();
     let mut reach: f64 = 0.0;
     let mut near = NearScratch::default();
-    for _ in 0..MAX_VALIDATIONS {
+    let mut points = Vec::new();
+    for round in 0..MAX_VALIDATIONS {
         let mut cut = None;
-        for &v in cell.vertices() {
+        let own = domain.validation_points(cell, site, round == 0, &mut points);
+        let vertices: &[[f64; D]] = if own { &points } else { cell.vertices() };
+        for &v in vertices {
             let key = v.map(f64::to_bits);
             if valid.contains(&key) {
                 continue;
