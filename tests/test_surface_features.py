@@ -126,3 +126,24 @@ def test_a_bad_feature_angle_is_refused(angle: float) -> None:
 def test_features_that_take_every_site_are_refused() -> None:
     with pytest.raises(ValueError, match="take .* sites"):
         hcvt.remesh(box_surface(), 30, features=40.0)
+
+
+def test_command_line_keeps_the_features(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    trimesh = pytest.importorskip("trimesh")
+    pytest.importorskip("meshio")
+    box = box_surface()
+    source, out = tmp_path / "box.off", tmp_path / "box.ply"
+    trimesh.Trimesh(box.vertices, box.faces, process=False).export(source)
+    args = ["run", str(source), "--surface", "-n", "300", "--features", "40"]
+    result = CliRunner().invoke(main, [*args, "--out", str(out)], catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    # Read back by trimesh: 300 vertices, the box's eight corners among them.
+    mesh = trimesh.load(out, process=False)
+    assert mesh.vertices.shape == (300, 3) and mesh.is_watertight
+    assert np.sum(np.all(np.abs(mesh.vertices) == [1.0, 0.5, 0.5], axis=1)) == 8
+    refused = CliRunner().invoke(main, ["run", "square", "-n", "10", "--features", "40"])
+    assert refused.exit_code == 2 and "--features keeps sharp edges" in refused.output
