@@ -108,6 +108,11 @@ where
                 .into(),
         });
     }
+    if settings.cvt.fixed.is_some_and(|f| f.contains(&true)) {
+        return Err(CoreError::InvalidSettings {
+            reason: "prescribed volumes do not hold fixed sites yet".into(),
+        });
+    }
     if volumes.len() != sites.len() {
         return Err(CoreError::InvalidWeights {
             reason: format!(
@@ -242,6 +247,8 @@ where
         history: Vec::new(),
         frame: cvt.frame,
         warm: WarmStart::new(),
+        // Refused above: a capacity-constrained CVT holds no site still.
+        held: Vec::new(),
     };
     let mut memory = Memory::new(cvt.memory);
     let search = LineSearch::new(cvt.max_line_evaluations);
