@@ -37,11 +37,9 @@ def fandisk() -> hcvt.Domain:
 def box_surface() -> hcvt.Domain:
     import trimesh
 
-    # Neither subdivided nor with square faces: a triangulation as regular as the sites
-    # along the edges puts triple points of cells on its edges (the bisector of the first
-    # sites on two edges from a corner along a square face's diagonal), where the core
-    # finds them twice and reports the cells as not discs.
-    box = trimesh.creation.box(extents=(2.0, 1.3, 0.9))
+    # Subdivided twice: a regular mesh, the sites' cells meeting on its edges but for the
+    # features' symmetry break.
+    box = trimesh.creation.box(extents=(2.0, 1.0, 1.0)).subdivide().subdivide()
     return hcvt.Domain.from_surface(box.vertices, box.faces)
 
 
@@ -49,14 +47,14 @@ def test_a_box_has_twelve_edges_between_eight_corners() -> None:
     domain = box_surface()
     features = detect_features(domain.vertices, domain.faces, 40.0)
     corners = domain.vertices[features.corners]
-    assert np.array_equal(np.sort(np.abs(corners), axis=0), np.tile([1.0, 0.65, 0.45], (8, 1)))
+    assert np.array_equal(np.sort(np.abs(corners), axis=0), np.tile([1.0, 0.5, 0.5], (8, 1)))
     assert len(features.curves) == 12 and not any(closed for _, closed in features.curves)
     lengths = sorted(
         float(np.linalg.norm(domain.vertices[chain[-1]] - domain.vertices[chain[0]]))
         for chain, _ in features.curves
     )
-    assert lengths == pytest.approx([0.9] * 4 + [1.3] * 4 + [2.0] * 4, rel=1e-15)
-    assert len(features.edges) == 12  # not the faces' diagonals
+    assert lengths == [1.0] * 8 + [2.0] * 4
+    assert len(features.edges) == 48  # four mesh edges per box edge, no face diagonal
     # Edges of 90°: none above 95°.
     assert len(detect_features(domain.vertices, domain.faces, 95.0).edges) == 0
 
@@ -128,3 +126,24 @@ def test_a_bad_feature_angle_is_refused(angle: float) -> None:
 def test_features_that_take_every_site_are_refused() -> None:
     with pytest.raises(ValueError, match="take .* sites"):
         hcvt.remesh(box_surface(), 30, features=40.0)
+
+
+def test_command_line_keeps_the_features(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    trimesh = pytest.importorskip("trimesh")
+    pytest.importorskip("meshio")
+    box = box_surface()
+    source, out = tmp_path / "box.off", tmp_path / "box.ply"
+    trimesh.Trimesh(box.vertices, box.faces, process=False).export(source)
+    args = ["run", str(source), "--surface", "-n", "300", "--features", "40"]
+    result = CliRunner().invoke(main, [*args, "--out", str(out)], catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    # Read back by trimesh: 300 vertices, the box's eight corners among them.
+    mesh = trimesh.load(out, process=False)
+    assert mesh.vertices.shape == (300, 3) and mesh.is_watertight
+    assert np.sum(np.all(np.abs(mesh.vertices) == [1.0, 0.5, 0.5], axis=1)) == 8
+    refused = CliRunner().invoke(main, ["run", "square", "-n", "10", "--features", "40"])
+    assert refused.exit_code == 2 and "--features keeps sharp edges" in refused.output

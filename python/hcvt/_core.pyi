@@ -263,6 +263,7 @@ def cvt(
     volumes: _Float1 | None = None,
     normalise: bool = False,
     volume_tol: float | None = None,
+    fixed: NDArray[np.bool_] | None = None,
 ) -> CvtArrays: ...
 
 # The optimiser's settings, checked once for every driver: the tol to use.

@@ -146,6 +146,7 @@ def cvt(
     volumes: ArrayLike | None = None,
     normalise: bool = False,
     volume_tol: float = optimise.VOLUME_TOL,
+    fixed: ArrayLike | None = None,
 ) -> CVTResult:
     """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``.
 
@@ -232,6 +233,15 @@ def cvt(
         :func:`hcvt.optimal_transport`'s ``normalise``).
     volume_tol : float, default 1e-8
         With ``volumes``: every cell's ``|V_i - v_i| / v_i`` at most this.
+    fixed : array_like of bool, shape (n,), optional
+        Sites held where they are: ``sites[i]`` with ``fixed[i]`` true never moves (its
+        row of the result is the input's, bit for bit) while the others are optimised,
+        their cells meeting the fixed ones'. In the core's Lloyd and L-BFGS (the fixed
+        rows of the gradient are zero, so L-BFGS's direction, line search and memory
+        leave them out; the stopping rules count the free sites only); ``method=None``
+        then means ``"lbfgs"``; not with Newton, ``volumes`` or ``client``. On a surface
+        the fixed sites should lie on it (they are not projected). Used by
+        :func:`hcvt.remesh`'s ``features=`` to hold corners and feature curves.
 
     Returns
     -------
@@ -245,7 +255,8 @@ def cvt(
     Raises
     ------
     ValueError
-        Unknown method or rule, negative tol, bad shape.
+        Unknown method or rule, negative tol, bad shape; ``fixed`` not bool or not of
+        shape (n,); ``fixed`` with Newton or ``volumes``.
     InvalidSitesError
         Sites outside the domain, coinciding or non-finite; the message names the row.
 
@@ -276,6 +287,12 @@ def cvt(
         "density": density,
         "quadrature_degree": quadrature_degree,
     }
+    if fixed is not None:
+        if client is not None:
+            raise NotImplementedError(
+                "fixed= is not implemented on dask partitions (client=): run without client"
+            )
+        options["fixed"] = fixed
     if volumes is not None:
         if client is not None:
             raise NotImplementedError(

@@ -184,6 +184,20 @@ class CVTResult(Shows):
         return rows | super()._summary_rows()
 
 
+def check_fixed(fixed: ArrayLike, n: int) -> NDArray[np.bool_]:
+    """``fixed`` as a contiguous bool array of shape (n,), one flag per site.
+
+    Raises ValueError naming the problem: not of dtype bool (0/1 integers are refused, so
+    that a list of indices is not taken for flags), or not of shape (n,).
+    """
+    mask = np.asarray(fixed)
+    if mask.dtype != np.bool_:
+        raise ValueError(f"fixed must be an array of bool, one per site, got dtype {mask.dtype}")
+    if mask.shape != (n,):
+        raise ValueError(f"fixed must have shape ({n},), one flag per site, got {mask.shape}")
+    return np.ascontiguousarray(mask)
+
+
 def cvt(
     domain: Domain,
     sites: ArrayLike,
@@ -200,18 +214,23 @@ def cvt(
     volumes: ArrayLike | None = None,
     normalise: bool = False,
     volume_tol: float = VOLUME_TOL,
+    fixed: ArrayLike | None = None,
 ) -> CVTResult:
     """Move ``sites`` to a centroidal Voronoi tessellation of ``domain``, in this process.
 
     :func:`hcvt.cvt` without ``client``, which documents the parameters; ``method=None``
-    is :func:`fastest_method`, or with ``volumes`` Bourne et al.'s alternation (``"lloyd"``).
+    is :func:`fastest_method`, or with ``volumes`` Bourne et al.'s alternation (``"lloyd"``),
+    or with ``fixed`` L-BFGS (Newton does not hold sites).
     """
     if volumes is not None:
         method = capacity_method(method)
+    points = as_sites(sites, domain.dim)
+    held = None if fixed is None else check_fixed(fixed, len(points))
+    if held is not None and held.any():
+        method = method or "lbfgs"
     method = method or fastest_method(domain, density)
     # The core checks the settings for both drivers (and tells the rule's default tol).
     tol = _core.check_settings(method, rule, tol, max_iter, memory)
-    points = as_sites(sites, domain.dim)
     frame = domain.frame  # the core works in it; sites, energy and history map back
     weighted = core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree)
     if volumes is not None:
@@ -222,6 +241,8 @@ def cvt(
             "normalise": bool(normalise),
             "volume_tol": float(volume_tol),
         }
+    if held is not None:
+        weighted["fixed"] = held
     bar = ProgressBar(rule, tol) if progress else None
     observe = frame.observer(chain_observers(callback, bar))
     try:
@@ -247,6 +268,8 @@ def cvt(
         # Free in space while minimising (Yan et al. 2009); onto the surface at the end,
         # where the diagram is then taken.
         core_sites, _ = closest_points(domain._core.vertices, domain._core.faces, out["sites"])
+        if held is not None:
+            core_sites[held] = out["sites"][held]  # on the surface already: not projected
         sites_out = frame.to_input("sites", core_sites)
         with frame.input_errors():
             arrays = _core.voronoi(domain._core, core_sites)
@@ -254,6 +277,9 @@ def cvt(
     if any(domain.periodic):
         # Wrapped by the core in its frame; again here, where rounding may touch `hi`.
         sites_out = domain.wrap(sites_out)
+    if held is not None:
+        # Never moved: the input's bits, not their round trip through the frame.
+        sites_out[held] = points[held]
     weights = frame.to_input("weights", out["weights"]) if "weights" in out else None
     return CVTResult(
         sites=sites_out,

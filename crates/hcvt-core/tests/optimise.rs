@@ -8,9 +8,9 @@ use std::ops::ControlFlow;
 
 use hcvt_core::lloyd::reseed_empty;
 use hcvt_core::{
-    clipped_diagram, cvt, evaluate, Boundary, DomainKind, Euclid, Measures, Method, Options,
-    Outcome, Point, PointRequest, Polygon, PolygonCell, PolyhedronCell, Request, Rule, Settings,
-    Solid, Space, Step, StopReason,
+    clipped_diagram, cvt, evaluate, Boundary, CoreError, DomainKind, Euclid, Measures, Method,
+    Options, Outcome, Point, PointRequest, Polygon, PolygonCell, PolyhedronCell, Request, Rule,
+    Settings, Solid, Space, Step, StopReason,
 };
 
 /// An L-shaped polygon with a square hole: non-convex, and with a hole.
@@ -429,4 +429,49 @@ fn the_caller_sees_its_own_order() {
         ),
         "{err:?}"
     );
+}
+
+#[test]
+fn fixed_sites_stay_and_the_free_ones_converge() {
+    let square = polygon(&[&[[0., 0.], [1., 0.], [1., 1.], [0., 1.]]]);
+    let sites = interior_sites(&square, 120, 9);
+    let fixed: Vec<bool> = (0..sites.len()).map(|i| i % 5 == 0).collect();
+    for method in [Method::Lbfgs, Method::Lloyd] {
+        let tol = if method == Method::Lbfgs { 1e-7 } else { 1e-4 };
+        let asked = Settings {
+            fixed: Some(&fixed),
+            ..settings(method, tol, 3000)
+        };
+        let out = run::<2, PolygonCell>(&square, sites.clone(), &asked);
+        assert_eq!(out.stop_reason, StopReason::Converged, "{method:?}");
+        for (i, (a, b)) in out.sites.iter().zip(&sites).enumerate() {
+            assert_eq!(fixed[i], a == b, "site {i} ({method:?})");
+        }
+        // The gap over the free sites, from a fresh diagram; over all, far from it.
+        let point =
+            evaluate::<2, PolygonCell, _>(&square, out.sites.clone(), &PointRequest::default())
+                .unwrap();
+        assert!(Measures::of(&point, &fixed).rms_gap < tol);
+        assert!(Measures::of(&point, &vec![false; sites.len()]).rms_gap > 100.0 * tol);
+    }
+    let newton = Settings {
+        fixed: Some(&fixed),
+        ..settings(Method::Newton, 1e-7, 100)
+    };
+    let refused = cvt::<2, PolygonCell, _>(&square, sites.clone(), &newton, &mut |_, _| {
+        ControlFlow::Continue(())
+    });
+    assert!(matches!(refused, Err(CoreError::InvalidSettings { .. })));
+    let short = Settings {
+        fixed: Some(&fixed[1..]),
+        ..settings(Method::Lbfgs, 1e-7, 100)
+    };
+    let refused =
+        cvt::<2, PolygonCell, _>(
+            &square,
+            sites,
+            &short,
+            &mut |_, _| ControlFlow::Continue(()),
+        );
+    assert!(matches!(refused, Err(CoreError::ShapeMismatch { .. })));
 }

@@ -37,9 +37,10 @@ use crate::errors::to_py_err;
 /// With `volumes` (n,): the capacity-constrained CVT (`hcvt_core::capacity_cvt`, method
 /// "lloyd"), every cell's volume within `volume_tol` (default 1e-8) of its target, scaled
 /// to the domain's when `normalise`; the dict also has `weights` and `targets` (n,), and
-/// the history `max_volume_error` and `newton_steps`.
+/// the history `max_volume_error` and `newton_steps`. With `fixed` (n,) bool: the sites
+/// flagged stay where they are (`Settings::fixed`).
 #[pyfunction]
-#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None, volumes=None, normalise=false, volume_tol=None))]
+#[pyo3(signature = (domain, sites, method="lbfgs", rule="gap", tol=None, max_iter=10_000, memory=7, callback=None, polynomial=None, function=None, quadrature_degree=4, frame=None, volumes=None, normalise=false, volume_tol=None, fixed=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn cvt<'py>(
     py: Python<'py>,
@@ -58,6 +59,7 @@ pub fn cvt<'py>(
     volumes: Option<PyReadonlyArray1<'py, f64>>,
     normalise: bool,
     volume_tol: Option<f64>,
+    fixed: Option<PyReadonlyArray1<'py, bool>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
     let volumes = volumes.map(|v| Volumes {
@@ -71,6 +73,7 @@ pub fn cvt<'py>(
         callback,
         given: &Given::new(polynomial, function, quadrature_degree)?,
         volumes,
+        fixed: fixed.map(|f| f.as_array().to_vec()),
     };
     by_kind!(domain, run(py, &sites, job))
 }
@@ -336,6 +339,8 @@ struct Job<'a> {
     given: &'a Given,
     /// Prescribed cell volumes: a capacity-constrained CVT.
     volumes: Option<Volumes>,
+    /// Sites held still, one flag per site.
+    fixed: Option<Vec<bool>>,
 }
 
 /// The volumes of a capacity-constrained CVT and how they are read.
@@ -372,11 +377,13 @@ where
         callback,
         given,
         volumes,
+        fixed,
     } = job;
     let sites = rows::<f64, D>(sites, "sites")?;
     let density = given.density::<D>()?;
     let settings = Settings {
         frame,
+        fixed: fixed.as_deref(),
         ..named.settings(density.as_ref())
     };
     let settings = &settings;

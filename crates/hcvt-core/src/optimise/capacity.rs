@@ -133,6 +133,11 @@ fn check_arguments<const D: usize>(
                 .into(),
         });
     }
+    if settings.cvt.fixed.is_some_and(|f| f.contains(&true)) {
+        return Err(CoreError::InvalidSettings {
+            reason: "prescribed volumes do not hold fixed sites yet".into(),
+        });
+    }
     if volumes.len() != n {
         return Err(CoreError::InvalidWeights {
             reason: format!(

@@ -121,6 +121,11 @@ pub struct Settings<'a, const D: usize> {
     pub density: Option<&'a Density<'a, D>>,
     /// Where the sites' coordinates sit in the input's, for the paper's rule ([`Frame`]).
     pub frame: Frame,
+    /// Sites held where they start, one flag per site in the caller's order (`None`: all
+    /// free). A fixed site never moves: its gradient row is zero, so L-BFGS's direction,
+    /// line search and correction pairs leave it out; Lloyd leaves it; the stopping
+    /// measures count the free sites only. Newton refuses it.
+    pub fixed: Option<&'a [bool]>,
 }
 
 impl<const D: usize> Default for Settings<'_, D> {
@@ -134,6 +139,7 @@ impl<const D: usize> Default for Settings<'_, D> {
             max_line_evaluations: 20,
             density: None,
             frame: Frame::default(),
+            fixed: None,
         }
     }
 }
@@ -460,6 +466,9 @@ struct Tracker<'a, const D: usize> {
     frame: Frame,
     /// The last diagram's near-site lists, which start the next one warm.
     warm: WarmStart<D>,
+    /// The fixed sites (index in the run's order, position): put back before every
+    /// diagram and given a zero gradient row after it (empty: all sites free).
+    held: Vec<(usize, [f64; D])>,
 }
 
 impl<'a, const D: usize> Tracker<'a, D> {
@@ -481,25 +490,38 @@ impl<'a, const D: usize> Tracker<'a, D> {
             history: Vec::new(),
             frame,
             warm: WarmStart::new(),
+            held: Vec::new(),
         }
     }
 
     fn evaluate<C: ConvexCell<D>, K: DomainKind<D>>(
         &mut self,
         domain: &K,
-        sites: Vec<[f64; D]>,
+        mut sites: Vec<[f64; D]>,
     ) -> Result<Point<D>, CoreError>
     where
         Euclid: Space<D>,
     {
         self.evaluations += 1;
-        if self.request.hessian {
+        // Exactly where they started, whatever a step (a Lloyd move, a retraction onto
+        // the surface, a reseed) made of them.
+        for &(i, x) in &self.held {
+            sites[i] = x;
+        }
+        let mut point = if self.request.hessian {
             // Newton's steps reach across cells until the end game: warm-started, a
             // star of 5,000 sites took 5.1-5.5 s against 4.3-4.6 s cold (same 177
             // diagrams, one thread, under load), where L-BFGS gained 14-21%.
-            return evaluate::<D, C, K>(domain, sites, &self.request);
+            evaluate::<D, C, K>(domain, sites, &self.request)?
+        } else {
+            evaluate_warm::<D, C, K>(domain, sites, &self.request, &mut self.warm)?
+        };
+        // A zero row: the two-loop recursion then gives a zero move (its pairs' rows are
+        // zero too), and the line search's slopes leave the site out.
+        for &(i, _) in &self.held {
+            point.gradient[i] = [0.0; D];
         }
-        evaluate_warm::<D, C, K>(domain, sites, &self.request, &mut self.warm)
+        Ok(point)
     }
 
     /// Record `point` in the history; also returns which sites are pinned
@@ -514,10 +536,24 @@ impl<'a, const D: usize> Tracker<'a, D> {
         Euclid: Space<D>,
     {
         let pinned = lloyd::pinned_sites(domain, point);
+        let dim = domain.cell_dim();
+        let measures = if self.held.is_empty() {
+            Measures::of_cells(point, &pinned, &self.frame, dim)
+        } else {
+            // The stopping measures over the free sites only.
+            let mut left_out = pinned.clone();
+            for &(i, _) in &self.held {
+                left_out[i] = true;
+            }
+            Measures {
+                pinned: pinned.iter().filter(|&&p| p).count(),
+                ..Measures::of_cells(point, &left_out, &self.frame, dim)
+            }
+        };
         let record = Record {
             energy: point.energy,
             mean_g: mean_g(domain, &point.diagram),
-            measures: Measures::of_cells(point, &pinned, &self.frame, domain.cell_dim()),
+            measures,
             seconds: self.start.elapsed().as_secs_f64(),
             evaluations: self.evaluations,
             step,
@@ -589,11 +625,37 @@ where
                 .into(),
         });
     }
-    along_morton_curve::<D, C, K>(domain, sites, observer, |along_curve, _, observe| {
-        let out = cvt_in_order::<D, C, K>(domain, along_curve, settings, observe)?;
+    check_fixed(settings, sites.len())?;
+    along_morton_curve::<D, C, K>(domain, sites, observer, |along_curve, order, observe| {
+        let fixed: Option<Vec<bool>> = settings
+            .fixed
+            .map(|f| order.iter().map(|&i| f[i as usize]).collect());
+        let out =
+            cvt_in_order::<D, C, K>(domain, along_curve, settings, fixed.as_deref(), observe)?;
         Ok((out, Vec::new()))
     })
     .map(|(out, _)| out)
+}
+
+/// `settings.fixed`, if given, has one flag per site, and Newton is not asked to hold
+/// any (its trust-region step has no rows to leave out yet).
+fn check_fixed<const D: usize>(settings: &Settings<'_, D>, n: usize) -> Result<(), CoreError> {
+    let Some(fixed) = settings.fixed else {
+        return Ok(());
+    };
+    if fixed.len() != n {
+        return Err(CoreError::ShapeMismatch {
+            what: "fixed, one flag per site",
+            expected: n,
+            got: fixed.len(),
+        });
+    }
+    if settings.method == Method::Newton && fixed.contains(&true) {
+        return Err(CoreError::InvalidSettings {
+            reason: "Newton does not hold fixed sites yet: use method 'lbfgs' or 'lloyd'".into(),
+        });
+    }
+    Ok(())
 }
 
 /// Per-site columns of a run besides its sites (weights, target volumes), in the run's
@@ -664,11 +726,13 @@ where
     }
 }
 
-/// [`cvt`] with the sites in the order given.
+/// [`cvt`] with the sites in the order given; `fixed` flags the sites held still, in
+/// that order.
 fn cvt_in_order<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: Vec<[f64; D]>,
     settings: &Settings<'_, D>,
+    fixed: Option<&[bool]>,
     observer: &mut Observer<'_, D>,
 ) -> Result<Outcome<D>, CoreError>
 where
@@ -679,6 +743,12 @@ where
         density: settings.density,
     };
     let mut tracker = Tracker::new(domain, sites.len(), request, settings.frame);
+    tracker.held = (fixed.unwrap_or_default().iter())
+        .zip(&sites)
+        .enumerate()
+        .filter(|(_, (&f, _))| f)
+        .map(|(i, (_, &x))| (i, x))
+        .collect();
     let mut point = tracker.evaluate::<C, K>(domain, sites)?;
     let mut solver = Solver {
         method: settings.method,
