@@ -74,6 +74,10 @@ def square() -> hcvt.Domain:
     return hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
 
 
+#: Five sites inside the unit square, for the rows of ``fixed=``.
+HOSTILE_SQUARE_SITES = np.array([(0.2, 0.2), (0.8, 0.2), (0.5, 0.5), (0.2, 0.8), (0.8, 0.8)])
+
+
 CUBE_VERTICES = np.array([[(i >> k) & 1 for k in range(3)] for i in range(8)], dtype=float)
 _QUADS = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]]
 CUBE_FACES = np.array([[q[0], q[1], q[2]] for q in _QUADS] + [[q[0], q[2], q[3]] for q in _QUADS])
@@ -658,6 +662,36 @@ SPECIFIC: dict[str, list[Row]] = {
             lambda: hcvt.remesh(cube_surface(), 0),
             Raises(ValueError, "n must be a positive integer"),
         ),
+    ],
+    "fixed": [
+        (
+            f"fixed: a mask {name}",
+            functools.partial(
+                lambda fixed: hcvt.cvt(square(), HOSTILE_SQUARE_SITES, "lbfgs", fixed=fixed),
+                fixed,
+            ),
+            Raises(ValueError, match),
+        )
+        for name, fixed, match in [
+            ("of integers", np.zeros(5, dtype=int), "dtype"),
+            ("one short", np.zeros(4, dtype=bool), "shape"),
+            ("of two dimensions", np.zeros((5, 1), dtype=bool), "shape"),
+        ]
+    ]
+    + [
+        (
+            "fixed: Newton refuses a mask",
+            lambda: hcvt.cvt(square(), HOSTILE_SQUARE_SITES, "newton", fixed=np.arange(5) % 2 == 0),
+            Raises(ValueError, "Newton does not hold fixed sites"),
+        ),
+    ],
+    "features": [
+        (
+            f"features: a feature angle of {angle}",
+            functools.partial(lambda a: hcvt.remesh(cube_surface(), 100, features=a), angle),
+            Raises(ValueError, "features= is the dihedral angle"),
+        )
+        for angle in (-10.0, NAN, 0.0, 180.0, INF)
     ],
     "power": [
         (

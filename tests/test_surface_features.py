@@ -117,12 +117,6 @@ def test_a_segment_crossed_by_one_diagonal_is_flipped_in() -> None:
     assert restore_segments(kept, vertices, plan).tolist() == kept.tolist()
 
 
-@pytest.mark.parametrize("angle", [-10.0, float("nan"), 0.0, 180.0, float("inf")])
-def test_a_bad_feature_angle_is_refused(angle: float) -> None:
-    with pytest.raises(ValueError, match="features= is the dihedral angle"):
-        hcvt.remesh(box_surface(), 100, features=angle)
-
-
 def test_features_that_take_every_site_are_refused() -> None:
     with pytest.raises(ValueError, match="take .* sites"):
         hcvt.remesh(box_surface(), 30, features=40.0)

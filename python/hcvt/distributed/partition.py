@@ -33,7 +33,7 @@ from scipy.spatial import cKDTree
 
 from hcvt import _core
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, core_arguments
-from hcvt.geometry.domain import Domain
+from hcvt.geometry.domain import Domain, wrapped
 
 #: A halo covers a cell when the cell's reach is below this fraction of the halo width:
 #: the halo is selected by comparing coordinates with the part's box widened by ``rho``,
@@ -175,11 +175,7 @@ class Torus:
 
     def wrap(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """``points`` (m, d) moved by whole periods into ``[lo, hi)`` (``Domain.wrap``)."""
-        out = np.array(points, dtype=np.float64)
-        for k in np.flatnonzero(self.periodic):
-            x = self.lo[k] + np.mod(out[:, k] - self.lo[k], self.hi[k] - self.lo[k])
-            out[:, k] = np.where(x < self.hi[k], x, self.lo[k])
-        return out
+        return wrapped(points, self.lo, self.hi, self.periodic)
 
     def shifts(self) -> NDArray[np.float64]:
         """``k∘L`` for every ``k`` in ``{-1, 0, 1}`` along the periodic axes, (s, d)."""
