@@ -69,6 +69,10 @@ struct MaxGrid<const D: usize> {
     /// The sites of block `b` are `members[starts[b]..starts[b + 1]]`, in index order.
     starts: Vec<u32>,
     members: Vec<u32>,
+    /// The sites and weights of `members`, in their order: the second pass reads a block's
+    /// members in a row rather than each site and weight from wherever its index is.
+    member_sites: Vec<[f64; D]>,
+    member_weights: Vec<f64>,
     /// The largest weight per coarse block of `COARSE^D` blocks, row-major like `max`.
     coarse_dims: [usize; D],
     coarse_max: Vec<f64>,
@@ -141,6 +145,8 @@ impl<const D: usize> MaxGrid<D> {
             max: vec![f64::NEG_INFINITY; blocks],
             starts: vec![0; blocks + 1],
             members: vec![0; sites.len()],
+            member_sites: Vec::new(),
+            member_weights: Vec::new(),
             coarse_dims: std::array::from_fn(|k| dims[k].div_ceil(COARSE)),
             coarse_max: Vec::new(),
         };
@@ -164,6 +170,8 @@ impl<const D: usize> MaxGrid<D> {
             grid.members[next[b] as usize] = j as u32;
             next[b] += 1;
         }
+        grid.member_sites = grid.members.iter().map(|&j| sites[j as usize]).collect();
+        grid.member_weights = grid.members.iter().map(|&j| weights[j as usize]).collect();
         grid
     }
 
@@ -396,15 +404,14 @@ impl<'a, const D: usize> Power<'a, D> {
                 loop {
                     let b = grid.flat(at);
                     if reaches(grid.max[b], at, at, r, radius2) {
-                        let members =
-                            &grid.members[grid.starts[b] as usize..grid.starts[b + 1] as usize];
-                        for &j in members {
-                            let q = sub(sites[j as usize], site);
+                        for k in grid.starts[b] as usize..grid.starts[b + 1] as usize {
+                            let q = sub(grid.member_sites[k], site);
                             let dist2 = norm2(q);
                             if dist2 <= covered2 {
                                 continue; // streamed (site `i` itself among them)
                             }
-                            let excess = self.weights[j as usize] - own;
+                            let excess = grid.member_weights[k] - own;
+                            let j = grid.members[k];
                             let Some(reach) = cut_reach(r, radius2, excess) else {
                                 continue;
                             };

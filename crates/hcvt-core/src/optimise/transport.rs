@@ -19,7 +19,8 @@
 //! `ν − m` sums to zero, so the system is consistent. In 2D it is solved directly
 //! (`Laplacian::direct`): the symmetrised `L` with the weight of its best-connected cell
 //! held fixed, factorised by faer's supernodal Cholesky after an AMD ordering (17 to 21
-//! entries a row in the factor at 10,000 sites), serially. Its residual is then checked
+//! entries a row in the factor at 10,000 sites; an earlier step's ordering is reused
+//! while its factor stays within 10% of that size, [`analyse`]), serially. Its residual is then checked
 //! cell by cell against the inexact-Newton goal below and, if short of it, polished by
 //! the conjugate gradients, which also solve every system the factorisation does not take:
 //! a face graph that is not connected, or a factor fuller than `MAX_FILL_PER_ROW` (3D:
@@ -49,8 +50,9 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
 };
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
@@ -184,6 +186,8 @@ where
     // The sites stay put: every diagram streams each cell's near sites from the previous
     // diagram's lists (the same cells bit for bit, `diagram::warm`).
     let mut near = WarmStart::new();
+    // The fill-reducing ordering of an earlier step, kept while its factor stays small.
+    let mut ordering = None;
     let mut current =
         Evaluation::new::<C, K>(domain, sites, &weights, settings.density, &mut near)?;
     let total: f64 = current.masses.iter().sum();
@@ -227,7 +231,7 @@ where
         // min(0.1, error) of the present one (superlinear convergence), and no smaller
         // than round-off allows.
         let goal = (error * error.min(0.1)).max(0.01 * settings.tol);
-        let start = laplacian.direct(&residual);
+        let start = laplacian.direct(&residual, &mut ordering);
         let (direction, cg_iterations) = laplacian.solve(&residual, &targets, goal, start);
         let norm = norm_of(&residual);
         let mut step = 1.0;
@@ -516,23 +520,16 @@ impl<const D: usize> Laplacian<'_, D> {
     /// round-off, and the fixed cell's through their sum, `b` summing to zero. The matrix
     /// is symmetrised, each face's coupling read from its lower-numbered cell and the
     /// diagonal summed from the couplings, so that it is exactly positive semi-definite.
-    /// The fill-reducing ordering is AMD's, computed afresh each step: the first step's
-    /// ordering kept for the later ones let the factor grow from 17 to 165 entries a row
-    /// (10,000 sites; AMD's own gives 19 to 21), the faces having moved.
-    fn direct(&self, b: &[f64]) -> Option<Vec<f64>> {
+    /// The fill-reducing ordering is AMD's, or an earlier step's while its factor stays
+    /// small ([`Laplacian::analyse`]).
+    fn direct(&self, b: &[f64], ordering: &mut Option<Ordering>) -> Option<Vec<f64>> {
         let n = b.len();
         if n < 2 {
             return None;
         }
         let (matrix, fixed) = self.grounded()?;
         let par = Par::Seq;
-        let symbolic = factorize_symbolic_cholesky(
-            matrix.symbolic(),
-            Side::Lower,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams::default(),
-        )
-        .ok()?;
+        let symbolic = analyse(&matrix, ordering)?;
         if symbolic.len_val() > MAX_FILL_PER_ROW * n {
             return None;
         }
@@ -635,6 +632,64 @@ impl<const D: usize> Laplacian<'_, D> {
         let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows);
         Some((SparseColMat::new(pattern, values), fixed))
     }
+}
+
+/// An AMD ordering kept from one Newton step to the next ([`analyse`]): `forward[k]` the
+/// cell eliminated `k`-th, `inverse` its inverse, and `fill` the entries of the factor it
+/// gave when it was computed.
+struct Ordering {
+    forward: Vec<usize>,
+    inverse: Vec<usize>,
+    fill: usize,
+}
+
+/// A kept ordering is used while its factor holds at most this factor more entries than
+/// when AMD computed it.
+const REUSE_FILL: f64 = 1.1;
+
+/// The symbolic Cholesky factorisation of `matrix` (lower triangle) with the ordering kept
+/// in `kept` if its factor is at most `REUSE_FILL` times as full as when it was computed,
+/// else with a fresh AMD ordering, then kept. Why: AMD took 12% of the transport's time at
+/// 100,000 sites (one ordering a step); the faces change little from step to step once
+/// Newton converges (72 of 29,641 faces at 10,000 sites in the fourth step, none after),
+/// but the first step's ordering kept for all had let the factor grow from 17 to 165
+/// entries a row, the faces having moved, hence the check. Tried and not kept: a
+/// geometric nested dissection by the sites' coordinates (no AMD at all): its factor,
+/// about `n log n`, passed `MAX_FILL_PER_ROW` at 100,000 sites.
+fn analyse(
+    matrix: &SparseColMat<usize, f64>,
+    kept: &mut Option<Ordering>,
+) -> Option<SymbolicCholesky<usize>> {
+    let n = matrix.ncols();
+    if let Some(k) = kept.as_ref().filter(|k| k.forward.len() == n) {
+        let reused = factorize_symbolic_cholesky(
+            matrix.symbolic(),
+            Side::Lower,
+            SymmetricOrdering::Custom(PermRef::new_checked(&k.forward, &k.inverse, n)),
+            CholeskySymbolicParams::default(),
+        )
+        .ok()
+        .filter(|s| s.len_val() as f64 <= REUSE_FILL * k.fill as f64);
+        if reused.is_some() {
+            return reused;
+        }
+    }
+    let fresh = factorize_symbolic_cholesky(
+        matrix.symbolic(),
+        Side::Lower,
+        SymmetricOrdering::Amd,
+        CholeskySymbolicParams::default(),
+    )
+    .ok()?;
+    *kept = fresh.perm().map(|p| {
+        let (forward, inverse) = p.arrays();
+        Ordering {
+            forward: forward.to_vec(),
+            inverse: inverse.to_vec(),
+            fill: fresh.len_val(),
+        }
+    });
+    Some(fresh)
 }
 
 /// Union–find over the cells, to tell whether the face graph is connected.
