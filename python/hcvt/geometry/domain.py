@@ -159,7 +159,7 @@ class Domain:
         510.064
         >>> band = hcvt.Domain.sphere(1.0, region=[(0, 0), (10, 0), (10, 10), (0, 10)])
         >>> round(band.volume, 6)
-        0.030422
+        0.030382
         """
         r = check_radius(radius)
         if region is None:
