@@ -675,3 +675,89 @@ impl DomainKind<3> for SphereRegion {
         Sphere.retract(x)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagram::sphere::tests::random_sites;
+    use crate::diagram::{clipped_diagram, PolyhedronCell, Request};
+    use std::f64::consts::PI;
+
+    /// The octant `x, y, z > 0` has area `π/2` (an eighth of `4π`), cut into a
+    /// non-convex region by a notch from the corner `(1, 1, 1)/√3`: the region of a
+    /// triangle minus a triangle.
+    fn notched_octant() -> Vec<[f64; 3]> {
+        vec![
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [1.0, 1.0, 3.0],
+            [3.0, 1.0, 1.0],
+        ]
+    }
+
+    #[test]
+    fn the_octant_has_an_eighth_of_the_area() {
+        let octant = SphereRegion::new(vec![vec![
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ]]);
+        let octant = octant.unwrap();
+        assert!((octant.area() - PI / 2.0).abs() < 1e-15);
+        assert!((octant.perimeter() - 1.5 * PI).abs() < 1e-14);
+        // Clockwise given, oriented here.
+        let reversed = SphereRegion::new(vec![vec![
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 0.0, 0.0],
+        ]]);
+        assert_eq!(reversed.unwrap().area(), octant.area());
+    }
+
+    /// Random sites in the notched octant: the cells tile it, every neighbour's arc is
+    /// positive, and the boundary measures sum to its perimeter.
+    #[test]
+    fn cells_tile_a_non_convex_region() {
+        let region = SphereRegion::new(vec![notched_octant()]).unwrap();
+        let sites: Vec<[f64; 3]> = random_sites(20_000, 11)
+            .into_iter()
+            .filter(|s| region.locate(s) == Some(1))
+            .take(300)
+            .collect();
+        assert_eq!(sites.len(), 300);
+        let d = clipped_diagram::<3, PolyhedronCell, _>(&region, &sites, &Request::default())
+            .unwrap()
+            .diagram;
+        let total: f64 = d.moments.iter().map(|m| m.mass).sum();
+        assert!((total - region.area()).abs() < 1e-13 * region.area());
+        let boundary: f64 = d.boundary_measure.iter().sum();
+        assert!((boundary - region.perimeter()).abs() < 1e-13 * region.perimeter());
+        assert!(d.neighbor_measures.iter().all(|&m| m > 0.0));
+    }
+
+    #[test]
+    fn bad_regions_are_named() {
+        let reason = |rings: Vec<Vec<[f64; 3]>>| match SphereRegion::new(rings) {
+            Err(CoreError::InvalidRegion { reason }) => reason,
+            other => panic!("{other:?}"),
+        };
+        let diamond = [
+            [1.0, 0.0, 0.1],
+            [1.0, 0.1, 0.0],
+            [1.0, 0.0, -0.1],
+            [1.0, -0.1, 0.0],
+        ];
+        let swapped = vec![diamond[0], diamond[2], diamond[1], diamond[3]]; // a bow tie
+        assert!(reason(vec![swapped]).contains("cross"));
+        let wide = vec![[1.0, 0.0, 0.0], [-0.5, 0.8, 0.0], [-0.5, -0.8, 0.1]];
+        assert!(reason(vec![wide]).contains("within"));
+        let repeated = vec![[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert!(reason(vec![repeated]).contains("coincide"));
+        let nan = vec![[1.0, 0.0, 0.0], [f64::NAN, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!(reason(vec![nan]).contains("no direction"));
+        let outside_hole = vec![[1.0, 0.0, 0.0], [1.0, 0.1, 0.0], [1.0, 0.0, 0.1]];
+        let far_hole = vec![[0.0, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.1, 1.0]];
+        assert!(reason(vec![outside_hole, far_hole]).contains("outside the outline"));
+    }
+}
