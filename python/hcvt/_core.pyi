@@ -30,6 +30,7 @@ __all__ = [
     "PolygonDomain",
     "SolidDomain",
     "SphereDomain",
+    "SphereRegionDomain",
     "SurfaceDomain",
     "check_settings",
     "closest_points",
@@ -146,6 +147,23 @@ class SphereDomain:
     def winding_numbers(self, points: _Float2) -> _Windings: ...
 
 @final
+class SphereRegionDomain:
+    """A region of the unit sphere bounded by rings of great-circle arcs."""
+
+    def __new__(cls, rings: list[_Float2]) -> SphereRegionDomain: ...
+    @property
+    def volume(self) -> float: ...
+    @property
+    def perimeter(self) -> float: ...
+    @property
+    def centre(self) -> tuple[float, float, float]: ...
+    @property
+    def bounds(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]: ...
+    @property
+    def rings(self) -> list[NDArray[np.float64]]: ...
+    def winding_numbers(self, points: _Float2) -> _Windings: ...
+
+@final
 class SurfaceDomain:
     """A triangle surface: restricted Voronoi cells, sites anywhere in space."""
 
@@ -176,7 +194,15 @@ _Function = Callable[[NDArray[np.float64]], ArrayLike]
 # unit sphere or a triangle surface (sites in 3D, cells of dimension 2; mesh and mesh_part
 # refuse them); the dicts
 # it returns are typed in hcvt.core_results.
-_Domain = PolygonDomain | SolidDomain | BoxDomain2 | BoxDomain3 | SphereDomain | SurfaceDomain
+_Domain = (
+    PolygonDomain
+    | SolidDomain
+    | BoxDomain2
+    | BoxDomain3
+    | SphereDomain
+    | SphereRegionDomain
+    | SurfaceDomain
+)
 
 def voronoi(
     domain: _Domain,

@@ -67,7 +67,27 @@ def main() -> None:
     """Regular centroidal Voronoi tessellations of polygons and closed meshes."""
 
 
-def _load(input_: str, repair: bool, radius: float = 1.0, periodic: bool = False):
+def _read_region(path: str) -> Any:
+    """The lon/lat Polygon of a GeoJSON file (its first feature, or a bare geometry)."""
+    from shapely.geometry import shape
+
+    data = json.loads(Path(path).read_text())
+    if data.get("type") == "FeatureCollection":
+        data = data["features"][0]
+    return shape(data.get("geometry", data))
+
+
+def _load(
+    input_: str,
+    repair: bool,
+    radius: float = 1.0,
+    periodic: bool = False,
+    region: str | None = None,
+):
+    if region is not None and input_ != SPHERE:
+        raise click.UsageError(f"--region bounds a region of INPUT sphere, not of {input_!r}")
+    if region is not None:
+        return hcvt.Domain.sphere(radius, region=_read_region(region))
 
     if input_ in BOXES:
         d = BOXES[input_]
@@ -108,6 +128,13 @@ def _load(input_: str, repair: bool, radius: float = 1.0, periodic: bool = False
     show_default=True,
     help="INPUT sphere: its radius; lengths and areas of --out .nc in its units (MPAS-A "
     "grid files: 1, scaled by the model; MPAS-Ocean: 6371229 m, MPAS-Tools' Earth).",
+)
+@click.option(
+    "--region",
+    "region_path",
+    default=None,
+    help="INPUT sphere: a region of it, a GeoJSON Polygon in lon/lat degrees (its first "
+    "feature; holes are islands; edges are great-circle arcs): a regional ocean.",
 )
 @click.option(
     "--periodic",
@@ -246,6 +273,7 @@ def run(
     method: str | None,
     init: str | None,
     radius: float,
+    region_path: str | None,
     periodic: bool,
     volumes_spec: str | None,
     volume_tol: float,
@@ -291,7 +319,7 @@ def run(
                 f"process, not --method {method}" + (" with --scheduler" if scheduler else "")
             )
         method = capacity_method(method)
-    domain = _load(input_, repair, radius, periodic)
+    domain = _load(input_, repair, radius, periodic, region_path)
     density = _density(density_spec, sizing_spec, domain.dim)
     method, init = _defaults(domain, n, method, init, density)
     _check_outputs(domain, out, plot)
@@ -386,6 +414,8 @@ def run(
     }
     if domain.is_sphere:
         info["radius"] = domain.radius
+    if region_path is not None:
+        info["region"] = region_path
     found = None if domain.is_sphere else hcvt.defects(diagram)
     if found is not None:
         info.update(found.summary())
@@ -407,7 +437,7 @@ def run(
             f"interior defects = {found.number} of {found.interior_cells} interior cells "
             f"({100 * found.fraction:.1f}%), {found.deep_number} away from the boundary layer"
         )
-    else:
+    elif not domain.is_sphere_region:
         info["sphere_quality"] = _sphere_quality(diagram)
     if history is not None:
         click.echo(
@@ -530,6 +560,8 @@ def _defaults(
     domain: Any, n: int, method: str | None, init: str | None, density: Any = None
 ) -> tuple[str, str]:
     """--method and --init as given, or their defaults for the domain (see their help)."""
+    if domain.is_sphere_region:
+        return method or "lbfgs", init or "random"  # no Hessian nor hierarchy there yet
     if domain.is_sphere:
         fits = icosahedral_level(n) is not None
         uniform = "icosahedral" if fits else "fibonacci"
@@ -546,6 +578,8 @@ def _check_outputs(domain: Any, out: str | None, plot: str | None) -> None:
     """Refuse, before any work, outputs the domain does not have."""
     if out and Path(out).suffix.lower() == ".nc" and not domain.is_sphere:
         raise ValueError("--out .nc writes an MPAS mesh, for INPUT sphere only")
+    if out and Path(out).suffix.lower() == ".nc" and domain.is_sphere_region:
+        raise NotImplementedError("--out .nc (an MPAS mesh) of a --region is not implemented yet")
     if plot and domain.is_sphere:
         raise ValueError(
             "--plot draws planar and solid cells; view spherical ones with "
@@ -794,7 +828,7 @@ def show(summary: str, plot: str) -> None:
         )
     except EOFError as err:  # np.load of an empty file; click would say only "Aborted!"
         raise ValueError(f"{sites_path}: cannot read sites ({err})") from err
-    domain = _load(info["input"], False, info.get("radius", 1.0))
+    domain = _load(info["input"], False, info.get("radius", 1.0), region=info.get("region"))
     _check_outputs(domain, None, plot)
     _plot(hcvt.voronoi(domain, sites), plot)
 

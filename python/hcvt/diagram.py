@@ -341,6 +341,11 @@ class Diagram(Shows):
         """
         if not self.domain.is_sphere:
             raise ValueError("spherical_mesh() is for diagrams on hcvt.Domain.sphere; use mesh()")
+        if self.domain.is_sphere_region:
+            raise NotImplementedError(
+                "spherical_mesh() of a region of the sphere (cells cut by its boundary) is not "
+                "implemented yet; the diagram's measures, neighbours and arcs are"
+            )
         if self._sphere_mesh is None:
             self._sphere_mesh = spherical_mesh(self._core_sites, self.neighbors, self.domain.radius)
         return self._sphere_mesh

@@ -89,6 +89,8 @@ def fastest_method(
     """
     # On the sphere every density is sampled, its arcs too, and Newton measured faster.
     exact_hessian = density is None or isinstance(density, Polynomial) or domain.is_sphere
+    if domain.is_sphere_region:
+        return "lbfgs"  # no Hessian summed on a region of the sphere yet
     summed = not any(domain.periodic) and not domain.is_surface
     if not summed or not exact_hessian or partitioned:
         return "lbfgs"

@@ -156,6 +156,14 @@ pub enum CoreError {
         /// What is wrong, with the count and the first offending element.
         reason: String,
     },
+    /// A region of the sphere ([`crate::SphereRegion`]) that cannot be a domain: too few,
+    /// non-finite or repeated vertices, edges that cross, a region not inside an open
+    /// hemisphere.
+    #[error("invalid region of the sphere: {reason}")]
+    InvalidRegion {
+        /// What is wrong, naming the ring and the vertex or edge.
+        reason: String,
+    },
     /// A cutting plane has a non-finite normal or origin.
     #[error("plane {index}: {reason}")]
     InvalidPlane {

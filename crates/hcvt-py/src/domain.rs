@@ -1,8 +1,8 @@
 //! Domains: a checked, indexed boundary held by Python.
 
 use hcvt_core::{
-    generalized_winding_number, DomainKind, PeriodicBox, Polygon, Solid, Sphere, Surface,
-    TriangleSet,
+    generalized_winding_number, DomainKind, PeriodicBox, Polygon, Solid, Sphere, SphereRegion,
+    Surface, TriangleSet,
 };
 use numpy::{PyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -271,6 +271,71 @@ impl SphereDomain {
     }
 }
 
+/// A region of the unit sphere bounded by rings of great-circle arcs (the outline, then
+/// holes): cells are the spherical Voronoi cells clipped to it, sites unit vectors (n, 3)
+/// inside it.
+#[pyclass(frozen, module = "hcvt._core")]
+pub struct SphereRegionDomain(pub SphereRegion);
+
+#[pymethods]
+impl SphereRegionDomain {
+    /// `rings`: a list of (m, 3) float64 arrays of points on the unit sphere (normalised
+    /// here), the outline first, then holes; checked (`SphereRegion::new`).
+    #[new]
+    fn new(rings: Vec<PyReadonlyArray2<'_, f64>>) -> PyResult<Self> {
+        let rings = (rings.iter().enumerate())
+            .map(|(r, ring)| rows::<f64, 3>(ring, &format!("rings[{r}]")))
+            .collect::<PyResult<Vec<_>>>()?;
+        SphereRegion::new(rings).map(Self).map_err(to_py_err)
+    }
+
+    /// Area of the region on the unit sphere.
+    #[getter]
+    fn volume(&self) -> f64 {
+        self.0.volume()
+    }
+
+    /// Length of the region's boundary on the unit sphere.
+    #[getter]
+    fn perimeter(&self) -> f64 {
+        self.0.perimeter()
+    }
+
+    /// The unit vector (3,) about which the region lies.
+    #[getter]
+    fn centre(&self) -> [f64; 3] {
+        self.0.centre()
+    }
+
+    /// `(lo, hi)` corners of the bounding box of the sphere.
+    #[getter]
+    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let b = self.0.bounds();
+        (b.lo, b.hi)
+    }
+
+    /// The rings as oriented by the check (outline counter-clockwise seen from outside,
+    /// holes clockwise): a list of (m, 3) arrays of unit vectors.
+    #[getter]
+    fn rings<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, numpy::PyArray2<f64>>>> {
+        self.0.rings().iter().map(|r| to_array2(py, r)).collect()
+    }
+
+    /// 1 for points (m, 3) on the unit sphere inside the region, else 0; `on_boundary`
+    /// where a point lies on the region's boundary.
+    fn winding_numbers<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Windings<'py>> {
+        let p = rows::<f64, 3>(&points, "points")?;
+        let located: Vec<Option<i32>> = p.iter().map(|q| self.0.locate(q)).collect();
+        let w: Vec<i32> = located.iter().map(|w| w.unwrap_or(0)).collect();
+        let on: Vec<bool> = located.iter().map(Option::is_none).collect();
+        Ok((PyArray1::from_vec(py, w), PyArray1::from_vec(py, on)))
+    }
+}
+
 /// A triangle surface in 3D (open or closed, any number of components): cells are the
 /// parts of the surface nearer their site than any other (restricted Voronoi cells), sites
 /// anywhere in space.
@@ -366,6 +431,8 @@ pub enum AnyDomain<'py> {
     /// The unit sphere: sites in 3D, [`hcvt_core::PolyhedronCell`]s (cones from the
     /// centre), cells of dimension 2.
     Sphere(PyRef<'py, SphereDomain>),
+    /// A region of the unit sphere: as the sphere, its cells clipped to the region.
+    SphereRegion(PyRef<'py, SphereRegionDomain>),
     /// A triangle surface: sites in 3D, [`hcvt_core::PolyhedronCell`]s, cells of
     /// dimension 2.
     Surface(PyRef<'py, SurfaceDomain>),
@@ -392,6 +459,12 @@ macro_rules! by_kind {
             $crate::domain::AnyDomain::Sphere(_) => Err(pyo3::exceptions::PyValueError::new_err(
                 concat!(stringify!($f), ": not available on the sphere"),
             )),
+            $crate::domain::AnyDomain::SphereRegion(_) => {
+                Err(pyo3::exceptions::PyValueError::new_err(concat!(
+                    stringify!($f),
+                    ": not available on a region of the sphere"
+                )))
+            }
             $crate::domain::AnyDomain::Surface(_) => Err(pyo3::exceptions::PyValueError::new_err(
                 concat!(stringify!($f), ": not available on a surface"),
             )),
@@ -408,6 +481,12 @@ macro_rules! by_kind {
                 Err($crate::errors::InvalidDomainError::new_err(
                     "the steps of a partitioned run take a polygon, a solid, a box or the \
                      sphere, not a surface",
+                ))
+            }
+            $crate::domain::AnyDomain::SphereRegion(_) => {
+                Err($crate::errors::InvalidDomainError::new_err(
+                    "the steps of a partitioned run take a polygon, a solid, a box or the \
+                     sphere, not yet a region of the sphere",
                 ))
             }
         }
@@ -427,6 +506,9 @@ macro_rules! by_kind {
                 $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
             }
             $crate::domain::AnyDomain::Sphere(d) => {
+                $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
+            }
+            $crate::domain::AnyDomain::SphereRegion(d) => {
                 $f::<3, hcvt_core::PolyhedronCell, _>(&d.0, $($arg),*)
             }
             $crate::domain::AnyDomain::Surface(d) => {

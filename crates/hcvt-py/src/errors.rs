@@ -25,7 +25,8 @@ pub fn to_py_err(err: CoreError) -> PyErr {
         | CoreError::OpenBoundary { .. }
         | CoreError::NonPositiveVolume { .. }
         | CoreError::EmptyBoundary
-        | CoreError::InvalidSurface { .. } => InvalidDomainError::new_err(message),
+        | CoreError::InvalidSurface { .. }
+        | CoreError::InvalidRegion { .. } => InvalidDomainError::new_err(message),
         CoreError::InvalidDensity { .. } | CoreError::DensityValue { .. } => {
             InvalidDensityError::new_err(message)
         }

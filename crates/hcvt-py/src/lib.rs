@@ -29,6 +29,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::BoxDomain2>()?;
     m.add_class::<domain::BoxDomain3>()?;
     m.add_class::<domain::SphereDomain>()?;
+    m.add_class::<domain::SphereRegionDomain>()?;
     m.add_class::<domain::SurfaceDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::optimal_transport, m)?)?;

@@ -24,6 +24,7 @@ from hcvt.geometry import repair as mesh
 from hcvt.geometry.crs import projected_crs
 from hcvt.geometry.frame import Frame
 from hcvt.geometry.sphere import ON_SPHERE_RTOL, SphereFrame, check_radius
+from hcvt.geometry.sphere_region import lonlat_to_unit, region_rings
 from hcvt.geometry.surface_frame import SurfaceFrame
 
 # VTK's cell type of a triangle (vtkCellType.h).
@@ -119,7 +120,7 @@ class Domain:
 
     # ------------------------------------------------------------------ sphere
     @classmethod
-    def sphere(cls, radius: float = 1.0) -> Domain:
+    def sphere(cls, radius: float = 1.0, region: Any = None) -> Domain:
         """The sphere of ``radius`` about the origin: cells are spherical polygons.
 
         Sites are points of the sphere, shape (n, 3) (to a relative ``1e-9`` of the
@@ -131,13 +132,56 @@ class Domain:
 
         Examples
         --------
+        With ``region``, a region of the sphere (a regional ocean): ``(lon, lat)`` in
+        degrees, an (m, 2) array (one ring, closed or not) or a shapely Polygon in lon/lat
+        whose holes are islands. Consecutive vertices are joined by great-circle arcs
+        (densify long edges along a parallel first, :mod:`hcvt.geometry.sphere_region`).
+        Cells are the spherical Voronoi cells clipped to it, exactly; ``volume`` is its
+        area, ``boundary_measure`` the length of its boundary in each cell, sites must lie
+        inside it. Diagrams, :func:`hcvt.cvt` (L-BFGS, the default there, and Lloyd; not
+        Newton) and :func:`hcvt.initialise` (``method="random"``) take it; not yet a
+        density, partitions, ``hierarchical_cvt`` or MPAS output.
+
+        Raises
+        ------
+        InvalidDomainError
+            ``region``: fewer than 3 vertices, non-finite ones or latitudes beyond ±90°,
+            repeated consecutive vertices, edges that cross or touch (a ring that is not
+            simple, holes meeting the outline or each other), a hole outside the outline,
+            a region not within 89° of its vertices' mean direction (it must fit in an open
+            hemisphere); each names the ring and vertex or edge.
+
+        Examples
+        --------
         >>> import hcvt
         >>> earth = hcvt.Domain.sphere(6371.0)
         >>> round(earth.volume / 1e6, 3)
         510.064
+        >>> band = hcvt.Domain.sphere(1.0, region=[(0, 0), (10, 0), (10, 10), (0, 10)])
+        >>> round(band.volume, 6)
+        0.030382
         """
         r = check_radius(radius)
-        return cls(_core.SphereDomain(), 3, None, None, SphereFrame.of_radius(r))
+        if region is None:
+            return cls(_core.SphereDomain(), 3, None, None, SphereFrame.of_radius(r))
+        rings = region_rings(region)
+        core = _core.SphereRegionDomain([lonlat_to_unit(ring) for ring in rings])
+        domain = cls(core, 3, None, None, SphereFrame.of_radius(r, has_region=True))
+        domain._region_lonlat = rings  # type: ignore[attr-defined]
+        return domain
+
+    @property
+    def region(self) -> list[NDArray[np.float64]] | None:
+        """The lon/lat rings of a region of the sphere, as given; None for other domains.
+
+        Each ring (m, 2) in degrees, not closed; the outline first, then holes.
+        """
+        return getattr(self, "_region_lonlat", None)
+
+    @property
+    def is_sphere_region(self) -> bool:
+        """Whether this is a region of the sphere (:meth:`sphere` with ``region``)."""
+        return isinstance(self.frame, SphereFrame) and self.frame.has_region
 
     @property
     def is_sphere(self) -> bool:
@@ -579,6 +623,14 @@ class Domain:
             p = _as_points(points, 3, "points")
             r = np.linalg.norm(p, axis=1)
             on = np.abs(r - self.radius) <= ON_SPHERE_RTOL * self.radius
+            if self.is_sphere_region:
+                # Inside the region: the core's test of the points' directions.
+                unit = p[on] / r[on][:, None]
+                winding, edge = self._core.winding_numbers(np.ascontiguousarray(unit))
+                inside = np.zeros(len(p), dtype=np.int32)
+                on_boundary = np.zeros(len(p), dtype=bool)
+                inside[on], on_boundary[on] = winding, edge
+                return inside, on_boundary
             return on.astype(np.int32), np.zeros(len(p), dtype=bool)
         pts = self.frame.to_core(_as_points(points, self.dim, "points"), "points")
         return self._core.winding_numbers(pts)
@@ -599,7 +651,7 @@ class Domain:
         # Pickled as its checked boundary (dask, joblib, multiprocessing); the core rebuilds
         # its index from the same arrays, so diagrams in another process are bitwise equal.
         if self.is_sphere:
-            return Domain.sphere, (self.radius,)
+            return Domain.sphere, (self.radius, *([self.region] if self.region else []))
         if self.is_surface:
             return Domain.from_surface, (self.vertices, self.faces)
         simplices = self._core.segments if self.dim == 2 else self._core.faces
@@ -613,6 +665,9 @@ class Domain:
         )
 
     def __repr__(self) -> str:
+        if self.is_sphere_region:
+            area = f"area={self.volume:.6g}"
+            return f"<hcvt.Domain region of a sphere, radius={self.radius:.6g}, {area}>"
         if self.is_sphere:
             return f"<hcvt.Domain sphere, radius={self.radius:.6g}>"
         if isinstance(self._core, (_core.BoxDomain2, _core.BoxDomain3)):

@@ -39,10 +39,14 @@ class SphereFrame(Frame):
         so results are rounded once more than in a polygon's frame).
     """
 
+    #: The domain is a region of the sphere (``Domain.sphere(region=...)``), which takes no
+    #: density yet.
+    has_region: bool = False
+
     @classmethod
-    def of_radius(cls, radius: float) -> SphereFrame:
+    def of_radius(cls, radius: float, has_region: bool = False) -> SphereFrame:
         """The frame of the sphere of ``radius`` (positive and finite)."""
-        return cls(np.zeros(3), float(radius))
+        return cls(np.zeros(3), float(radius), has_region)
 
     @property
     def dim(self) -> int:
@@ -106,6 +110,11 @@ class SphereFrame(Frame):
         """
         if density is None:
             return None
+        if self.has_region:
+            raise NotImplementedError(
+                "a density on a region of the sphere is not implemented yet (the cells' "
+                "pieces are not convex there); use the whole sphere or no density"
+            )
         if isinstance(density, Polynomial):
             if density.dim not in (None, 3):
                 raise InvalidDensityError(

@@ -448,6 +448,10 @@ def hierarchical_cvt(
     HierarchicalResult
         ``sites`` (n, d), ``diagram``, and ``levels`` (the paper's Table 1 in ``table()``).
     """
+    if domain.is_sphere_region:
+        raise NotImplementedError(
+            "hierarchical_cvt on a region of the sphere is not implemented yet: use hcvt.cvt"
+        )
     check_rule(rule)
     if init not in ("random", "lattice"):
         raise ValueError(f"init must be 'random' or 'lattice', got {init!r}")

@@ -175,6 +175,38 @@ def initialise(
     return _distinct(domain, sites)
 
 
+def _in_sphere_region(
+    domain: Domain, n: int, generator: np.random.Generator
+) -> NDArray[np.float64]:
+    """``n`` points uniform in a region of the sphere, times R.
+
+    Uniform in the cap about the region's centre that holds it (``z`` uniform on the cap's
+    axis: Archimedes), kept where :meth:`Domain.contains` says so, until there are ``n``.
+    """
+    core = domain._core
+    c = np.asarray(core.centre, dtype=np.float64)
+    cos_reach = min(float(np.min(ring @ c)) for ring in core.rings)
+    # An orthonormal frame (e1, e2, c).
+    helper = np.eye(3)[int(np.argmin(np.abs(c)))]
+    e1 = np.cross(c, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(c, e1)
+    kept: list[NDArray[np.float64]] = []
+    count = 0
+    while count < n:
+        m = max(64, 2 * (n - count))
+        z = generator.uniform(cos_reach, 1.0, m)
+        phi = generator.uniform(0.0, 2.0 * np.pi, m)
+        s = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+        unit = np.outer(s * np.cos(phi), e1) + np.outer(s * np.sin(phi), e2) + np.outer(z, c)
+        unit /= np.linalg.norm(unit, axis=1)[:, None]
+        points = unit * domain.radius
+        inside = points[domain.contains(points)]
+        kept.append(inside[: n - count])
+        count += len(kept[-1])
+    return np.concatenate(kept)
+
+
 def _on_sphere(
     domain: Domain,
     n: int,
@@ -183,6 +215,13 @@ def _on_sphere(
     density: DensityLike,
 ) -> NDArray[np.float64]:
     """``initialise`` on the sphere: unit vectors of :mod:`hcvt.seeding.sphere` times R."""
+    if domain.is_sphere_region:
+        if method != "random" or density is not None:
+            raise NotImplementedError(
+                "on a region of the sphere initialise takes method='random' without a "
+                f"density (got method={method!r}, density={density!r})"
+            )
+        return _in_sphere_region(domain, n, np.random.default_rng(state))
     if method not in SPHERE_METHODS:
         raise ValueError(
             f"unknown method {method!r} on the sphere; expected one of {', '.join(SPHERE_METHODS)}"

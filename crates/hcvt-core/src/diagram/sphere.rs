@@ -106,16 +106,16 @@ impl Sphere {
 
 /// An orthonormal right-handed frame `(e1, e2, z)` with `z` the site's direction.
 #[derive(Debug, Clone, Copy)]
-struct SiteFrame {
-    e1: [f64; 3],
-    e2: [f64; 3],
-    z: [f64; 3],
+pub(super) struct SiteFrame {
+    pub(super) e1: [f64; 3],
+    pub(super) e2: [f64; 3],
+    pub(super) z: [f64; 3],
 }
 
 impl SiteFrame {
     /// Duff et al., "Building an orthonormal basis, revisited" (JCGT 2017): no branch
     /// but the sign, no loss of orthogonality near the poles.
-    fn at(site: [f64; 3]) -> Self {
+    pub(super) fn at(site: [f64; 3]) -> Self {
         let z = scale(site, 1.0 / norm2(site).sqrt());
         let sign = 1.0_f64.copysign(z[2]);
         let a = -1.0 / (sign + z[2]);
@@ -127,7 +127,7 @@ impl SiteFrame {
         }
     }
 
-    fn global(&self, l: [f64; 3]) -> [f64; 3] {
+    pub(super) fn global(&self, l: [f64; 3]) -> [f64; 3] {
         add(
             add(scale(self.e1, l[0]), scale(self.e2, l[1])),
             scale(self.z, l[2]),
@@ -154,10 +154,10 @@ impl SiteFrame {
 /// `k + 1`) lies on the great circle `normals[k]·x = 0` (inside: `≤ 0`) and was made by
 /// `faces[k]`; [`Face::Box`] marks an edge of the start polygon.
 #[derive(Debug, Default)]
-struct SphericalPolygon {
-    vertices: Vec<[f64; 3]>,
-    normals: Vec<[f64; 3]>,
-    faces: Vec<Face>,
+pub(super) struct SphericalPolygon {
+    pub(super) vertices: Vec<[f64; 3]>,
+    pub(super) normals: Vec<[f64; 3]>,
+    pub(super) faces: Vec<Face>,
     spare_vertices: Vec<[f64; 3]>,
     spare_normals: Vec<[f64; 3]>,
     spare_faces: Vec<Face>,
@@ -199,7 +199,7 @@ impl SphericalPolygon {
     /// Keep the side `n·x ≤ 0` of a great circle, tagging its arc `face`
     /// (Sutherland–Hodgman on the sphere: every edge is shorter than a half circle, so a
     /// positive combination of its ends is on it). A vertex on the circle counts as inside.
-    fn clip(&mut self, n: [f64; 3], face: Face) {
+    pub(super) fn clip(&mut self, n: [f64; 3], face: Face) {
         let count = self.vertices.len();
         if count == 0 {
             return;
@@ -263,6 +263,14 @@ impl SphericalPolygon {
     /// Clip by the great circle of every bisector plane of `cell` (relative to its site,
     /// in `frame`), then [`SphericalPolygon::polish`].
     fn clip_by_cell<C: ConvexCell<3>>(&mut self, cell: &C, frame: &SiteFrame) {
+        self.clip_by_bisectors(cell, frame);
+        self.polish();
+    }
+
+    /// Clip by the great circle of every bisector plane of `cell` (relative to its site,
+    /// in `frame`), as they come: also a polygon that is not convex (a region's,
+    /// `sphere_region.rs`), whose pieces along a circle then run both ways.
+    pub(super) fn clip_by_bisectors<C: ConvexCell<3>>(&mut self, cell: &C, frame: &SiteFrame) {
         cell.for_each_plane(|face, h| {
             if let Face::Neighbor(_) = face {
                 // The plane `q·v ≤ |q|²/2` relative to the site is `q·x ≤ 0` on the sphere:
@@ -271,7 +279,6 @@ impl SphericalPolygon {
                 self.clip([dot(q, frame.e1), dot(q, frame.e2), -h.offset], face);
             }
         });
-        self.polish();
     }
 
     /// Recompute each vertex as the meeting point of its two circles, `n_{k−1} × n_k`
@@ -304,7 +311,7 @@ impl SphericalPolygon {
 
     /// `max_k (1 − v_k·ẑ)` over the vertices of a polygon above the equator: how deep the
     /// cap holding it is (`|x − ẑ|² = 2 (1 − x·ẑ)` on the polygon is largest at a vertex).
-    fn depth(&self) -> f64 {
+    pub(super) fn depth(&self) -> f64 {
         self.vertices
             .iter()
             .map(|&v| {
@@ -323,7 +330,7 @@ fn crossing(a: [f64; 3], b: [f64; 3], da: f64, db: f64) -> [f64; 3] {
     unit(add(a, scale(sub(b, a), t)))
 }
 
-fn unit(v: [f64; 3]) -> [f64; 3] {
+pub(super) fn unit(v: [f64; 3]) -> [f64; 3] {
     scale(v, 1.0 / norm2(v).sqrt())
 }
 
@@ -359,16 +366,37 @@ fn atan_minus_x(x: f64) -> f64 {
 /// What [`measure_polygons`] sums: area, the first moment's components along `e1`, `e2`
 /// (`∫x·e = ∫(x − ẑ)·e`), and the energy `∫ |x − ẑ|²`.
 #[derive(Debug, Clone, Copy, Default)]
-struct Sums {
-    area: f64,
-    first: [f64; 2],
-    energy: f64,
+pub(super) struct Sums {
+    pub(super) area: f64,
+    pub(super) first: [f64; 2],
+    pub(super) energy: f64,
+}
+
+impl Sums {
+    /// The moments about the site of `frame`: mass `A`, first `M − A ẑ` (whose `ẑ` part is
+    /// `−E/2` on the sphere), second the energy `E`.
+    pub(super) fn moments(&self, frame: &SiteFrame) -> Moments<3> {
+        Moments {
+            mass: self.area,
+            first: frame.global([self.first[0], self.first[1], -0.5 * self.energy]),
+            second: self.energy,
+        }
+    }
+
+    pub(super) fn add(&mut self, piece: Sums) {
+        self.area += piece.area;
+        self.first = [
+            self.first[0] + piece.first[0],
+            self.first[1] + piece.first[1],
+        ];
+        self.energy += piece.energy;
+    }
 }
 
 /// A polygon above the site's equator holding the site (the cap's polygon, or a piece in
 /// an upper octant, whose corner `ẑ` is the site), by the closed forms of the module
 /// docs; its arcs are added to `faces`.
-fn measure_upper(
+pub(super) fn measure_upper(
     poly: &SphericalPolygon,
     frame: &SiteFrame,
     faces: &mut FaceSums<3>,
@@ -422,7 +450,7 @@ fn measure_upper(
 /// plainly: fan from its first vertex, `½ Σ θ_k n_k`; its arcs are added to
 /// `faces`. Its arcs along the octants' sides cancel those of the neighbouring pieces in
 /// the first moment.
-fn measure_lower(
+pub(super) fn measure_lower(
     poly: &SphericalPolygon,
     frame: &SiteFrame,
     faces: &mut FaceSums<3>,
@@ -464,7 +492,7 @@ fn measure_lower(
 /// A row's face integrand (the optimiser's Hessian) and the frame of its site: what
 /// [`add_arc`] needs to hand the integrand each arc's moments.
 #[derive(Clone, Copy)]
-struct ArcRow<'a> {
+pub(super) struct ArcRow<'a> {
     row: FaceRow<'a, 3>,
     frame: &'a SiteFrame,
 }
@@ -591,7 +619,11 @@ fn with_polygon<T>(f: impl FnOnce(&mut SphericalPolygon) -> T) -> T {
 
 /// The cell's polygon in the cap around its site (`poly`), and whether it lies there:
 /// no edge of the cap is left.
-fn cap_polygon<C: ConvexCell<3>>(poly: &mut SphericalPolygon, cell: &C, frame: &SiteFrame) -> bool {
+pub(super) fn cap_polygon<C: ConvexCell<3>>(
+    poly: &mut SphericalPolygon,
+    cell: &C,
+    frame: &SiteFrame,
+) -> bool {
     poly.reset(&CAP);
     poly.clip_by_cell(cell, frame);
     !poly.is_empty() && !poly.reaches_start()
@@ -624,21 +656,12 @@ fn measure_polygons<C: ConvexCell<3>>(
                 } else {
                     measure_lower(poly, &frame, faces, arcs)
                 };
-                sums.area += piece.area;
-                sums.first = [
-                    sums.first[0] + piece.first[0],
-                    sums.first[1] + piece.first[1],
-                ];
-                sums.energy += piece.energy;
+                sums.add(piece);
             }
         }
         sums
     });
-    let moments = Moments {
-        mass: sums.area,
-        first: frame.global([sums.first[0], sums.first[1], -0.5 * sums.energy]),
-        second: sums.energy,
-    };
+    let moments = sums.moments(&frame);
     if let Some(local) = faces.weighted.polynomial_about_site() {
         // A polynomial is sampled here, at the sampled rule's nodes of degree 5.
         let rule = TRIANGLE_5;
@@ -653,6 +676,36 @@ fn measure_polygons<C: ConvexCell<3>>(
         faces.weighted.moments = weighted;
     }
     moments
+}
+
+/// `max |x − site|²` over the points of the sphere in the cap of depth `depth` around the
+/// site (`|x − ẑ|² = 2δ` at its rim), a little more; 4 (the whole sphere) without one.
+pub(super) fn radius2_within_depth(site: [f64; 3], depth: Option<f64>) -> f64 {
+    let chord = depth.map_or(2.0, |d| (2.0 * d).sqrt());
+    let off = (norm2(site).sqrt() - 1.0).abs();
+    (chord + off).powi(2) * (1.0 + 1e-12)
+}
+
+/// Cut the cone `cell` of `site` to the slab `1 − 2δ ≤ x·ẑ ≤ 1` (`δ` = `depth`) around
+/// the cap that holds its part on the sphere (module docs, "Stopping early").
+pub(super) fn cut_to_slab<C: ConvexCell<3>>(
+    cell: &mut C,
+    site: [f64; 3],
+    frame: &SiteFrame,
+    depth: f64,
+) {
+    // Absolute `x·ẑ ≤ 1` and `x·ẑ ≥ 1 − 2δ`, relative to the site at `x·ẑ = |site|`.
+    let r = norm2(site).sqrt();
+    let top = HalfSpace {
+        normal: frame.z,
+        offset: 1.0 - r,
+    };
+    let bottom = HalfSpace {
+        normal: scale(frame.z, -1.0),
+        offset: r - (1.0 - 2.0 * depth),
+    };
+    cell.clip(&top, Face::Boundary(0));
+    cell.clip(&bottom, Face::Boundary(1));
 }
 
 /// The node of `lambda` in the piece `cone` of the cell of `site`, relative to the site.
@@ -701,21 +754,9 @@ impl DomainKind<3> for Sphere {
     fn cut_convex<C: ConvexCell<3>>(&self, cell: &mut C, site: [f64; 3], _: &mut Vec<u32>) -> bool {
         let frame = SiteFrame::at(site);
         let depth = with_polygon(|poly| cap_polygon(poly, cell, &frame).then(|| poly.depth()));
-        let Some(depth) = depth else {
-            return false;
-        };
-        // Absolute `x·ẑ ≤ 1` and `x·ẑ ≥ 1 − 2δ`, relative to the site at `x·ẑ = |site|`.
-        let r = norm2(site).sqrt();
-        let top = HalfSpace {
-            normal: frame.z,
-            offset: 1.0 - r,
-        };
-        let bottom = HalfSpace {
-            normal: scale(frame.z, -1.0),
-            offset: r - (1.0 - 2.0 * depth),
-        };
-        cell.clip(&top, Face::Boundary(0));
-        cell.clip(&bottom, Face::Boundary(1));
+        if let Some(depth) = depth {
+            cut_to_slab(cell, site, &frame, depth);
+        }
         false
     }
 
@@ -724,9 +765,7 @@ impl DomainKind<3> for Sphere {
     fn local_radius2<C: ConvexCell<3>>(&self, cell: &C, site: [f64; 3]) -> f64 {
         let frame = SiteFrame::at(site);
         let depth = with_polygon(|poly| cap_polygon(poly, cell, &frame).then(|| poly.depth()));
-        let chord = depth.map_or(2.0, |d| (2.0 * d).sqrt());
-        let off = (norm2(site).sqrt() - 1.0).abs();
-        (chord + off).powi(2) * (1.0 + 1e-12)
+        radius2_within_depth(site, depth)
     }
 
     fn clip<C: ConvexCell<3>>(

@@ -120,9 +120,14 @@ where
             let Some(shift) = shift else {
                 return false;
             };
+            // Retracted: on the sphere a region's centroid is `M/|M|` (the identity
+            // elsewhere, no arithmetic).
             measure > 0.0
-                && domain.locate(&add(site, shift)) == Some(0)
-                && !inside_or_on(domain, &add(site, scale(shift, PIN_FRACTION)))
+                && domain.locate(&domain.retract(add(site, shift))) == Some(0)
+                && !inside_or_on(
+                    domain,
+                    &domain.retract(add(site, scale(shift, PIN_FRACTION))),
+                )
         })
         .collect()
 }
