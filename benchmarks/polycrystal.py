@@ -36,6 +36,9 @@ the cost, and they are sensitive to anything that perturbs the trajectory, most 
 - L-BFGS memory 3 or 15 instead of the default 7: 356 and 493 iterations, 1,132 and
   1,580 diagrams.
 
+Measured since (3 seeds, other starts with ``--start``, a Laplacian preconditioner, where
+the iterations go: saddle passages): docs/guide/volumes.md, "Large polycrystals".
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/polycrystal.py [--n 100000] [--sigma 0.3]
         [--seed 0] [--threads 0] [--case DIR] [--progress K] [--save RUN.npz] [--resume RUN.npz]
         [--start random|lloyd:K|coarse:F]
