@@ -36,8 +36,18 @@ the cost, and they are sensitive to anything that perturbs the trajectory, most 
 - L-BFGS memory 3 or 15 instead of the default 7: 356 and 493 iterations, 1,132 and
   1,580 diagrams.
 
+Measured since (3 seeds, other starts with ``--start``, a Laplacian preconditioner, where
+the iterations go: saddle passages): docs/guide/volumes.md, "Large polycrystals".
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/polycrystal.py [--n 100000] [--sigma 0.3]
-        [--seed 0] [--threads 0] [--case DIR]
+        [--seed 0] [--threads 0] [--case DIR] [--progress K] [--save RUN.npz] [--resume RUN.npz]
+        [--start random|lloyd:K|coarse:F]
+
+Long runs (100,000 grains take hours): ``--progress K`` prints every K-th outer iteration
+(elapsed time, RMS gap, diagrams so far), ``--save RUN.npz`` keeps the latest sites there
+at each progress line and the converged sites, weights and volumes at the end, and
+``--resume RUN.npz`` starts from the sites saved there (same ``--n``, ``--sigma``,
+``--seed``: the volumes are drawn again; the L-BFGS memory starts empty).
 """
 
 from __future__ import annotations
@@ -52,6 +62,7 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -60,18 +71,98 @@ from hcvt.export import write_openfoam
 from hcvt.optimise import CAPACITY_METHOD
 
 
-def polycrystal(
-    n: int, sigma: float, seed: int, method: str
-) -> tuple[hcvt.CVTResult, np.ndarray, float]:
-    """The converged run, the target volumes and its wall time in seconds."""
-    box = hcvt.Domain.box([0, 0, 0], [1, 1, 1], periodic=True)
+def grains(n: int, sigma: float, seed: int) -> tuple[np.ndarray, np.ndarray, np.random.Generator]:
+    """Random sites and log-normal relative volumes drawn from ``seed``, and the generator.
+
+    Sites uniform in the unit cube, shape (n, 3); volumes summing to 1, shape (n,).
+    """
     rng = np.random.default_rng(seed)
     sites = rng.random((n, 3))
     volumes = rng.lognormal(0.0, sigma, n)
-    volumes /= volumes.sum()
+    return sites, volumes / volumes.sum(), rng
+
+
+def resumed(path: Path, n: int) -> np.ndarray:
+    """The sites saved by ``--save`` in ``path``, shape (n, 3)."""
+    with np.load(path) as saved:
+        sites = np.asarray(saved["sites"], dtype=np.float64)
+    if sites.shape != (n, 3):
+        raise ValueError(f"--resume {path}: sites of shape {sites.shape}, expected ({n}, 3)")
+    return sites
+
+
+class Progress:
+    """A callback for ``hcvt.cvt`` that prints every ``every``-th outer iteration.
+
+    It keeps the latest sites in ``save`` (an .npz) at each print; ``every == 0`` prints
+    nothing.
+    """
+
+    def __init__(self, every: int, save: Path | None) -> None:
+        self.every, self.save = every, save
+        self.iteration = 0
+        self.start = time.perf_counter()
+
+    def __call__(self, info: dict[str, Any]) -> None:
+        """Count the iterate ``info`` (the core's history fields and ``sites``)."""
+        k, self.iteration = self.iteration, self.iteration + 1
+        if not self.every or k % self.every:
+            return
+        print(
+            f"  iteration {k}: {time.perf_counter() - self.start:.0f} s, RMS gap "
+            f"{float(info['rms_gap']):.3e}, max gap {float(info['max_gap']):.3e}, "
+            f"{int(info['evaluations'])} diagrams",
+            flush=True,
+        )
+        if self.save is not None:
+            np.savez(self.save, sites=info["sites"])
+
+
+def started(
+    start: str, sites: np.ndarray, volumes: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
+    """Sites to start the run from (``--start``).
+
+    ``random`` (``sites`` as drawn), ``lloyd:K`` (K iterations of Bourne et al.'s
+    alternation first) or ``coarse:F`` (F = k³ grains merged at random into each of n / F
+    coarse grains, those to an RMS gap of 1e-3, each then split into a k × k × k pattern
+    about its centroid).
+    """
+    box = hcvt.Domain.box([0, 0, 0], [1, 1, 1], periodic=True)
+    kind, _, count = start.partition(":")
+    if kind == "random":
+        return sites
+    if kind == "lloyd":
+        out = hcvt.cvt(box, sites, "lloyd", volumes=volumes, normalise=True, max_iter=int(count))
+        print(f"  start: {out.iterations} Lloyd iterations, {out.evaluations} diagrams")
+        return out.sites
+    side = round(int(count) ** (1 / 3))
+    if kind != "coarse" or side**3 != int(count) or len(sites) % int(count):
+        raise ValueError(f"--start {start}: random, lloyd:K or coarse:F (F a cube dividing n)")
+    groups = rng.permutation(len(sites)).reshape(-1, int(count))
+    coarse = hcvt.cvt(
+        box, sites[: len(groups)], volumes=volumes[groups].sum(1), normalise=True, tol=1e-3
+    )
+    print(f"  start: {coarse.iterations} coarse iterations, {coarse.evaluations} diagrams")
+    corners = np.stack(np.meshgrid(*[np.arange(side)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    offsets = (corners + 0.5) / side - 0.5
+    size = coarse.diagram.volume ** (1 / 3)
+    split = np.empty_like(sites)
+    for k, offset in enumerate(offsets):
+        split[groups[:, k]] = coarse.diagram.centroid + 0.9 * size[:, None] * offset
+    split = np.mod(split, 1.0)
+    split[split >= 1.0] = 0.0
+    return split
+
+
+def polycrystal(
+    sites: np.ndarray, volumes: np.ndarray, method: str, progress: Progress
+) -> tuple[hcvt.CVTResult, float]:
+    """The run from ``sites`` (n, 3) to relative ``volumes`` (n,) and its wall time, s."""
+    box = hcvt.Domain.box([0, 0, 0], [1, 1, 1], periodic=True)
     start = time.perf_counter()
-    out = hcvt.cvt(box, sites, method, volumes=volumes, normalise=True)
-    return out, volumes, time.perf_counter() - start
+    out = hcvt.cvt(box, sites, method, volumes=volumes, normalise=True, callback=progress)
+    return out, time.perf_counter() - start
 
 
 def write_case(out: hcvt.CVTResult, case: Path) -> None:
@@ -104,6 +195,18 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=0, help="0: hcvt's default")
     parser.add_argument("--case", type=Path, default=None, help="OpenFOAM case directory")
     parser.add_argument(
+        "--progress", type=int, default=0, help="print every K-th outer iteration (0: none)"
+    )
+    parser.add_argument(
+        "--save", type=Path, default=None, help="keep the latest sites, then the result (.npz)"
+    )
+    parser.add_argument(
+        "--resume", type=Path, default=None, help="start from the sites saved by --save"
+    )
+    parser.add_argument(
+        "--start", default="random", help="random, lloyd:K or coarse:F (levers measured)"
+    )
+    parser.add_argument(
         "--methods",
         nargs="+",
         default=[CAPACITY_METHOD],
@@ -117,12 +220,20 @@ def main() -> None:
         f"periodic unit cube, {args.n} grains, log-normal sigma {args.sigma}, seed {args.seed}, "
         f"{hcvt.get_num_threads()} threads (timings under load unless the machine is idle)"
     )
+    sites, volumes, rng = grains(args.n, args.sigma, args.seed)
+    if args.resume is not None:
+        sites = resumed(args.resume, args.n)
+        print(f"resumed from the sites in {args.resume}")
+    sites = started(args.start, sites, volumes, rng)
     first = None
     for method in args.methods:
-        out, volumes, seconds = polycrystal(args.n, args.sigma, args.seed, method)
+        out, seconds = polycrystal(sites, volumes, method, Progress(args.progress, args.save))
         first = first or seconds
         print(f"method {method}: {seconds / first:.2f}x the first method's time")
         report(out, volumes, seconds)
+    if args.save is not None:
+        np.savez(args.save, sites=out.sites, weights=out.weights, volumes=volumes)
+        print(f"saved: {args.save} ({out.stop_reason})")
     if args.case is not None:
         write_case(out, args.case)
     else:
