@@ -27,6 +27,8 @@ import numpy as np
 import hcvt
 
 PAGE = os.sysconf("SC_PAGE_SIZE")
+# Issue 32's targets: peak bytes per site of one diagram, 2D at 1M sites, 3D at 100k.
+TARGET_BYTES_PER_SITE = {2: (250, 1_000_000), 3: (600, 100_000)}
 SPHERE = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d" / "sphere.ply"
 
 CHILD = """
@@ -95,9 +97,12 @@ def peak(dim: int, n: int) -> None:
         text=True,
     ).stdout.split()
     count, before, after, seconds, total = out
+    per_site = (float(after) - float(before)) * 2**20 / int(count)
+    target, at = TARGET_BYTES_PER_SITE[dim]
     print(
         f"peak {dim}D, {int(count):,} sites: VmHWM {float(before):.0f} MiB with the sites, "
-        f"{float(after):.0f} MiB after the diagram ({seconds} s, Σ volume {total})"
+        f"{float(after):.0f} MiB after the diagram: {per_site:,.0f} B/site (target <= "
+        f"{target} B/site at {at:,}) ({seconds} s under load, Σ volume {total})"
     )
 
 

@@ -1,10 +1,10 @@
 //! The clipped Voronoi diagram as numpy arrays.
 
 use hcvt_core::{
-    clipped_diagram, ConvexCell, Diagram, DomainKind, Euclid, Options, PolygonCell, PolyhedronCell,
-    Request, Space,
+    clipped_diagram, ConvexCell, CoreError, Diagram, DomainKind, Euclid, Options, PolygonCell,
+    PolyhedronCell, Request, Space,
 };
-use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -75,12 +75,20 @@ where
         weights: asked.weights,
         ..Request::default()
     };
-    let clipped = py
-        .detach(|| crate::threads::run(|| clipped_diagram::<D, C, _>(domain, &points, &request)))
+    // The arrays are made on the worker that assembled the diagram: the memory each
+    // quantity frees there is reused by the next (issue 32: memory per site).
+    let (arrays, cells) = py
+        .detach(|| {
+            crate::threads::run(|| {
+                let clipped = clipped_diagram::<D, C, _>(domain, &points, &request)?;
+                let arrays = DiagramArrays::new(domain, clipped.diagram, &points);
+                Ok::<_, CoreError>((arrays, clipped.cells))
+            })
+        })
         .map_err(|e| asked.given.error(e))?;
-    let out = diagram_dict(py, domain, clipped.diagram, &points)?;
+    let out = arrays.into_dict(py)?;
     if asked.keep_cells {
-        C::cell_arrays(py, &clipped.cells, &points, &out)?;
+        C::cell_arrays(py, &cells, &points, &out)?;
     }
     Ok(out)
 }
@@ -146,57 +154,133 @@ impl CellArrays<3> for PolyhedronCell {
 
 /// The arrays every diagram carries, in any dimension and kind: centroids retracted onto
 /// the domain (the sphere's `∫x/|∫x|`), second moments about them and `G` in the cells'
-/// dimension ([`DomainKind::central_second`], [`DomainKind::g_value`]). The diagram is
-/// consumed: its arrays become numpy's without a copy where the types agree, and the
-/// others are dropped as soon as they are converted (issue 32: memory per site).
+/// dimension ([`DomainKind::central_second`], [`DomainKind::g_value`]).
 pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
     py: Python<'py>,
     domain: &K,
     diagram: Diagram<D>,
     sites: &[[f64; D]],
 ) -> PyResult<Bound<'py, PyDict>> {
-    let out = PyDict::new(py);
-    out.set_item("volume", PyArray1::from_vec(py, diagram.volumes()))?;
-    out.set_item("mass", PyArray1::from_vec(py, diagram.masses()))?;
-    let centroids: Vec<[f64; D]> = (diagram.centroids(sites).into_iter())
-        .map(|c| domain.retract(c))
-        .collect();
-    out.set_item("centroid", to_array2(py, &centroids)?)?;
-    let second: Vec<f64> = (diagram.moments.iter())
-        .map(|m| domain.central_second(m))
-        .collect();
-    out.set_item("second_moment", PyArray1::from_vec(py, second))?;
-    let g: Vec<f64> = (diagram.moments.iter())
-        .map(|m| domain.g_value(m).unwrap_or(f64::NAN))
-        .collect();
-    out.set_item("G", PyArray1::from_vec(py, g))?;
-    out.set_item(
-        "energy_terms",
-        PyArray1::from_vec(py, diagram.energy_terms()),
-    )?;
-    out.set_item("energy", diagram.energy())?;
-    let gradient: Vec<[f64; D]> = (diagram.gradient().into_iter().zip(sites))
-        .map(|(g, &x)| domain.tangent(x, g))
-        .collect();
-    out.set_item("gradient", to_array2(py, &gradient)?)?;
-    drop((diagram.moments, diagram.weighted));
-    out.set_item(
-        "boundary_measure",
-        PyArray1::from_vec(py, diagram.boundary_measure),
-    )?;
-    out.set_item("neighbor_offsets", to_intp(py, &diagram.neighbor_offsets)?)?;
-    drop(diagram.neighbor_offsets);
-    out.set_item("neighbor_sites", to_intp(py, &diagram.neighbor_sites)?)?;
-    drop(diagram.neighbor_sites);
-    out.set_item(
-        "neighbor_measures",
-        PyArray1::from_vec(py, diagram.neighbor_measures),
-    )?;
-    if !diagram.neighbor_images.is_empty() {
-        // A periodic box: each neighbour's image shift (k, d), int8.
-        out.set_item("neighbor_images", to_array2(py, &diagram.neighbor_images)?)?;
+    DiagramArrays::new(domain, diagram, sites).into_dict(py)
+}
+
+/// [`diagram_dict`]'s arrays as Rust vectors, each becoming numpy's without a copy: made
+/// without the GIL, on the thread that allocated the diagram, so that the memory of each
+/// quantity dropped is reused by the next (issue 32: memory per site). Row-major `(n, D)`
+/// arrays are flat.
+pub(crate) struct DiagramArrays<const D: usize> {
+    volume: Vec<f64>,
+    mass: Vec<f64>,
+    centroid: Vec<f64>,
+    second_moment: Vec<f64>,
+    g: Vec<f64>,
+    energy_terms: Vec<f64>,
+    energy: f64,
+    gradient: Vec<f64>,
+    boundary_measure: Vec<f64>,
+    neighbor_offsets: Vec<isize>,
+    neighbor_sites: Vec<isize>,
+    neighbor_measures: Vec<f64>,
+    /// In a periodic box, each neighbour's image shift, `(k, D)`; else empty.
+    neighbor_images: Vec<i8>,
+}
+
+impl<const D: usize> DiagramArrays<D> {
+    /// The arrays of `diagram` of `sites` in `domain`. The diagram is consumed: its
+    /// arrays are moved where the types agree, and the others are dropped as soon as
+    /// converted.
+    pub(crate) fn new<K: DomainKind<D>>(
+        domain: &K,
+        diagram: Diagram<D>,
+        sites: &[[f64; D]],
+    ) -> Self {
+        let centroid = (diagram.centroids(sites).into_iter())
+            .map(|c| domain.retract(c))
+            .collect::<Vec<[f64; D]>>()
+            .into_flattened();
+        let gradient = (diagram.gradient().into_iter().zip(sites))
+            .map(|(g, &x)| domain.tangent(x, g))
+            .collect::<Vec<[f64; D]>>()
+            .into_flattened();
+        let arrays = Self {
+            volume: diagram.volumes(),
+            mass: diagram.masses(),
+            centroid,
+            second_moment: (diagram.moments.iter())
+                .map(|m| domain.central_second(m))
+                .collect(),
+            g: (diagram.moments.iter())
+                .map(|m| domain.g_value(m).unwrap_or(f64::NAN))
+                .collect(),
+            energy_terms: diagram.energy_terms(),
+            energy: diagram.energy(),
+            gradient,
+            boundary_measure: Vec::new(),
+            neighbor_offsets: Vec::new(),
+            neighbor_sites: Vec::new(),
+            neighbor_measures: Vec::new(),
+            neighbor_images: Vec::new(),
+        };
+        drop((diagram.moments, diagram.weighted));
+        Self {
+            boundary_measure: diagram.boundary_measure,
+            neighbor_offsets: offsets_to_intp(diagram.neighbor_offsets),
+            neighbor_sites: sites_to_intp(diagram.neighbor_sites),
+            neighbor_measures: diagram.neighbor_measures,
+            neighbor_images: diagram.neighbor_images.into_flattened(),
+            ..arrays
+        }
     }
-    Ok(out)
+
+    /// The dict of `hcvt.voronoi`'s arrays (see `core_results.py`).
+    pub(crate) fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+        let n = self.volume.len();
+        let out = PyDict::new(py);
+        out.set_item("volume", PyArray1::from_vec(py, self.volume))?;
+        out.set_item("mass", PyArray1::from_vec(py, self.mass))?;
+        let by_row = |flat: Vec<f64>| PyArray1::from_vec(py, flat).reshape([n, D]);
+        out.set_item("centroid", by_row(self.centroid)?)?;
+        out.set_item("second_moment", PyArray1::from_vec(py, self.second_moment))?;
+        out.set_item("G", PyArray1::from_vec(py, self.g))?;
+        out.set_item("energy_terms", PyArray1::from_vec(py, self.energy_terms))?;
+        out.set_item("energy", self.energy)?;
+        out.set_item("gradient", by_row(self.gradient)?)?;
+        out.set_item(
+            "boundary_measure",
+            PyArray1::from_vec(py, self.boundary_measure),
+        )?;
+        out.set_item(
+            "neighbor_offsets",
+            PyArray1::from_vec(py, self.neighbor_offsets),
+        )?;
+        out.set_item(
+            "neighbor_sites",
+            PyArray1::from_vec(py, self.neighbor_sites),
+        )?;
+        out.set_item(
+            "neighbor_measures",
+            PyArray1::from_vec(py, self.neighbor_measures),
+        )?;
+        if !self.neighbor_images.is_empty() {
+            // A periodic box: each neighbour's image shift (k, d), int8.
+            let k = self.neighbor_images.len() / D;
+            let images = PyArray1::from_vec(py, self.neighbor_images).reshape([k, D])?;
+            out.set_item("neighbor_images", images)?;
+        }
+        Ok(out)
+    }
+}
+
+/// Face offsets as `np.intp`, in place: a `Vec`'s length never exceeds `isize::MAX`, so
+/// neither does an offset into one.
+fn offsets_to_intp(offsets: Vec<usize>) -> Vec<isize> {
+    offsets.into_iter().map(|x| x as isize).collect()
+}
+
+/// Site numbers as `np.intp`: lossless, `np.intp` being 64-bit wherever the binding builds.
+fn sites_to_intp(sites: Vec<u32>) -> Vec<isize> {
+    const _: () = assert!(isize::BITS > u32::BITS, "np.intp holds every u32");
+    sites.into_iter().map(|j| j as isize).collect()
 }
 
 /// The restricted Delaunay triangulation of `sites` (n, 3) on `surface`: a dict with

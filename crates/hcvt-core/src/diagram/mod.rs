@@ -130,7 +130,7 @@ struct Batch<const D: usize, C> {
     face_integrals: Vec<Matrix<D>>,
     /// Each cell's convex cell, when kept.
     cells: Vec<C>,
-    /// Each cell's reach ([`PartCells::reach2`]).
+    /// Each cell's reach ([`PartCells::reach2`]), when [`Visit::reach`] asks for it.
     reach2: Vec<f64>,
     /// With a polynomial density: each cell's weighted moments.
     weighted: Vec<Moments<D>>,
@@ -170,7 +170,7 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             cell_integrals: Vec::with_capacity(if integrals { cells } else { 0 }),
             face_integrals: Vec::with_capacity(faces),
             cells: Vec::new(),
-            reach2: Vec::with_capacity(cells),
+            reach2: Vec::new(),
             weighted: Vec::new(),
             cone_counts: Vec::new(),
             cones: Vec::new(),
@@ -344,8 +344,6 @@ where
         }
     }
     let weighted_sums = weighted::WeightedSums::new(density)?;
-    let windings = checked_windings(domain, sites, request.options)?;
-    let index = SiteIndex::new(sites)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
     let moved = request.warm.and_then(|w| w.moved(sites));
@@ -356,27 +354,34 @@ where
         (Some(_), Some(warm)) if !sampled => warm.order().to_vec(),
         _ => morton_order(sites),
     };
-    let visit = Visit {
-        sites,
-        index: &index,
-        windings: &windings,
-        power: weights.map(|w| Power::new(w, sites)),
-        total_sites: sites.len(),
-        warm: request.warm.zip(moved.as_ref()),
-        // Sites moved too far are not recorded: the next diagram starts from an empty
-        // state and records the lists afresh (cold).
-        record: request
-            .warm
-            .is_some_and(|w| w.len() != sites.len() || moved.is_some()),
-    };
     let integrand = request.integrand;
-    let batches = visit.batches::<C, K>(
-        domain,
-        &order,
-        integrand,
-        request.keep_cells,
-        &weighted_sums,
-    );
+    // The winding numbers and the index are dropped before the batches are assembled,
+    // when every batch and the whole diagram are alive at once (issue 32: memory).
+    let batches = {
+        let windings = checked_windings(domain, sites, request.options)?;
+        let index = SiteIndex::new(sites)?;
+        let visit = Visit {
+            sites,
+            index: &index,
+            windings: &windings,
+            power: weights.map(|w| Power::new(w, sites)),
+            total_sites: sites.len(),
+            warm: request.warm.zip(moved.as_ref()),
+            // Sites moved too far are not recorded: the next diagram starts from an empty
+            // state and records the lists afresh (cold).
+            record: request
+                .warm
+                .is_some_and(|w| w.len() != sites.len() || moved.is_some()),
+            reach: false,
+        };
+        visit.batches::<C, K>(
+            domain,
+            &order,
+            integrand,
+            request.keep_cells,
+            &weighted_sums,
+        )
+    };
     let mut batches = without_errors(batches)?;
     if let Some(d @ Density::Sampled { field, .. }) = density {
         let rule = d.rule_in(domain.cell_dim())?;
@@ -492,6 +497,9 @@ struct Visit<'a, const D: usize> {
     warm: Option<(&'a WarmStart<D>, &'a Moved)>,
     /// Record each cell's near sites for the next diagram.
     record: bool,
+    /// Keep each cell's reach ([`Batch::reach2`]): a part's cells and the periodic box's
+    /// bands need it, a whole diagram does not.
+    reach: bool,
 }
 
 impl<const D: usize> Visit<'_, D>
@@ -564,7 +572,9 @@ where
                         if keep_cells {
                             batch.cells.push(cell.clone());
                         }
-                        batch.reach2.push(scratch.reach2());
+                        if self.reach {
+                            batch.reach2.push(scratch.reach2());
+                        }
                         if self.record {
                             let (near, complete2, warm) = scratch.record();
                             batch.near_counts.push(near.len() as u32);
@@ -689,6 +699,7 @@ where
         total_sites: total_sites.max(sites.len()),
         warm: None,
         record: false,
+        reach: true,
     };
     let mut batches =
         without_errors(visit.batches::<C, K>(domain, own, None, false, &weighted_sums))?;

@@ -454,6 +454,7 @@ where
             total_sites: images.sites.len().max(total_sites),
             warm: None,
             record: false,
+            reach: true,
         };
         let batches =
             visit.batches::<C, PeriodicBox<D>>(torus, &visit_order, None, keep_cells, &none);
