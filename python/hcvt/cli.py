@@ -27,6 +27,7 @@ from typing import Any
 
 import click
 import numpy as np
+from shapely.geometry import shape
 
 import hcvt
 from hcvt import plot as pictures
@@ -69,8 +70,6 @@ def main() -> None:
 
 def _read_region(path: str) -> Any:
     """The lon/lat Polygon of a GeoJSON file (its first feature, or a bare geometry)."""
-    from shapely.geometry import shape
-
     data = json.loads(Path(path).read_text())
     if data.get("type") == "FeatureCollection":
         data = data["features"][0]
