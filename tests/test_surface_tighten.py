@@ -49,7 +49,7 @@ def test_tighten_lowers_the_hausdorff_distance_of_the_kitten() -> None:
         moved = tighten(out.vertices, out.faces, reference, samples=20_000, min_angle=min_angle)
         after = hcvt.surface_quality(moved.vertices, out.faces, reference, samples=50_000, seed=7)
         assert moved.moves > 0 and moved.after < moved.before
-        # Measured on other samples: n = 1,000, 1.28% -> 0.97% (None), 0.90% (30°).
+        # Measured so: 0.949% -> 0.750% (14 moves), 0.666% with 30° (52 moves).
         assert after.hausdorff < 0.9 * before.hausdorff
         floor = before.angle_min if min_angle is None else min_angle
         assert after.angle_min >= floor - 1e-9

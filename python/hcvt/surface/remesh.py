@@ -7,7 +7,9 @@ restricted Voronoi diagram", SGP 2009; DESIGN §12.
 (:func:`hcvt.cvt`, sites free in space, projected onto the surface at the end, to a
 loose tolerance, tightened while the triangulation has defects); then a
 triangle for each point where three cells meet on the surface, oriented by the surface's
-normal there (the core's ``restricted_delaunay``). Where every cell is a topological disc
+normal there (the core's ``restricted_delaunay``); then a few vertices moved along the
+surface where the mesh is farthest from it (:mod:`hcvt.surface.tighten`, ``tighten=``),
+the connectivity and the least angle kept. Where every cell is a topological disc
 meeting its neighbours along single arcs (the closed-ball property, Edelsbrunner and Shah
 1997) the triangulation is a manifold homeomorphic to the surface. Where not (too few
 vertices for a thin part or a tight fold), :attr:`RemeshResult.defects` names the cells;

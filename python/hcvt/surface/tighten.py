@@ -50,6 +50,8 @@ _NEAREST_K = 8
 _MIN_NORMAL_COSINE = 0.5
 #: A move must bring the distances around it below (1 − this) × the worst one.
 _GAIN = 1e-3
+#: Distances below this × the input's bounding-box diagonal are not worth a move.
+_NEGLIGIBLE = 1e-9
 
 
 def _closest_on_triangles(p: NDArray[np.float64], tri: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -414,9 +416,13 @@ def tighten(
         float(triangle_quality(mesh.v, mesh.f).min()),
     )
     before = mesh.worst()[0]
+    # Below this the distances are round-off (a flat part, a mesh already on the input).
+    negligible = _NEGLIGIBLE * float(np.linalg.norm(np.ptp(mesh.rv, axis=0)))
     moves = 0
     while moves < max_moves:
         worst, side, index = mesh.worst()
+        if worst <= negligible:
+            break
         limit = worst * (1.0 - _GAIN)
         best = None
         for a, x in _candidates(mesh, side, index, movable):
