@@ -26,7 +26,7 @@ needs_data = pytest.mark.skipif(not DATA_3D.is_dir(), reason="../shared/data/3d 
 @cache
 def kitten_remeshed() -> tuple[hcvt.Domain, hcvt.RemeshResult]:
     domain = hcvt.load_domain(DATA_3D / "kitten.obj", surface=True)
-    return domain, hcvt.remesh(domain, 1000, seed=0, samples=20_000, tighten=False)
+    return domain, hcvt.remesh(domain, 1000, seed=0, samples=20_000)
 
 
 def test_nearest_points_on_triangles_match_the_core() -> None:
@@ -70,9 +70,9 @@ def test_tighten_lowers_the_hausdorff_distance_of_the_kitten() -> None:
 
 
 @needs_data
-def test_remesh_tightens_by_default_and_keeps_its_quality() -> None:
+def test_remesh_tightens_on_request_and_keeps_its_quality() -> None:
     domain, plain = kitten_remeshed()
-    out = hcvt.remesh(domain, 1000, seed=0, samples=20_000)
+    out = hcvt.remesh(domain, 1000, seed=0, samples=20_000, tighten=True)
     np.testing.assert_array_equal(out.faces, plain.faces)  # the connectivity is the CVT's
     assert out.moves > 0 and out.defects == []
     assert out.quality.hausdorff < plain.quality.hausdorff

@@ -7,13 +7,14 @@ restricted Voronoi diagram", SGP 2009; DESIGN §12.
 (:func:`hcvt.cvt`, sites free in space, projected onto the surface at the end, to a
 loose tolerance, tightened while the triangulation has defects); then a
 triangle for each point where three cells meet on the surface, oriented by the surface's
-normal there (the core's ``restricted_delaunay``); then a few vertices moved along the
-surface where the mesh is farthest from it (:mod:`hcvt.surface.tighten`, ``tighten=``),
-the connectivity and the least angle kept. Where every cell is a topological disc
-meeting its neighbours along single arcs (the closed-ball property, Edelsbrunner and Shah
-1997) the triangulation is a manifold homeomorphic to the surface. Where not (too few
-vertices for a thin part or a tight fold), :attr:`RemeshResult.defects` names the cells;
-with ``check=True`` :class:`RemeshError` is raised instead. Nothing is repaired silently.
+normal there (the core's ``restricted_delaunay``); with ``tighten=True``, then a few
+vertices moved along the surface where the mesh is farthest from it
+(:mod:`hcvt.surface.tighten`), the connectivity and the least angle kept. Where every
+cell is a topological disc meeting its neighbours along single arcs (the closed-ball
+property, Edelsbrunner and Shah 1997) the triangulation is a manifold homeomorphic to
+the surface. Where not (too few vertices for a thin part or a tight fold),
+:attr:`RemeshResult.defects` names the cells; with ``check=True`` :class:`RemeshError` is
+raised instead. Nothing is repaired silently.
 """
 
 from __future__ import annotations
@@ -160,7 +161,7 @@ def remesh(
     check: bool = False,
     samples: int = 200_000,
     features: float | None = None,
-    tighten: bool = True,
+    tighten: bool = False,
     min_angle: float | None = None,
 ) -> RemeshResult:
     """Remesh ``surface`` isotropically with exactly ``n`` vertices.
@@ -195,11 +196,13 @@ def remesh(
         the CVT, so the triangulation runs along them (:mod:`hcvt.surface.features`; a
         segment of a curve missing from the triangles is a defect). None: no features.
     tighten : bool
-        Then lower the Hausdorff distance to the surface: where the mesh is farthest from
-        it (a crease, a tip), move a vertex along it, worst place first, while every
-        moved triangle keeps its least angle and Q at or above ``min_angle`` and the
-        mesh's least Q (:func:`hcvt.surface.tighten.tighten`; the faces are not changed;
-        skipped while there are defects; feature and border vertices stay).
+        Then lower the Hausdorff distance to the surface (bunny, n = 5,000: 0.499% ->
+        0.406% of the diagonal, for about 2 s of one core, more than the CVT's 1.7 s):
+        where the mesh is farthest from it (a crease, a tip), move a vertex along it, worst
+        place first, while every moved triangle keeps its least angle and Q at or above
+        ``min_angle`` and the mesh's least Q (:func:`hcvt.surface.tighten.tighten`; the
+        faces are not changed; skipped while there are defects; feature and border
+        vertices stay).
     min_angle : float or None
         The least angle (degrees) ``tighten`` may leave; None: the CVT mesh's own least
         angle, which then never falls.

@@ -222,17 +222,25 @@ class _Mesh:
         return np.unique(np.concatenate([self.ring(b) for b in near]))
 
     def to_input(self, points: NDArray[np.float64], limit: float) -> NDArray[np.float64]:
-        """Distances of ``points`` (m, 3) to the input, exact below ``limit``."""
-        centre = points.mean(axis=0)
-        radius = float(np.linalg.norm(points - centre, axis=1).max())
+        """Distances of ``points`` (m, 3) to the input.
+
+        Upper bounds, exact where they reach ``limit`` (so a move is judged alike).
+        """
+        near = _k_nearest(self.ref_tree, points, _NEAREST_K)
+        d = _nearest(points, self.ref_corners, near)[0]
+        over = d >= limit
+        if not over.any():
+            return d
+        # Those beyond the bound: every input triangle that could be nearer than `limit`.
+        centre = points[over].mean(axis=0)
+        radius = float(np.linalg.norm(points[over] - centre, axis=1).max())
         near = np.asarray(
             self.ref_tree.query_ball_point(centre, radius + limit + self.ref_reach), dtype=np.intp
         )
-        if len(near) == 0:
-            return np.full(len(points), np.inf)
-        return _nearest(points, self.ref_corners, np.broadcast_to(near, (len(points), len(near))))[
-            0
-        ]
+        if len(near):
+            candidates = np.broadcast_to(near, (int(over.sum()), len(near)))
+            d[over] = np.minimum(d[over], _nearest(points[over], self.ref_corners, candidates)[0])
+        return d
 
     def project(self, point: NDArray[np.float64]) -> NDArray[np.float64]:
         """A nearest point of the input to ``point`` (3,) (on the input in any case)."""
@@ -436,7 +444,7 @@ def tighten(
             break  # the worst place cannot be improved: the distance is what it is
         _, a, x, (ring, dt, near, d, near_faces) = best
         mesh.moved(a, x)
-        mesh.dt[ring], mesh.dt_exact[ring] = dt, True  # below `limit`: exact
+        mesh.dt[ring], mesh.dt_exact[ring] = dt, False  # bounds below `limit`
         mesh.ds[near], mesh.s_face[near] = d, near_faces
         mesh.ds_exact[near] = False  # over the two-ring only: bounds
         moves += 1
