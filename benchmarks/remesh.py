@@ -22,6 +22,10 @@ machine): ratios are of runs taken in turn in the same process.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh.py [--quick] [--models bunny ...] [--n ...]
 
+``--tighten`` adds a row ``hcvt+t``, ``hcvt.remesh(tighten=True)`` (vertices moved along
+the input where the mesh is farthest from it, :mod:`hcvt.surface.tighten`), and
+``--min-angle A`` a row ``hcvt+t>A`` with ``min_angle=A``.
+
 ``--features ANGLE`` keeps the sharp edges above ANGLE degrees in both hcvt
 (``hcvt.remesh(features=ANGLE)``) and MeshLab (its ``featuredeg``, 30 by default otherwise);
 pyacvd has no such option.
@@ -80,6 +84,8 @@ def quality(vertices: np.ndarray, faces: np.ndarray, reference: tuple, samples: 
         "angle_min": q.angle_min,
         "below_30": q.below_30,
         "hausdorff": q.hausdorff,
+        "hausdorff_to_reference": q.hausdorff_to_reference,
+        "hausdorff_from_reference": q.hausdorff_from_reference,
         "manifold": q.manifold,
         "closed": q.closed,
         "genus": q.genus,
@@ -87,10 +93,25 @@ def quality(vertices: np.ndarray, faces: np.ndarray, reference: tuple, samples: 
 
 
 def run_hcvt(
-    domain: hcvt.Domain, n: int, max_iter: int, features: float | None = None
+    domain: hcvt.Domain,
+    n: int,
+    max_iter: int,
+    features: float | None = None,
+    tighten: bool = False,
+    min_angle: float | None = None,
 ) -> tuple[dict, np.ndarray, np.ndarray]:
-    out = hcvt.remesh(domain, n, seed=0, max_iter=max_iter, samples=1000, features=features)
+    out = hcvt.remesh(
+        domain,
+        n,
+        seed=0,
+        max_iter=max_iter,
+        samples=1000,
+        features=features,
+        tighten=tighten,
+        min_angle=min_angle,
+    )
     info = {
+        "moves": out.moves,
         "seconds": out.seconds,  # the CVT and the triangulation, not the quality
         "iterations": out.iterations,
         "stop": out.cvt.stop_reason,
@@ -198,7 +219,7 @@ def picture(model: str, n: int, meshes: dict, path: Path) -> None:
         ax.view_init(elev=elevation, azim=azimuth)
         ax.set_axis_off()
         ax.set_title(
-            f"{TITLES[code]}: {row['vertices']} vertices\nQ min {row['q_min']:.3f}, mean "
+            f"{TITLES.get(code, code)}: {row['vertices']} vertices\nQ min {row['q_min']:.3f}, mean "
             f"{row['q_mean']:.3f}, θmin {row['angle_min']:.1f}°\nHausdorff "
             f"{row['hausdorff']:.3f}% of the diagonal",
             fontsize=10,
@@ -223,6 +244,18 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help="write the rows here")
     parser.add_argument("--pictures", type=Path, help="draw each case's meshes into this folder")
     parser.add_argument("--features", type=float, help="keep sharp edges above this angle (°)")
+    parser.add_argument(
+        "--tighten",
+        action="store_true",
+        help="also a row 'hcvt+t': remesh(tighten=True), vertices moved to lower the "
+        "Hausdorff distance",
+    )
+    parser.add_argument(
+        "--min-angle",
+        type=float,
+        help="also a row 'hcvt+t>A': remesh(tighten=True, min_angle=A), the moves allowed "
+        "down to this least angle (°)",
+    )
     args = parser.parse_args()
     if args.quick:
         args.models, args.n = ["bunny", "fandisk"], [5000]
@@ -244,6 +277,12 @@ def main() -> None:
             results = {}
             info, rv, rf = run_hcvt(domain, n, args.max_iter, args.features)
             results["hcvt"] = (info, rv, rf)
+            if args.tighten:
+                results["hcvt+t"] = run_hcvt(domain, n, args.max_iter, args.features, True)
+            if args.min_angle is not None:
+                results[f"hcvt+t>{args.min_angle:g}"] = run_hcvt(
+                    domain, n, args.max_iter, args.features, True, args.min_angle
+                )
             results["pyacvd"] = run_pyacvd(v, f, n)
             results["meshlab"] = run_meshlab(v, f, domain.volume, n, args.features)
             base = results["hcvt"][0]["seconds"]
@@ -263,6 +302,8 @@ def main() -> None:
             extra = results["hcvt"][0]
             print(
                 f"{'':10} hcvt: {extra['iterations']} iterations ({extra['stop']}), "
+                f"{results.get('hcvt+t', results['hcvt'])[0]['moves']} vertices moved by "
+                "tighten, "
                 f"defects {extra['defects'] or 'none'}; meshlab: {results['meshlab'][0]['tries']} "
                 f"runs to reach n ± 1%; pyacvd: {results['pyacvd'][0]['subdivisions']} "
                 "subdivisions",

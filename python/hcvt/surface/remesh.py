@@ -7,11 +7,14 @@ restricted Voronoi diagram", SGP 2009; DESIGN §12.
 (:func:`hcvt.cvt`, sites free in space, projected onto the surface at the end, to a
 loose tolerance, tightened while the triangulation has defects); then a
 triangle for each point where three cells meet on the surface, oriented by the surface's
-normal there (the core's ``restricted_delaunay``). Where every cell is a topological disc
-meeting its neighbours along single arcs (the closed-ball property, Edelsbrunner and Shah
-1997) the triangulation is a manifold homeomorphic to the surface. Where not (too few
-vertices for a thin part or a tight fold), :attr:`RemeshResult.defects` names the cells;
-with ``check=True`` :class:`RemeshError` is raised instead. Nothing is repaired silently.
+normal there (the core's ``restricted_delaunay``); with ``tighten=True``, then a few
+vertices moved along the surface where the mesh is farthest from it
+(:mod:`hcvt.surface.tighten`), the connectivity and the least angle kept. Where every
+cell is a topological disc meeting its neighbours along single arcs (the closed-ball
+property, Edelsbrunner and Shah 1997) the triangulation is a manifold homeomorphic to
+the surface. Where not (too few vertices for a thin part or a tight fold),
+:attr:`RemeshResult.defects` names the cells; with ``check=True`` :class:`RemeshError` is
+raised instead. Nothing is repaired silently.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from hcvt.surface.features import (
     segment_defects,
 )
 from hcvt.surface.quality import SurfaceQuality, edge_topology, surface_quality
+from hcvt.surface.tighten import tighten as tighten_vertices
 
 
 class RemeshError(ValueError):
@@ -47,7 +51,8 @@ class RemeshResult:
     Attributes
     ----------
     vertices : ndarray, shape (n, 3)
-        The CVT's sites projected onto the surface, L: exactly ``n``.
+        The CVT's sites projected onto the surface, L: exactly ``n`` (with ``tighten``,
+        the few moved along it where the mesh was farthest from it).
     faces : ndarray of intp, shape (m, 3)
         The restricted Delaunay triangles, counter-clockwise about the surface's normal.
     quality : SurfaceQuality
@@ -62,6 +67,8 @@ class RemeshResult:
         Wall time of the whole remeshing (CVT and triangulation; not the quality).
     iterations : int
         CVT iterations in all, over the rounds (``cvt`` is the last round's run).
+    moves : int
+        Vertices moved by ``tighten`` (:func:`hcvt.surface.tighten.tighten`).
     """
 
     vertices: NDArray[np.float64]
@@ -71,6 +78,7 @@ class RemeshResult:
     defects: list[str] = field(default_factory=list)
     seconds: float = 0.0
     iterations: int = 0
+    moves: int = 0
 
 
 #: The CVT's default tolerance on the gap rule in :func:`remesh`: the least angle has
@@ -153,6 +161,8 @@ def remesh(
     check: bool = False,
     samples: int = 200_000,
     features: float | None = None,
+    tighten: bool = False,
+    min_angle: float | None = None,
 ) -> RemeshResult:
     """Remesh ``surface`` isotropically with exactly ``n`` vertices.
 
@@ -185,6 +195,17 @@ def remesh(
         Their corners and sites about 0.7 spacings apart along them are held fixed through
         the CVT, so the triangulation runs along them (:mod:`hcvt.surface.features`; a
         segment of a curve missing from the triangles is a defect). None: no features.
+    tighten : bool
+        Then lower the Hausdorff distance to the surface (bunny, n = 5,000: 0.499% ->
+        0.406% of the diagonal, for about 2 s of one core, more than the CVT's 1.7 s):
+        where the mesh is farthest from it (a crease, a tip), move a vertex along it, worst
+        place first, while every moved triangle keeps its least angle and Q at or above
+        ``min_angle`` and the mesh's least Q (:func:`hcvt.surface.tighten.tighten`; the
+        faces are not changed; skipped while there are defects; feature and border
+        vertices stay).
+    min_angle : float or None
+        The least angle (degrees) ``tighten`` may leave; None: the CVT mesh's own least
+        angle, which then never falls.
 
     Returns
     -------
@@ -233,12 +254,19 @@ def remesh(
         tol *= TIGHTER
         run = _cvt(surface, run.sites, plan, method, tol, max_iter - iterations)
         iterations += run.iterations
+    reference = (surface.vertices, surface.faces)
+    vertices, moves = run.sites, 0
+    if tighten and not defects:
+        held_mask = np.arange(n) >= n - held  # the features' sites, last
+        moved = tighten_vertices(
+            vertices, faces, reference, fixed=held_mask, seed=seed, min_angle=min_angle
+        )
+        vertices, moves = moved.vertices, moved.moves
     seconds = time.perf_counter() - start
     if check and defects:
         raise RemeshError("restricted Delaunay triangulation: " + "; ".join(defects))
-    reference = (surface.vertices, surface.faces)
-    quality = surface_quality(run.sites, faces, reference, samples=samples, seed=seed)
-    return RemeshResult(run.sites, faces, quality, run, defects, seconds, iterations)
+    quality = surface_quality(vertices, faces, reference, samples=samples, seed=seed)
+    return RemeshResult(vertices, faces, quality, run, defects, seconds, iterations, moves)
 
 
 __all__ = ["RemeshError", "RemeshResult", "remesh"]
