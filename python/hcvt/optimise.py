@@ -277,13 +277,15 @@ def cvt(
         core_sites, _ = domain._core.closest(out["sites"])
         if held is not None:
             core_sites[held] = out["sites"][held]  # on the surface already: not projected
-        # Two sites may project to one point (beyond a convex corner held by a site, or
-        # over a flat face: fandisk, n = 20,000, features 30°): the later one, never a
-        # held one, stays where the optimiser left it.
-        order = np.arange(len(core_sites)) if held is None else np.argsort(~held, kind="stable")
-        _, kept = np.unique(core_sites[order], axis=0, return_index=True)
-        clash = np.ones(len(core_sites), dtype=bool)
-        clash[order[kept]] = False
+        # Sites may project to one point (beyond a convex corner held by a site, or over
+        # a flat face, one of them there already: fandisk, n = 20,000, features 30°):
+        # those not held stay where the optimiser left them (distinct points there).
+        order = np.lexsort(core_sites.T[::-1])
+        same = (core_sites[order[1:]] == core_sites[order[:-1]]).all(axis=1)
+        clash = np.zeros(len(core_sites), dtype=bool)
+        clash[order[1:][same]] = clash[order[:-1][same]] = True
+        if held is not None:
+            clash &= ~held
         core_sites[clash] = out["sites"][clash]
         sites_out = frame.to_input("sites", core_sites)
         with frame.input_errors():
