@@ -389,3 +389,24 @@ def test_command_line_remeshes_a_mesh_file(tmp_path) -> None:
     assert refused.exit_code == 2 and "--surface does not take --plot" in refused.output
     refused = CliRunner().invoke(main, [*args, "--out", str(tmp_path / "x.npy")])
     assert refused.exit_code == 2 and "writes a mesh" in refused.output
+
+
+@needs_data
+def test_the_surface_bvh_and_the_triangulation_diagram_match_the_separate_calls() -> None:
+    # The surface's own BVH (kept with it) against one built afresh from its triangles;
+    # the diagram computed on the way to the triangulation against hcvt's voronoi call:
+    # bit for bit (the CVT on a surface uses both, instead of the separate calls).
+    domain = surface("bunny.off")
+    sites = domain.frame.to_core(sites_near(domain, 800, 4))
+    nearest, triangle = domain._core.closest(sites)
+    again, again_triangle = closest_points(domain._core.vertices, domain._core.faces, sites)
+    assert np.array_equal(nearest, again) and np.array_equal(triangle, again_triangle)
+    both = hcvt._core.restricted_delaunay(domain._core, sites, with_diagram=True)
+    alone = hcvt._core.voronoi(domain._core, sites)
+    assert set(both["diagram"]) == set(alone)
+    for key, value in alone.items():
+        same = np.array_equal(np.asarray(both["diagram"][key]), np.asarray(value), equal_nan=True)
+        assert same, key
+    plain = hcvt._core.restricted_delaunay(domain._core, sites)
+    assert "diagram" not in plain
+    assert np.array_equal(plain["triangles"], both["triangles"])

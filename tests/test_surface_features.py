@@ -18,6 +18,7 @@ import hcvt
 from hcvt.surface.features import (
     FeatureSites,
     detect_features,
+    move_intruders,
     plan_feature_sites,
     restore_segments,
     site_spacing,
@@ -37,8 +38,8 @@ def fandisk() -> hcvt.Domain:
 def box_surface() -> hcvt.Domain:
     import trimesh
 
-    # Subdivided twice: a regular mesh, the sites' cells meeting on its edges but for the
-    # features' symmetry break.
+    # Subdivided twice: a regular mesh, the evenly spaced feature sites' cells meeting
+    # exactly on its edges and vertices (the core's triangulation finds each meeting once).
     box = trimesh.creation.box(extents=(2.0, 1.0, 1.0)).subdivide().subdivide()
     return hcvt.Domain.from_surface(box.vertices, box.faces)
 
@@ -115,6 +116,47 @@ def test_a_segment_crossed_by_one_diagonal_is_flipped_in() -> None:
     vertices[1] = [1.5, -0.2, 0.0]
     kept = np.array([[2, 0, 1], [1, 0, 3]])
     assert restore_segments(kept, vertices, plan).tolist() == kept.tolist()
+
+
+def test_a_free_site_on_a_segment_moves_to_the_widest_gap() -> None:
+    # Free sites 0-5, held sites a (6) and b (7) of one segment, the free site 0 on it
+    # between them (1 above, 2 below also touch both ends, farther from it): the segment
+    # is missing. The one triangle of free sites, (3, 4, 5), is the widest gap.
+    vertices = np.array(
+        [
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [1.0, -1.0, 0.0],
+            [5.0, 0.0, 0.0],
+            [9.0, 0.0, 0.0],
+            [7.0, 6.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+        ]
+    )
+    plan = FeatureSites(vertices[6:], np.array([[0, 1]]))
+    faces = np.array([[6, 0, 1], [0, 7, 1], [6, 2, 0], [0, 2, 7], [3, 4, 5]])
+    moved = move_intruders(vertices, faces, plan)
+    assert moved is not None
+    assert np.array_equal(moved[0], [7.0, 2.0, 0.0])
+    assert np.array_equal(moved[1:], vertices[1:])
+    # With the segment an edge, nothing moves.
+    assert move_intruders(vertices, np.array([[6, 7, 1], [3, 4, 5]]), plan) is None
+
+
+def test_a_free_site_beyond_a_held_corner_stays_off_it() -> None:
+    # A free site out beyond the held corner (1, 0.5, 0.5) of the box: projected, it
+    # would land on the corner's site or on another free site's projection.
+    domain = box_surface()
+    corner = np.array([[1.0, 0.5, 0.5]])
+    free = hcvt.initialise(domain, 40, seed=3)
+    sites = np.vstack([free, corner + 0.5, corner])
+    held = np.zeros(len(sites), dtype=bool)
+    held[-1] = True
+    run = hcvt.cvt(domain, sites, "lbfgs", max_iter=2, fixed=held)
+    assert np.array_equal(run.sites[-1], corner[0])
+    assert len(np.unique(run.sites, axis=0)) == len(sites)
+    assert abs(run.diagram.volume.sum() - domain.volume) < 1e-12 * domain.volume
 
 
 def test_features_that_take_every_site_are_refused() -> None:

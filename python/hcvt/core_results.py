@@ -191,3 +191,4 @@ class RestrictedDelaunayArrays(TypedDict):
     points: Floats  # (m, 3) where the three cells meet
     faces: Indices  # (m,) the surface triangle of each meeting point
     repeated: Indices  # (r, 3) triples of cells meeting at more than one point
+    diagram: NotRequired[DiagramArrays]  # with_diagram=True: the sites' voronoi dict

@@ -36,11 +36,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hcvt import _core
+from hcvt.core_results import RestrictedDelaunayArrays
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, Polynomial, core_arguments
 from hcvt.diagram import Diagram, as_sites, as_weights
 from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
-from hcvt.geometry.surface_points import closest_points
 from hcvt.lazy import load
 
 RULES = ("gap", "paper")
@@ -157,6 +157,11 @@ class CVTResult(Shows):
     evaluations: int
     seconds: float
     weights: NDArray[np.float64] | None = field(default=None, repr=False)
+    #: On a surface: the restricted Delaunay triangulation of ``sites`` (core's frame),
+    #: computed with ``diagram``; :func:`hcvt.remesh` reads it instead of recomputing.
+    _triangulation: RestrictedDelaunayArrays | None = field(
+        default=None, init=False, repr=False, compare=False
+    )
 
     @property
     def mean_G(self) -> float:  # noqa: N802 (the paper's G)
@@ -266,16 +271,28 @@ def cvt(
             bar.close()
     history = frame.history({key: np.asarray(value) for key, value in out["history"].items()})
     sites_out = frame.to_input("sites", out["sites"])
+    triangulation = None
     if domain.is_surface:
-        # Free in space while minimising (Yan et al. 2009); onto the surface at the end,
-        # where the diagram is then taken.
-        core_sites, _ = closest_points(domain._core.vertices, domain._core.faces, out["sites"])
+        # Free in space while minimising (Yan et al. 2009); onto the surface at the end
+        # (through the surface's own BVH), where the diagram is then taken, with the
+        # restricted Delaunay triangulation it gives on the way (remesh reads it).
+        core_sites, _ = domain._core.closest(out["sites"])
         if held is not None:
             core_sites[held] = out["sites"][held]  # on the surface already: not projected
+        # Sites may project to one point (beyond a convex corner held by a site, or over
+        # a flat face, one of them there already: fandisk, n = 20,000, features 30°):
+        # those not held stay where the optimiser left them (distinct points there).
+        order = np.lexsort(core_sites.T[::-1])
+        same = (core_sites[order[1:]] == core_sites[order[:-1]]).all(axis=1)
+        clash = np.zeros(len(core_sites), dtype=bool)
+        clash[order[1:][same]] = clash[order[:-1][same]] = True
+        if held is not None:
+            clash &= ~held
+        core_sites[clash] = out["sites"][clash]
         sites_out = frame.to_input("sites", core_sites)
         with frame.input_errors():
-            arrays = _core.voronoi(domain._core, core_sites)
-        out["sites"], out["diagram"] = core_sites, arrays
+            triangulation = _core.restricted_delaunay(domain._core, core_sites, with_diagram=True)
+        out["sites"], out["diagram"] = core_sites, triangulation.pop("diagram")
     if any(domain.periodic):
         # Wrapped by the core in its frame; again here, where rounding may touch `hi`.
         sites_out = domain.wrap(sites_out)
@@ -283,7 +300,7 @@ def cvt(
         # Never moved: the input's bits, not their round trip through the frame.
         sites_out[held] = points[held]
     weights = frame.to_input("weights", out["weights"]) if "weights" in out else None
-    return CVTResult(
+    result = CVTResult(
         sites=sites_out,
         diagram=Diagram(
             domain, sites_out, out["diagram"], density, core_sites=out["sites"], weights=weights
@@ -298,6 +315,8 @@ def cvt(
         seconds=float(history["seconds"][-1]),
         weights=weights,
     )
+    result._triangulation = triangulation
+    return result
 
 
 def capacity_method(method: str | None) -> str:

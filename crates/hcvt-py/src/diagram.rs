@@ -287,16 +287,20 @@ fn sites_to_intp(sites: Vec<u32>) -> Vec<isize> {
 /// `triangles` (m, 3) intp (a triangle per point where three cells meet on the surface,
 /// counter-clockwise about the surface's normal there), `points` (m, 3) the meeting
 /// points, `faces` (m,) intp the surface triangle of each, and `repeated` (r, 3) intp the
-/// triples of cells that meet at more than one point (cells that are not discs).
+/// triples of cells that meet at more than one point (cells that are not discs); with
+/// `with_diagram`, also `diagram`: the dict [`voronoi`] gives for these sites (computed
+/// on the way, bit for bit the same).
 #[pyfunction]
+#[pyo3(signature = (surface, sites, with_diagram = false))]
 pub fn restricted_delaunay<'py>(
     py: Python<'py>,
     surface: PyRef<'py, crate::domain::SurfaceDomain>,
     sites: PyReadonlyArray2<'py, f64>,
+    with_diagram: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 3>(&sites, "sites")?;
     let kind = &surface.0;
-    let rdt = py
+    let mut rdt = py
         .detach(|| crate::threads::run(|| kind.restricted_delaunay(&points)))
         .map_err(crate::errors::to_py_err)?;
     let out = PyDict::new(py);
@@ -305,5 +309,9 @@ pub fn restricted_delaunay<'py>(
     let faces: Vec<usize> = rdt.faces.iter().map(|&f| f as usize).collect();
     out.set_item("faces", to_intp(py, &faces)?)?;
     out.set_item("repeated", to_intp2(py, &rdt.repeated)?)?;
+    if with_diagram {
+        let diagram = std::mem::take(&mut rdt.diagram);
+        out.set_item("diagram", diagram_dict(py, kind, diagram, &points)?)?;
+    }
     Ok(out)
 }

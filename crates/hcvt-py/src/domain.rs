@@ -386,6 +386,22 @@ impl SurfaceDomain {
     fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
         to_intp2(py, self.0.triangles())
     }
+
+    /// The nearest point of the surface to each of `points` (m, 3): `(nearest (m, 3),
+    /// triangle (m,) np.intp)`, as [`closest_points`] of the surface's vertices and faces
+    /// but through the surface's own BVH, built once with it (armadillo: 1 s a call saved).
+    fn closest<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Nearest<'py>> {
+        let p = rows::<f64, 3>(&points, "points")?;
+        let set = self.0.triangle_set();
+        nearest_arrays(
+            py,
+            py.detach(|| crate::threads::run(|| set.closest_all(&p))),
+        )
+    }
 }
 
 /// Nearest points (m, 3) and their triangles (m,).
@@ -409,7 +425,14 @@ pub fn closest_points<'py>(
     let f = rows::<u32, 3>(&faces, "faces")?;
     let p = rows::<f64, 3>(&points, "points")?;
     let set = TriangleSet::new(v, f).map_err(to_py_err)?;
-    let found = py.detach(|| crate::threads::run(|| set.closest_all(&p)));
+    nearest_arrays(
+        py,
+        py.detach(|| crate::threads::run(|| set.closest_all(&p))),
+    )
+}
+
+/// [`TriangleSet::closest_all`]'s answers as numpy arrays.
+fn nearest_arrays<'py>(py: Python<'py>, found: Vec<([f64; 3], u32)>) -> PyResult<Nearest<'py>> {
     let nearest: Vec<[f64; 3]> = found.iter().map(|x| x.0).collect();
     let triangle: Vec<isize> = found.iter().map(|x| x.1 as isize).collect();
     Ok((to_array2(py, &nearest)?, PyArray1::from_vec(py, triangle)))

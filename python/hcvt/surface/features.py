@@ -46,9 +46,6 @@ from hcvt.optimise import CVTResult, cvt
 #: rounded (now ceil) and no flips: segments missing 12 at 1.0, 5 at 0.85, none at 0.7.
 #: At 1.0, n = 5,000, the defects they left ran the CVT to max_iter.
 FEATURE_SPACING = 0.7
-#: The shift of the sites along a curve off its evenly spaced positions, at most, in pieces
-#: (:func:`feature_sites`), and the golden ratio's fraction that varies it by curve.
-SYMMETRY_BREAK, GOLDEN = 1e-3, (math.sqrt(5.0) - 1.0) / 2.0
 #: Lloyd steps of the free sites before L-BFGS: a random start's cells differ in size by
 #: an order of magnitude, which scipy's unpreconditioned L-BFGS (used here before the core
 #: held sites) did not undo well (fandisk, n = 5,000: Q min 0.21 without, 0.45 with 3). The
@@ -211,7 +208,7 @@ def feature_sites(
     points = [vertices[features.corners]]
     segments: list[tuple[int, int]] = []
     row = len(features.corners)
-    for curve, (chain, closed) in enumerate(features.curves):
+    for chain, closed in features.curves:
         polyline = vertices[np.append(chain, chain[0]) if closed else chain]
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(polyline, axis=0), axis=1))])
         length = arc[-1]
@@ -220,15 +217,11 @@ def feature_sites(
         pieces = (
             max(3, math.ceil(length / spacing)) if closed else max(1, math.ceil(length / spacing))
         )
-        # Off the symmetric positions by a tiny fraction of a piece, different on each curve:
-        # on a regular mesh (CAD models, a box) evenly spaced sites put the meeting points
-        # of their cells with a neighbour's exactly on the input's edges, where the core
-        # finds them in both triangles or in neither (a box's corners, the fandisk at
-        # n = 5,000: cells reported not discs, the CVT run on to max_iter).
-        shift = SYMMETRY_BREAK * ((curve + 1) * GOLDEN % 1.0)
-        at = (np.arange(pieces) + shift if closed else np.arange(1, pieces) + shift) * (
-            length / pieces
-        )
+        # Evenly spaced: on a regular mesh (CAD models, a box) the meeting points of their
+        # cells with a neighbour's then fall exactly on the input's edges and vertices,
+        # which the core's restricted Delaunay triangulation finds once (a shift off these
+        # positions dodged it before it did).
+        at = (np.arange(pieces) if closed else np.arange(1, pieces)) * (length / pieces)
         inner = np.column_stack([np.interp(at, arc, polyline[:, j]) for j in range(3)])
         rows = list(range(row, row + len(inner)))
         row += len(inner)
@@ -306,6 +299,48 @@ def restore_segments(
     return faces
 
 
+def move_intruders(
+    vertices: NDArray[np.float64], faces: NDArray[np.intp], plan: FeatureSites
+) -> NDArray[np.float64] | None:
+    """``vertices`` (n, 3) with the free sites that cut feature segments moved, or None.
+
+    A segment ``(a, b)`` also goes missing where a free site ``c`` settled on the curve
+    between ``a`` and ``b`` (its cell spans the crease: both sides pull it there), so that
+    its cell parts theirs. The CVT leaves it there: at remesh's tolerance 4 times tighter
+    it took 31 more iterations to move off (fandisk, n = 5,000, 30°). For each missing
+    segment, ``c`` is the free vertex of triangles at both ends nearest the segment; it
+    goes to the centroid of the largest triangle of free sites (the widest gap; one per
+    ``c``, none sharing a site with another or with a moved one), from where the CVT (a
+    step or two: the rest is converged) spaces the sites again. None when nothing moves.
+    """
+    first = len(vertices) - len(plan.points)
+    missing = missing_segments(faces, plan.segments + first)
+    intruders: set[int] = set()
+    for a, b in (plan.segments[missing] + first).tolist():
+        common = np.intersect1d(faces[(faces == a).any(axis=1)], faces[(faces == b).any(axis=1)])
+        common = common[common < first]
+        if len(common):
+            p, q = vertices[a], vertices[b]
+            along = np.clip((vertices[common] - p) @ (q - p) / ((q - p) @ (q - p)), 0.0, 1.0)
+            off = np.linalg.norm(vertices[common] - (p + along[:, None] * (q - p)), axis=1)
+            intruders.add(int(common[np.argmin(off)]))
+    free = faces[(faces < first).all(axis=1)]
+    corners = vertices[free]
+    area = np.linalg.norm(
+        np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
+    )
+    gaps = iter(np.argsort(-area, kind="stable").tolist())
+    moved, taken, count = vertices.copy(), set(intruders), 0
+    for c in sorted(intruders):
+        gap = next((t for t in gaps if not taken & set(free[t].tolist())), None)
+        if gap is None:
+            break
+        taken |= set(free[gap].tolist())
+        moved[c] = corners[gap].mean(axis=0)
+        count += 1
+    return moved if count else None
+
+
 def segment_defects(faces: NDArray[np.intp], plan: FeatureSites, n: int) -> list[str]:
     """The defect naming the feature segments missing from ``faces`` (f, 3), or none.
 
@@ -356,13 +391,15 @@ def constrained_cvt(
         key: np.concatenate([r.history[key][1 if k else 0 :] for k, r in enumerate(runs)])
         for key in last.history
     }
-    return replace(
+    out = replace(
         last,
         history=history,
         iterations=sum(r.iterations for r in runs),
         evaluations=sum(r.evaluations for r in runs),
         seconds=time.perf_counter() - start,
     )
+    out._triangulation = last._triangulation  # not an __init__ field: replace drops it
+    return out
 
 
 __all__ = [
@@ -374,6 +411,7 @@ __all__ = [
     "detect_features",
     "feature_sites",
     "missing_segments",
+    "move_intruders",
     "plan_feature_sites",
     "restore_segments",
     "segment_defects",

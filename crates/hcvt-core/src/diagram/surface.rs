@@ -432,6 +432,11 @@ fn add_piece(
     }
 }
 
+/// Points closer than this fraction of the surface's bounding-box diagonal are one
+/// meeting point of three cells (rounding apart: found in two triangles, or as the
+/// ends of two arcs on an edge).
+const SAME_POINT: f64 = 1e-10;
+
 /// Where three cells meet: the sites (the cell's own first), the point, its surface triangle.
 type Meeting = ([u32; 3], [f64; 3], u32);
 
@@ -449,6 +454,9 @@ pub struct RestrictedDelaunay {
     /// closed-ball property of Edelsbrunner and Shah failing), sorted: each such triple
     /// gives one triangle above, and the triangulation may not be a manifold there.
     pub repeated: Vec<[u32; 3]>,
+    /// The restricted Voronoi diagram of the sites, which the triangulation is read from
+    /// (the one [`super::clipped_diagram`] gives): callers wanting both compute it once.
+    pub diagram: super::Diagram<3>,
 }
 
 impl Surface {
@@ -466,25 +474,30 @@ impl Surface {
             ..Default::default()
         };
         let clipped = super::clipped_diagram::<3, super::PolyhedronCell, _>(self, sites, &request)?;
+        let same = SAME_POINT * self.set.bvh().bounds().diagonal();
         let found: Vec<Vec<Meeting>> = clipped
             .cells
             .par_iter()
             .enumerate()
-            .map(|(i, cell)| self.meeting_points(i as u32, cell, sites[i]))
+            .map(|(i, cell)| self.meeting_points(i as u32, cell, sites[i], same))
             .collect();
         let mut out = RestrictedDelaunay::default();
-        let mut seen: HashMap<[u32; 3], usize> = HashMap::new();
+        // Each triple's first point and how many distinct points it was seen at.
+        let mut seen: HashMap<[u32; 3], ([f64; 3], usize)> = HashMap::new();
         for (tri, point, face) in found.into_iter().flatten() {
             let mut key = tri;
             key.sort_unstable();
-            if let Some(count) = seen.get_mut(&key) {
-                *count += 1;
-                if *count == 2 {
-                    out.repeated.push(key);
+            if let Some((first, count)) = seen.get_mut(&key) {
+                // The same point seen from two triangles (on their edge) is one meeting.
+                if norm2(sub(point, *first)) > same * same {
+                    *count += 1;
+                    if *count == 2 {
+                        out.repeated.push(key);
+                    }
                 }
                 continue;
             }
-            seen.insert(key, 1);
+            seen.insert(key, (point, 1));
             // Counter-clockwise about the normal of the surface there.
             let normal = {
                 let [a, b, c] = self.corners(face);
@@ -501,29 +514,120 @@ impl Surface {
             out.faces.push(face);
         }
         out.repeated.sort_unstable();
+        out.diagram = clipped.diagram;
         Ok(out)
     }
 
     /// The points where cell `i` (its convex cell `cell`, relative to `site`) meets two
-    /// other cells `j < k` on the surface, with `i < j`: `([i, j, k], point, face)`.
-    fn meeting_points<C: ConvexCell<3>>(&self, i: u32, cell: &C, site: [f64; 3]) -> Vec<Meeting> {
+    /// other cells `j < k` on the surface, with `i < j`: `([i, j, k], point, face)`;
+    /// points closer than `same` are one.
+    ///
+    /// Inside a triangle such a point is a vertex of the cell's piece between its arcs on
+    /// the bisectors with `j` and `k`. On an input edge or vertex it may be no such
+    /// vertex: the piece on one side ends its arc on the bisector with `j` there, the
+    /// piece on the other side its arc on the one with `k` ([`ArcEnd`]). An edge of a
+    /// piece on an inner input edge that lies on one of the cell's bisectors (to `same`)
+    /// is an arc on it: the clipping left it labelled by the triangle.
+    fn meeting_points<C: ConvexCell<3>>(
+        &self,
+        i: u32,
+        cell: &C,
+        site: [f64; 3],
+        same: f64,
+    ) -> Vec<Meeting> {
+        let mut bisectors: Vec<(u32, HalfSpace<3>)> = Vec::new();
+        cell.for_each_plane(|face, h| {
+            if let Face::Neighbor(j) = face {
+                bisectors.push((j, *h));
+            }
+        });
+        let on_bisector = |u: [f64; 3], w: [f64; 3]| {
+            bisectors.iter().find_map(|&(j, ref h)| {
+                let tol = same * norm2(h.normal).sqrt();
+                let off = |x| (dot(h.normal, x) - h.offset).abs();
+                (off(u) <= tol && off(w) <= tol).then_some(j)
+            })
+        };
         let mut out = Vec::new();
+        let mut ends: Vec<ArcEnd> = Vec::new();
         self.for_each_piece(cell, site, Triangles::Walk, |t, polygon| {
             let n = polygon.len();
-            for k in 0..n {
-                let before = polygon[(k + n - 1) % n].out;
-                let after = polygon[k].out;
-                if let (Edge::Plane(Face::Neighbor(a)), Edge::Plane(Face::Neighbor(b))) =
-                    (before, after)
-                {
-                    if a != b && i < a.min(b) {
-                        out.push(([i, a.min(b), a.max(b)], add(site, polygon[k].x), t));
+            // Each edge of the piece: on a bisector (`Arc`), on an inner input edge
+            // (`Inner`), or on the border.
+            let side = |k: usize| match polygon[k].out {
+                Edge::Plane(Face::Neighbor(j)) => Side::Arc(j),
+                Edge::Triangle(e) if !self.is_border(t, e as usize) => {
+                    match on_bisector(polygon[k].x, polygon[(k + 1) % n].x) {
+                        Some(j) => Side::Arc(j),
+                        None => Side::Inner,
                     }
+                }
+                _ => Side::Other,
+            };
+            let sides: Vec<Side> = (0..n).map(side).collect();
+            for k in 0..n {
+                let point = add(site, polygon[k].x);
+                match (sides[(k + n - 1) % n], sides[k]) {
+                    (Side::Arc(a), Side::Arc(b)) if a != b && i < a.min(b) => {
+                        out.push(([i, a.min(b), a.max(b)], point, t));
+                    }
+                    (Side::Arc(label), Side::Inner) | (Side::Inner, Side::Arc(label)) => {
+                        ends.push(ArcEnd {
+                            point,
+                            label,
+                            face: t,
+                        });
+                    }
+                    _ => {}
                 }
             }
         });
+        arc_ends_meetings(i, same, &mut ends, &mut out);
         out
     }
+}
+
+/// The meeting points of cell `i` on the input's edges and vertices from the ends `ends`
+/// of its arcs there: two ends at one point (to `same`) in different triangles, on the
+/// bisectors with `j` and `k`, are a point of all three cells (it lies on both
+/// bisectors).
+fn arc_ends_meetings(i: u32, same: f64, ends: &mut [ArcEnd], out: &mut Vec<Meeting>) {
+    ends.sort_unstable_by(|x, y| {
+        (x.point[0].total_cmp(&y.point[0]))
+            .then(x.face.cmp(&y.face))
+            .then(x.label.cmp(&y.label))
+    });
+    for (k, x) in ends.iter().enumerate() {
+        for y in &ends[k + 1..] {
+            if y.point[0] - x.point[0] > same {
+                break;
+            }
+            let (a, b) = (x.label.min(y.label), x.label.max(y.label));
+            if x.face != y.face && a != b && i < a && norm2(sub(x.point, y.point)) <= same * same {
+                out.push(([i, a, b], x.point, x.face));
+            }
+        }
+    }
+}
+
+/// What an edge of a cell's piece lies on ([`Surface::meeting_points`]).
+#[derive(Debug, Clone, Copy)]
+enum Side {
+    /// The bisector with a site.
+    Arc(u32),
+    /// An edge of the triangle shared with another.
+    Inner,
+    /// The border, or a plane of no neighbour.
+    Other,
+}
+
+/// Where an arc of a cell (on the bisector with site `label`) ends on an inner edge of
+/// surface triangle `face`: the point, absolute.
+#[derive(Debug, Clone, Copy)]
+struct ArcEnd {
+    point: [f64; 3],
+    label: u32,
+    face: u32,
 }
 
 impl DomainKind<3> for Surface {
@@ -697,6 +801,113 @@ mod tests {
                 assert!(back.is_some_and(|b| (b - m).abs() <= 1e-12), "{i} {j}");
             }
         }
+    }
+
+    /// Three sites whose cells meet at `(0.5, 0.5, 0)` in the flat square `roof(k, 0.0)`
+    /// (split on the diagonal `y = x`, so the point is on an input edge for `k = 1` and an
+    /// input vertex for `k = 2`), in every order, and mirrored (the other diagonal): one
+    /// triangle, counter-clockwise about `+z`, no triple repeated. The first set has the
+    /// bisector of two sites along the diagonal (exactly); the second has the meeting
+    /// point on it up to rounding (sites on a circle about it).
+    #[test]
+    fn three_cells_meeting_on_an_input_edge_or_vertex_give_one_triangle() {
+        let on_circle = |deg: f64| {
+            let a = deg.to_radians();
+            [0.5 + 0.3 * a.cos(), 0.5 + 0.3 * a.sin(), 0.0]
+        };
+        let sets = [
+            [[0.2, 0.5, 0.0], [0.8, 0.5, 0.0], [0.5, 0.8, 0.0]],
+            [on_circle(10.0), on_circle(130.0), on_circle(250.0)],
+            [on_circle(45.0), on_circle(165.0), on_circle(285.0)],
+        ];
+        let orders = [
+            [0, 1, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [1, 2, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+        ];
+        for k in [1, 2] {
+            let s = roof(k, 0.0);
+            for set in &sets {
+                for mirror in [false, true] {
+                    for order in orders {
+                        let sites: Vec<[f64; 3]> = order
+                            .iter()
+                            .map(|&o| {
+                                let [x, y, z] = set[o];
+                                [if mirror { 1.0 - x } else { x }, y, z]
+                            })
+                            .collect();
+                        let rdt = s.restricted_delaunay(&sites).unwrap();
+                        let case = format!("k {k} {set:?} mirror {mirror} order {order:?}");
+                        assert_eq!(rdt.triangles.len(), 1, "{case}: {:?}", rdt.triangles);
+                        assert!(rdt.repeated.is_empty(), "{case}");
+                        let [a, b, c] = rdt.triangles[0].map(|v| sites[v as usize]);
+                        assert!(cross(sub(b, a), sub(c, a))[2] > 0.0, "{case}");
+                        let p = rdt.points[0];
+                        assert!(norm2(sub(p, [0.5, 0.5, 0.0])) < 1e-24, "{case}: {p:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// Sites on a triangular lattice whose cells all meet on the vertical edges of a flat
+    /// grid (x multiples of 1/12): the triangles are the Delaunay triangles with their
+    /// circumcentre in the square, found by brute force (empty circumcircles), each once.
+    #[test]
+    fn lattice_cells_meeting_on_grid_edges_give_the_delaunay_triangles() {
+        let s = roof(12, 0.0);
+        let mut sites = Vec::new();
+        for j in 0..6 {
+            let (shift, count) = if j % 2 == 0 { (0.5, 6) } else { (1.0, 5) };
+            for i in 0..count {
+                sites.push([(i as f64 + shift) / 6.0, (j as f64 + 0.5) / 6.0, 0.0]);
+            }
+        }
+        let mut want = Vec::new();
+        let n = sites.len();
+        for a in 0..n {
+            for b in a + 1..n {
+                for c in b + 1..n {
+                    let [p, q, r] = [sites[a], sites[b], sites[c]];
+                    let (bx, by, cx, cy) = (q[0] - p[0], q[1] - p[1], r[0] - p[0], r[1] - p[1]);
+                    let d = 2.0 * (bx * cy - by * cx);
+                    if d.abs() < 1e-12 {
+                        continue;
+                    }
+                    let (b2, c2) = (bx * bx + by * by, cx * cx + cy * cy);
+                    let centre = [
+                        p[0] + (cy * b2 - by * c2) / d,
+                        p[1] + (bx * c2 - cx * b2) / d,
+                        0.0,
+                    ];
+                    let r2 = norm2(sub(centre, p));
+                    let inside = centre[..2].iter().all(|&x| (0.0..=1.0).contains(&x));
+                    if inside && sites.iter().all(|&z| norm2(sub(z, centre)) > r2 - 1e-12) {
+                        want.push([a as u32, b as u32, c as u32]);
+                    }
+                }
+            }
+        }
+        assert!(want.len() > 40);
+        let rdt = s.restricted_delaunay(&sites).unwrap();
+        assert!(rdt.repeated.is_empty());
+        let mut got: Vec<[u32; 3]> = rdt
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| sites[v as usize]);
+                assert!(cross(sub(b, a), sub(c, a))[2] > 0.0, "{t:?}");
+                let mut k = *t;
+                k.sort_unstable();
+                k
+            })
+            .collect();
+        got.sort_unstable();
+        assert_eq!(got, want);
     }
 
     #[test]
