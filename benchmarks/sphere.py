@@ -43,6 +43,7 @@ from scipy.spatial import SphericalVoronoi
 
 import hcvt
 from hcvt.density import SizingField
+from hcvt.seeding.hierarchy import Level
 from hcvt.seeding.sphere import (
     cells_for_width,
     distance_to_meridian,
@@ -131,6 +132,36 @@ def row(name: str, r: dict[str, float]) -> str:
     )
 
 
+class Progress:
+    """Prints a long run's progress: every finished level, and an iterate every ``every`` s."""
+
+    def __init__(self, start: float, every: float = 30.0) -> None:
+        self.start, self.every, self.last = start, every, start
+
+    def level(self, level: Level) -> None:
+        """A finished level: sites, iterations, diagrams, RMS gap (``hierarchical_cvt``)."""
+        h = level.history
+        print(
+            f"  {time.perf_counter() - self.start:8.1f} s  level of {level.n} sites: "
+            f"{level.iterations} it, {int(h['evaluations'][-1])} diagrams, "
+            f"RMS gap {float(h['rms_gap'][-1]):.2e}",
+            flush=True,
+        )
+
+    def iterate(self, info: dict[str, object]) -> None:
+        """An iterate (``hcvt.cvt``'s callback info), printed at most every ``every`` s."""
+        now = time.perf_counter()
+        if now - self.last < self.every:
+            return
+        self.last = now
+        print(
+            f"  {now - self.start:8.1f} s  {len(info['sites'])} sites: {info['step']} step, "  # type: ignore[arg-type]
+            f"{info['evaluations']} diagrams, RMS gap {info['rms_gap']:.2e}, "
+            f"max gap {info['max_gap']:.2e}",
+            flush=True,
+        )
+
+
 def run_refined(
     fine: float, coarse: float, tol: float, degree: int, route: str, method: str | None
 ) -> None:
@@ -148,6 +179,7 @@ def run_refined(
         f"{n} cells"
     )
     t0 = time.perf_counter()
+    report = Progress(t0)
     if route == "hierarchical":
         result = hcvt.hierarchical_cvt(
             earth,
@@ -157,6 +189,8 @@ def run_refined(
             method=method,
             quadrature_degree=degree,
             max_iter=20_000,
+            callback=report.level,
+            iteration_callback=report.iterate,
         )
         diagram, sites_out = result.diagram, result.sites
         levels = [(lv.n, lv.iterations, int(lv.history["evaluations"][-1])) for lv in result.levels]
@@ -174,6 +208,7 @@ def run_refined(
             max_iter=20_000,
             method=method,
             quadrature_degree=degree,
+            callback=report.iterate,
         )
         diagram, sites_out = res.diagram, res.sites
         iterations, diagrams = res.iterations, res.evaluations

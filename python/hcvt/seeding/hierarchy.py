@@ -394,6 +394,7 @@ def hierarchical_cvt(
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
     level_tol: float | None = None,
     level_max_iter: int | None = None,
+    iteration_callback: Any = None,
 ) -> HierarchicalResult:
     """Regular CVT of exactly ``n`` sites by the hierarchical method of the paper (§4).
 
@@ -435,6 +436,10 @@ def hierarchical_cvt(
         Every level still has exactly its scheduled count.
     quadrature_degree : int, default 4
         Degree of the simplex rule that samples a callable density.
+    iteration_callback : callable, optional
+        Passed to every level's :func:`hcvt.cvt` as its ``callback``: called with each
+        iterate's info dict (the history fields and ``sites``); a true return value stops
+        that level (progress of a long last level, ``benchmarks/sphere.py``).
     level_tol, level_max_iter : float and int, optional
         Tolerance and iteration cap of the levels before the last, which only place the
         next level's sites; default ``tol`` and ``max_iter``, but with a density on the
@@ -476,6 +481,7 @@ def hierarchical_cvt(
         max_iter=max_iter,
         density=density,
         quadrature_degree=quadrature_degree,
+        callback=iteration_callback,
     )
     coarse = _coarse_levels(domain, density, level_tol, level_max_iter)
     optimise_coarse = partial(optimise, **coarse) if plan.targets else optimise

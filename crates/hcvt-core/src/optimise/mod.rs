@@ -824,6 +824,9 @@ where
         // Trial sites are retracted onto the domain (normalised on the sphere; untouched
         // in a flat domain), and moves are taken in the tangent plane before they are
         // held inside (DESIGN §13).
+        // With a sampled density on the sphere the energy's rounding by the rule is
+        // not smooth: Newton's steps are judged by the gradient too (newton.rs docs).
+        let by_gradient = domain.trusts_newton() && tracker.request.density.is_some();
         let mut eval = |mut sites: Vec<[f64; D]>| {
             for x in sites.iter_mut() {
                 *x = domain.retract(*x);
@@ -852,6 +855,7 @@ where
                 forcing,
                 trials,
                 ENERGY_NOISE,
+                by_gradient,
                 &hold,
                 &mut eval,
             )?;
