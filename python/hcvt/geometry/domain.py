@@ -130,8 +130,6 @@ class Domain:
         2003), ``second_moment`` ``∫|x − c|² dA`` about it, ``G`` with ``d = 2``, and
         ``neighbor_measures`` the great-circle arc lengths (DESIGN §13).
 
-        Examples
-        --------
         With ``region``, a region of the sphere (a regional ocean): ``(lon, lat)`` in
         degrees, an (m, 2) array (one ring, closed or not) or a shapely Polygon in lon/lat
         whose holes are islands. Consecutive vertices are joined by great-circle arcs
