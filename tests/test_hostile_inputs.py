@@ -685,6 +685,21 @@ SPECIFIC: dict[str, list[Row]] = {
             Raises(ValueError, "Newton does not hold fixed sites"),
         ),
     ],
+    "sphere region": [
+        (
+            f"sphere region: {name}",
+            functools.partial(lambda r: hcvt.Domain.sphere(1.0, region=r), region),
+            Raises(InvalidDomainError, match),
+        )
+        for name, region, match in [
+            ("a bow tie", [(0, 0), (10, 10), (10, 0), (0, 10)], "cross"),
+            ("more than a hemisphere", [(0, 0), (120, 0), (240, 0), (0, 60)], "within 89"),
+            ("a repeated vertex", [(0, 0), (10, 0), (10, 0), (0, 10)], "coincide"),
+            ("two vertices", [(0, 0), (10, 0)], "at least 3"),
+            ("a NaN vertex", [(0, 0), (10, NAN), (0, 10)], "not finite"),
+            ("a latitude beyond 90", [(0, 0), (10, 95), (0, 10)], "latitude"),
+        ]
+    ],
     "features": [
         (
             f"features: a feature angle of {angle}",

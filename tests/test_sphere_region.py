@@ -19,7 +19,7 @@ import pytest
 from shapely.geometry import Polygon, box, shape
 
 import hcvt
-from hcvt.errors import InvalidDomainError, InvalidSitesError
+from hcvt.errors import InvalidSitesError
 from hcvt.geometry.sphere_region import lonlat_to_unit
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "2d"
@@ -256,22 +256,6 @@ def test_the_diagram_does_not_depend_on_the_thread_count() -> None:
     finally:
         hcvt.set_num_threads(before)
     assert out[0] == out[1]
-
-
-@pytest.mark.parametrize(
-    ("region", "match"),
-    [
-        ([(0, 0), (10, 10), (10, 0), (0, 10)], "cross"),  # a bow tie
-        ([(0, 0), (120, 0), (240, 0), (0, 60)], "within 89"),  # more than a hemisphere
-        ([(0, 0), (10, 0), (10, 0), (0, 10)], "coincide"),
-        ([(0, 0), (10, 0)], "at least 3"),
-        ([(0, 0), (10, float("nan")), (0, 10)], "not finite"),
-        ([(0, 0), (10, 95), (0, 10)], "latitude"),
-    ],
-)
-def test_bad_regions_are_refused_by_name(region: list, match: str) -> None:
-    with pytest.raises(InvalidDomainError, match=match):
-        hcvt.Domain.sphere(1.0, region=region)
 
 
 def test_sites_outside_and_unsupported_jobs_are_refused() -> None:
