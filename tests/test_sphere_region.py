@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from shapely.geometry import Polygon, box, shape
+from shapely.geometry import Polygon, box, mapping, shape
 
 import hcvt
 from hcvt.errors import InvalidSitesError
@@ -287,3 +287,49 @@ def test_the_command_line_runs_a_region(tmp_path: Path) -> None:
     assert info["rms_gap"] < 1e-7 and info["region"].endswith(".geojson")
     domain = hcvt.Domain.sphere(6371.0, region=south_africa())
     assert domain.contains(np.load(out)).all()
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (
+            {
+                "type": "MultiPolygon",
+                "coordinates": [
+                    [[[10, 0], [20, 0], [20, 10], [10, 0]]],
+                    [[[30, 0], [40, 0], [40, 10], [30, 0]]],
+                ],
+            },
+            "2 polygons; a region of the sphere is one",
+        ),
+        (
+            {
+                "type": "Polygon",
+                "coordinates": [[[1e5, 0], [2e5, 0], [2e5, 1e5], [1e5, 0]]],
+                "crs": {"type": "name", "properties": {"name": "urn:ogc:def:crs:EPSG::2263"}},
+            },
+            "coordinates in urn:ogc:def:crs:EPSG::2263; a region is lon/lat degrees",
+        ),
+    ],
+    ids=["multipolygon", "projected crs"],
+)
+def test_the_command_line_refuses_a_region_file_it_cannot_read_as_one_lonlat_polygon(
+    tmp_path: Path, content: dict, message: str
+) -> None:
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    path = tmp_path / "region.geojson"
+    path.write_text(json.dumps(content))
+    result = CliRunner().invoke(main, ["run", "sphere", "--region", str(path), "-n", "50"])
+    assert result.exit_code == 2 and message in result.output, result.output
+
+
+def test_the_command_line_reads_a_region_as_load_domain_reads_polygons(tmp_path: Path) -> None:
+    from hcvt.cli import _read_region
+
+    feature = {"type": "Feature", "properties": {}, "geometry": mapping(south_africa())}
+    path = tmp_path / "region.geojson"
+    path.write_text(json.dumps({"type": "FeatureCollection", "features": [feature]}))
+    assert _read_region(str(path)).equals(south_africa())

@@ -27,7 +27,7 @@ from typing import Any
 
 import click
 import numpy as np
-from shapely.geometry import shape
+from shapely.geometry import MultiPolygon, Polygon
 
 import hcvt
 from hcvt import plot as pictures
@@ -35,6 +35,7 @@ from hcvt.density import Polynomial, SizingField
 from hcvt.distributed import DEFAULT_SITES_PER_PARTITION, partitioned_cvt, partitioned_voronoi
 from hcvt.experiments import reproduce as run_experiment
 from hcvt.geometry.shapes import BUILTIN, builtin_domain
+from hcvt.io.readers import read_polygon_and_crs
 from hcvt.lazy import load
 from hcvt.mesh import merged_boundary, mesh_quality
 from hcvt.optimise import RULES, capacity_method, default_tol, fastest_method
@@ -68,12 +69,26 @@ def main() -> None:
     """Regular centroidal Voronoi tessellations of polygons and closed meshes."""
 
 
-def _read_region(path: str) -> Any:
-    """The lon/lat Polygon of a GeoJSON file (its first feature, or a bare geometry)."""
-    data = json.loads(Path(path).read_text())
-    if data.get("type") == "FeatureCollection":
-        data = data["features"][0]
-    return shape(data.get("geometry", data))
+def _read_region(path: str) -> Polygon:
+    """The lon/lat Polygon (degrees) of a GeoJSON or WKT file, read as `load_domain` reads them.
+
+    A region of the sphere is one polygon (holes are islands); a file declaring a CRS other
+    than longitude/latitude is refused rather than read as degrees.
+    """
+    polygon, crs = read_polygon_and_crs(Path(path))
+    if crs is not None and not _is_lonlat(crs):
+        raise click.UsageError(
+            f"--region {path}: coordinates in {crs}; a region is lon/lat degrees"
+        )
+    if isinstance(polygon, MultiPolygon):
+        count = len(polygon.geoms)
+        raise click.UsageError(f"--region {path}: {count} polygons; a region of the sphere is one")
+    return polygon
+
+
+def _is_lonlat(crs: str) -> bool:
+    """Whether a GeoJSON ``crs`` name means longitude/latitude in degrees (CRS84, EPSG:4326)."""
+    return crs.upper().endswith(("CRS84", ":4326"))
 
 
 def _load(
