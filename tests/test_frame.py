@@ -28,6 +28,7 @@ import pytest
 import hcvt
 from hcvt.errors import InvalidSitesError, UnrepresentableError
 from hcvt.geometry.frame import Frame
+from test_sphere_region import south_africa
 
 C = 64.0
 CORE_REL = 1e-13
@@ -471,6 +472,36 @@ def test_a_sphere_whose_areas_are_not_floats_gives_G_and_refuses_areas(radius, u
     np.testing.assert_allclose(diagram.centroid / radius, unit.centroid, atol=1e-14)
     with pytest.raises(UnrepresentableError, match="volume .* (under|over)flows"):
         _ = diagram.volume
+
+
+@pytest.fixture(scope="module")
+def unit_region() -> tuple[np.ndarray, hcvt.Diagram, hcvt.CVTResult]:
+    """South Africa (Lesotho a hole) on the unit sphere: the frame of a region is its radius."""
+    region = hcvt.Domain.sphere(1.0, region=south_africa())
+    sites = hcvt.initialise(region, 150, method="random", seed=35)
+    return sites, hcvt.voronoi(region, sites), hcvt.cvt(region, sites, "lbfgs", max_iter=10)
+
+
+@pytest.mark.parametrize("radius", RADII)
+def test_a_sphere_region_at_any_radius_gives_the_unit_regions_cells_and_iterates(
+    radius, unit_region
+):
+    sites, unit, unit_cvt = unit_region
+    region = hcvt.Domain.sphere(radius, region=south_africa())
+    diagram = hcvt.voronoi(region, radius * sites)
+    h = float(np.min(unit.volume)) ** 0.5
+    rel = C * ULP / h + CORE_REL
+    worst = np.max(np.abs(diagram.volume / radius**2 - unit.volume) / unit.volume)
+    assert worst <= rel, f"areas: {worst:.3g} > {rel:.3g}"
+    assert np.max(np.abs(diagram.centroid / radius - unit.centroid)) <= C * ULP / h
+    np.testing.assert_array_equal(diagram.neighbors, unit.neighbors)
+    arcs = np.max(np.abs(diagram.face_measures / radius - unit.face_measures))
+    assert arcs <= C * ULP / h, f"arcs: {arcs:.3g}"
+
+    result = hcvt.cvt(region, radius * sites, "lbfgs", max_iter=10)
+    assert result.iterations == unit_cvt.iterations
+    gap = np.max(np.abs(result.sites / radius - unit_cvt.sites))
+    assert gap <= 4 * C * ULP / h, f"CVT sites differ by {gap:.3g} radii"
 
 
 # ---------------------------------------------------------------------- issue 30 as measured
