@@ -30,6 +30,9 @@ the input where the mesh is farthest from it, :mod:`hcvt.surface.tighten`), and
 (``hcvt.remesh(features=ANGLE)``) and MeshLab (its ``featuredeg``, 30 by default otherwise);
 pyacvd has no such option.
 
+``--large`` then times one restricted diagram of 1M sites on a 1.38M-triangle surface
+(:mod:`surface_large`).
+
 ``--pictures DIR`` also draws each case's three meshes side by side, triangles coloured by
 Q and shaded by a light, as ``DIR/remesh_<model>_<n>.png`` (matplotlib, off-screen; the
 pictures of docs/guide/surfaces.md: ``--models bunny fandisk --n 5000 --pictures
@@ -245,6 +248,12 @@ def main() -> None:
     parser.add_argument("--pictures", type=Path, help="draw each case's meshes into this folder")
     parser.add_argument("--features", type=float, help="keep sharp edges above this angle (°)")
     parser.add_argument(
+        "--large",
+        action="store_true",
+        help="then one restricted diagram of 1M sites on armadillo subdivided to 1.38M "
+        "triangles (benchmarks/surface_large.py): seconds, cells/s, peak memory",
+    )
+    parser.add_argument(
         "--tighten",
         action="store_true",
         help="also a row 'hcvt+t': remesh(tighten=True), vertices moved to lower the "
@@ -313,6 +322,10 @@ def main() -> None:
                 picture(model, n, drawn, args.pictures / f"remesh_{model}_{n}.png")
     if args.json:
         args.json.write_text(json.dumps(rows, indent=1, default=str))
+    if args.large:
+        from surface_large import large_row
+
+        large_row()
 
 
 if __name__ == "__main__":
