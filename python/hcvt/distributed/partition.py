@@ -7,16 +7,17 @@ run by :mod:`hcvt.distributed` as dask tasks; nothing imports dask. DESIGN §10:
   number of sites. The planes depend on the sites and the target only, never on the
   number of workers, and :meth:`KdSplit.locate` assigns any point to a part by position.
 - A :class:`Part` holds its sites with their rows in the whole problem, in increasing row
-  order, and per-row arrays (gradient, L-BFGS pairs, ...) that travel with the sites.
+  order (or along a Morton curve, :func:`along_curve`), and per-row arrays (gradient,
+  L-BFGS pairs, ...) that travel with the sites.
 - :func:`part_cells` computes a part's cells among its own sites and a halo of other
   parts' sites (:func:`halo_slice`) within a distance ``rho`` of its sites' box. The core
   reports each cell's *reach*: the cell is the single-process cell, bit for bit, whenever
   every site within that distance of its site is present (``clipped_cells`` in
   ``hcvt-core/src/diagram/mod.rs``). Cells whose reach the halo does not cover are
   computed again with a wider halo; none is assumed right.
-- Sums are taken per part with :func:`math.fsum` over the rows in row order, then over the
-  parts in part order (:mod:`hcvt.distributed`), so they do not depend on which worker did
-  what.
+- Sums are taken per part with :func:`math.fsum` (correctly rounded, so in any order),
+  then over the parts in part order (:mod:`hcvt.distributed`), so they do not depend on
+  which worker did what.
 """
 
 from __future__ import annotations
@@ -229,17 +230,21 @@ class Part:
     index : int
         Part number in the :class:`KdSplit`.
     rows : ndarray of int64, shape (k,)
-        Row of each site in the whole problem, increasing.
+        Row of each site in the whole problem, increasing unless ``along_curve``.
     sites : ndarray of float64, shape (k, d)
         The sites, L.
     fields : dict of str to ndarray
         Per-row arrays, first axis ``k`` (or, for L-BFGS pairs, shape (m, k, d)).
+    along_curve : bool
+        The rows are in :func:`spatial_order` of the sites (:func:`along_curve`): the
+        core's visiting order, so a part's cells come back in the part's order as they are.
     """
 
     index: int
     rows: NDArray[np.int64]
     sites: NDArray[np.float64]
     fields: dict[str, NDArray[Any]] = field(default_factory=dict)
+    along_curve: bool = False
 
     def box(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(lo, hi)`` of the sites, each shape (d,); empty part: an inverted box."""
@@ -260,6 +265,18 @@ def make_parts(sites: NDArray[np.float64], split: KdSplit) -> list[Part]:
     ]
 
 
+def along_curve(part: Part) -> Part:
+    """``part`` with its rows (sites, fields) in :func:`spatial_order`, the core's visit.
+
+    A diagram's parts are put so once, on their workers: the first round's cells then come
+    back from the core in the part's order, instead of being moved back into row order
+    (0.8 s of CPU per 1M cells, a fifth of a part's work, measured in-process).
+    """
+    order = spatial_order(part.sites)
+    fields = {k: (v[:, order] if k in ("s", "y") else v[order]) for k, v in part.fields.items()}
+    return Part(part.index, part.rows[order], part.sites[order], fields, along_curve=True)
+
+
 def halo_slice(
     part: Part, lo: NDArray[np.float64], hi: NDArray[np.float64], torus: Torus | None = None
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
@@ -276,7 +293,7 @@ def halo_slice(
 
 @dataclass
 class PartCells:
-    """A part's cells, one row per own site (row order of :attr:`Part.rows`).
+    """A part's cells, one row per own site (in the order of :attr:`Part.rows`).
 
     Attributes
     ----------
@@ -547,10 +564,17 @@ def part_cells(
     sites = np.concatenate([part.sites[present]] + [s for _, s in slices])
     order = np.argsort(rows, kind="stable")
     rows, sites = np.ascontiguousarray(rows[order]), np.ascontiguousarray(sites[order])
-    # Computed along a curve through space (cache), stored in row order.
-    visit = spatial_order(part.sites[todo])
-    # Looked up in row order (a cache-friendly search), then taken in the visit's order.
-    own = np.searchsorted(rows, part.rows[todo])[visit]
+    # Computed along a curve through space (cache), stored in the part's order: a part
+    # already along the curve is visited in its own order (nothing to put back).
+    in_place = part.along_curve and previous is None
+    visit = np.arange(len(todo)) if in_place else spatial_order(part.sites[todo])
+    if previous is None:
+        # Where each own site went in the sorted rows: it came first, in the part's order.
+        position = np.empty(len(order), dtype=np.intp)
+        position[order] = np.arange(len(order))
+        own = position[: len(todo)][visit]
+    else:
+        own = np.searchsorted(rows, part.rows[todo])[visit]
     # The core works in the domain's frame; a part's cells are kept in L.
     frame = domain.frame
     with frame.input_errors():
@@ -568,10 +592,9 @@ def part_cells(
     # Kept once: the energy is summed by the client, the gradient is -2 first but on the
     # sphere (the core's projection onto the tangent plane).
     dropped = ("energy",) if domain.is_sphere else ("energy", "gradient")
-    cells = _in_row_order(
-        {key: frame.to_input(key, value) for key, value in out.items() if key not in dropped},
-        visit,
-    )
+    cells = {key: frame.to_input(key, value) for key, value in out.items() if key not in dropped}
+    if not in_place:
+        cells = _in_row_order(cells, visit)
     reach = np.sqrt(frame.to_input("reach2", cells.pop("reach2")))
     # Halos and balls are about the sites wrapped into a periodic box (the core's reach is
     # about its site wrapped, among the images of the sites given).
@@ -610,7 +633,7 @@ def room_in_box(
 def _in_row_order(
     cells: dict[str, NDArray[Any]], visit: NDArray[np.intp]
 ) -> dict[str, NDArray[Any]]:
-    """The core's per-cell arrays, computed in the order ``visit``, in row order again.
+    """The core's per-cell arrays, computed in the order ``visit``, in the part's order again.
 
     Row ``j`` of ``cells`` is the cell ``visit[j]``; faces (CSR) move with their cell.
     """
