@@ -37,8 +37,10 @@ HALO_SPACINGS = {2: 3.0, 3: 4.0}
 #: ``WIDE_HALO_SHARE`` of the part's sites: a wider halo costs only its sites (indexed,
 #: not computed), while any cell it misses costs every part a second round (on 4M sites
 #: in 2 parts, 2,080 cells took a round of 5 s under load, mostly in moving the part's
-#: arrays). Measured on 1M uniform random sites, 2 parts: cells a halo of w spacings
-#: misses per part, w = 3: ~500, 5: 11-17, 8: 0-2, 12: 0 (two seeds).
+#: arrays). Measured on 1M uniform random sites in the unit square, 2 parts: cells a halo
+#: of w spacings misses per part, w = 3: 492-530, 5: 11-17, 8: 0-2, 12: 0 (two seeds);
+#: with the sides beyond every site freed (``sites_box`` of ``part_cells``), w = 3: 11-17,
+#: 5: 1-2, 8.8: 0 (one seed).
 WIDE_HALO_SPACINGS = 16.0
 WIDE_HALO_SHARE = 0.05
 
@@ -161,6 +163,15 @@ class _Cluster:
         torus = self.torus
         nonempty = [p for p in range(len(parts)) if counts[p] > 0]
         rho = {p: self.first_halo(counts[p]) for p in nonempty}
+        # The box of every site: a first halo's side beyond it needs no room.
+        sites_box = (
+            (
+                np.min([boxes[p][0] for p in nonempty], axis=0),
+                np.max([boxes[p][1] for p in nonempty], axis=0),
+            )
+            if nonempty and torus is None
+            else None
+        )
         cells: list[Any] = [self.submit(pt.empty_cells, self.domain.dim)] * len(parts)
         previous: dict[int, Any] = {}
         pending = list(nonempty)
@@ -195,6 +206,7 @@ class _Cluster:
                     previous.get(p),
                     self.allow_outside,
                     *slices,
+                    sites_box=sites_box,
                     **self.weighting,
                 )
             status = self.gather([self.submit(_status, cells[p]) for p in pending])

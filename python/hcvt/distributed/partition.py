@@ -526,6 +526,7 @@ def part_cells(
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
     weights: NDArray[np.float64] | None = None,
     power_whole: tuple[list[float], list[float], float] | None = None,
+    sites_box: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> PartCells:
     """The cells of ``part`` among its sites and ``slices`` of its neighbours' sites.
 
@@ -534,7 +535,10 @@ def part_cells(
     sites: a float (the slices are then the sites of other parts in ``part``'s box widened
     by ``cover``), or one radius per cell computed (the balls of ``previous.balls()``).
     A cell is certified when its reach stays inside that box (first round) or below its
-    radius (later rounds), or when every site of the problem is present.
+    radius (later rounds), or when every site of the problem is present. ``sites_box``,
+    the box ``(lo, hi)`` of every site of the problem (not in a periodic box), frees the
+    first round's box of its sides beyond it: no site lies there to be missed (a cell at
+    the domain's side may read far along it).
 
     Later rounds read only the part's own sites within the balls: every site within a
     cell's radius is then still present, and the core indexes a few thousand sites instead
@@ -603,7 +607,12 @@ def part_cells(
         certified = np.full(len(todo), True)
     elif previous is None:
         lo, hi = box_of(part, torus)
-        room = room_in_box(own_sites[todo], lo - cover, hi + cover)
+        lo, hi = lo - cover, hi + cover  # as the halo was selected: the same floats
+        if sites_box is not None and torus is None:
+            # A side at or beyond every site excludes none of them.
+            lo = np.where(lo <= sites_box[0], -np.inf, lo)
+            hi = np.where(hi >= sites_box[1], np.inf, hi)
+        room = room_in_box(own_sites[todo], lo, hi)
         certified = reach < COVER_FRACTION * room
     else:
         certified = reach < COVER_FRACTION * cover
