@@ -219,6 +219,11 @@ def test_kd_split_depends_on_the_data_only_and_locates_every_site():
         assert np.all(split.locate(p.sites) == p.index)
     again = pt.kd_split(sites.copy(), 700)
     assert np.array_equal(again.value, split.value)
+    # In one pass: the same planes and the same parts.
+    once, made = pt.split_parts(sites, 700)
+    assert np.array_equal(once.value, split.value) and once.parts == split.parts
+    for p, q in zip(made, parts, strict=True):
+        assert np.array_equal(p.rows, q.rows) and np.array_equal(p.sites, q.sites)
 
 
 def test_the_grid_finds_every_site_in_the_balls():

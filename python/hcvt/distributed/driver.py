@@ -481,7 +481,7 @@ def partitioned_voronoi(
         client, domain, len(points), allow_outside, density, quadrature_degree, power
     )
     split_at = time.perf_counter()
-    made = pt.make_parts(points, pt.kd_split(points, sites_per_partition))
+    _, made = pt.split_parts(points, sites_per_partition)
     known = [pt.box_of(p, cluster.torus) for p in made], [len(p.rows) for p in made]
     scatter_at = time.perf_counter()
     # Each worker puts its parts along the curve it visits them in (see pt.along_curve).

@@ -90,41 +90,73 @@ def kd_split(sites: NDArray[np.float64], target: int) -> KdSplit:
     their box (the next longer side when all share one coordinate there); the sites below
     it go left. Depends on the sites and ``target`` only.
     """
+    return _kd_build(sites, target)[0]
+
+
+def split_parts(sites: NDArray[np.float64], target: int) -> tuple[KdSplit, list[Part]]:
+    """:func:`kd_split` of ``sites`` and :func:`make_parts` under it, in one pass.
+
+    The rows of each part are those the split's recursion sent to its leaf (the same test
+    as :meth:`KdSplit.locate`), so no point is located again (on 4M sites the locating
+    and sorting took 0.5 of the client's 1.5 s of CPU).
+    """
+    split, leaves = _kd_build(sites, target)
+    return split, [Part(p, rows.astype(np.int64), sites[rows]) for p, rows in enumerate(leaves)]
+
+
+def _kd_build(sites: NDArray[np.float64], target: int) -> tuple[KdSplit, list[NDArray[np.intp]]]:
+    """:func:`kd_split` and the rows of each part, increasing."""
     if target < 1:
         raise ValueError(f"sites_per_partition must be >= 1, got {target}")
     axes: list[int] = []
     values: list[float] = []
     children: list[list[int]] = []
-    parts = 0
+    leaves: list[NDArray[np.intp]] = []
 
     def build(rows: NDArray[np.intp]) -> int:
-        nonlocal parts
-        plane = _median_plane(sites[rows]) if len(rows) > target else None
+        points = sites[rows] if len(rows) > target else None
+        plane = _median_plane(points) if points is not None else None
         if plane is None:
-            parts += 1
-            return -parts  # part parts - 1, as -1 - p
+            leaves.append(rows)
+            return -len(leaves)  # part len(leaves) - 1, as -1 - p
+        assert points is not None
         axis, value = plane
         node = len(axes)
         axes.append(axis)
         values.append(value)
         children.append([0, 0])
-        below = sites[rows, axis] < value
+        below = points[:, axis] < value
+        del points
         children[node][0] = build(rows[below])
         children[node][1] = build(rows[~below])
         return node
 
     build(np.arange(len(sites), dtype=np.intp))
-    return KdSplit(
+    split = KdSplit(
         axis=np.asarray(axes, dtype=np.intp),
         value=np.asarray(values, dtype=np.float64),
         children=np.asarray(children, dtype=np.intp).reshape(-1, 2),
-        parts=parts,
+        parts=len(leaves),
     )
+    return split, leaves
+
+
+def bounds(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(lo, hi)`` of ``points`` (m >= 1, d), each shape (d,): ``min``/``max`` over axis 0.
+
+    Column by column: numpy reduces a strided column of an (m, d) array with its
+    vectorised loop, 20x faster than ``points.min(axis=0)`` (4M 2D sites: 5 ms against
+    115 ms); the values are the same.
+    """
+    lo = np.array([points[:, k].min() for k in range(points.shape[1])])
+    hi = np.array([points[:, k].max() for k in range(points.shape[1])])
+    return lo, hi
 
 
 def _median_plane(points: NDArray[np.float64]) -> tuple[int, float] | None:
     """``(axis, value)`` splitting ``points`` in two non-empty halves, or None."""
-    extent = points.max(axis=0) - points.min(axis=0)
+    lo, hi = bounds(points)
+    extent = hi - lo
     for axis in np.argsort(-extent, kind="stable"):
         coords = points[:, axis]
         # The element a sort would put in the middle, found in linear time.
@@ -218,7 +250,7 @@ def box_of(part: Part, torus: Torus | None) -> tuple[NDArray[np.float64], NDArra
     if torus is None or len(part.sites) == 0:
         return part.box()
     wrapped = torus.wrap(part.sites)
-    return wrapped.min(axis=0), wrapped.max(axis=0)
+    return bounds(wrapped)
 
 
 @dataclass
@@ -251,17 +283,17 @@ class Part:
         if len(self.sites) == 0:
             d = self.sites.shape[1]
             return np.full(d, np.inf), np.full(d, -np.inf)
-        return self.sites.min(axis=0), self.sites.max(axis=0)
+        return bounds(self.sites)
 
 
 def make_parts(sites: NDArray[np.float64], split: KdSplit) -> list[Part]:
     """The parts of ``sites`` (n, d) under ``split``, rows in increasing order."""
     where = split.locate(sites)
     order = np.argsort(where, kind="stable")
-    bounds = np.searchsorted(where[order], np.arange(split.parts + 1))
+    ends = np.searchsorted(where[order], np.arange(split.parts + 1))
     return [
         Part(p, order[a:b].astype(np.int64), sites[order[a:b]])
-        for p, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True))
+        for p, (a, b) in enumerate(zip(ends[:-1], ends[1:], strict=True))
     ]
 
 
@@ -467,7 +499,7 @@ def spatial_order(points: NDArray[np.float64]) -> NDArray[np.intp]:
     m, d = points.shape
     if m < 2:
         return np.arange(m, dtype=np.intp)
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    lo, hi = bounds(points)
     bits = min(int(math.log2(m)) // d + 3, 63 // d)
     extent = np.maximum(hi - lo, np.finfo(np.float64).tiny)
     cell = ((points - lo) / extent * ((1 << bits) - 1)).astype(np.uint64)
