@@ -66,6 +66,9 @@ class Rounds:
     cells: list[int] = field(default_factory=list)
     halo: list[int] = field(default_factory=list)
     seconds: list[float] = field(default_factory=list)
+    #: Energy, sum of G and non-empty cells of each part (``_energy_partial``), taken with
+    #: the part's last status when :meth:`_Cluster.cells` is asked for them, else empty.
+    partials: list[tuple[float, float, int]] = field(default_factory=list)
 
 
 class _Cluster:
@@ -151,12 +154,16 @@ class _Cluster:
         return max(HALO_SPACINGS[d], min(WIDE_HALO_SPACINGS, share)) * self.h
 
     def cells(
-        self, parts: list[Any], known: tuple[list[Any], list[int]] | None = None
+        self,
+        parts: list[Any],
+        known: tuple[list[Any], list[int]] | None = None,
+        partials: bool = False,
     ) -> tuple[list[Any], Rounds]:
         """The certified cells of every part (futures of :class:`PartCells`).
 
         ``known``: the boxes (:func:`pt.box_of`) and site counts of the parts when the
-        client has them (else asked of the workers).
+        client has them (else asked of the workers). ``partials``: fill
+        ``Rounds.partials`` from each part's last status (no round trip of their own).
         """
         boxes, counts = known if known is not None else self.boxes(parts)
         reach_boxes = list(boxes)  # boxes stays the box of each part's sites
@@ -177,6 +184,7 @@ class _Cluster:
         pending = list(nonempty)
         rounds = Rounds()
         balls: dict[int, Any] = {}
+        done: dict[int, tuple[float, float, int]] = {}
         while pending:
             start = time.perf_counter()
             for p in pending:
@@ -209,7 +217,8 @@ class _Cluster:
                     sites_box=sites_box,
                     **self.weighting,
                 )
-            status = self.gather([self.submit(_status, cells[p]) for p in pending])
+            report = _status_and_partial if partials else _status
+            status = self.gather([self.submit(report, cells[p]) for p in pending])
             rounds.cells.append(sum(s.computed for s in status))
             rounds.halo.append(sum(s.halo for s in status))
             rounds.seconds.append(time.perf_counter() - start)
@@ -217,12 +226,16 @@ class _Cluster:
             for p, s in zip(pending, status, strict=True):
                 # The last round's result of p is now in cells[p]: let the worker drop it.
                 previous.pop(p, None)
+                if s.partial is not None:
+                    done[p] = s.partial
                 if s.uncertified:
                     previous[p] = cells[p]
                     balls[p] = self.submit(_balls, cells[p])
                     reach_boxes[p], rho[p] = (s.lo, s.hi), 0.0
                     still.append(p)
             pending = still
+        if partials:
+            rounds.partials = [done.get(p, (0.0, 0.0, 0)) for p in range(len(parts))]
         return cells, rounds
 
 
@@ -261,6 +274,14 @@ def _meets(
 
 def _status(cells: pt.PartCells) -> pt.Status:
     return cells.status()
+
+
+def _status_and_partial(cells: pt.PartCells) -> pt.Status:
+    """The status, with the energy partial of a part whose cells are all certified."""
+    status = cells.status()
+    if not status.uncertified:
+        status.partial = _energy_partial(cells)
+    return status
 
 
 def _balls(cells: pt.PartCells) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -336,7 +357,9 @@ class PartitionedDiagram:
         self.piece_rounds: list[int] = []
         self.n = cluster.n
         self.parts = len(parts)
-        sums = cluster.gather([cluster.submit(_energy_partial, c) for c in cells])
+        sums = rounds.partials or cluster.gather(
+            [cluster.submit(_energy_partial, c) for c in cells]
+        )
         self.energy = math.fsum(s[0] for s in sums)
         count = sum(s[2] for s in sums)
         self.mean_G = math.fsum(s[1] for s in sums) / max(count, 1)
@@ -491,7 +514,7 @@ def partitioned_voronoi(
         "split": scatter_at - split_at,
         "scatter": (split_at - start) + (time.perf_counter() - scatter_at),
     }
-    cells, rounds = cluster.cells(parts, known)
+    cells, rounds = cluster.cells(parts, known, partials=True)
     return PartitionedDiagram(cluster, parts, cells, rounds, timings)
 
 

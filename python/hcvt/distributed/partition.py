@@ -384,6 +384,8 @@ class Status:
     halo: int
     lo: NDArray[np.float64] | None
     hi: NDArray[np.float64] | None
+    #: Energy, sum of G and non-empty cells, once every cell is certified (if asked).
+    partial: tuple[float, float, int] | None = None
 
 
 def empty_cells(d: int) -> PartCells:
