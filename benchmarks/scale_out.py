@@ -284,6 +284,7 @@ def ratio_case(args: argparse.Namespace) -> None:
                 f"CPU seconds {children_cpu() - cpu:.2f} (with making the sites)"
             )
             parted.append(partitioned_turn(client, domain, points, per_part)[0])
+            print(f"  ratio this turn, partitioned / single cells/s: {seconds / parted[-1]:.2f}")
     finally:
         client.close()
         cl.close()

@@ -127,6 +127,60 @@ def test_halo_too_thin_for_some_cells_is_grown_for_them_only(holes):
     assert np.array_equal(again.arrays["neighbor_offsets"], _local_offsets(expected, part.rows))
 
 
+def test_a_part_along_the_curve_has_its_cells_in_its_own_order(holes):
+    """A part put along the Morton curve (as a diagram's parts are on their workers) gets
+    its cells from the core in its own order, unmoved: each is the single-process cell of
+    its row, faces (CSR) included."""
+    domain, sites = holes
+    expected = hcvt.voronoi(domain, sites)
+    parts = pt.make_parts(sites, pt.kd_split(sites, 1000))
+    part = pt.along_curve(parts[1])
+    assert part.along_curve and not np.all(np.diff(part.rows) > 0)
+    assert np.array_equal(np.sort(part.rows), parts[1].rows)
+    h = (domain.volume / len(sites)) ** 0.5
+    lo, hi = part.box()
+    slices = [pt.halo_slice(q, lo - 30 * h, hi + 30 * h) for q in parts if q.index != 1]
+    cells = pt.part_cells(domain, part, 30 * h, len(sites), None, False, *slices)
+    assert cells.certified.all()
+    for key in ("volume", "G", "centroid"):
+        assert np.array_equal(cells.arrays[key], getattr(expected, key)[part.rows])
+    assert np.array_equal(cells.arrays["neighbor_offsets"], _local_offsets(expected, part.rows))
+    faces = np.concatenate(
+        [
+            expected.neighbor_sites[a:b]
+            for a, b in zip(
+                expected.neighbor_offsets[part.rows],
+                expected.neighbor_offsets[part.rows + 1],
+                strict=True,
+            )
+        ]
+    )
+    assert np.array_equal(cells.arrays["neighbor_sites"], faces)
+
+
+def test_a_halo_side_beyond_every_site_needs_no_room(holes):
+    """Told the box of every site, a first round certifies the cells whose reach crosses
+    only sides of the halo box beyond it (where no site can be missed): fewer cells go
+    again, and every certified cell is the single-process one."""
+    domain, sites = holes
+    expected = hcvt.voronoi(domain, sites)
+    parts = pt.make_parts(sites, pt.kd_split(sites, 1000))
+    h = (domain.volume / len(sites)) ** 0.5
+    box = (sites.min(axis=0), sites.max(axis=0))
+    fewer = 0
+    for part in parts:
+        lo, hi = part.box()
+        slices = [pt.halo_slice(q, lo - h, hi + h) for q in parts if q.index != part.index]
+        plain = pt.part_cells(domain, part, h, len(sites), None, False, *slices)
+        freed = pt.part_cells(domain, part, h, len(sites), None, False, *slices, sites_box=box)
+        assert np.all(freed.certified[plain.certified])  # never fewer certified
+        fewer += int(freed.certified.sum() - plain.certified.sum())
+        rows = part.rows[freed.certified]
+        assert np.array_equal(freed.arrays["volume"][freed.certified], expected.volume[rows])
+        assert np.array_equal(freed.arrays["G"][freed.certified], expected.G[rows])
+    assert fewer > 0
+
+
 @pytest.mark.parametrize("name", ["square", "star5.geojson"])
 def test_no_cell_reaches_across_the_domain(name):
     """Every 2D cell's reach, the distance within which it read sites, stays a few
@@ -165,6 +219,11 @@ def test_kd_split_depends_on_the_data_only_and_locates_every_site():
         assert np.all(split.locate(p.sites) == p.index)
     again = pt.kd_split(sites.copy(), 700)
     assert np.array_equal(again.value, split.value)
+    # In one pass: the same planes and the same parts.
+    once, made = pt.split_parts(sites, 700)
+    assert np.array_equal(once.value, split.value) and once.parts == split.parts
+    for p, q in zip(made, parts, strict=True):
+        assert np.array_equal(p.rows, q.rows) and np.array_equal(p.sites, q.sites)
 
 
 def test_the_grid_finds_every_site_in_the_balls():

@@ -33,6 +33,16 @@ DEFAULT_SITES_PER_PARTITION = 200_000
 #: in the bunny median 2.3 h, interior cells below 3.5 h, boundary cells median 4.2 h.
 #: The few cells beyond go again among a ball past their own reach.
 HALO_SPACINGS = {2: 3.0, 3: 4.0}
+#: A large part's first halo is widened up to this many spacings while it holds at most
+#: ``WIDE_HALO_SHARE`` of the part's sites: a wider halo costs only its sites (indexed,
+#: not computed), while any cell it misses costs every part a second round (on 4M sites
+#: in 2 parts, 2,080 cells took a round of 5 s under load, mostly in moving the part's
+#: arrays). Measured on 1M uniform random sites in the unit square, 2 parts: cells a halo
+#: of w spacings misses per part, w = 3: 492-530, 5: 11-17, 8: 0-2, 12: 0 (two seeds);
+#: with the sides beyond every site freed (``sites_box`` of ``part_cells``), w = 3: 11-17,
+#: 5: 1-2, 8.8: 0 (one seed).
+WIDE_HALO_SPACINGS = 16.0
+WIDE_HALO_SHARE = 0.05
 
 #: Extra first-halo width of a mesh piece, in spacings (PartitionedDiagram.write_cells).
 RING_SPACINGS = 2.0
@@ -56,6 +66,9 @@ class Rounds:
     cells: list[int] = field(default_factory=list)
     halo: list[int] = field(default_factory=list)
     seconds: list[float] = field(default_factory=list)
+    #: Energy, sum of G and non-empty cells of each part (``_energy_partial``), taken with
+    #: the part's last status when :meth:`_Cluster.cells` is asked for them, else empty.
+    partials: list[tuple[float, float, int]] = field(default_factory=list)
 
 
 class _Cluster:
@@ -129,18 +142,49 @@ class _Cluster:
         info = self.gather([self.submit(_box_and_count, p, self.torus) for p in parts])
         return [b for b, _ in info], [c for _, c in info]
 
-    def cells(self, parts: list[Any]) -> tuple[list[Any], Rounds]:
-        """The certified cells of every part (futures of :class:`PartCells`)."""
-        boxes, counts = self.boxes(parts)
+    def first_halo(self, sites: int) -> float:
+        """Width of the first halo of a part of ``sites`` sites, L.
+
+        ``HALO_SPACINGS`` spacings, widened for a large part up to ``WIDE_HALO_SPACINGS``
+        as long as its faces' halo (``2 d w`` spacings thick over a side of ``k^(1/d)``
+        spacings, relative to the part) stays below ``WIDE_HALO_SHARE`` of its sites.
+        """
+        d = self.domain.cell_dim
+        share = WIDE_HALO_SHARE * sites ** (1.0 / d) / (2 * d)
+        return max(HALO_SPACINGS[d], min(WIDE_HALO_SPACINGS, share)) * self.h
+
+    def cells(
+        self,
+        parts: list[Any],
+        known: tuple[list[Any], list[int]] | None = None,
+        partials: bool = False,
+    ) -> tuple[list[Any], Rounds]:
+        """The certified cells of every part (futures of :class:`PartCells`).
+
+        ``known``: the boxes (:func:`pt.box_of`) and site counts of the parts when the
+        client has them (else asked of the workers). ``partials``: fill
+        ``Rounds.partials`` from each part's last status (no round trip of their own).
+        """
+        boxes, counts = known if known is not None else self.boxes(parts)
         reach_boxes = list(boxes)  # boxes stays the box of each part's sites
         torus = self.torus
         nonempty = [p for p in range(len(parts)) if counts[p] > 0]
-        rho = {p: HALO_SPACINGS[self.domain.cell_dim] * self.h for p in nonempty}
+        rho = {p: self.first_halo(counts[p]) for p in nonempty}
+        # The box of every site: a first halo's side beyond it needs no room.
+        sites_box = (
+            (
+                np.min([boxes[p][0] for p in nonempty], axis=0),
+                np.max([boxes[p][1] for p in nonempty], axis=0),
+            )
+            if nonempty and torus is None
+            else None
+        )
         cells: list[Any] = [self.submit(pt.empty_cells, self.domain.dim)] * len(parts)
         previous: dict[int, Any] = {}
         pending = list(nonempty)
         rounds = Rounds()
         balls: dict[int, Any] = {}
+        done: dict[int, tuple[float, float, int]] = {}
         while pending:
             start = time.perf_counter()
             for p in pending:
@@ -170,9 +214,11 @@ class _Cluster:
                     previous.get(p),
                     self.allow_outside,
                     *slices,
+                    sites_box=sites_box,
                     **self.weighting,
                 )
-            status = self.gather([self.submit(_status, cells[p]) for p in pending])
+            report = _status_and_partial if partials else _status
+            status = self.gather([self.submit(report, cells[p]) for p in pending])
             rounds.cells.append(sum(s.computed for s in status))
             rounds.halo.append(sum(s.halo for s in status))
             rounds.seconds.append(time.perf_counter() - start)
@@ -180,12 +226,16 @@ class _Cluster:
             for p, s in zip(pending, status, strict=True):
                 # The last round's result of p is now in cells[p]: let the worker drop it.
                 previous.pop(p, None)
+                if s.partial is not None:
+                    done[p] = s.partial
                 if s.uncertified:
                     previous[p] = cells[p]
                     balls[p] = self.submit(_balls, cells[p])
                     reach_boxes[p], rho[p] = (s.lo, s.hi), 0.0
                     still.append(p)
             pending = still
+        if partials:
+            rounds.partials = [done.get(p, (0.0, 0.0, 0)) for p in range(len(parts))]
         return cells, rounds
 
 
@@ -224,6 +274,14 @@ def _meets(
 
 def _status(cells: pt.PartCells) -> pt.Status:
     return cells.status()
+
+
+def _status_and_partial(cells: pt.PartCells) -> pt.Status:
+    """The status, with the energy partial of a part whose cells are all certified."""
+    status = cells.status()
+    if not status.uncertified:
+        status.partial = _energy_partial(cells)
+    return status
 
 
 def _balls(cells: pt.PartCells) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -299,7 +357,9 @@ class PartitionedDiagram:
         self.piece_rounds: list[int] = []
         self.n = cluster.n
         self.parts = len(parts)
-        sums = cluster.gather([cluster.submit(_energy_partial, c) for c in cells])
+        sums = rounds.partials or cluster.gather(
+            [cluster.submit(_energy_partial, c) for c in cells]
+        )
         self.energy = math.fsum(s[0] for s in sums)
         count = sum(s[2] for s in sums)
         self.mean_G = math.fsum(s[1] for s in sums) / max(count, 1)
@@ -444,15 +504,17 @@ def partitioned_voronoi(
         client, domain, len(points), allow_outside, density, quadrature_degree, power
     )
     split_at = time.perf_counter()
-    made = pt.make_parts(points, pt.kd_split(points, sites_per_partition))
+    _, made = pt.split_parts(points, sites_per_partition)
+    known = [pt.box_of(p, cluster.torus) for p in made], [len(p.rows) for p in made]
     scatter_at = time.perf_counter()
-    parts = client.scatter(made, hash=False)
+    # Each worker puts its parts along the curve it visits them in (see pt.along_curve).
+    parts = [cluster.submit(pt.along_curve, p) for p in client.scatter(made, hash=False)]
     del made
     timings = {
         "split": scatter_at - split_at,
         "scatter": (split_at - start) + (time.perf_counter() - scatter_at),
     }
-    cells, rounds = cluster.cells(parts)
+    cells, rounds = cluster.cells(parts, known, partials=True)
     return PartitionedDiagram(cluster, parts, cells, rounds, timings)
 
 

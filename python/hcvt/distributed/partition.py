@@ -7,16 +7,17 @@ run by :mod:`hcvt.distributed` as dask tasks; nothing imports dask. DESIGN §10:
   number of sites. The planes depend on the sites and the target only, never on the
   number of workers, and :meth:`KdSplit.locate` assigns any point to a part by position.
 - A :class:`Part` holds its sites with their rows in the whole problem, in increasing row
-  order, and per-row arrays (gradient, L-BFGS pairs, ...) that travel with the sites.
+  order (or along a Morton curve, :func:`along_curve`), and per-row arrays (gradient,
+  L-BFGS pairs, ...) that travel with the sites.
 - :func:`part_cells` computes a part's cells among its own sites and a halo of other
   parts' sites (:func:`halo_slice`) within a distance ``rho`` of its sites' box. The core
   reports each cell's *reach*: the cell is the single-process cell, bit for bit, whenever
   every site within that distance of its site is present (``clipped_cells`` in
   ``hcvt-core/src/diagram/mod.rs``). Cells whose reach the halo does not cover are
   computed again with a wider halo; none is assumed right.
-- Sums are taken per part with :func:`math.fsum` over the rows in row order, then over the
-  parts in part order (:mod:`hcvt.distributed`), so they do not depend on which worker did
-  what.
+- Sums are taken per part with :func:`math.fsum` (correctly rounded, so in any order),
+  then over the parts in part order (:mod:`hcvt.distributed`), so they do not depend on
+  which worker did what.
 """
 
 from __future__ import annotations
@@ -89,41 +90,73 @@ def kd_split(sites: NDArray[np.float64], target: int) -> KdSplit:
     their box (the next longer side when all share one coordinate there); the sites below
     it go left. Depends on the sites and ``target`` only.
     """
+    return _kd_build(sites, target)[0]
+
+
+def split_parts(sites: NDArray[np.float64], target: int) -> tuple[KdSplit, list[Part]]:
+    """:func:`kd_split` of ``sites`` and :func:`make_parts` under it, in one pass.
+
+    The rows of each part are those the split's recursion sent to its leaf (the same test
+    as :meth:`KdSplit.locate`), so no point is located again (on 4M sites the locating
+    and sorting took 0.5 of the client's 1.5 s of CPU).
+    """
+    split, leaves = _kd_build(sites, target)
+    return split, [Part(p, rows.astype(np.int64), sites[rows]) for p, rows in enumerate(leaves)]
+
+
+def _kd_build(sites: NDArray[np.float64], target: int) -> tuple[KdSplit, list[NDArray[np.intp]]]:
+    """:func:`kd_split` and the rows of each part, increasing."""
     if target < 1:
         raise ValueError(f"sites_per_partition must be >= 1, got {target}")
     axes: list[int] = []
     values: list[float] = []
     children: list[list[int]] = []
-    parts = 0
+    leaves: list[NDArray[np.intp]] = []
 
     def build(rows: NDArray[np.intp]) -> int:
-        nonlocal parts
-        plane = _median_plane(sites[rows]) if len(rows) > target else None
+        points = sites[rows] if len(rows) > target else None
+        plane = _median_plane(points) if points is not None else None
         if plane is None:
-            parts += 1
-            return -parts  # part parts - 1, as -1 - p
+            leaves.append(rows)
+            return -len(leaves)  # part len(leaves) - 1, as -1 - p
+        assert points is not None
         axis, value = plane
         node = len(axes)
         axes.append(axis)
         values.append(value)
         children.append([0, 0])
-        below = sites[rows, axis] < value
+        below = points[:, axis] < value
+        del points
         children[node][0] = build(rows[below])
         children[node][1] = build(rows[~below])
         return node
 
     build(np.arange(len(sites), dtype=np.intp))
-    return KdSplit(
+    split = KdSplit(
         axis=np.asarray(axes, dtype=np.intp),
         value=np.asarray(values, dtype=np.float64),
         children=np.asarray(children, dtype=np.intp).reshape(-1, 2),
-        parts=parts,
+        parts=len(leaves),
     )
+    return split, leaves
+
+
+def bounds(points: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``(lo, hi)`` of ``points`` (m >= 1, d), each shape (d,): ``min``/``max`` over axis 0.
+
+    Column by column: numpy reduces a strided column of an (m, d) array with its
+    vectorised loop, 20x faster than ``points.min(axis=0)`` (4M 2D sites: 5 ms against
+    115 ms); the values are the same.
+    """
+    lo = np.array([points[:, k].min() for k in range(points.shape[1])])
+    hi = np.array([points[:, k].max() for k in range(points.shape[1])])
+    return lo, hi
 
 
 def _median_plane(points: NDArray[np.float64]) -> tuple[int, float] | None:
     """``(axis, value)`` splitting ``points`` in two non-empty halves, or None."""
-    extent = points.max(axis=0) - points.min(axis=0)
+    lo, hi = bounds(points)
+    extent = hi - lo
     for axis in np.argsort(-extent, kind="stable"):
         coords = points[:, axis]
         # The element a sort would put in the middle, found in linear time.
@@ -217,7 +250,7 @@ def box_of(part: Part, torus: Torus | None) -> tuple[NDArray[np.float64], NDArra
     if torus is None or len(part.sites) == 0:
         return part.box()
     wrapped = torus.wrap(part.sites)
-    return wrapped.min(axis=0), wrapped.max(axis=0)
+    return bounds(wrapped)
 
 
 @dataclass
@@ -229,35 +262,51 @@ class Part:
     index : int
         Part number in the :class:`KdSplit`.
     rows : ndarray of int64, shape (k,)
-        Row of each site in the whole problem, increasing.
+        Row of each site in the whole problem, increasing unless ``along_curve``.
     sites : ndarray of float64, shape (k, d)
         The sites, L.
     fields : dict of str to ndarray
         Per-row arrays, first axis ``k`` (or, for L-BFGS pairs, shape (m, k, d)).
+    along_curve : bool
+        The rows are in :func:`spatial_order` of the sites (:func:`along_curve`): the
+        core's visiting order, so a part's cells come back in the part's order as they are.
     """
 
     index: int
     rows: NDArray[np.int64]
     sites: NDArray[np.float64]
     fields: dict[str, NDArray[Any]] = field(default_factory=dict)
+    along_curve: bool = False
 
     def box(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """``(lo, hi)`` of the sites, each shape (d,); empty part: an inverted box."""
         if len(self.sites) == 0:
             d = self.sites.shape[1]
             return np.full(d, np.inf), np.full(d, -np.inf)
-        return self.sites.min(axis=0), self.sites.max(axis=0)
+        return bounds(self.sites)
 
 
 def make_parts(sites: NDArray[np.float64], split: KdSplit) -> list[Part]:
     """The parts of ``sites`` (n, d) under ``split``, rows in increasing order."""
     where = split.locate(sites)
     order = np.argsort(where, kind="stable")
-    bounds = np.searchsorted(where[order], np.arange(split.parts + 1))
+    ends = np.searchsorted(where[order], np.arange(split.parts + 1))
     return [
         Part(p, order[a:b].astype(np.int64), sites[order[a:b]])
-        for p, (a, b) in enumerate(zip(bounds[:-1], bounds[1:], strict=True))
+        for p, (a, b) in enumerate(zip(ends[:-1], ends[1:], strict=True))
     ]
+
+
+def along_curve(part: Part) -> Part:
+    """``part`` with its rows (sites, fields) in :func:`spatial_order`, the core's visit.
+
+    A diagram's parts are put so once, on their workers: the first round's cells then come
+    back from the core in the part's order, instead of being moved back into row order
+    (0.8 s of CPU per 1M cells, a fifth of a part's work, measured in-process).
+    """
+    order = spatial_order(part.sites)
+    fields = {k: (v[:, order] if k in ("s", "y") else v[order]) for k, v in part.fields.items()}
+    return Part(part.index, part.rows[order], part.sites[order], fields, along_curve=True)
 
 
 def halo_slice(
@@ -276,7 +325,7 @@ def halo_slice(
 
 @dataclass
 class PartCells:
-    """A part's cells, one row per own site (row order of :attr:`Part.rows`).
+    """A part's cells, one row per own site (in the order of :attr:`Part.rows`).
 
     Attributes
     ----------
@@ -335,6 +384,8 @@ class Status:
     halo: int
     lo: NDArray[np.float64] | None
     hi: NDArray[np.float64] | None
+    #: Energy, sum of G and non-empty cells, once every cell is certified (if asked).
+    partial: tuple[float, float, int] | None = None
 
 
 def empty_cells(d: int) -> PartCells:
@@ -450,7 +501,7 @@ def spatial_order(points: NDArray[np.float64]) -> NDArray[np.intp]:
     m, d = points.shape
     if m < 2:
         return np.arange(m, dtype=np.intp)
-    lo, hi = points.min(axis=0), points.max(axis=0)
+    lo, hi = bounds(points)
     bits = min(int(math.log2(m)) // d + 3, 63 // d)
     extent = np.maximum(hi - lo, np.finfo(np.float64).tiny)
     cell = ((points - lo) / extent * ((1 << bits) - 1)).astype(np.uint64)
@@ -509,6 +560,7 @@ def part_cells(
     quadrature_degree: int = DEFAULT_QUADRATURE_DEGREE,
     weights: NDArray[np.float64] | None = None,
     power_whole: tuple[list[float], list[float], float] | None = None,
+    sites_box: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> PartCells:
     """The cells of ``part`` among its sites and ``slices`` of its neighbours' sites.
 
@@ -517,7 +569,10 @@ def part_cells(
     sites: a float (the slices are then the sites of other parts in ``part``'s box widened
     by ``cover``), or one radius per cell computed (the balls of ``previous.balls()``).
     A cell is certified when its reach stays inside that box (first round) or below its
-    radius (later rounds), or when every site of the problem is present.
+    radius (later rounds), or when every site of the problem is present. ``sites_box``,
+    the box ``(lo, hi)`` of every site of the problem (not in a periodic box), frees the
+    first round's box of its sides beyond it: no site lies there to be missed (a cell at
+    the domain's side may read far along it).
 
     Later rounds read only the part's own sites within the balls: every site within a
     cell's radius is then still present, and the core indexes a few thousand sites instead
@@ -547,10 +602,17 @@ def part_cells(
     sites = np.concatenate([part.sites[present]] + [s for _, s in slices])
     order = np.argsort(rows, kind="stable")
     rows, sites = np.ascontiguousarray(rows[order]), np.ascontiguousarray(sites[order])
-    # Computed along a curve through space (cache), stored in row order.
-    visit = spatial_order(part.sites[todo])
-    # Looked up in row order (a cache-friendly search), then taken in the visit's order.
-    own = np.searchsorted(rows, part.rows[todo])[visit]
+    # Computed along a curve through space (cache), stored in the part's order: a part
+    # already along the curve is visited in its own order (nothing to put back).
+    in_place = part.along_curve and previous is None
+    visit = np.arange(len(todo)) if in_place else spatial_order(part.sites[todo])
+    if previous is None:
+        # Where each own site went in the sorted rows: it came first, in the part's order.
+        position = np.empty(len(order), dtype=np.intp)
+        position[order] = np.arange(len(order))
+        own = position[: len(todo)][visit]
+    else:
+        own = np.searchsorted(rows, part.rows[todo])[visit]
     # The core works in the domain's frame; a part's cells are kept in L.
     frame = domain.frame
     with frame.input_errors():
@@ -568,10 +630,9 @@ def part_cells(
     # Kept once: the energy is summed by the client, the gradient is -2 first but on the
     # sphere (the core's projection onto the tangent plane).
     dropped = ("energy",) if domain.is_sphere else ("energy", "gradient")
-    cells = _in_row_order(
-        {key: frame.to_input(key, value) for key, value in out.items() if key not in dropped},
-        visit,
-    )
+    cells = {key: frame.to_input(key, value) for key, value in out.items() if key not in dropped}
+    if not in_place:
+        cells = _in_row_order(cells, visit)
     reach = np.sqrt(frame.to_input("reach2", cells.pop("reach2")))
     # Halos and balls are about the sites wrapped into a periodic box (the core's reach is
     # about its site wrapped, among the images of the sites given).
@@ -580,7 +641,12 @@ def part_cells(
         certified = np.full(len(todo), True)
     elif previous is None:
         lo, hi = box_of(part, torus)
-        room = room_in_box(own_sites[todo], lo - cover, hi + cover)
+        lo, hi = lo - cover, hi + cover  # as the halo was selected: the same floats
+        if sites_box is not None and torus is None:
+            # A side at or beyond every site excludes none of them.
+            lo = np.where(lo <= sites_box[0], -np.inf, lo)
+            hi = np.where(hi >= sites_box[1], np.inf, hi)
+        room = room_in_box(own_sites[todo], lo, hi)
         certified = reach < COVER_FRACTION * room
     else:
         certified = reach < COVER_FRACTION * cover
@@ -610,7 +676,7 @@ def room_in_box(
 def _in_row_order(
     cells: dict[str, NDArray[Any]], visit: NDArray[np.intp]
 ) -> dict[str, NDArray[Any]]:
-    """The core's per-cell arrays, computed in the order ``visit``, in row order again.
+    """The core's per-cell arrays, computed in the order ``visit``, in the part's order again.
 
     Row ``j`` of ``cells`` is the cell ``visit[j]``; faces (CSR) move with their cell.
     """
