@@ -34,6 +34,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import hcvt
 from hcvt.geometry import shapes
@@ -46,18 +47,34 @@ def _ball() -> hcvt.Domain:
     return hcvt.load_domain(DATA / "3d" / "sphere.ply")
 
 
-CASES: dict[str, tuple[Callable[[], hcvt.Domain], int]] = {
-    "square1k": (shapes.square, 1_000),
-    "square5k": (shapes.square, 5_000),
-    "star2k": (shapes.star, 2_000),
-    "star10k": (shapes.star, 10_000),
-    "ball1k": (_ball, 1_000),
-    "ball5k": (_ball, 5_000),
+# Case: domain, sites, the paper's Table 8 "Standard" seconds (as in benchmarks/cvt.py).
+CASES: dict[str, tuple[Callable[[], hcvt.Domain], int, float]] = {
+    "square1k": (shapes.square, 1_000, 2.84),
+    "square5k": (shapes.square, 5_000, 10.85),
+    "star2k": (shapes.star, 2_000, 3.56),
+    "star10k": (shapes.star, 10_000, 26.94),
+    "ball1k": (_ball, 1_000, 521.86),
+    "ball5k": (_ball, 5_000, 1484.69),
 }
 
 
-def run(domain: hcvt.Domain, sites, variant: str) -> tuple[int, int, float, bool]:
-    """One Newton CVT: diagrams, CG iterations (from the core's debug lines), seconds, converged."""
+class Run(NamedTuple):
+    """One Newton CVT's counts.
+
+    Diagrams, CG iterations, seconds, converged, seconds in CG and in trial diagrams (CG and
+    the two shares from the core's debug lines; 0 without them).
+    """
+
+    diagrams: int
+    cg: int
+    seconds: float
+    converged: bool
+    cg_seconds: float
+    trial_seconds: float
+
+
+def run(domain: hcvt.Domain, sites, variant: str) -> Run:
+    """One Newton CVT from ``sites`` with the flags ``variant``."""
     os.environ["HCVT_NEWTON_VARIANT"] = "" if variant == "base" else variant
     os.environ["HCVT_NEWTON_DEBUG"] = "1"
     with tempfile.TemporaryFile(mode="w+") as log:
@@ -71,8 +88,11 @@ def run(domain: hcvt.Domain, sites, variant: str) -> tuple[int, int, float, bool
             os.dup2(saved, 2)
             os.close(saved)
         log.seek(0)
-        cg = sum(int(m) for m in re.findall(r"cg=(\d+)", log.read()))
-    return res.evaluations, cg, seconds, res.converged
+        text = log.read()
+    cg = sum(int(m) for m in re.findall(r"cg=(\d+)", text))
+    t_cg = sum(float(m) for m in re.findall(r"t_cg=([0-9.e+-]+)", text))
+    t_eval = sum(float(m) for m in re.findall(r"t_eval=([0-9.e+-]+)", text))
+    return Run(res.evaluations, cg, seconds, res.converged, t_cg, t_eval)
 
 
 def main() -> None:
@@ -88,25 +108,38 @@ def main() -> None:
     )
     print(
         f"{'case':<10}{'variant':<22}{'diagrams':>9}{'min':>6}{'max':>6}{'CG/diagram':>11}"
-        f"{'ms/diagram':>11}{'ratio':>7}"
+        f"{'ms/diagram':>11}{'ratio':>7}{'seconds':>9}{'x paper':>8}{'CG %':>6}{'diag %':>7}"
+        f"{'paired':>7}"
     )
     for case in args.cases:
-        make, n = CASES[case]
+        make, n, paper = CASES[case]
         domain = make()
         starts = [hcvt.initialise(domain, n, method="random", seed=k) for k in range(args.seeds)]
         base = None
+        base_diagrams: list[int] = []
         for variant in args.variants:
             runs = [run(domain, s, variant) for s in starts]
-            diagrams = [r[0] for r in runs]
+            diagrams = [r.diagrams for r in runs]
+            base_diagrams = base_diagrams or diagrams
+            # Seed by seed against the first variant: the spread between seeds (2x) is
+            # larger than most differences between variants.
+            paired = statistics.median(d / b for d, b in zip(diagrams, base_diagrams, strict=True))
             median = statistics.median(diagrams)
             base = base or median
-            cg_total = sum(r[1] for r in runs)
+            cg_total = sum(r.cg for r in runs)
             cg = f"{cg_total / sum(diagrams):.1f}" if cg_total else "-"
-            ms = 1e3 * statistics.median(r[2] / r[0] for r in runs)
-            failed = sum(not r[3] for r in runs)
+            ms = 1e3 * statistics.median(r.seconds / r.diagrams for r in runs)
+            seconds = statistics.median(r.seconds for r in runs)
+            total = sum(r.seconds for r in runs)
+            # Shares of the wall time: CG (Hessian products), trial diagrams (with the
+            # Hessian's face terms); the rest is the first diagram, bookkeeping and Python.
+            cg_share = 100 * sum(r.cg_seconds for r in runs) / total
+            trial_share = 100 * sum(r.trial_seconds for r in runs) / total
+            failed = sum(not r.converged for r in runs)
             print(
                 f"{case:<10}{variant:<22}{median:>9.1f}{min(diagrams):>6}{max(diagrams):>6}"
-                f"{cg:>11}{ms:>11.2f}{median / base:>7.2f}"
+                f"{cg:>11}{ms:>11.2f}{median / base:>7.2f}{seconds:>9.2f}{paper / seconds:>8.0f}"
+                f"{cg_share:>6.1f}{trial_share:>7.1f}{paired:>7.2f}"
                 + (f"  [{failed} not converged]" if failed else ""),
                 flush=True,
             )

@@ -52,6 +52,25 @@ use crate::geometry::norm2;
 use super::lbfgs::{axpy, dot_rows, mass_preconditioner, moved, Evaluator};
 use super::{Measures, Point};
 
+/// Experimental variants (temporary, issue 32): the value of `flag` in the comma-separated
+/// `HCVT_NEWTON_VARIANT` (`flag` alone reads 1).
+pub(crate) fn variant_value(flag: &str) -> Option<f64> {
+    let v = std::env::var("HCVT_NEWTON_VARIANT").ok()?;
+    v.split(',').find_map(|f| {
+        if f == flag {
+            Some(1.0)
+        } else {
+            f.strip_prefix(flag)?.strip_prefix('=')?.parse().ok()
+        }
+    })
+}
+
+fn debug(msg: std::fmt::Arguments<'_>) {
+    if std::env::var_os("HCVT_NEWTON_DEBUG").is_some() {
+        eprintln!("{msg}");
+    }
+}
+
 /// Most CG iterations per step.
 pub const MAX_CG_ITERATIONS: usize = 200;
 
@@ -86,6 +105,8 @@ pub struct TrustRegion {
     stiffness: Vec<f64>,
     /// The first region is as large as the model's own step ([`TrustRegion::open`]).
     open_start: bool,
+    /// Experimental: the last accepted step's `‖g‖`, `‖g + Hs‖` (dual norms) and forcing.
+    last: Option<(f64, f64, f64)>,
 }
 
 impl TrustRegion {
@@ -111,6 +132,7 @@ struct ModelStep<const D: usize> {
     moves: Vec<[f64; D]>,
     decrease: f64,
     at_edge: bool,
+    iterations: usize,
 }
 
 /// One Newton step from `point` (whose diagram carries the Hessian) in `region`: the next
@@ -146,9 +168,44 @@ pub fn step<const D: usize>(
     if region.stiffness.len() != n {
         region.stiffness = vec![1.0; n];
     }
+    let first = region.radius.is_none() && region.last.is_none();
     let mut radius = region.radius.unwrap_or_else(|| g_norm2.sqrt());
+    if first {
+        if let Some(c) = variant_value("r0") {
+            // Every site moves c spacings: ‖p‖²_M = Σ 2 m_i c² h².
+            let masses: Vec<f64> = precondition.iter().map(|w| 0.5 / w).collect();
+            let volume: f64 = masses.iter().filter(|m| m.is_finite()).sum();
+            let h = (volume / n as f64).powf(1.0 / D as f64);
+            radius = c * h * (2.0 * volume).sqrt();
+        }
+        if variant_value("open").is_some() {
+            region.open_start = true;
+        }
+    }
+    let forcing = match (variant_value("ew"), region.last) {
+        (Some(choice), Some((g_prev, model_prev, eta_prev))) => {
+            let g = g_norm2.sqrt();
+            let (eta, guard) = if choice == 1.0 {
+                let phi = 0.5 * (1.0 + 5f64.sqrt());
+                ((g - model_prev).abs() / g_prev, eta_prev.powf(phi))
+            } else {
+                (0.9 * (g / g_prev).powi(2), 0.9 * eta_prev * eta_prev)
+            };
+            let eta = if guard > 0.1 { eta.max(guard) } else { eta };
+            eta.min(0.5).max(variant_value("ewmin").unwrap_or(0.0))
+        }
+        _ => (forcing * variant_value("eta").unwrap_or(1.0)).min(0.5),
+    };
+    let accept = variant_value("accept").unwrap_or(ACCEPT);
     if std::mem::take(&mut region.open_start) {
-        let free = steihaug(point, &precondition, f64::INFINITY, forcing);
+        let free = steihaug(
+            &point.gradient,
+            &mut |v, out| point.hessian_product_into(v, out),
+            &precondition,
+            f64::INFINITY,
+            forcing,
+        );
+        debug(format_args!("cg={} free", free.iterations));
         if !free.at_edge {
             // Slightly larger: the same CG iterations then end inside the region.
             radius = step_norm2(&free.moves, &precondition).sqrt() * (1.0 + 1e-9);
@@ -161,7 +218,15 @@ pub fn step<const D: usize>(
             .zip(&region.stiffness)
             .map(|(p, w)| p / w)
             .collect();
-        let mut model = steihaug(point, &weighted, radius, forcing);
+        let clock = std::time::Instant::now();
+        let mut model = steihaug(
+            &point.gradient,
+            &mut |v, out| point.hessian_product_into(v, out),
+            &weighted,
+            radius,
+            forcing,
+        );
+        let t_cg = clock.elapsed().as_secs_f64();
         let before = model.moves.clone();
         hold(&mut model.moves);
         let Some(hs) = point.hessian_product(&model.moves) else {
@@ -173,7 +238,13 @@ pub fn step<const D: usize>(
                 -(dot_rows(&point.gradient, &model.moves) + 0.5 * dot_rows(&model.moves, &hs));
         }
         let length = step_norm2(&model.moves, &weighted).sqrt();
+        let clock = std::time::Instant::now();
         let trial = eval(moved(&point.sites, 1.0, &model.moves))?;
+        let t_eval = clock.elapsed().as_secs_f64();
+        debug(format_args!(
+            "cg={} eta={forcing:.3e} t_cg={t_cg:.6} t_eval={t_eval:.6} edge={}",
+            model.iterations, model.at_edge
+        ));
         let Some(trial) = trial else {
             radius = 0.25 * length;
             continue;
@@ -185,7 +256,7 @@ pub fn step<const D: usize>(
             actual >= -noise * point.energy.abs()
                 && gradient_norm2(&trial.gradient, &precondition) < g_norm2
         } else {
-            actual >= ACCEPT * model.decrease
+            actual >= accept * model.decrease
         };
         let mut ratio = actual / model.decrease;
         if by_gradient {
@@ -195,7 +266,7 @@ pub fn step<const D: usize>(
             if predicted > 0.0 {
                 let fell = g_norm2 - gradient_norm2(&trial.gradient, &precondition);
                 let gradient_ratio = fell / predicted;
-                accepted |= gradient_ratio >= ACCEPT;
+                accepted |= gradient_ratio >= accept;
                 ratio = ratio.max(gradient_ratio);
             }
         }
@@ -209,6 +280,8 @@ pub fn step<const D: usize>(
         }
         if accepted {
             region.radius = Some(radius);
+            let model_g = gradient_norm2(&model_gradient(point, &hs), &precondition).sqrt();
+            region.last = Some((g_norm2.sqrt(), model_g, forcing));
             return Ok(Some(trial));
         }
     }
@@ -277,21 +350,24 @@ fn step_norm2<const D: usize>(p: &[[f64; D]], w: &[f64]) -> f64 {
 }
 
 /// Steihaug's truncated, preconditioned CG on `min g·p + ½ pᵀHp` over `‖p‖_M ≤ radius`
-/// (`M` the inverse of the diagonal `precondition`; a zero entry keeps a site still).
+/// (`M` the inverse of the diagonal `precondition`; a zero entry keeps a site still), with
+/// `product(v, out)` writing `Hv` into `out` (`false`: no Hessian, the step so far). Where
+/// CG meets a direction of non-positive curvature it steps along it to the region's edge
+/// (Steihaug–Toint): the model is unbounded below along it.
 ///
 /// The region norms `‖z‖²_M`, `⟨z, d⟩_M` and `‖d‖²_M` follow from the CG scalars (Conn,
 /// Gould and Toint, *Trust-Region Methods*, §7.5.1) instead of three more passes over
 /// the sites, and each iteration makes two passes besides the Hessian product.
 fn steihaug<const D: usize>(
-    point: &Point<D>,
+    g: &[[f64; D]],
+    product: &mut dyn FnMut(&[[f64; D]], &mut [[f64; D]]) -> bool,
     precondition: &[f64],
     radius: f64,
     forcing: f64,
 ) -> ModelStep<D> {
-    let g = &point.gradient;
     let n = g.len();
     let mut z = vec![[0.0; D]; n];
-    let mut r = g.clone();
+    let mut r = g.to_vec();
     let mut d: Vec<[f64; D]> = r
         .iter()
         .zip(precondition)
@@ -302,16 +378,18 @@ fn steihaug<const D: usize>(
     let stop = forcing * forcing * ry;
     let mut decrease = 0.0;
     let (mut zz, mut zd, mut dd) = (0.0, 0.0, ry);
-    let step = |z, decrease, at_edge| ModelStep {
+    let step = |z, decrease, at_edge, iterations| ModelStep {
         moves: z,
         decrease,
         at_edge,
+        iterations,
     };
     if ry.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return step(z, decrease, false);
+        return step(z, decrease, false, 0);
     }
+    let both_roots = variant_value("nc2").is_some();
     for iteration in 1..=MAX_CG_ITERATIONS {
-        if !point.hessian_product_into(&d, &mut hd) {
+        if !product(&d, &mut hd) {
             break;
         }
         let curvature = dot_rows(&d, &hd);
@@ -321,10 +399,15 @@ fn steihaug<const D: usize>(
         if !inside {
             // To the edge along d: the positive root of ‖z + τ d‖_M = radius. With r the
             // residual g + Hz, d·r = −ry.
-            let tau = (-zd + (zd * zd + dd * (radius * radius - zz)).max(0.0).sqrt()) / dd;
-            decrease += tau * ry - 0.5 * tau * tau * curvature;
+            let root = (zd * zd + dd * (radius * radius - zz)).max(0.0).sqrt();
+            let mut tau = (-zd + root) / dd;
+            let gain = |t: f64| t * ry - 0.5 * t * t * curvature;
+            if both_roots && curvature <= 0.0 && gain((-zd - root) / dd) > gain(tau) {
+                tau = (-zd - root) / dd;
+            }
+            decrease += gain(tau);
             axpy(&mut z, tau, &d);
-            return step(z, decrease, true);
+            return step(z, decrease, true, iteration);
         }
         // z += α d, r += α Hd, and the next preconditioned residual's r·Pr, in one pass.
         let mut ry_next = 0.0;
@@ -338,7 +421,7 @@ fn steihaug<const D: usize>(
         decrease += 0.5 * alpha * ry;
         zz += alpha * (2.0 * zd + alpha * dd);
         if ry_next <= stop || iteration == MAX_CG_ITERATIONS {
-            return step(z, decrease, false);
+            return step(z, decrease, false, iteration);
         }
         let beta = ry_next / ry;
         for i in 0..n {
@@ -350,7 +433,7 @@ fn steihaug<const D: usize>(
         dd = ry_next + beta * beta * dd;
         ry = ry_next;
     }
-    step(z, decrease, false)
+    step(z, decrease, false, MAX_CG_ITERATIONS)
 }
 
 #[cfg(test)]
@@ -365,6 +448,104 @@ mod tests {
             hessian: None,
             energy: 0.0,
             gradient,
+        }
+    }
+
+    /// `H v` for a block-diagonal `H` with one 2×2 block per site.
+    fn block_product(
+        blocks: &[[[f64; 2]; 2]],
+    ) -> impl FnMut(&[[f64; 2]], &mut [[f64; 2]]) -> bool + '_ {
+        move |v, out| {
+            for ((o, b), x) in out.iter_mut().zip(blocks).zip(v) {
+                *o = [
+                    b[0][0] * x[0] + b[0][1] * x[1],
+                    b[1][0] * x[0] + b[1][1] * x[1],
+                ];
+            }
+            true
+        }
+    }
+
+    /// The model's decrease `−(g·p + ½ pᵀHp)`, computed directly.
+    fn model_decrease(g: &[[f64; 2]], blocks: &[[[f64; 2]; 2]], p: &[[f64; 2]]) -> f64 {
+        let mut hp = vec![[0.0; 2]; p.len()];
+        block_product(blocks)(p, &mut hp);
+        -(dot_rows(g, p) + 0.5 * dot_rows(p, &hp))
+    }
+
+    #[test]
+    fn negative_curvature_at_once_steps_to_the_edge_along_the_preconditioned_gradient() {
+        // H negative definite: the first CG direction −Pg has negative curvature, and the
+        // step is −Pg scaled to the region's edge in the norm of M = P⁻¹.
+        let g = vec![[1.0, 2.0], [-2.0, 0.5]];
+        let blocks = [[[-1.0, 0.0], [0.0, -3.0]], [[-2.0, 0.5], [0.5, -1.0]]];
+        let precondition = [0.5, 0.25];
+        let radius = 0.7;
+        let step = steihaug(&g, &mut block_product(&blocks), &precondition, radius, 1e-6);
+        assert!(step.at_edge);
+        assert_eq!(step.iterations, 1);
+        let pg: Vec<[f64; 2]> = g
+            .iter()
+            .zip(&precondition)
+            .map(|(v, &w)| v.map(|x| -w * x))
+            .collect();
+        let scale = radius / step_norm2(&pg, &precondition).sqrt();
+        for (z, d) in step.moves.iter().zip(&pg) {
+            for k in 0..2 {
+                assert!((z[k] - scale * d[k]).abs() < 1e-14, "{z:?} against {d:?}");
+            }
+        }
+        let direct = model_decrease(&g, &blocks, &step.moves);
+        assert!((step.decrease - direct).abs() < 1e-13 * direct.abs());
+    }
+
+    #[test]
+    fn negative_curvature_met_later_still_reaches_the_edge_and_beats_the_cauchy_step() {
+        // An indefinite H whose curvature along −g is positive: CG takes a step inside, then
+        // meets negative curvature and follows it to the edge (a CG that stopped there, as
+        // plain truncated CG does, would end inside with a smaller decrease).
+        let g = vec![[1.0, 0.1]];
+        let blocks = [[[2.0, 0.0], [0.0, -1.0]]];
+        let precondition = [1.0];
+        let radius = 3.0;
+        let step = steihaug(&g, &mut block_product(&blocks), &precondition, radius, 1e-6);
+        assert!(step.at_edge);
+        assert_eq!(step.iterations, 2);
+        let length = step_norm2(&step.moves, &precondition).sqrt();
+        assert!((length - radius).abs() < 1e-12 * radius, "{length}");
+        let direct = model_decrease(&g, &blocks, &step.moves);
+        assert!((step.decrease - direct).abs() < 1e-12 * direct.abs());
+        // The Cauchy point: the model's minimiser along −g, here inside the region.
+        let gg = dot_rows(&g, &g);
+        let mut hg = vec![[0.0; 2]];
+        block_product(&blocks)(&g, &mut hg);
+        let t = (gg / dot_rows(&g, &hg)).min(radius / gg.sqrt());
+        let cauchy = model_decrease(&g, &blocks, &[[-t * g[0][0], -t * g[0][1]]]);
+        assert!(
+            direct > 2.0 * cauchy,
+            "{direct} against the Cauchy step's {cauchy}"
+        );
+    }
+
+    #[test]
+    fn a_convex_model_inside_the_region_is_solved_by_cg() {
+        // H positive definite, its minimiser −H⁻¹g inside the region: CG finds it.
+        let g = vec![[1.0, -1.0], [0.5, 2.0]];
+        let blocks = [[[2.0, 0.5], [0.5, 1.0]], [[4.0, 0.0], [0.0, 1.0]]];
+        let step = steihaug(&g, &mut block_product(&blocks), &[1.0, 1.0], 100.0, 1e-12);
+        assert!(!step.at_edge);
+        // −H⁻¹g by hand: block 0 has determinant 1.75.
+        let want = [
+            [
+                -(1.0 * 1.0 - 0.5 * -1.0) / 1.75,
+                -(2.0 * -1.0 - 0.5 * 1.0) / 1.75,
+            ],
+            [-0.5 / 4.0, -2.0],
+        ];
+        for (z, w) in step.moves.iter().zip(&want) {
+            for k in 0..2 {
+                assert!((z[k] - w[k]).abs() < 1e-10, "{z:?} against {w:?}");
+            }
         }
     }
 
