@@ -508,7 +508,7 @@ impl<'a, const D: usize> Tracker<'a, D> {
         for &(i, x) in &self.held {
             sites[i] = x;
         }
-        let mut point = if self.request.hessian && newton::variant_value("warm").is_none() {
+        let mut point = if self.request.hessian {
             // Newton's steps reach across cells until the end game: warm-started, a
             // star of 5,000 sites took 5.1-5.5 s against 4.3-4.6 s cold (same 177
             // diagrams, one thread, under load), where L-BFGS gained 14-21%.

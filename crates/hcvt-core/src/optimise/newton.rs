@@ -52,25 +52,6 @@ use crate::geometry::norm2;
 use super::lbfgs::{axpy, dot_rows, mass_preconditioner, moved, Evaluator};
 use super::{Measures, Point};
 
-/// Experimental variants (temporary, issue 32): the value of `flag` in the comma-separated
-/// `HCVT_NEWTON_VARIANT` (`flag` alone reads 1).
-pub(crate) fn variant_value(flag: &str) -> Option<f64> {
-    let v = std::env::var("HCVT_NEWTON_VARIANT").ok()?;
-    v.split(',').find_map(|f| {
-        if f == flag {
-            Some(1.0)
-        } else {
-            f.strip_prefix(flag)?.strip_prefix('=')?.parse().ok()
-        }
-    })
-}
-
-fn debug(msg: std::fmt::Arguments<'_>) {
-    if std::env::var_os("HCVT_NEWTON_DEBUG").is_some() {
-        eprintln!("{msg}");
-    }
-}
-
 /// Most CG iterations per step.
 pub const MAX_CG_ITERATIONS: usize = 200;
 
@@ -105,8 +86,6 @@ pub struct TrustRegion {
     stiffness: Vec<f64>,
     /// The first region is as large as the model's own step ([`TrustRegion::open`]).
     open_start: bool,
-    /// Experimental: the last accepted step's `‖g‖`, `‖g + Hs‖` (dual norms) and forcing.
-    last: Option<(f64, f64, f64)>,
 }
 
 impl TrustRegion {
@@ -132,7 +111,6 @@ struct ModelStep<const D: usize> {
     moves: Vec<[f64; D]>,
     decrease: f64,
     at_edge: bool,
-    iterations: usize,
 }
 
 /// One Newton step from `point` (whose diagram carries the Hessian) in `region`: the next
@@ -168,35 +146,7 @@ pub fn step<const D: usize>(
     if region.stiffness.len() != n {
         region.stiffness = vec![1.0; n];
     }
-    let first = region.radius.is_none() && region.last.is_none();
     let mut radius = region.radius.unwrap_or_else(|| g_norm2.sqrt());
-    if first {
-        if let Some(c) = variant_value("r0") {
-            // Every site moves c spacings: ‖p‖²_M = Σ 2 m_i c² h².
-            let masses: Vec<f64> = precondition.iter().map(|w| 0.5 / w).collect();
-            let volume: f64 = masses.iter().filter(|m| m.is_finite()).sum();
-            let h = (volume / n as f64).powf(1.0 / D as f64);
-            radius = c * h * (2.0 * volume).sqrt();
-        }
-        if variant_value("open").is_some() {
-            region.open_start = true;
-        }
-    }
-    let forcing = match (variant_value("ew"), region.last) {
-        (Some(choice), Some((g_prev, model_prev, eta_prev))) => {
-            let g = g_norm2.sqrt();
-            let (eta, guard) = if choice == 1.0 {
-                let phi = 0.5 * (1.0 + 5f64.sqrt());
-                ((g - model_prev).abs() / g_prev, eta_prev.powf(phi))
-            } else {
-                (0.9 * (g / g_prev).powi(2), 0.9 * eta_prev * eta_prev)
-            };
-            let eta = if guard > 0.1 { eta.max(guard) } else { eta };
-            eta.min(0.5).max(variant_value("ewmin").unwrap_or(0.0))
-        }
-        _ => (forcing * variant_value("eta").unwrap_or(1.0)).min(0.5),
-    };
-    let accept = variant_value("accept").unwrap_or(ACCEPT);
     if std::mem::take(&mut region.open_start) {
         let free = steihaug(
             &point.gradient,
@@ -205,7 +155,6 @@ pub fn step<const D: usize>(
             f64::INFINITY,
             forcing,
         );
-        debug(format_args!("cg={} free", free.iterations));
         if !free.at_edge {
             // Slightly larger: the same CG iterations then end inside the region.
             radius = step_norm2(&free.moves, &precondition).sqrt() * (1.0 + 1e-9);
@@ -218,7 +167,6 @@ pub fn step<const D: usize>(
             .zip(&region.stiffness)
             .map(|(p, w)| p / w)
             .collect();
-        let clock = std::time::Instant::now();
         let mut model = steihaug(
             &point.gradient,
             &mut |v, out| point.hessian_product_into(v, out),
@@ -226,7 +174,6 @@ pub fn step<const D: usize>(
             radius,
             forcing,
         );
-        let t_cg = clock.elapsed().as_secs_f64();
         let before = model.moves.clone();
         hold(&mut model.moves);
         let Some(hs) = point.hessian_product(&model.moves) else {
@@ -238,13 +185,7 @@ pub fn step<const D: usize>(
                 -(dot_rows(&point.gradient, &model.moves) + 0.5 * dot_rows(&model.moves, &hs));
         }
         let length = step_norm2(&model.moves, &weighted).sqrt();
-        let clock = std::time::Instant::now();
         let trial = eval(moved(&point.sites, 1.0, &model.moves))?;
-        let t_eval = clock.elapsed().as_secs_f64();
-        debug(format_args!(
-            "cg={} eta={forcing:.3e} t_cg={t_cg:.6} t_eval={t_eval:.6} edge={}",
-            model.iterations, model.at_edge
-        ));
         let Some(trial) = trial else {
             radius = 0.25 * length;
             continue;
@@ -256,7 +197,7 @@ pub fn step<const D: usize>(
             actual >= -noise * point.energy.abs()
                 && gradient_norm2(&trial.gradient, &precondition) < g_norm2
         } else {
-            actual >= accept * model.decrease
+            actual >= ACCEPT * model.decrease
         };
         let mut ratio = actual / model.decrease;
         if by_gradient {
@@ -266,7 +207,7 @@ pub fn step<const D: usize>(
             if predicted > 0.0 {
                 let fell = g_norm2 - gradient_norm2(&trial.gradient, &precondition);
                 let gradient_ratio = fell / predicted;
-                accepted |= gradient_ratio >= accept;
+                accepted |= gradient_ratio >= ACCEPT;
                 ratio = ratio.max(gradient_ratio);
             }
         }
@@ -280,8 +221,6 @@ pub fn step<const D: usize>(
         }
         if accepted {
             region.radius = Some(radius);
-            let model_g = gradient_norm2(&model_gradient(point, &hs), &precondition).sqrt();
-            region.last = Some((g_norm2.sqrt(), model_g, forcing));
             return Ok(Some(trial));
         }
     }
@@ -378,16 +317,14 @@ fn steihaug<const D: usize>(
     let stop = forcing * forcing * ry;
     let mut decrease = 0.0;
     let (mut zz, mut zd, mut dd) = (0.0, 0.0, ry);
-    let step = |z, decrease, at_edge, iterations| ModelStep {
+    let step = |z, decrease, at_edge| ModelStep {
         moves: z,
         decrease,
         at_edge,
-        iterations,
     };
     if ry.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-        return step(z, decrease, false, 0);
+        return step(z, decrease, false);
     }
-    let both_roots = variant_value("nc2").is_some();
     for iteration in 1..=MAX_CG_ITERATIONS {
         if !product(&d, &mut hd) {
             break;
@@ -399,15 +336,10 @@ fn steihaug<const D: usize>(
         if !inside {
             // To the edge along d: the positive root of ‖z + τ d‖_M = radius. With r the
             // residual g + Hz, d·r = −ry.
-            let root = (zd * zd + dd * (radius * radius - zz)).max(0.0).sqrt();
-            let mut tau = (-zd + root) / dd;
-            let gain = |t: f64| t * ry - 0.5 * t * t * curvature;
-            if both_roots && curvature <= 0.0 && gain((-zd - root) / dd) > gain(tau) {
-                tau = (-zd - root) / dd;
-            }
-            decrease += gain(tau);
+            let tau = (-zd + (zd * zd + dd * (radius * radius - zz)).max(0.0).sqrt()) / dd;
+            decrease += tau * ry - 0.5 * tau * tau * curvature;
             axpy(&mut z, tau, &d);
-            return step(z, decrease, true, iteration);
+            return step(z, decrease, true);
         }
         // z += α d, r += α Hd, and the next preconditioned residual's r·Pr, in one pass.
         let mut ry_next = 0.0;
@@ -421,7 +353,7 @@ fn steihaug<const D: usize>(
         decrease += 0.5 * alpha * ry;
         zz += alpha * (2.0 * zd + alpha * dd);
         if ry_next <= stop || iteration == MAX_CG_ITERATIONS {
-            return step(z, decrease, false, iteration);
+            return step(z, decrease, false);
         }
         let beta = ry_next / ry;
         for i in 0..n {
@@ -433,7 +365,7 @@ fn steihaug<const D: usize>(
         dd = ry_next + beta * beta * dd;
         ry = ry_next;
     }
-    step(z, decrease, false, MAX_CG_ITERATIONS)
+    step(z, decrease, false)
 }
 
 #[cfg(test)]
@@ -483,7 +415,6 @@ mod tests {
         let radius = 0.7;
         let step = steihaug(&g, &mut block_product(&blocks), &precondition, radius, 1e-6);
         assert!(step.at_edge);
-        assert_eq!(step.iterations, 1);
         let pg: Vec<[f64; 2]> = g
             .iter()
             .zip(&precondition)
@@ -510,7 +441,6 @@ mod tests {
         let radius = 3.0;
         let step = steihaug(&g, &mut block_product(&blocks), &precondition, radius, 1e-6);
         assert!(step.at_edge);
-        assert_eq!(step.iterations, 2);
         let length = step_norm2(&step.moves, &precondition).sqrt();
         assert!((length - radius).abs() < 1e-12 * radius, "{length}");
         let direct = model_decrease(&g, &blocks, &step.moves);
