@@ -288,6 +288,10 @@ fn step_norm2<const D: usize>(p: &[[f64; D]], w: &[f64]) -> f64 {
         .sum()
 }
 
+/// `product(v, out)` writes `Hv` into `out` (one row per site); `false` when there is no
+/// Hessian.
+type HessianProduct<'a, const D: usize> = dyn FnMut(&[[f64; D]], &mut [[f64; D]]) -> bool + 'a;
+
 /// Steihaug's truncated, preconditioned CG on `min g·p + ½ pᵀHp` over `‖p‖_M ≤ radius`
 /// (`M` the inverse of the diagonal `precondition`; a zero entry keeps a site still), with
 /// `product(v, out)` writing `Hv` into `out` (`false`: no Hessian, the step so far). Where
@@ -299,7 +303,7 @@ fn step_norm2<const D: usize>(p: &[[f64; D]], w: &[f64]) -> f64 {
 /// the sites, and each iteration makes two passes besides the Hessian product.
 fn steihaug<const D: usize>(
     g: &[[f64; D]],
-    product: &mut dyn FnMut(&[[f64; D]], &mut [[f64; D]]) -> bool,
+    product: &mut HessianProduct<'_, D>,
     precondition: &[f64],
     radius: f64,
     forcing: f64,
@@ -464,13 +468,15 @@ mod tests {
         let blocks = [[[2.0, 0.5], [0.5, 1.0]], [[4.0, 0.0], [0.0, 1.0]]];
         let step = steihaug(&g, &mut block_product(&blocks), &[1.0, 1.0], 100.0, 1e-12);
         assert!(!step.at_edge);
-        // −H⁻¹g by hand: block 0 has determinant 1.75.
+        // −H⁻¹g by hand: block 0 is [[a, b], [b, c]], its inverse [[c, −b], [−b, a]] / det.
+        let (a, b, c) = (2.0, 0.5, 1.0);
+        let det = a * c - b * b;
         let want = [
             [
-                -(1.0 * 1.0 - 0.5 * -1.0) / 1.75,
-                -(2.0 * -1.0 - 0.5 * 1.0) / 1.75,
+                -(c * g[0][0] - b * g[0][1]) / det,
+                -(a * g[0][1] - b * g[0][0]) / det,
             ],
-            [-0.5 / 4.0, -2.0],
+            [-g[1][0] / 4.0, -g[1][1]],
         ];
         for (z, w) in step.moves.iter().zip(&want) {
             for k in 0..2 {
