@@ -148,7 +148,13 @@ pub fn step<const D: usize>(
     }
     let mut radius = region.radius.unwrap_or_else(|| g_norm2.sqrt());
     if std::mem::take(&mut region.open_start) {
-        let free = steihaug(point, &precondition, f64::INFINITY, forcing);
+        let free = steihaug(
+            &point.gradient,
+            &mut |v, out| point.hessian_product_into(v, out),
+            &precondition,
+            f64::INFINITY,
+            forcing,
+        );
         if !free.at_edge {
             // Slightly larger: the same CG iterations then end inside the region.
             radius = step_norm2(&free.moves, &precondition).sqrt() * (1.0 + 1e-9);
@@ -161,7 +167,13 @@ pub fn step<const D: usize>(
             .zip(&region.stiffness)
             .map(|(p, w)| p / w)
             .collect();
-        let mut model = steihaug(point, &weighted, radius, forcing);
+        let mut model = steihaug(
+            &point.gradient,
+            &mut |v, out| point.hessian_product_into(v, out),
+            &weighted,
+            radius,
+            forcing,
+        );
         let before = model.moves.clone();
         hold(&mut model.moves);
         let Some(hs) = point.hessian_product(&model.moves) else {
@@ -276,22 +288,29 @@ fn step_norm2<const D: usize>(p: &[[f64; D]], w: &[f64]) -> f64 {
         .sum()
 }
 
+/// `product(v, out)` writes `Hv` into `out` (one row per site); `false` when there is no
+/// Hessian.
+type HessianProduct<'a, const D: usize> = dyn FnMut(&[[f64; D]], &mut [[f64; D]]) -> bool + 'a;
+
 /// Steihaug's truncated, preconditioned CG on `min g·p + ½ pᵀHp` over `‖p‖_M ≤ radius`
-/// (`M` the inverse of the diagonal `precondition`; a zero entry keeps a site still).
+/// (`M` the inverse of the diagonal `precondition`; a zero entry keeps a site still), with
+/// `product(v, out)` writing `Hv` into `out` (`false`: no Hessian, the step so far). Where
+/// CG meets a direction of non-positive curvature it steps along it to the region's edge
+/// (Steihaug–Toint): the model is unbounded below along it.
 ///
 /// The region norms `‖z‖²_M`, `⟨z, d⟩_M` and `‖d‖²_M` follow from the CG scalars (Conn,
 /// Gould and Toint, *Trust-Region Methods*, §7.5.1) instead of three more passes over
 /// the sites, and each iteration makes two passes besides the Hessian product.
 fn steihaug<const D: usize>(
-    point: &Point<D>,
+    g: &[[f64; D]],
+    product: &mut HessianProduct<'_, D>,
     precondition: &[f64],
     radius: f64,
     forcing: f64,
 ) -> ModelStep<D> {
-    let g = &point.gradient;
     let n = g.len();
     let mut z = vec![[0.0; D]; n];
-    let mut r = g.clone();
+    let mut r = g.to_vec();
     let mut d: Vec<[f64; D]> = r
         .iter()
         .zip(precondition)
@@ -311,7 +330,7 @@ fn steihaug<const D: usize>(
         return step(z, decrease, false);
     }
     for iteration in 1..=MAX_CG_ITERATIONS {
-        if !point.hessian_product_into(&d, &mut hd) {
+        if !product(&d, &mut hd) {
             break;
         }
         let curvature = dot_rows(&d, &hd);
@@ -365,6 +384,104 @@ mod tests {
             hessian: None,
             energy: 0.0,
             gradient,
+        }
+    }
+
+    /// `H v` for a block-diagonal `H` with one 2×2 block per site.
+    fn block_product(
+        blocks: &[[[f64; 2]; 2]],
+    ) -> impl FnMut(&[[f64; 2]], &mut [[f64; 2]]) -> bool + '_ {
+        move |v, out| {
+            for ((o, b), x) in out.iter_mut().zip(blocks).zip(v) {
+                *o = [
+                    b[0][0] * x[0] + b[0][1] * x[1],
+                    b[1][0] * x[0] + b[1][1] * x[1],
+                ];
+            }
+            true
+        }
+    }
+
+    /// The model's decrease `−(g·p + ½ pᵀHp)`, computed directly.
+    fn model_decrease(g: &[[f64; 2]], blocks: &[[[f64; 2]; 2]], p: &[[f64; 2]]) -> f64 {
+        let mut hp = vec![[0.0; 2]; p.len()];
+        block_product(blocks)(p, &mut hp);
+        -(dot_rows(g, p) + 0.5 * dot_rows(p, &hp))
+    }
+
+    #[test]
+    fn negative_curvature_at_once_steps_to_the_edge_along_the_preconditioned_gradient() {
+        // H negative definite: the first CG direction −Pg has negative curvature, and the
+        // step is −Pg scaled to the region's edge in the norm of M = P⁻¹.
+        let g = vec![[1.0, 2.0], [-2.0, 0.5]];
+        let blocks = [[[-1.0, 0.0], [0.0, -3.0]], [[-2.0, 0.5], [0.5, -1.0]]];
+        let precondition = [0.5, 0.25];
+        let radius = 0.7;
+        let step = steihaug(&g, &mut block_product(&blocks), &precondition, radius, 1e-6);
+        assert!(step.at_edge);
+        let pg: Vec<[f64; 2]> = g
+            .iter()
+            .zip(&precondition)
+            .map(|(v, &w)| v.map(|x| -w * x))
+            .collect();
+        let scale = radius / step_norm2(&pg, &precondition).sqrt();
+        for (z, d) in step.moves.iter().zip(&pg) {
+            for k in 0..2 {
+                assert!((z[k] - scale * d[k]).abs() < 1e-14, "{z:?} against {d:?}");
+            }
+        }
+        let direct = model_decrease(&g, &blocks, &step.moves);
+        assert!((step.decrease - direct).abs() < 1e-13 * direct.abs());
+    }
+
+    #[test]
+    fn negative_curvature_met_later_still_reaches_the_edge_and_beats_the_cauchy_step() {
+        // An indefinite H whose curvature along −g is positive: CG takes a step inside, then
+        // meets negative curvature and follows it to the edge (a CG that stopped there, as
+        // plain truncated CG does, would end inside with a smaller decrease).
+        let g = vec![[1.0, 0.1]];
+        let blocks = [[[2.0, 0.0], [0.0, -1.0]]];
+        let precondition = [1.0];
+        let radius = 3.0;
+        let step = steihaug(&g, &mut block_product(&blocks), &precondition, radius, 1e-6);
+        assert!(step.at_edge);
+        let length = step_norm2(&step.moves, &precondition).sqrt();
+        assert!((length - radius).abs() < 1e-12 * radius, "{length}");
+        let direct = model_decrease(&g, &blocks, &step.moves);
+        assert!((step.decrease - direct).abs() < 1e-12 * direct.abs());
+        // The Cauchy point: the model's minimiser along −g, here inside the region.
+        let gg = dot_rows(&g, &g);
+        let mut hg = vec![[0.0; 2]];
+        block_product(&blocks)(&g, &mut hg);
+        let t = (gg / dot_rows(&g, &hg)).min(radius / gg.sqrt());
+        let cauchy = model_decrease(&g, &blocks, &[[-t * g[0][0], -t * g[0][1]]]);
+        assert!(
+            direct > 2.0 * cauchy,
+            "{direct} against the Cauchy step's {cauchy}"
+        );
+    }
+
+    #[test]
+    fn a_convex_model_inside_the_region_is_solved_by_cg() {
+        // H positive definite, its minimiser −H⁻¹g inside the region: CG finds it.
+        let g = vec![[1.0, -1.0], [0.5, 2.0]];
+        let blocks = [[[2.0, 0.5], [0.5, 1.0]], [[4.0, 0.0], [0.0, 1.0]]];
+        let step = steihaug(&g, &mut block_product(&blocks), &[1.0, 1.0], 100.0, 1e-12);
+        assert!(!step.at_edge);
+        // −H⁻¹g by hand: block 0 is [[a, b], [b, c]], its inverse [[c, −b], [−b, a]] / det.
+        let (a, b, c) = (2.0, 0.5, 1.0);
+        let det = a * c - b * b;
+        let want = [
+            [
+                -(c * g[0][0] - b * g[0][1]) / det,
+                -(a * g[0][1] - b * g[0][0]) / det,
+            ],
+            [-g[1][0] / 4.0, -g[1][1]],
+        ];
+        for (z, w) in step.moves.iter().zip(&want) {
+            for k in 0..2 {
+                assert!((z[k] - w[k]).abs() < 1e-10, "{z:?} against {w:?}");
+            }
         }
     }
 
