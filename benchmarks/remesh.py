@@ -22,6 +22,10 @@ machine): ratios are of runs taken in turn in the same process.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh.py [--quick] [--models bunny ...] [--n ...]
 
+(Where pymeshlab's plugins fail to load, "libgomp.so.1: cannot allocate memory in static
+TLS block", and ``meshing_isotropic_explicit_remeshing`` is then missing: run with
+``LD_PRELOAD=<site-packages>/pymeshlab/lib/libgomp.so.1``.)
+
 The ``hcvt`` row is ``hcvt.remesh``'s defaults, ``tighten=True`` among them (vertices moved
 along the input where the mesh is farthest from it, :mod:`hcvt.surface.tighten`);
 ``--plain`` adds a row ``hcvt-t`` with ``tighten=False``, and ``--min-angle A`` a row
