@@ -708,6 +708,21 @@ SPECIFIC: dict[str, list[Row]] = {
         )
         for angle in (-10.0, NAN, 0.0, 180.0, INF)
     ],
+    "min_angle": [
+        (
+            f"min_angle: {angle!r}",
+            functools.partial(lambda a: hcvt.remesh(cube_surface(), 100, min_angle=a), angle),
+            Raises(ValueError, "min_angle must be"),
+        )
+        for angle in (-1.0, NAN, 60.5, 90.0, INF, -INF, "30", True)
+    ]
+    + [
+        (
+            "min_angle: given with tighten=False",
+            lambda: hcvt.remesh(cube_surface(), 100, tighten=False, min_angle=20.0),
+            Raises(ValueError, "min_angle is the least angle of tighten"),
+        ),
+    ],
     "power": [
         (
             "power: a NaN weight",

@@ -396,11 +396,7 @@ impl SurfaceDomain {
         points: PyReadonlyArray2<'py, f64>,
     ) -> PyResult<Nearest<'py>> {
         let p = rows::<f64, 3>(&points, "points")?;
-        let set = self.0.triangle_set();
-        nearest_arrays(
-            py,
-            py.detach(|| crate::threads::run(|| set.closest_all(&p))),
-        )
+        nearest_arrays(py, closest_all(py, self.0.triangle_set(), &p))
     }
 }
 
@@ -425,10 +421,24 @@ pub fn closest_points<'py>(
     let f = rows::<u32, 3>(&faces, "faces")?;
     let p = rows::<f64, 3>(&points, "points")?;
     let set = TriangleSet::new(v, f).map_err(to_py_err)?;
-    nearest_arrays(
-        py,
-        py.detach(|| crate::threads::run(|| set.closest_all(&p))),
-    )
+    nearest_arrays(py, closest_all(py, &set, &p))
+}
+
+/// Below this many points a nearest-point query runs on the calling thread: handing a
+/// few points to the pool and back costs more than they do (under load, milliseconds a
+/// call: `hcvt.surface.tighten` asks for a few points at a time, thousands of times).
+const SERIAL_CLOSEST: usize = 256;
+
+/// [`TriangleSet::closest_all`] without the GIL, on the pool for many points (each point
+/// alone either way: the answers do not depend on the threads).
+fn closest_all(py: Python<'_>, set: &TriangleSet, points: &[[f64; 3]]) -> Vec<([f64; 3], u32)> {
+    py.detach(|| {
+        if points.len() < SERIAL_CLOSEST {
+            points.iter().map(|&q| set.closest(q)).collect()
+        } else {
+            crate::threads::run(|| set.closest_all(points))
+        }
+    })
 }
 
 /// [`TriangleSet::closest_all`]'s answers as numpy arrays.

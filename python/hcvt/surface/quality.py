@@ -21,7 +21,12 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from hcvt.geometry.surface_points import closest_points, sample_by_area, triangle_areas
+from hcvt.geometry.surface_points import (
+    closest_points,
+    cross_rows,
+    sample_by_area,
+    triangle_areas,
+)
 
 #: Points sampled on each mesh (besides its vertices) for the Hausdorff distance.
 HAUSDORFF_SAMPLES = 200_000
@@ -111,7 +116,7 @@ def triangle_angles(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> N
         u = vertices[faces[:, (k + 1) % 3]] - p
         w = vertices[faces[:, (k + 2) % 3]] - p
         out[:, k] = np.degrees(
-            np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ij,ij->i", u, w))
+            np.arctan2(np.linalg.norm(cross_rows(u, w), axis=1), np.einsum("ij,ij->i", u, w))
         )
     return out
 

@@ -15,10 +15,12 @@ A move is kept only if every triangle around the vertex keeps its least angle an
 quality Q at or above the mesh's least ones (so those never fall), turns its normal by
 less than 60°, and the distances around it all fall below the worst one; the connectivity
 is not touched (the same faces, so the same manifold and genus). It stops when the worst
-place cannot be improved (or after ``max_moves``). Distances are held as upper bounds:
-points of the input (its vertices and samples by area) to the mesh, and 12 points of each
-mesh triangle (a barycentric grid of step 1/4) to the input, each updated around a moved
-vertex only.
+place cannot be improved (or after ``max_moves``). The distances are the core's
+nearest points (its BVHs, :meth:`hcvt._core.SurfaceDomain.closest` for the input,
+``_core.closest_points`` for the mesh): from points of the input (its vertices and samples
+by area) to the mesh, and from 7 points of each mesh triangle (a barycentric grid of step
+1/3) to the input; around a moved vertex they are updated over its two-ring (upper
+bounds, made exact again, all at once, before the largest is used).
 """
 
 from __future__ import annotations
@@ -30,7 +32,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from hcvt.geometry.surface_points import sample_by_area
+from hcvt import _core
+from hcvt.geometry.domain import Domain
+from hcvt.geometry.surface_points import cross_rows, sample_by_area
 from hcvt.surface.quality import triangle_angles, triangle_quality
 
 #: Barycentric coordinates (7, 3) of the points checked on each mesh triangle: the grid
@@ -43,9 +47,6 @@ _GRID = (
     )
     / 3.0
 )
-#: Nearest triangles (by centroid) searched for a point's nearest point: the distances
-#: held are upper bounds, exact wherever the nearest triangle is among them.
-_NEAREST_K = 8
 #: Most a triangle's normal may turn in one move (cosine of 60°).
 _MIN_NORMAL_COSINE = 0.5
 #: A move must bring the distances around it below (1 − this) × the worst one.
@@ -54,59 +55,30 @@ _GAIN = 1e-3
 _NEGLIGIBLE = 1e-9
 
 
-def _closest_on_triangles(p: NDArray[np.float64], tri: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The nearest point of triangle ``tri[i]`` (m, 3, 3) to ``p[i]`` (m, 3) (Ericson, 5.1.5)."""
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap)
-    bp, cp = p - b, p - c
-    d3, d4 = np.einsum("ij,ij->i", ab, bp), np.einsum("ij,ij->i", ac, bp)
-    d5, d6 = np.einsum("ij,ij->i", ab, cp), np.einsum("ij,ij->i", ac, cp)
-    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # Inside the face (the default), then the edge and corner regions override.
-        denom = va + vb + vc
-        v, w = vb / denom, vc / denom
-        out = a + v[:, None] * ab + w[:, None] * ac
-        t_ab = d1 / (d1 - d3)
-        on = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-        out[on] = (a + t_ab[:, None] * ab)[on]
-        t_ac = d2 / (d2 - d6)
-        on = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-        out[on] = (a + t_ac[:, None] * ac)[on]
-        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        on = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
-        out[on] = (b + t_bc[:, None] * (c - b))[on]
-    out[(d1 <= 0) & (d2 <= 0)] = a[(d1 <= 0) & (d2 <= 0)]
-    out[(d3 >= 0) & (d4 <= d3)] = b[(d3 >= 0) & (d4 <= d3)]
-    out[(d6 >= 0) & (d5 <= d6)] = c[(d6 >= 0) & (d5 <= d6)]
-    return out
+def _on_input(surface: Domain, points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The nearest points (m, 3) of ``surface`` to ``points`` (m, 3), in the input's frame.
 
-
-def _nearest(
-    points: NDArray[np.float64], corners: NDArray[np.float64], candidates: NDArray[np.intp]
-) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
-    """Distances of points (m, 3) to the nearest of their candidate triangles.
-
-    ``candidates`` (m, k) index ``corners`` (F, 3, 3), -1 for none; returns the distances
-    (m,) and the nearest candidate of each (m,).
+    The surface's own BVH, built once with it (:meth:`hcvt._core.SurfaceDomain.closest`).
     """
-    m, k = candidates.shape
-    flat = np.maximum(candidates, 0).ravel()
-    near = _closest_on_triangles(np.repeat(points, k, axis=0), corners[flat])
-    d = np.linalg.norm(near - np.repeat(points, k, axis=0), axis=1).reshape(m, k)
-    d[candidates < 0] = np.inf
-    best = np.argmin(d, axis=1)
-    return d[np.arange(m), best], candidates[np.arange(m), best]
+    frame = surface.frame
+    nearest, _ = surface._core.closest(frame.to_core(np.ascontiguousarray(points)))
+    return frame.points_to_input(np.asarray(nearest))
 
 
-def _k_nearest(tree: cKDTree, points: NDArray[np.float64], k: int) -> NDArray[np.intp]:
-    """The ``k`` nearest centroids' triangles (m, k), -1 where there are fewer."""
-    k = min(k, tree.n)
-    _, idx = tree.query(points, k=k)
-    idx = np.asarray(idx).reshape(len(points), k)
-    idx[idx >= tree.n] = -1
-    return idx
+def _to_triangles(
+    points: NDArray[np.float64], corners: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Distances of ``points`` (m, 3) to the nearest of the triangles ``corners`` (k, 3, 3).
+
+    Returns the distances (m,) and the nearest triangle of each (m,), by the core's BVH.
+    """
+    k = len(corners)
+    nearest, which = _core.closest_points(
+        np.ascontiguousarray(corners.reshape(-1, 3)),
+        np.arange(3 * k, dtype=np.uint32).reshape(k, 3),
+        np.ascontiguousarray(points),
+    )
+    return np.linalg.norm(np.asarray(nearest) - points, axis=1), np.asarray(which)
 
 
 @dataclass
@@ -130,81 +102,38 @@ class TightenResult:
     after: float
 
 
-def _reach(corners: NDArray[np.float64]) -> float:
-    """The farthest any triangle's corner is from its centroid."""
-    return float(np.linalg.norm(corners - corners.mean(axis=1)[:, None], axis=2).max())
-
-
-def _exact(
-    point: NDArray[np.float64],
-    bound: float,
-    corners: NDArray[np.float64],
-    tree: cKDTree,
-    reach: float,
-) -> tuple[float, int]:
-    """The distance of ``point`` (3,) to the triangles ``corners`` and the nearest one.
-
-    Exact given an upper ``bound`` on it: the nearest triangle's centroid is within
-    ``bound + reach`` of the point (``tree`` holds the centroids, ``reach`` bounds every
-    corner's distance from its centroid).
-    """
-    near = np.asarray(tree.query_ball_point(point, bound + reach), dtype=np.intp)
-    if len(near) == 0:
-        return np.inf, -1
-    d, which = _nearest(point[None], corners, near[None])
-    return float(d[0]), int(which[0])
-
-
 class _Mesh:
-    """The mesh being moved, its triangles' checked points and their distances.
+    """The mesh being moved, the points checked on it and on the input, their distances.
 
-    Every held distance is an upper bound; :meth:`worst` makes the largest exact before it
-    is used (by :func:`_exact`), so the searches by nearest centroids cost little.
+    The distances of the mesh's points to the input are exact (the input does not move);
+    those of the input's points to the mesh are upper bounds after a move (over the moved
+    vertex's two-ring), made exact by :meth:`worst` before the largest is used.
     """
 
     def __init__(
         self,
         vertices: NDArray[np.float64],
         faces: NDArray[np.intp],
-        reference: tuple[NDArray[np.float64], NDArray[np.intp]],
+        surface: Domain,
         samples: int,
         rng: np.random.Generator,
     ) -> None:
         self.v = np.array(vertices, dtype=np.float64)
         self.f = np.asarray(faces, dtype=np.intp)
-        self.rv, self.rf = reference
+        self.surface = surface
+        rv, rf = surface.vertices, surface.faces
         # Vertex -> its triangles (CSR).
         order = np.argsort(self.f.ravel(), kind="stable")
         self.ring_start = np.searchsorted(self.f.ravel()[order], np.arange(len(self.v) + 1))
         self.ring_faces = order // 3
-        # The input's triangles by centroid.
-        self.ref_corners = self.rv[self.rf]
-        self.ref_tree = cKDTree(self.ref_corners.mean(axis=1))
-        self.ref_reach = _reach(self.ref_corners)
-        # The mesh's triangles by centroid, as built; its vertices have since moved by at
-        # most `drift` each (which widens the exact searches).
-        self.index_mesh()
-        # Points of the input (its vertices and samples) and their distances to the mesh,
-        # over the mesh's triangles nearest by centroid.
-        points, _ = sample_by_area(self.rv, self.rf, samples, rng)
-        self.s = np.concatenate([points, self.rv[np.unique(self.rf)]])
+        # Points of the input (its vertices and samples) and their distances to the mesh.
+        points, _ = sample_by_area(rv, rf, samples, rng)
+        self.s = np.concatenate([points, rv[np.unique(rf)]])
         self.s_tree = cKDTree(self.s)
-        corners = self.v[self.f]
-        near = _k_nearest(self.mesh_tree, self.s, _NEAREST_K)
-        self.ds, self.s_face = _nearest(self.s, corners, near)
-        self.ds_exact = np.zeros(len(self.s), dtype=bool)
+        self.ds, self.s_face = _to_triangles(self.s, self.v[self.f])
+        self.ds_exact = np.ones(len(self.s), dtype=bool)
         # The checked points of every triangle and their distances to the input.
-        tp = self.triangle_points(np.arange(len(self.f)), self.v).reshape(-1, 3)
-        near = _k_nearest(self.ref_tree, tp, _NEAREST_K)
-        self.dt = _nearest(tp, self.ref_corners, near)[0].reshape(len(self.f), len(_GRID))
-        self.dt_exact = np.zeros(self.dt.shape, dtype=bool)
-
-    def index_mesh(self) -> None:
-        """The mesh's centroids' tree, as the vertices are now."""
-        corners = self.v[self.f]
-        self.mesh_tree = cKDTree(corners.mean(axis=1))
-        self.mesh_reach = _reach(corners)
-        self.drift = 0.0
+        self.dt = self.to_input(self.triangle_points(np.arange(len(self.f)), self.v))
 
     def triangle_points(
         self, faces: NDArray[np.intp], v: NDArray[np.float64]
@@ -221,66 +150,28 @@ class _Mesh:
         near = np.unique(self.f[self.ring(a)])
         return np.unique(np.concatenate([self.ring(b) for b in near]))
 
-    def to_input(self, points: NDArray[np.float64], limit: float) -> NDArray[np.float64]:
-        """Distances of ``points`` (m, 3) to the input.
-
-        Upper bounds, exact where they reach ``limit`` (so a move is judged alike).
-        """
-        near = _k_nearest(self.ref_tree, points, _NEAREST_K)
-        d = _nearest(points, self.ref_corners, near)[0]
-        over = d >= limit
-        if not over.any():
-            return d
-        # Those beyond the bound: every input triangle that could be nearer than `limit`.
-        centre = points[over].mean(axis=0)
-        radius = float(np.linalg.norm(points[over] - centre, axis=1).max())
-        near = np.asarray(
-            self.ref_tree.query_ball_point(centre, radius + limit + self.ref_reach), dtype=np.intp
-        )
-        if len(near):
-            candidates = np.broadcast_to(near, (int(over.sum()), len(near)))
-            d[over] = np.minimum(d[over], _nearest(points[over], self.ref_corners, candidates)[0])
-        return d
+    def to_input(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Distances (f, g) of points (f, g, 3) to the input."""
+        flat = points.reshape(-1, 3)
+        d = np.linalg.norm(_on_input(self.surface, flat) - flat, axis=1)
+        return d.reshape(points.shape[:-1])
 
     def project(self, point: NDArray[np.float64]) -> NDArray[np.float64]:
-        """A nearest point of the input to ``point`` (3,) (on the input in any case)."""
-        near = _k_nearest(self.ref_tree, point[None], _NEAREST_K)[0]
-        corners = self.ref_corners[np.maximum(near, 0)]
-        found = _closest_on_triangles(np.repeat(point[None], len(near), axis=0), corners)
-        return found[np.argmin(np.linalg.norm(found - point, axis=1))]
-
-    def moved(self, a: int, x: NDArray[np.float64]) -> None:
-        """Vertex ``a`` moves to ``x``."""
-        self.drift = max(self.drift, float(np.linalg.norm(x - self.v[a])))
-        self.v[a] = x
-        if self.drift > self.mesh_reach:
-            self.index_mesh()
+        """The nearest point of the input to ``point`` (3,)."""
+        return _on_input(self.surface, point[None])[0]
 
     def worst(self) -> tuple[float, str, int]:
         """The largest distance (exact), which side it is on, and its point's index."""
         while True:
             i, j = int(np.argmax(self.ds)), int(np.argmax(self.dt))
-            if self.ds[i] >= self.dt.flat[j]:
-                if self.ds_exact[i]:
-                    return float(self.ds[i]), "input", i
-                # The tree's triangles have moved by `drift` at most since it was built.
-                d, face = _exact(
-                    self.s[i],
-                    float(self.ds[i]) + self.drift,
-                    self.v[self.f],
-                    self.mesh_tree,
-                    self.mesh_reach + 2.0 * self.drift,
-                )
-                self.ds[i], self.s_face[i], self.ds_exact[i] = d, face, True
-                continue
-            if self.dt_exact.flat[j]:
+            if self.ds[i] < self.dt.flat[j]:
                 return float(self.dt.flat[j]), "mesh", j
-            face, g = divmod(j, len(_GRID))
-            point = self.triangle_points(np.array([face]), self.v)[0, g]
-            d, _ = _exact(
-                point, float(self.dt.flat[j]), self.ref_corners, self.ref_tree, self.ref_reach
-            )
-            self.dt.flat[j], self.dt_exact.flat[j] = d, True
+            if self.ds_exact[i]:
+                return float(self.ds[i]), "input", i
+            # The bounds left by the moves since the last time, exact in one call.
+            stale = np.flatnonzero(~self.ds_exact)
+            self.ds[stale], self.s_face[stale] = _to_triangles(self.s[stale], self.v[self.f])
+            self.ds_exact[stale] = True
 
 
 #: Fractions of the way to a target tried for a vertex, the whole way first.
@@ -290,13 +181,16 @@ _STEPS = (1.0, 0.75, 0.5, 0.25, 0.125)
 def _candidates(
     mesh: _Mesh, side: str, index: int, movable: NDArray[np.bool_]
 ) -> Iterator[tuple[int, NDArray[np.float64]]]:
-    """(vertex, new position) moves that may lower the distance at the worst point."""
+    """Moves that may lower the distance at the worst point.
+
+    (vertex, new position before projection) pairs, each vertex's longest move first.
+    """
     if side == "input":
         target = mesh.s[index]
         for a in mesh.f[mesh.s_face[index]]:
             if movable[a]:
                 for step in _STEPS:
-                    yield int(a), mesh.project(mesh.v[a] + step * (target - mesh.v[a]))
+                    yield int(a), mesh.v[a] + step * (target - mesh.v[a])
         return
     face, g = divmod(index, len(_GRID))
     point = mesh.triangle_points(np.array([face]), mesh.v)[0, g]
@@ -304,7 +198,7 @@ def _candidates(
     for a in mesh.f[face]:
         if movable[a]:
             for step in _STEPS:
-                yield int(a), mesh.project(mesh.v[a] + step * shift)
+                yield int(a), mesh.v[a] + step * shift
 
 
 #: What a passing move changes: (ring faces, their points' distances to the input, input
@@ -338,10 +232,9 @@ def _try(
             return None
         if np.min(np.einsum("ij,ij->i", _normals(v, tri), old_normals)) < _MIN_NORMAL_COSINE:
             return None
-        dt = mesh.to_input(mesh.triangle_points(ring, v).reshape(-1, 3), limit)
+        dt = mesh.to_input(mesh.triangle_points(ring, v))
         if dt.max() >= limit:
             return None
-        dt = dt.reshape(len(ring), len(_GRID))
         # Input points whose distance may change: within reach of the ring, before or
         # after the move.
         corners = np.vstack([v[np.unique(tri)], old])
@@ -351,8 +244,7 @@ def _try(
         if len(near) == 0:
             return ring, dt, near, np.zeros(0), np.zeros(0, dtype=np.intp)
         local = mesh.two_ring(a)
-        candidates = np.broadcast_to(np.arange(len(local)), (len(near), len(local)))
-        d, which = _nearest(mesh.s[near], v[mesh.f[local]], candidates)
+        d, which = _to_triangles(mesh.s[near], v[mesh.f[local]])
         faces = local[which]
         was_on_ring = np.isin(mesh.s_face[near], ring)
         # Off the ring before: the old bound still holds; keep the smaller.
@@ -367,14 +259,37 @@ def _try(
 
 
 def _normals(v: NDArray[np.float64], tri: NDArray[np.intp]) -> NDArray[np.float64]:
-    n = np.cross(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
+    n = cross_rows(v[tri[:, 1]] - v[tri[:, 0]], v[tri[:, 2]] - v[tri[:, 0]])
     return n / np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+
+
+def check_min_angle(min_angle: float | None) -> float | None:
+    """``min_angle`` as a float in [0, 60] degrees (None passes).
+
+    Raises
+    ------
+    ValueError
+        Not a number, not finite, or outside [0, 60] (no triangle's least angle exceeds 60°).
+    """
+    if min_angle is None:
+        return None
+    if isinstance(min_angle, bool) or not isinstance(min_angle, (int, float, np.number)):
+        raise ValueError(
+            f"min_angle must be a number of degrees in [0, 60] or None, not {min_angle!r}"
+        )
+    angle = float(min_angle)
+    if not 0.0 <= angle <= 60.0:  # NaN fails too
+        raise ValueError(
+            f"min_angle must be in [0, 60] degrees (a triangle's least angle is at most 60°), "
+            f"got {min_angle!r}"
+        )
+    return angle
 
 
 def tighten(
     vertices: NDArray[np.float64],
     faces: NDArray[np.intp],
-    reference: tuple[NDArray[np.float64], NDArray[np.intp]],
+    surface: Domain,
     *,
     fixed: NDArray[np.bool_] | None = None,
     samples: int = 30_000,
@@ -390,8 +305,9 @@ def tighten(
         The mesh's vertices, on the input surface.
     faces : ndarray of int, shape (m, 3)
         Its triangles (not changed).
-    reference : (vertices (V, 3), faces (F, 3))
-        The input surface.
+    surface : Domain
+        The input surface (:meth:`hcvt.Domain.from_surface`), whose BVH answers the
+        nearest points on it.
     fixed : ndarray of bool, shape (n,), optional
         Vertices that must not move (feature sites, the border of an open mesh: vertices
         on a border edge never move).
@@ -410,8 +326,11 @@ def tighten(
     TightenResult
         The least angle and the least Q of the mesh are not lowered (module docs).
     """
+    if not surface.is_surface:
+        raise ValueError("tighten takes the input as a surface (hcvt.Domain.from_surface)")
+    floor_angle = check_min_angle(min_angle)
     rng = np.random.default_rng(seed)
-    mesh = _Mesh(vertices, faces, reference, samples, rng)
+    mesh = _Mesh(vertices, faces, surface, samples, rng)
     movable = np.ones(len(mesh.v), dtype=bool)
     if fixed is not None:
         movable &= ~np.asarray(fixed, dtype=bool)
@@ -420,12 +339,12 @@ def tighten(
     movable[pairs[counts == 1].ravel()] = False  # border vertices stay on the border
     least = float(triangle_angles(mesh.v, mesh.f).min())
     floors = (
-        least if min_angle is None else float(min_angle),
+        least if floor_angle is None else floor_angle,
         float(triangle_quality(mesh.v, mesh.f).min()),
     )
     before = mesh.worst()[0]
     # Below this the distances are round-off (a flat part, a mesh already on the input).
-    negligible = _NEGLIGIBLE * float(np.linalg.norm(np.ptp(mesh.rv, axis=0)))
+    negligible = _NEGLIGIBLE * float(np.linalg.norm(np.ptp(surface.vertices, axis=0)))
     moves = 0
     while moves < max_moves:
         worst, side, index = mesh.worst()
@@ -433,22 +352,27 @@ def tighten(
             break
         limit = worst * (1.0 - _GAIN)
         best = None
-        for a, x in _candidates(mesh, side, index, movable):
+        passed: set[int] = set()
+        for a, toward in _candidates(mesh, side, index, movable):
+            if a in passed:
+                continue  # a longer move of this vertex passed: its shorter ones are not tried
+            x = mesh.project(toward)
             found = _try(mesh, a, x, floors, worst, limit)
             if found is None:
                 continue
+            passed.add(a)
             peak = max(float(found[1].max()), float(found[3].max(initial=0.0)))
             if best is None or peak < best[0]:
                 best = (peak, a, x, found)
         if best is None:
             break  # the worst place cannot be improved: the distance is what it is
         _, a, x, (ring, dt, near, d, near_faces) = best
-        mesh.moved(a, x)
-        mesh.dt[ring], mesh.dt_exact[ring] = dt, False  # bounds below `limit`
+        mesh.v[a] = x
+        mesh.dt[ring] = dt
         mesh.ds[near], mesh.s_face[near] = d, near_faces
         mesh.ds_exact[near] = False  # over the two-ring only: bounds
         moves += 1
     return TightenResult(mesh.v, moves, before, mesh.worst()[0])
 
 
-__all__ = ["TightenResult", "tighten"]
+__all__ = ["TightenResult", "check_min_angle", "tighten"]

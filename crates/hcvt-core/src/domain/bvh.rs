@@ -134,6 +134,12 @@ impl<const D: usize> Bvh<D> {
         }
     }
 
+    /// The two children of node `i`; None at a leaf (or for a bad index).
+    pub fn children(&self, i: usize) -> Option<(usize, usize)> {
+        let node = self.nodes.get(i)?;
+        (node.count == 0).then_some((node.start as usize, node.start as usize + 1))
+    }
+
     /// The box of node `i` (an empty box for a bad index).
     pub fn node_bounds(&self, i: usize) -> Aabb<D> {
         self.nodes.get(i).map_or_else(Aabb::empty, |n| n.bounds)

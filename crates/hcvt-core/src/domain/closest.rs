@@ -94,26 +94,55 @@ impl TriangleSet {
         self.triangles[t as usize].map(|v| self.vertices[v as usize])
     }
 
-    /// The nearest point of the triangles to `p`, and its triangle (the first in the BVH's
-    /// fixed order among equally near ones).
+    /// The nearest point of the triangles to `p`, and its triangle (the least index among
+    /// equally near ones).
+    ///
+    /// Depth first, the nearer child first: the first leaves reached bound the distance,
+    /// which prunes most of the rest (a walk in the tree's fixed order met the nearest
+    /// triangle late: bunny, 35,000 points, 2.3 s under load). The answer does not depend
+    /// on the order: every box no farther than the best so far is opened, and ties go to
+    /// the least index.
     pub fn closest(&self, p: [f64; 3]) -> ([f64; 3], u32) {
         let mut best = (f64::INFINITY, p, 0u32);
-        self.bvh.walk(|node, is_leaf| {
-            if box_distance2(&self.bvh.node_bounds(node), p) > best.0 {
-                return false;
+        let bvh = &self.bvh;
+        if bvh.is_empty() {
+            return (best.1, best.2);
+        }
+        // (squared distance to the node's box, node); a median-split tree is at most
+        // 32 deep for u32 indices, so the stack stays short.
+        let mut stack: Vec<(f64, usize)> = Vec::with_capacity(64);
+        stack.push((box_distance2(&bvh.node_bounds(0), p), 0));
+        while let Some((d2, node)) = stack.pop() {
+            if d2 > best.0 {
+                continue;
             }
-            if is_leaf {
-                for &t in self.bvh.node_items(node) {
-                    let [a, b, c] = self.corners(t);
-                    let q = closest_on_triangle(p, a, b, c);
-                    let d2 = norm2(sub(q, p));
-                    if d2 < best.0 || (d2 == best.0 && t < best.2) {
-                        best = (d2, q, t);
+            match bvh.children(node) {
+                Some((a, b)) => {
+                    let near_a = (box_distance2(&bvh.node_bounds(a), p), a);
+                    let near_b = (box_distance2(&bvh.node_bounds(b), p), b);
+                    let (near, far) = if near_a.0 <= near_b.0 {
+                        (near_a, near_b)
+                    } else {
+                        (near_b, near_a)
+                    };
+                    for child in [far, near] {
+                        if child.0 <= best.0 {
+                            stack.push(child);
+                        }
+                    }
+                }
+                None => {
+                    for &t in bvh.node_items(node) {
+                        let [a, b, c] = self.corners(t);
+                        let q = closest_on_triangle(p, a, b, c);
+                        let d2 = norm2(sub(q, p));
+                        if d2 < best.0 || (d2 == best.0 && t < best.2) {
+                            best = (d2, q, t);
+                        }
                     }
                 }
             }
-            true
-        });
+        }
         (best.1, best.2)
     }
 
@@ -136,21 +165,33 @@ mod tests {
             .collect();
         let triangles: Vec<[u32; 3]> = (0..40).map(|k| [k, k + 7, k + 13]).collect();
         let set = TriangleSet::new(vertices.clone(), triangles.clone()).unwrap();
+        // The least squared distance over every triangle, and the least index reaching it.
+        let brute_force = |p: [f64; 3]| {
+            let mut best = (f64::INFINITY, 0u32);
+            for (k, t) in triangles.iter().enumerate() {
+                let [a, b, c] = t.map(|v| vertices[v as usize]);
+                let d2 = norm2(sub(closest_on_triangle(p, a, b, c), p));
+                if d2 < best.0 {
+                    best = (d2, k as u32);
+                }
+            }
+            best
+        };
         for _ in 0..200 {
             let p = [
                 2.0 * rng.unit() - 0.5,
                 2.0 * rng.unit() - 0.5,
                 2.0 * rng.unit() - 0.5,
             ];
-            let (q, _) = set.closest(p);
-            let brute = triangles
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = t.map(|v| vertices[v as usize]);
-                    norm2(sub(closest_on_triangle(p, a, b, c), p))
-                })
-                .fold(f64::INFINITY, f64::min);
-            assert_eq!(norm2(sub(q, p)), brute);
+            let (q, t) = set.closest(p);
+            let brute = brute_force(p);
+            assert_eq!((norm2(sub(q, p)), t), brute);
+        }
+        // Ties: at a shared vertex every triangle round it is as near; the least index wins.
+        for v in [7usize, 13, 20, 33] {
+            let (q, t) = set.closest(vertices[v]);
+            assert_eq!((norm2(sub(q, vertices[v])), t), brute_force(vertices[v]));
+            assert_eq!(q, vertices[v]);
         }
         // Each region of the triangle's closed form against a fine grid of its points.
         let (a, b, c) = ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
