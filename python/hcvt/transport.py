@@ -8,8 +8,7 @@ power diagram with edge weights ``∫_F ρ / (2|z_i - z_j|)``, solved by a spars
 factorisation in 2D (conjugate gradients preconditioned by its diagonal in 3D, or when the
 face graph is not connected); each step halved until no cell holds less than half of
 ``min(initial mass, target)`` and the mass error has dropped. The first step from zero
-weights tries half a step, each later one twice the length the previous one took (at
-most a full step): every trial costs a power diagram.
+weights tries half a step first, the others a full one: every trial costs a power diagram.
 """
 
 from __future__ import annotations
