@@ -6,9 +6,9 @@
 
 use hcvt_core::sample::{interior_sites, Lcg};
 use hcvt_core::{
-    clipped_diagram, optimal_transport, BoxDomain, ConvexCell, CoreError, Density, DomainKind,
-    Euclid, PeriodicBox, Polygon, PolygonCell, PolyhedronCell, Quadratic, Request, Space,
-    Transport, TransportSettings,
+    clipped_diagram, optimal_transport, optimal_transport_from, BoxDomain, ConvexCell, CoreError,
+    Density, DomainKind, Euclid, PeriodicBox, Polygon, PolygonCell, PolyhedronCell, Quadratic,
+    Request, Space, Transport, TransportSettings,
 };
 
 fn settings<const D: usize>() -> TransportSettings<'static, D> {
@@ -139,6 +139,44 @@ fn weights_do_not_depend_on_the_thread_count() {
         .map(|w| w.to_bits())
         .eq(three.weights.iter().map(|w| w.to_bits())));
     assert_eq!(one.history, three.history);
+}
+
+/// The step lengths tried: from zero weights the first step tries 1/2, every later one 1,
+/// halving from there; from given weights the first step tries 1. Checked through the
+/// diagrams each step computed: `t₀ / t = 2^(k−1)` for `k` diagrams and the step `t` taken.
+#[test]
+fn newton_steps_try_half_a_step_first_from_zero_weights_and_full_ones_after() {
+    let square = BoxDomain::new([0.0, 0.0], [1.0, 1.0]).unwrap();
+    let sites = interior_sites(&square, 3000, 21);
+    let masses = random_masses(sites.len(), 1.0, 22);
+    let out =
+        optimal_transport::<2, PolygonCell, _>(&square, &sites, &masses, &settings()).unwrap();
+    check::<2, PolygonCell, _>(&square, &sites, &out, None);
+    let mut first = 0.5;
+    for (k, r) in out.history.iter().enumerate() {
+        let halvings = (first / r.step).log2();
+        assert_eq!(halvings, halvings.round(), "step {k}: {r:?}");
+        assert_eq!(r.diagrams, 1 + halvings as usize, "step {k}: {r:?}");
+        first = 1.0;
+    }
+    // From the weights of the solution, masses 0.1% off: the full step first, and taken.
+    let nearby: Vec<f64> = masses
+        .iter()
+        .enumerate()
+        .map(|(i, m)| m * if i % 2 == 0 { 1.001 } else { 0.999 })
+        .collect();
+    let total: f64 = nearby.iter().sum();
+    let nearby: Vec<f64> = nearby.iter().map(|m| m / total).collect();
+    let warm = optimal_transport_from::<2, PolygonCell, _>(
+        &square,
+        &sites,
+        &nearby,
+        Some(&out.weights),
+        &settings(),
+    )
+    .unwrap();
+    check::<2, PolygonCell, _>(&square, &sites, &warm, None);
+    assert_eq!((warm.history[0].step, warm.history[0].diagrams), (1.0, 1));
 }
 
 #[test]

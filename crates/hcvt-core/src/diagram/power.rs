@@ -380,35 +380,35 @@ impl<'a, const D: usize> Power<'a, D> {
             return; // the stream read every site that can cut the cell
         }
         let (from, to) = grid.cube(site, outer);
-        // Whether a site of weight at most `w` in the blocks `first..=last` can cut the
-        // cell beyond the streamed distance.
-        let reaches = |w: f64, first, last, r: f64, radius2: f64| {
-            cut_reach(r, radius2, w - own).is_some_and(|reach| {
-                let reach2 = reach * reach * (1.0 + ROUNDING);
-                reach2 > covered2 && grid.near2(first, last, site) < reach2
-            })
+        // The squared distance (with the rounding margin) within which a site of weight at
+        // most `w` in the blocks `first..=last` can cut the cell, when that reaches beyond
+        // the streamed distance and the blocks lie within it; `None` when no such site can.
+        let reach2_of = |w: f64, first, last, r: f64, radius2: f64| {
+            let reach = cut_reach(r, radius2, w - own)?;
+            let reach2 = reach * reach * (1.0 + ROUNDING);
+            (reach2 > covered2 && grid.near2(first, last, site) < reach2).then_some(reach2)
         };
         let (coarse_from, coarse_to) = (from.map(|x| x / COARSE), to.map(|x| x / COARSE));
         let mut coarse = coarse_from;
         loop {
             let first = std::array::from_fn(|k| (coarse[k] * COARSE).max(from[k]));
             let last = std::array::from_fn(|k| (coarse[k] * COARSE + COARSE - 1).min(to[k]));
-            if reaches(
-                grid.coarse_max[grid.coarse_flat(coarse)],
-                first,
-                last,
-                r,
-                radius2,
-            ) {
+            let coarse_max = grid.coarse_max[grid.coarse_flat(coarse)];
+            if reach2_of(coarse_max, first, last, r, radius2).is_some() {
                 let mut at = first;
                 loop {
                     let b = grid.flat(at);
-                    if reaches(grid.max[b], at, at, r, radius2) {
+                    if let Some(block2) = reach2_of(grid.max[b], at, at, r, radius2) {
                         for k in grid.starts[b] as usize..grid.starts[b + 1] as usize {
                             let q = sub(grid.member_sites[k], site);
                             let dist2 = norm2(q);
-                            if dist2 <= covered2 {
-                                continue; // streamed (site `i` itself among them)
+                            // Streamed (site `i` itself among them), or beyond the reach
+                            // of the block's heaviest weight, at least the member's own
+                            // (rounded operations are monotone, and the cell has only
+                            // shrunk since): the same sites clipped in the same order,
+                            // most of the others turned away without a square root.
+                            if dist2 <= covered2 || dist2 >= block2 {
+                                continue;
                             }
                             let excess = grid.member_weights[k] - own;
                             let j = grid.members[k];
