@@ -772,7 +772,7 @@ fn part_power<'a, const D: usize, K: DomainKind<D>>(
 ///
 /// The faces' sites are copied first, and the batches' copies dropped before the measures
 /// are allocated: the batches' faces (12 bytes a face) and the diagram's (12) are never
-/// all alive at once (issue 32: memory per site; 3D 100k: 569 -> 517 B/site at the peak,
+/// all alive at once (issue 32: memory per site; 3D 100k: 579 -> 524 B/site at the peak,
 /// measured with the allocator purging at once, docs/results/memory.txt).
 fn assemble<const D: usize, C: ConvexCell<D>>(
     sites: &[[f64; D]],
