@@ -39,9 +39,13 @@ the cost, and they are sensitive to anything that perturbs the trajectory, most 
 Measured since (3 seeds, other starts with ``--start``, a Laplacian preconditioner, where
 the iterations go: saddle passages): docs/guide/volumes.md, "Large polycrystals".
 
+``--methods newton`` is Newton on the sites with the weights eliminated (the transport
+cost's exact Hessian ``H_zz + B L^-1 B^T`` in a trust region): docs/guide/volumes.md,
+"Newton on the sites", for its counts against L-BFGS in the same runs.
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/polycrystal.py [--n 100000] [--sigma 0.3]
         [--seed 0] [--threads 0] [--case DIR] [--progress K] [--save RUN.npz] [--resume RUN.npz]
-        [--start random|lloyd:K|coarse:F]
+        [--start random|lloyd:K|coarse:F] [--methods lbfgs|lloyd|newton ...]
 
 Long runs (100,000 grains take hours): ``--progress K`` prints every K-th outer iteration
 (elapsed time, RMS gap, diagrams so far), ``--save RUN.npz`` keeps the latest sites there
@@ -210,7 +214,7 @@ def main() -> None:
         "--methods",
         nargs="+",
         default=[CAPACITY_METHOD],
-        choices=["lloyd", "lbfgs"],
+        choices=["lloyd", "lbfgs", "newton"],
         help="run each (the last one's grains are meshed); times printed as ratios to the first",
     )
     args = parser.parse_args()

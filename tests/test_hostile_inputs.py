@@ -455,7 +455,7 @@ SPECIFIC: dict[str, list[Row]] = {
         (
             "periodic 2D: Newton is refused with a message",
             lambda: hcvt.cvt(torus((1.0, 1.0)), [(0.5, 0.5), (0.2, 0.3)], "newton"),
-            Raises(ValueError, "not summed in a periodic box yet"),
+            Raises(ValueError, "not offered in a periodic box yet"),
         ),
         (
             "periodic 2D: the conforming mesh of two cells (their faces paired)",

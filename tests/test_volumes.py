@@ -110,17 +110,21 @@ def periodic_cell_3d(points, weights, i, period):
     return hull.volume, centroid
 
 
-def test_periodic_3d_box_cells_have_their_volumes_and_sites_at_centroids():
+@pytest.mark.parametrize("method", [None, "newton"])
+def test_periodic_3d_box_cells_have_their_volumes_and_sites_at_centroids(method):
+    """The default L-BFGS and Newton with the weights eliminated (``"newton"``)."""
     period = 1.0
     box = hcvt.Domain.box([0, 0, 0], [period] * 3, periodic=True)
     n = 80
     sites = np.random.default_rng(33).random((n, 3))
     relative = lognormal(n, seed=34)
-    out = hcvt.cvt(box, sites, volumes=relative, normalise=True)
+    out = hcvt.cvt(box, sites, method, volumes=relative, normalise=True)
     print(
-        f"periodic box: {out.iterations} outer iterations, "
-        f"{int(out.history['newton_steps'].sum())} Newton steps"
+        f"periodic box, {method}: {out.iterations} outer iterations, "
+        f"{int(out.history['newton_steps'].sum())} Newton steps, {out.evaluations} diagrams"
     )
+    if method == "newton":
+        assert set(out.history["step"][1:]) <= {"newton", "lloyd"}
     assert out.converged
     assert np.all((out.sites >= 0) & (out.sites < period))
     targets = relative / relative.sum()
@@ -171,22 +175,23 @@ def test_bourne_et_al_alternation_reaches_the_same_rule():
     assert fast.iterations < out.iterations
 
 
-def _run(threads: int, domain, sites, volumes):
+def _run(threads: int, domain, sites, volumes, method=None):
     before = hcvt.get_num_threads()
     try:
         hcvt.set_num_threads(threads)
-        return hcvt.cvt(domain, sites, volumes=volumes, normalise=True)
+        return hcvt.cvt(domain, sites, method, volumes=volumes, normalise=True)
     finally:
         hcvt.set_num_threads(before)
 
 
+@pytest.mark.parametrize("method", [None, "newton"])
 @pytest.mark.parametrize("dim", [2, 3])
-def test_the_same_bits_for_a_seed_on_1_and_3_threads(dim):
+def test_the_same_bits_for_a_seed_on_1_and_3_threads(dim, method):
     box = hcvt.Domain.box(np.zeros(dim), np.ones(dim), periodic=True)
     n = 150 if dim == 2 else 60
     sites = np.random.default_rng(37).random((n, dim))
     volumes = lognormal(n, seed=38)
-    one, three, again = (_run(k, box, sites, volumes) for k in (1, 3, 1))
+    one, three, again = (_run(k, box, sites, volumes, method) for k in (1, 3, 1))
     for other in (three, again):
         assert np.array_equal(one.sites, other.sites)
         assert np.array_equal(one.weights, other.weights)
@@ -220,7 +225,7 @@ def test_bad_volumes_are_refused_by_name():
     with pytest.raises(ValueError, match="sum to"):
         hcvt.cvt(square, sites, volumes=np.full(10, 0.2))
     with pytest.raises(ValueError, match="volumes= takes method None, 'lloyd'"):
-        hcvt.cvt(square, sites, "newton", volumes=ok)
+        hcvt.cvt(square, sites, "cg", volumes=ok)
     with pytest.raises(NotImplementedError, match="dask"):
         hcvt.cvt(square, sites, volumes=ok, client=object())
     # Volumes that sum right are taken as they are.

@@ -221,7 +221,10 @@ def cvt(
         warm-started optimal transport; ``"lloyd"`` is Bourne, Kok, Roper and Spanjer
         2020's alternation (optimal-transport weights for the present sites, warm-started,
         then sites to their power cells' centroids, repeated), 13-15x more outer
-        iterations; not ``"newton"``. They must sum to the domain's
+        iterations; ``"newton"`` is Newton in a trust region on the transport cost with
+        its exact Hessian in the sites, the weights eliminated (``H_zz + B L^-1 B^T``;
+        about 3-13x fewer outer iterations and 2-8x fewer diagrams than ``"lbfgs"`` on
+        1,000 grains in a periodic cube; no ``density``). They must sum to the domain's
         volume (to 1e-9 relative) unless ``normalise``. On polygons, solids and boxes,
         periodic or not; not with ``client`` (NotImplementedError), the sphere or a surface.
         The result's ``diagram`` is the power diagram, ``weights`` its weights; the

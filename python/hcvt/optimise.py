@@ -323,14 +323,16 @@ def capacity_method(method: str | None) -> str:
     """The method of a CVT with prescribed volumes (``method=None``: ``"lbfgs"``).
 
     ``"lloyd"`` is Bourne et al.'s alternation (transport, then sites to centroids);
-    ``"lbfgs"`` is L-BFGS on the transport cost, each trial a warm-started transport.
+    ``"lbfgs"`` is L-BFGS on the transport cost, each trial a warm-started transport;
+    ``"newton"`` is Newton in a trust region on the transport cost with its exact
+    Hessian in the sites, the weights eliminated (no density).
     :func:`fastest_method` does not apply.
     """
-    if method not in (None, "lloyd", "lbfgs"):
+    if method not in (None, "lloyd", "lbfgs", "newton"):
         raise ValueError(
             "volumes= takes method None, 'lloyd' (Bourne et al.'s alternation: optimal "
-            "transport, then sites to centroids) or 'lbfgs' (on the transport cost), "
-            f"got {method!r}"
+            "transport, then sites to centroids), 'lbfgs' (on the transport cost) or "
+            f"'newton' (the weights eliminated), got {method!r}"
         )
     return method or CAPACITY_METHOD
 

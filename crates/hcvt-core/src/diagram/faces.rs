@@ -19,11 +19,15 @@ pub trait FaceIntegrand<const D: usize>: Sync {
     /// Add one signed piece of the face between cell `i` and its neighbour `j` to `face`
     /// (the entry of `j` in row `i`, zero at first) and to `cell` (row `i`'s sum): `m` holds
     /// the piece's moments about site `i`, and `sign` (±1) is the sign of the piece in the
-    /// cone identity of DESIGN §3.
+    /// cone identity of DESIGN §3. `to_neighbor` is `z_j − z_i` as the cell sees it when it
+    /// is not the sites' own difference: in a periodic box, where `j` borders `i` through
+    /// one of its images (`None` elsewhere).
+    #[allow(clippy::too_many_arguments)] // the face, its two cells and the two sums
     fn add(
         &self,
         i: usize,
         j: usize,
+        to_neighbor: Option<[f64; D]>,
         sign: f64,
         m: &FaceMoments<D>,
         face: &mut Matrix<D>,
@@ -163,7 +167,7 @@ impl<const D: usize> FaceSums<D> {
             self.integrals.push([[0.0; D]; D]);
         }
         let (face, cell) = (&mut self.integrals[at], &mut self.cell_integral);
-        row.integrand.add(row.site, j, sign, m, face, cell);
+        row.integrand.add(row.site, j, None, sign, m, face, cell);
     }
 
     /// Keep the faces of positive measure, sorted by neighbour, with their integrals if

@@ -39,13 +39,13 @@
 
 use crate::error::CoreError;
 use crate::geometry::{sub, Aabb, Euclid, Space};
-use crate::moments::Moments;
+use crate::moments::{FaceMoments, Moments};
 
 use super::box_domain::BoxDomain;
 use super::clip::{measure, MeasureScratch};
 use super::convex_cell::ConvexCell;
 use super::domain_kind::DomainKind;
-use super::faces::FaceRow;
+use super::faces::{FaceIntegrals, FaceIntegrand, FaceRow, Matrix};
 use super::voronoi_cell::BOX_MARGIN;
 use super::weighted::WeightedSums;
 use super::{
@@ -306,9 +306,11 @@ impl<const D: usize> Images<D> {
 /// again with the band doubled, until none does; then each neighbour named by its site and
 /// image shift, rows sorted by both.
 ///
+/// A face integrand is summed over each face with the neighbour's index that of its site
+/// and `z_j − z_i` that of the image the face is shared with ([`ThroughImages`]).
+///
 /// Errors: those of [`super::clipped_diagram`] (coinciding sites are also sites at the
-/// same point of the torus), and a density or a face integrand, which a periodic box does
-/// not take yet.
+/// same point of the torus), and a density, which a periodic box does not take yet.
 pub(super) fn clipped_diagram<const D: usize, C: ConvexCell<D>>(
     torus: &PeriodicBox<D>,
     sites: &[[f64; D]],
@@ -321,13 +323,6 @@ where
     if request.density.is_some() {
         return Err(CoreError::InvalidDensity {
             reason: "a periodic box takes no density yet".into(),
-        });
-    }
-    if request.integrand.is_some() {
-        return Err(CoreError::InvalidSettings {
-            reason: "a periodic box sums no face integrand yet (Newton's Hessian): use \
-                     method 'lbfgs' or 'lloyd'"
-                .into(),
         });
     }
     // Non-finite first, so that the error names the value given, not its wrap.
@@ -345,10 +340,16 @@ where
         &windings,
         morton_order(&wrapped),
         weights,
+        request.integrand,
         request.keep_cells,
         n,
     )?;
-    Ok(assemble_passes(n, passes, request.keep_cells))
+    Ok(assemble_passes(
+        n,
+        passes,
+        request.integrand.is_some(),
+        request.keep_cells,
+    ))
 }
 
 /// [`super::clipped_cells`] in a periodic box: the cells of the sites `own` among
@@ -393,6 +394,7 @@ where
         &windings,
         own.to_vec(),
         None,
+        None,
         false,
         total_sites.max(n),
     )?;
@@ -405,7 +407,7 @@ where
             }
         }
     }
-    let whole = assemble_passes::<D, C>(n, passes, false).diagram;
+    let whole = assemble_passes::<D, C>(n, passes, false, false).diagram;
     Ok(PartCells {
         diagram: whole.rows(own),
         reach2: own.iter().map(|&i| reach2[i as usize]).collect(),
@@ -415,12 +417,14 @@ where
 /// The cells of the wrapped sites `visit_order` among `wrapped` and their images in a
 /// band ([`Images`]); the cells whose reach passes the band's cover computed again with
 /// the band doubled, until none does (the band of a problem of `total_sites` sites).
+#[allow(clippy::too_many_arguments)] // the sites, and what the diagram is asked for
 fn band_passes<const D: usize, C: ConvexCell<D>>(
     torus: &PeriodicBox<D>,
     wrapped: &[[f64; D]],
     windings: &[Option<i32>],
     mut visit_order: Vec<u32>,
     weights: Option<&[f64]>,
+    integrand: Option<&dyn FaceIntegrand<D>>,
     keep_cells: bool,
     total_sites: usize,
 ) -> Result<Vec<Pass<D, C>>, CoreError>
@@ -456,8 +460,13 @@ where
             record: false,
             reach: true,
         };
+        let through = integrand.map(|inner| ThroughImages {
+            inner,
+            images: &images,
+        });
+        let through = through.as_ref().map(|t| t as &dyn FaceIntegrand<D>);
         let batches =
-            visit.batches::<C, PeriodicBox<D>>(torus, &visit_order, None, keep_cells, &none);
+            visit.batches::<C, PeriodicBox<D>>(torus, &visit_order, through, keep_cells, &none);
         let batches = without_errors(batches)
             .map_err(|e| e.with_site_rows(|j| images.image(j).0 as usize))?;
         // The cells to compute again, in the order they were visited.
@@ -473,6 +482,33 @@ where
     Ok(passes)
 }
 
+/// A caller's [`FaceIntegrand`] over the faces of the cells among a band of images: each
+/// face named by the site of its image, with `z_j − z_i` that image's offset from the
+/// site (a site's own difference would be off by a period across the box's sides).
+struct ThroughImages<'a, const D: usize> {
+    inner: &'a dyn FaceIntegrand<D>,
+    images: &'a Images<D>,
+}
+
+impl<const D: usize> FaceIntegrand<D> for ThroughImages<'_, D> {
+    fn add(
+        &self,
+        i: usize,
+        j: usize,
+        _: Option<[f64; D]>,
+        sign: f64,
+        m: &FaceMoments<D>,
+        face: &mut Matrix<D>,
+        cell: &mut Matrix<D>,
+    ) {
+        let sites = &self.images.sites;
+        let to_neighbor = sub(sites[j], sites[i]);
+        let (source, _) = self.images.image(j);
+        let inner = self.inner;
+        inner.add(i, source as usize, Some(to_neighbor), sign, m, face, cell);
+    }
+}
+
 /// The cells of one band of images.
 struct Pass<const D: usize, C> {
     images: Images<D>,
@@ -485,6 +521,7 @@ struct Pass<const D: usize, C> {
 fn assemble_passes<const D: usize, C: ConvexCell<D>>(
     n: usize,
     passes: Vec<Pass<D, C>>,
+    integrals: bool,
     keep_cells: bool,
 ) -> Clipped<D, C> {
     let mut last = vec![0u32; n];
@@ -509,18 +546,25 @@ fn assemble_passes<const D: usize, C: ConvexCell<D>>(
     diagram.neighbor_sites = vec![0; faces];
     diagram.neighbor_measures = vec![0.0; faces];
     diagram.neighbor_images = vec![[0; D]; faces];
+    let mut sums = FaceIntegrals::default();
+    if integrals {
+        sums.cells = vec![[[0.0; D]; D]; n];
+        sums.faces = vec![[[0.0; D]; D]; faces];
+    }
     let mut cells: Vec<Option<C>> = Vec::new();
     if keep_cells {
         cells.resize_with(n, || None);
     }
-    let mut row: Vec<(u32, [i8; D], f64)> = Vec::new();
+    // Each face: its site, shift, measure and entry in the batch (for its integral).
+    let mut row: Vec<(u32, [i8; D], f64, usize)> = Vec::new();
     for (p, pass) in passes.into_iter().enumerate() {
         for b in pass.batches {
             let mut at = 0;
             for (k, &i) in b.sites.iter().enumerate() {
                 let (i, count) = (i as usize, b.face_counts[k] as usize);
                 let faces = (b.neighbor_sites[at..at + count].iter())
-                    .zip(&b.neighbor_measures[at..at + count]);
+                    .zip(&b.neighbor_measures[at..at + count])
+                    .zip(at..at + count);
                 at += count;
                 if last[i] != p as u32 {
                     continue;
@@ -528,16 +572,22 @@ fn assemble_passes<const D: usize, C: ConvexCell<D>>(
                 diagram.moments[i] = b.moments[k];
                 diagram.boundary_measure[i] = b.boundary_measure[k];
                 row.clear();
-                row.extend(faces.map(|(&j, &measure)| {
+                row.extend(faces.map(|((&j, &measure), entry)| {
                     let (j, shift) = pass.images.image(j as usize);
-                    (j, shift, measure)
+                    (j, shift, measure, entry)
                 }));
                 row.sort_unstable_by_key(|x| (x.0, x.1));
                 let from = diagram.neighbor_offsets[i];
-                for (e, &(j, shift, measure)) in row.iter().enumerate() {
+                for (e, &(j, shift, measure, entry)) in row.iter().enumerate() {
                     diagram.neighbor_sites[from + e] = j;
                     diagram.neighbor_images[from + e] = shift;
                     diagram.neighbor_measures[from + e] = measure;
+                    if integrals {
+                        sums.faces[from + e] = b.face_integrals[entry];
+                    }
+                }
+                if integrals {
+                    sums.cells[i] = b.cell_integrals[k];
                 }
             }
             if keep_cells {
@@ -552,7 +602,7 @@ fn assemble_passes<const D: usize, C: ConvexCell<D>>(
     Clipped {
         diagram,
         cells: cells.into_iter().flatten().collect(),
-        face_integrals: Default::default(),
+        face_integrals: sums,
         warm: None,
     }
 }

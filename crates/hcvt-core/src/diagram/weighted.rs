@@ -304,9 +304,11 @@ fn add_weighted_faces<const D: usize, C>(
             };
             let m = f.weighted(v);
             let j = f.neighbor as usize;
+            // A sampled density is not taken in a periodic box: no image to name.
             integrand.add(
                 i,
                 j,
+                None,
                 1.0,
                 &m,
                 &mut b.face_integrals[e],

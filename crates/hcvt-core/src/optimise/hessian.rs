@@ -9,6 +9,8 @@ use crate::diagram::{Diagram, DomainKind, FaceIntegrals, FaceIntegrand, Matrix};
 use crate::geometry::{add, dot, norm2, sub};
 use crate::moments::FaceMoments;
 
+use super::capacity::Reduction;
+
 /// The Hessian of the CVT energy `E(X) = Σ_i ∫_{Ω_i} |x − x_i|²`, exact, in `D × D` blocks.
 ///
 /// With `F_ij` the face shared by cells `i` and `j` inside the domain, `d_ij = |x_j − x_i|`
@@ -23,6 +25,9 @@ pub struct Hessian<const D: usize> {
     pub diagonal: Vec<Block<D>>,
     /// `H_ij` for each entry of [`Diagram::neighbor_sites`], `L^d`.
     pub off_diagonal: Vec<Block<D>>,
+    /// With prescribed volumes, the term `B L⁻¹ Bᵀ` of the weights eliminated, added to
+    /// every product (the Hessian of the transport cost in the sites alone).
+    pub reduction: Option<Box<Reduction<D>>>,
 }
 
 /// A `D × D` block of the [`Hessian`], row-major.
@@ -42,12 +47,14 @@ impl<const D: usize> FaceIntegrand<D> for HessianTerms<'_, D> {
         &self,
         i: usize,
         j: usize,
+        to_neighbor: Option<[f64; D]>,
         sign: f64,
         m: &FaceMoments<D>,
         face: &mut Matrix<D>,
         cell: &mut Matrix<D>,
     ) {
-        let q = sub(self.sites[j], self.sites[i]);
+        // Across a periodic box's face the neighbour is an image of site `j`.
+        let q = to_neighbor.unwrap_or_else(|| sub(self.sites[j], self.sites[i]));
         let w = sign * 2.0 / norm2(q).sqrt();
         let rows = face.iter_mut().zip(cell.iter_mut());
         for ((block_row, face_row), (s2_row, &s1)) in rows.zip(m.second.iter().zip(&m.first)) {
@@ -80,6 +87,7 @@ impl<const D: usize> Hessian<D> {
         Self {
             diagonal,
             off_diagonal: terms.faces,
+            reduction: None,
         }
     }
 
@@ -109,6 +117,9 @@ impl<const D: usize> Hessian<D> {
                     *o = row(c * PRODUCT_ROWS + k);
                 }
             });
+        if let Some(reduction) = &self.reduction {
+            reduction.add_product(diagram, v, out);
+        }
     }
 
     /// The Riemannian Hessian on a curved domain (the sphere, DESIGN §13) from the ambient
@@ -169,6 +180,7 @@ impl<const D: usize> Hessian<D> {
         Self {
             diagonal,
             off_diagonal: faces.iter().map(|&e| self.off_diagonal[e]).collect(),
+            reduction: (self.reduction.as_ref()).map(|r| Box::new(r.reordered(order, faces))),
         }
     }
 }

@@ -620,8 +620,8 @@ where
     }
     if domain.periodic().is_some() && settings.method == Method::Newton {
         return Err(CoreError::InvalidSettings {
-            reason: "Newton's Hessian is not summed in a periodic box yet: use method \
-                     'lbfgs' or 'lloyd'"
+            reason: "Newton is not offered in a periodic box yet (only with volumes=): use \
+                     method 'lbfgs' or 'lloyd'"
                 .into(),
         });
     }

@@ -55,6 +55,8 @@ use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
 };
+use std::borrow::Cow;
+
 use faer::sparse::{SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Par, Side};
 use rayon::prelude::*;
@@ -384,6 +386,7 @@ impl<const D: usize> FaceIntegrand<D> for FaceMass {
         &self,
         _: usize,
         _: usize,
+        _: Option<[f64; D]>,
         sign: f64,
         m: &FaceMoments<D>,
         face: &mut Matrix<D>,
@@ -394,16 +397,38 @@ impl<const D: usize> FaceIntegrand<D> for FaceMass {
 }
 
 /// The graph Laplacian of a power diagram, `c_ij = ∫_{F_ij} ρ / (2|z_i − z_j|)`, in the
-/// diagram's face list; row 0 held fixed.
-struct Laplacian<'a, const D: usize> {
+/// diagram's face list; row 0 held fixed. It is `∂m/∂w`, the Jacobian of the cells'
+/// masses in the weights, which the sites' reduced Hessian also solves with
+/// (`capacity::Reduction`).
+pub(super) struct Laplacian<'a, const D: usize> {
     diagram: &'a Diagram<D>,
     /// `c_e` per face entry (0 for a cell's faces with its own images).
-    edge: Vec<f64>,
-    diagonal: Vec<f64>,
+    edge: Cow<'a, [f64]>,
+    diagonal: Cow<'a, [f64]>,
 }
 
 /// Rows of a Laplacian product per parallel task.
 const PRODUCT_ROWS: usize = 2048;
+
+/// `z_j − z_i` across face entry `e` of cell `i` of `diagram`: in a periodic box between
+/// the wrapped site `i` and the image of `j` it shares the face with.
+pub(super) fn to_neighbor<const D: usize, K: DomainKind<D>>(
+    diagram: &Diagram<D>,
+    sites: &[[f64; D]],
+    domain: &K,
+    i: usize,
+    e: usize,
+) -> [f64; D] {
+    let j = diagram.neighbor_sites[e] as usize;
+    match domain.periodic() {
+        Some(t) => {
+            let k = diagram.neighbor_images[e];
+            let (zi, zj, l) = (t.wrap(sites[i]), t.wrap(sites[j]), t.periods());
+            std::array::from_fn(|m| zj[m] + f64::from(k[m]) * l[m] - zi[m])
+        }
+        None => sub(sites[j], sites[i]),
+    }
+}
 
 impl<'a, const D: usize> Laplacian<'a, D> {
     fn new<K: DomainKind<D>>(
@@ -412,7 +437,33 @@ impl<'a, const D: usize> Laplacian<'a, D> {
         domain: &K,
     ) -> Self {
         let diagram = &evaluation.diagram;
-        let torus = domain.periodic();
+        let (edge, diagonal) =
+            Self::couplings(diagram, evaluation.face_mass.as_ref(), sites, domain);
+        Self {
+            diagram,
+            edge: Cow::Owned(edge),
+            diagonal: Cow::Owned(diagonal),
+        }
+    }
+
+    /// The Laplacian of `diagram` with the couplings `edge` and their row sums `diagonal`
+    /// of [`Laplacian::couplings`].
+    pub(super) fn borrowed(diagram: &'a Diagram<D>, edge: &'a [f64], diagonal: &'a [f64]) -> Self {
+        Self {
+            diagram,
+            edge: Cow::Borrowed(edge),
+            diagonal: Cow::Borrowed(diagonal),
+        }
+    }
+
+    /// The couplings `c_e` per face entry of `diagram` (`∫_F ρ` from `face_mass` when
+    /// given, else the face measure) and their sums per cell.
+    pub(super) fn couplings<K: DomainKind<D>>(
+        diagram: &Diagram<D>,
+        face_mass: Option<&FaceIntegrals<D>>,
+        sites: &[[f64; D]],
+        domain: &K,
+    ) -> (Vec<f64>, Vec<f64>) {
         let n = diagram.len();
         let mut edge = vec![0.0; diagram.neighbor_sites.len()];
         let mut diagonal = vec![0.0; n];
@@ -428,15 +479,8 @@ impl<'a, const D: usize> Laplacian<'a, D> {
                 if j == i {
                     continue; // a face with its own image: w_i moves both sides
                 }
-                let q = match torus {
-                    Some(t) => {
-                        let k = diagram.neighbor_images[e];
-                        let (zi, zj, l) = (t.wrap(sites[i]), t.wrap(sites[j]), t.periods());
-                        std::array::from_fn(|m| zj[m] + f64::from(k[m]) * l[m] - zi[m])
-                    }
-                    None => sub(sites[j], sites[i]),
-                };
-                let mass = match &evaluation.face_mass {
+                let q = to_neighbor(diagram, sites, domain, i, e);
+                let mass = match face_mass {
                     Some(f) => f.faces[e][0][0],
                     None => diagram.neighbor_measures[e],
                 };
@@ -444,11 +488,7 @@ impl<'a, const D: usize> Laplacian<'a, D> {
                 *sum += *c;
             }
         }
-        Self {
-            diagram,
-            edge,
-            diagonal,
-        }
+        (edge, diagonal)
     }
 
     /// `out = L x`.
@@ -473,7 +513,7 @@ impl<'a, const D: usize> Laplacian<'a, D> {
     /// cell's target mass, relatively (`|r_i| ≤ goal · ν_i`): an ℓ2 criterion would let
     /// the error of the whole system fall on the smallest cells and empty them in the
     /// step. Returns the iterations taken too.
-    fn solve(
+    pub(super) fn solve(
         &self,
         b: &[f64],
         targets: &[f64],
