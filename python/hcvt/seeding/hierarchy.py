@@ -24,6 +24,7 @@ from hcvt.draw import Shows
 from hcvt.geometry.domain import Domain
 from hcvt.optimise import check_rule, cvt
 from hcvt.seeding.initialisation import RandomState, initialise, random_state
+from hcvt.seeding.sphere import rebalance
 
 # Sites per subdivision in the ideal lattice: hexagonal 1 + 6/2, BCC 1 + 14/2 (paper §4.1.1).
 GROWTH = {2: 4, 3: 8}
@@ -498,6 +499,8 @@ def hierarchical_cvt(
             midpoints = trim(previous.diagram, midpoints, pairs, k - target)
         sites = np.vstack([previous.sites, midpoints])
         sites = top_up(domain, sites, target, generator, density, quadrature_degree)
+        if domain.is_sphere and density is not None:
+            sites = rebalance(previous.sites, sites, density)
         last = index == len(plan.targets) - 1
         level = _optimise_level(
             optimise if last else optimise_coarse, domain, sites, k, target - k, start

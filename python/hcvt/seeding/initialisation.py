@@ -35,7 +35,13 @@ from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesErr
 from hcvt.geometry.domain import Domain, polygon_boundary
 from hcvt.geometry.surface_points import sample_by_area
 from hcvt.seeding.cover import Cover, cover
-from hcvt.seeding.sphere import SPHERE_METHODS, fibonacci, icosahedral, random_sphere
+from hcvt.seeding.sphere import (
+    SPHERE_METHODS,
+    fibonacci,
+    icosahedral,
+    point_density,
+    random_sphere,
+)
 
 METHODS = ("random", "halton", "hammersley", "lattice")
 # Memory of one site with its diagram, measured order of magnitude (bytes).
@@ -251,14 +257,14 @@ def _graded_on_sphere(
     from 4,096 probes; it is raised and the draws restarted if a value exceeds it.
     """
     probes = fibonacci(DENSITY_PROBES) * domain.radius
-    bound = DENSITY_BOUND_FACTOR * float(np.max(evaluate(density, probes) ** 0.5))
+    bound = DENSITY_BOUND_FACTOR * float(np.max(point_density(density, probes)))
     for _ in range(DENSITY_RESTARTS):
         found: list[NDArray[np.float64]] = []
         count, peak = 0, 0.0
         while count < n:
             points = random_sphere(int(min(MAX_BATCH, 2 * (n - count) + 64)), generator)
             points = points * domain.radius
-            g = evaluate(density, points) ** 0.5
+            g = point_density(density, points)
             peak = max(peak, float(g.max()))
             points = points[generator.random(len(points)) * bound < g]
             found.append(points)

@@ -8,9 +8,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from hcvt.density import SizingField, evaluate
 
 #: ``initialise``'s methods on the sphere.
 SPHERE_METHODS = ("random", "fibonacci", "icosahedral")
@@ -176,3 +180,71 @@ def cells_for_width(
     h = width(x.reshape(-1, 3) * radius).reshape(la.shape)
     area = np.cos(la) * math.radians(0.18) ** 2 * radius**2
     return int(round(float(np.sum(area / (0.5 * math.sqrt(3.0) * h**2)))))
+
+
+#: Lattice points per site in :func:`rebalance`'s estimate of each cell's ``∫ρ^(1/2)``.
+REBALANCE_LATTICE = 64
+
+
+def point_density(density: Any, points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A CVT's point density ``ρ^(1/2)`` at ``points`` (m, 3) on the sphere.
+
+    Cells there have dimension 2: a :class:`hcvt.density.SizingField` ``h`` is
+    ``ρ = h^-4`` (as the sphere's frame gives the core), not ``h^-5``.
+    """
+    rho = density.density(2) if isinstance(density, SizingField) else density
+    return evaluate(rho, points) ** 0.5
+
+
+def rebalance(
+    coarse: NDArray[np.float64], sites: NDArray[np.float64], density: Any
+) -> NDArray[np.float64]:
+    """``sites`` (a subdivided level) with each ``coarse`` cell holding its share of ``ρ^(1/2)``.
+
+    Subdividing gives every cell of the coarse level about four sites, but a coarse CVT
+    of a graded density does not follow it where its cells are wider than the density's
+    features: on the 120/960 km meridian band (5,037 sites) the 1,259-site level holds
+    twice the far region's share, and the last level, a local optimisation, keeps 10% too
+    many sites there (grid spacing 0.956 of the width asked). Here each coarse cell
+    (the points nearest its site) gets ``n ∫_cell ρ^(1/2) / ∫ ρ^(1/2)`` sites (a CVT's
+    point density, Gersho; largest remainders to round), both integrals over a
+    Fibonacci lattice of ``REBALANCE_LATTICE`` points per site. A cell with too many
+    drops its sites of least ``∫ρ^(1/2)`` over their own cells; a cell with too few gets,
+    one per round, the lattice point of largest ``ρ^(1/2) d²`` (``d`` the distance to
+    the nearest site), where a site is most wanted. Same sites, same result.
+    """
+    n, m = len(sites), len(coarse)
+    radius = float(np.linalg.norm(sites[0]))
+    lattice = fibonacci(max(REBALANCE_LATTICE * n, 1 << 16)) * radius
+    weight = point_density(density, lattice)
+    cell = cKDTree(coarse).query(lattice)[1]
+    want = np.bincount(cell, weight, m) * (n / weight.sum())
+    target = np.floor(want).astype(np.int64)
+    target[np.argsort(target - want, kind="stable")[: n - int(target.sum())]] += 1
+    owner = cKDTree(coarse).query(sites)[1]
+    surplus = np.bincount(owner, minlength=m) - target
+    own_share = np.bincount(cKDTree(sites).query(lattice)[1], weight, n)
+    keep = _rank_in_group(own_share, owner, m) >= np.maximum(surplus, 0)[owner]
+    kept = sites[keep]
+    deficit = np.maximum(-surplus, 0)
+    live = np.flatnonzero(deficit[cell] > 0)
+    gap = cKDTree(kept).query(lattice[live])[0]
+    added = []
+    while len(live):
+        best = _rank_in_group(-weight[live] * gap**2, cell[live], m) == 0
+        new = lattice[live[best]]
+        added.append(new)
+        deficit[cell[live[best]]] -= 1
+        gap = np.minimum(gap, cKDTree(new).query(lattice[live])[0])
+        still = deficit[cell[live]] > 0
+        live, gap = live[still], gap[still]
+    return np.ascontiguousarray(np.vstack([kept, *added]))
+
+
+def _rank_in_group(key: NDArray[Any], group: NDArray[np.intp], groups: int) -> NDArray[np.int64]:
+    """Each entry's rank by ``key`` (ascending, ties by index) among those of its group."""
+    order = np.lexsort((key, group))
+    count = np.bincount(group, minlength=groups)
+    rank = np.empty(len(key), dtype=np.int64)
+    rank[order] = np.arange(len(key)) - np.repeat(np.cumsum(count) - count, count)
+    return rank
