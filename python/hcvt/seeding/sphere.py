@@ -215,7 +215,7 @@ def rebalance(
     """
     n, m = len(sites), len(coarse)
     radius = float(np.linalg.norm(sites[0]))
-    lattice = fibonacci(max(REBALANCE_LATTICE * n, 1 << 16)) * radius
+    lattice = fibonacci(max(REBALANCE_LATTICE * n, 1 << 14)) * radius
     weight = point_density(density, lattice)
     cell = cKDTree(coarse).query(lattice)[1]
     want = np.bincount(cell, weight, m) * (n / weight.sum())
