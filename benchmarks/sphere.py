@@ -20,7 +20,8 @@ Greenwich meridian and 240 km far from it on the Earth (R = 6371 km), with a tan
 the next 10° (:func:`hcvt.seeding.sphere.meridian_band_width`), as ``ρ = (h_fine/h)⁴``
 (:class:`hcvt.density.SizingField`); ``n`` cells from ``∫ dA / ((√3/2) h²)`` (80,595),
 the hierarchy with the density (``--refined-route hierarchical``, the default: coarse
-CVTs subdivided along the spherical Delaunay edges) or a start graded by ``ρ^(1/2)``
+CVTs subdivided along the spherical Delaunay edges, each level rebalanced to its coarse
+cells' share of ``ρ^(1/2)``) or a start graded by ``ρ^(1/2)``
 (``--refined-route random``), L-BFGS (``--refined-method``) to ``--tol``; it prints the
 time, iterations, diagrams, RMS gap, cells that are not hexagons, and the grid spacing
 (mean dcEdge per cell) over the requested width, median and 5-95% per band (within 8° of
