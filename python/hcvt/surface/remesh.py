@@ -9,12 +9,12 @@ loose tolerance, tightened while the triangulation has defects); then a
 triangle for each point where three cells meet on the surface, oriented by the surface's
 normal there (the core's ``restricted_delaunay``); unless ``tighten=False``, then a few
 vertices moved along the surface where the mesh is farthest from it
-(:mod:`hcvt.surface.tighten`), the connectivity and the least angle kept. Where every
-cell is a topological disc meeting its neighbours along single arcs (the closed-ball
-property, Edelsbrunner and Shah 1997) the triangulation is a manifold homeomorphic to
-the surface. Where not (too few vertices for a thin part or a tight fold),
-:attr:`RemeshResult.defects` names the cells; with ``check=True`` :class:`RemeshError` is
-raised instead. Nothing is repaired silently.
+(:mod:`hcvt.surface.tighten`), the connectivity kept and the least angle not taken below
+30° (:data:`TIGHTEN_MIN_ANGLE`). Where every cell is a topological disc meeting its
+neighbours along single arcs (the closed-ball property, Edelsbrunner and Shah 1997) the
+triangulation is a manifold homeomorphic to the surface. Where not (too few vertices for
+a thin part or a tight fold), :attr:`RemeshResult.defects` names the cells; with
+``check=True`` :class:`RemeshError` is raised instead. Nothing is repaired silently.
 """
 
 from __future__ import annotations
