@@ -18,7 +18,7 @@ one; the connectivity is not touched (the same faces, so the same manifold and g
 stops when the worst place cannot be improved (or after ``max_moves``). The distances are the core's
 nearest points (its BVHs, :meth:`hcvt._core.SurfaceDomain.closest` for the input,
 ``_core.closest_points`` for the mesh): from points of the input (its vertices and samples
-by area, and 3 points along each of its edges) to the mesh, and from 12 points of each mesh
+by area, and 3 points along each of its creases) to the mesh, and from 12 points of each mesh
 triangle (a barycentric grid of step 1/4) to the input; around a moved vertex they are
 updated over its two-ring (upper bounds, made exact again, all at once, before the largest
 is used).
@@ -59,6 +59,25 @@ _GRID = (
 #: Where the input's edges are checked (fractions along each): a crease of the input is
 #: where the mesh is farthest from it, and samples by area rarely fall on it.
 _EDGE_POINTS = (0.25, 0.5, 0.75)
+#: The input's edges checked are those whose two triangles' normals differ by more than
+#: this (degrees): the creases. Armadillo, n = 5,000, under load (~20): 3 points on each
+#: of its 129,723 edges, tightening 12.6 s; on its 15,639 creases 7.9 s, the same
+#: Hausdorff distance (0.443%); bunny and kitten at 20,000 the same as with every edge.
+_CREASE_DEGREES = 20.0
+
+
+def _creases(rv: NDArray[np.float64], rf: NDArray[np.intp]) -> NDArray[np.intp]:
+    """The input's edges (k, 2) whose two triangles' normals differ by > _CREASE_DEGREES."""
+    normals = _normals(rv, rf)
+    edges = np.sort(np.concatenate([rf[:, [0, 1]], rf[:, [1, 2]], rf[:, [2, 0]]]), 1)
+    faces = np.tile(np.arange(len(rf)), 3)
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    edges, faces = edges[order], faces[order]
+    pair = np.flatnonzero(np.all(edges[1:] == edges[:-1], axis=1))  # interior edges
+    cosine = np.einsum("ij,ij->i", normals[faces[pair]], normals[faces[pair + 1]])
+    return edges[pair[cosine < np.cos(np.radians(_CREASE_DEGREES))]]
+
+
 #: Most a triangle's normal may turn in one move (cosine of 60°).
 _MIN_NORMAL_COSINE = 0.5
 #: A move must bring the distances around it below (1 − this) × the worst one.
@@ -141,9 +160,7 @@ class _Mesh:
         # Points of the input (samples, its vertices, points along its edges) and their
         # distances to the mesh.
         points, _ = sample_by_area(rv, rf, samples, rng)
-        edges = np.unique(
-            np.sort(np.concatenate([rf[:, [0, 1]], rf[:, [1, 2]], rf[:, [2, 0]]]), 1), axis=0
-        )
+        edges = _creases(rv, rf)
         along = [(1.0 - t) * rv[edges[:, 0]] + t * rv[edges[:, 1]] for t in _EDGE_POINTS]
         self.s = np.concatenate([points, rv[np.unique(rf)], *along])
         self.s_tree = cKDTree(self.s)
