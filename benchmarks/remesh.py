@@ -270,6 +270,12 @@ def main() -> None:
         help="also a row 'hcvt>A': remesh(min_angle=A), the tightening moves allowed "
         "down to this least angle (°)",
     )
+    parser.add_argument(
+        "--hcvt-only",
+        action="store_true",
+        help="only hcvt's rows (the peers' quality does not change from run to run; their "
+        "seconds do, so ratios need a full run)",
+    )
     args = parser.parse_args()
     if args.quick:
         args.models, args.n = ["bunny", "fandisk"], [5000]
@@ -297,8 +303,9 @@ def main() -> None:
                 results[f"hcvt>{args.min_angle:g}"] = run_hcvt(
                     domain, n, args.max_iter, args.features, True, args.min_angle
                 )
-            results["pyacvd"] = run_pyacvd(v, f, n)
-            results["meshlab"] = run_meshlab(v, f, domain.volume, n, args.features)
+            if not args.hcvt_only:
+                results["pyacvd"] = run_pyacvd(v, f, n)
+                results["meshlab"] = run_meshlab(v, f, domain.volume, n, args.features)
             base = results["hcvt"][0]["seconds"]
             drawn = {}
             for code, (info, ov, of) in results.items():
@@ -314,13 +321,16 @@ def main() -> None:
                     flush=True,
                 )
             extra = results["hcvt"][0]
+            peers = (
+                ""
+                if args.hcvt_only
+                else f"; meshlab: {results['meshlab'][0]['tries']} runs to reach n ± 1%; "
+                f"pyacvd: {results['pyacvd'][0]['subdivisions']} subdivisions"
+            )
             print(
                 f"{'':10} hcvt: {extra['iterations']} iterations ({extra['stop']}), "
-                f"{extra['moves']} vertices moved by "
-                "tighten, "
-                f"defects {extra['defects'] or 'none'}; meshlab: {results['meshlab'][0]['tries']} "
-                f"runs to reach n ± 1%; pyacvd: {results['pyacvd'][0]['subdivisions']} "
-                "subdivisions",
+                f"{extra['moves']} vertices moved by tighten, "
+                f"defects {extra['defects'] or 'none'}{peers}",
                 flush=True,
             )
             if args.pictures:

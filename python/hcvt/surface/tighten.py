@@ -12,15 +12,16 @@ the vertex nearest such a place, one at a time, the worst place first:
   vertex of that triangle moves by ``Q* − Q`` (or half of it), projected onto the input.
 
 A move is kept only if every triangle around the vertex keeps its least angle and its
-quality Q at or above the mesh's least ones (so those never fall), turns its normal by
-less than 60°, and the distances around it all fall below the worst one; the connectivity
-is not touched (the same faces, so the same manifold and genus). It stops when the worst
-place cannot be improved (or after ``max_moves``). The distances are the core's
+quality Q at or above the mesh's least ones (``min_angle`` may set the angle's floor),
+turns its normal by less than 60°, and the distances around it all fall below the worst
+one; the connectivity is not touched (the same faces, so the same manifold and genus). It
+stops when the worst place cannot be improved (or after ``max_moves``). The distances are the core's
 nearest points (its BVHs, :meth:`hcvt._core.SurfaceDomain.closest` for the input,
 ``_core.closest_points`` for the mesh): from points of the input (its vertices and samples
-by area) to the mesh, and from 7 points of each mesh triangle (a barycentric grid of step
-1/3) to the input; around a moved vertex they are updated over its two-ring (upper
-bounds, made exact again, all at once, before the largest is used).
+by area, and 3 points along each of its creases) to the mesh, and from 12 points of each mesh
+triangle (a barycentric grid of step 1/4) to the input; around a moved vertex they are
+updated over its two-ring (upper bounds, made exact again, all at once, before the largest
+is used).
 """
 
 from __future__ import annotations
@@ -37,16 +38,46 @@ from hcvt.geometry.domain import Domain
 from hcvt.geometry.surface_points import cross_rows, sample_by_area
 from hcvt.surface.quality import triangle_angles, triangle_quality
 
-#: Barycentric coordinates (7, 3) of the points checked on each mesh triangle: the grid
-#: i + j + k = 3 without the corners (which lie on the input): the centroid and two
-#: points on each edge.
+#: Steps of the barycentric grid of points checked on each mesh triangle. Bunny, n =
+#: 20,000 (floor 30°, 200,000 samples, then the input's edges below): Hausdorff 0.160% of
+#: the diagonal at 3 steps (7 points), 0.137% at 4 (12), the measure's own samples.
+_GRID_STEPS = 4
+#: Barycentric coordinates (12, 3) of those points: the grid i + j + k = 4 without the
+#: corners (which lie on the input): three inside, three on each edge.
 _GRID = (
     np.array(
-        [[i, j, 3 - i - j] for i in range(4) for j in range(4 - i) if max(i, j, 3 - i - j) < 3],
+        [
+            [i, j, _GRID_STEPS - i - j]
+            for i in range(_GRID_STEPS + 1)
+            for j in range(_GRID_STEPS + 1 - i)
+            if max(i, j, _GRID_STEPS - i - j) < _GRID_STEPS
+        ],
         dtype=np.float64,
     )
-    / 3.0
+    / _GRID_STEPS
 )
+#: Where the input's edges are checked (fractions along each): a crease of the input is
+#: where the mesh is farthest from it, and samples by area rarely fall on it.
+_EDGE_POINTS = (0.25, 0.5, 0.75)
+#: The input's edges checked are those whose two triangles' normals differ by more than
+#: this (degrees): the creases. Armadillo, n = 5,000, under load (~20): 3 points on each
+#: of its 129,723 edges, tightening 12.6 s; on its 15,639 creases 7.9 s, the same
+#: Hausdorff distance (0.443%); bunny and kitten at 20,000 the same as with every edge.
+_CREASE_DEGREES = 20.0
+
+
+def _creases(rv: NDArray[np.float64], rf: NDArray[np.intp]) -> NDArray[np.intp]:
+    """The input's edges (k, 2) whose two triangles' normals differ by > _CREASE_DEGREES."""
+    normals = _normals(rv, rf)
+    edges = np.sort(np.concatenate([rf[:, [0, 1]], rf[:, [1, 2]], rf[:, [2, 0]]]), 1)
+    faces = np.tile(np.arange(len(rf)), 3)
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    edges, faces = edges[order], faces[order]
+    pair = np.flatnonzero(np.all(edges[1:] == edges[:-1], axis=1))  # interior edges
+    cosine = np.einsum("ij,ij->i", normals[faces[pair]], normals[faces[pair + 1]])
+    return edges[pair[cosine < np.cos(np.radians(_CREASE_DEGREES))]]
+
+
 #: Most a triangle's normal may turn in one move (cosine of 60°).
 _MIN_NORMAL_COSINE = 0.5
 #: A move must bring the distances around it below (1 − this) × the worst one.
@@ -126,9 +157,12 @@ class _Mesh:
         order = np.argsort(self.f.ravel(), kind="stable")
         self.ring_start = np.searchsorted(self.f.ravel()[order], np.arange(len(self.v) + 1))
         self.ring_faces = order // 3
-        # Points of the input (its vertices and samples) and their distances to the mesh.
+        # Points of the input (samples, its vertices, points along its edges) and their
+        # distances to the mesh.
         points, _ = sample_by_area(rv, rf, samples, rng)
-        self.s = np.concatenate([points, rv[np.unique(rf)]])
+        edges = _creases(rv, rf)
+        along = [(1.0 - t) * rv[edges[:, 0]] + t * rv[edges[:, 1]] for t in _EDGE_POINTS]
+        self.s = np.concatenate([points, rv[np.unique(rf)], *along])
         self.s_tree = cKDTree(self.s)
         self.ds, self.s_face = _to_triangles(self.s, self.v[self.f])
         self.ds_exact = np.ones(len(self.s), dtype=bool)
