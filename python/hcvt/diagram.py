@@ -142,8 +142,11 @@ class Diagram(Shows):
         return self._frame.to_input(name, self._in_frame(name))
 
     def _in_frame(self, name: CellField) -> Any:
-        """The core's ``name`` in the frame: from the arrays, or made now from the cells'
-        moments, which ``_core.voronoi`` returns instead (issue 32: memory per site)."""
+        """The core's ``name`` in the frame, from the arrays or made now.
+
+        ``_core.voronoi`` returns the cells' moments instead of the quantities (issue 32:
+        memory per site): each is made from them when first read, bit for bit the same.
+        """
         if name in self._arrays or "moments" not in self._arrays:
             return self._arrays[name]
         return _core.diagram_field(

@@ -412,6 +412,8 @@ pub fn diagram_field<'py>(
     )
 }
 
+// `by_kind!` names every kind's cell type `C`; a quantity of the moments needs none.
+#[allow(clippy::extra_unused_type_parameters)]
 fn field_in<'py, const D: usize, C, K: DomainKind<D>>(
     domain: &K,
     py: Python<'py>,
