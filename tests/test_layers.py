@@ -20,7 +20,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "python" / "hcvt"
 
 #: Bottom to top. A module is in the layer of its longest listed prefix.
 LAYERS: list[tuple[str, ...]] = [
-    ("hcvt.core_results", "hcvt._core", "hcvt._allocator", "hcvt.errors", "hcvt.lazy"),
+    ("hcvt.core_results", "hcvt._core", "hcvt.errors", "hcvt.lazy"),
     ("hcvt.density", "hcvt.geometry", "hcvt.draw"),
     ("hcvt.mesh",),
     ("hcvt.io",),

@@ -8,7 +8,6 @@ centroidal Voronoi tessellation.
 import importlib
 from typing import TYPE_CHECKING, Any
 
-import hcvt._allocator  # noqa: F401 (first: the allocator's options, then the binding)
 from hcvt import density, io
 from hcvt._core import get_num_threads, set_num_threads
 from hcvt.api import cvt, voronoi
