@@ -217,6 +217,13 @@ def voronoi(
     quadrature_degree: int = 4,
     weights: _Float1 | None = None,
 ) -> DiagramArrays: ...
+def diagram_field(
+    domain: _Domain,
+    sites: _Float2,
+    moments: NDArray[np.float64],
+    weighted: NDArray[np.float64] | None,
+    name: str,
+) -> NDArray[np.float64]: ...
 def optimal_transport(
     domain: _Domain,
     sites: _Float2,

@@ -35,19 +35,29 @@ Indices = NDArray[np.intp]
 
 
 class DiagramArrays(TypedDict):
-    """A clipped diagram, row ``i`` the cell of site ``i`` (``_core.voronoi``)."""
+    """A clipped diagram, row ``i`` the cell of site ``i``.
 
-    volume: Floats  # (n,) L^d
-    mass: Floats  # (n,) ∫ρ, the volume without a density
-    centroid: Floats  # (n, d) L, ρ-weighted with a density
-    second_moment: Floats  # (n,) ∫|x − c_i|², L^(d+2)
-    G: Floats  # (n,) dimensionless second moment
-    energy_terms: Floats  # (n,) ∫ρ|x − x_i|²
+    ``_core.voronoi`` (and ``_core.restricted_delaunay``'s ``diagram``) return the cells'
+    ``moments`` (and ``weighted``) and the faces, ``neighbor_sites`` as uint32; the
+    quantities between are made from the moments when read (``_core.diagram_field``,
+    :class:`hcvt.Diagram`; issue 32: memory per site). The CVT's, the transport's and a
+    part's dicts carry those quantities and no moments.
+    """
+
+    # Rows (mass, first moment (d), second moment) of each cell about its site.
+    moments: NotRequired[Floats]  # (n, d + 2)
+    weighted: NotRequired[Floats]  # (n, d + 2), ρ-weighted, with a density
+    volume: NotRequired[Floats]  # (n,) L^d
+    mass: NotRequired[Floats]  # (n,) ∫ρ, the volume without a density
+    centroid: NotRequired[Floats]  # (n, d) L, ρ-weighted with a density
+    second_moment: NotRequired[Floats]  # (n,) ∫|x − c_i|², L^(d+2)
+    G: NotRequired[Floats]  # (n,) dimensionless second moment
+    energy_terms: NotRequired[Floats]  # (n,) ∫ρ|x − x_i|²
     energy: float
-    gradient: Floats  # (n, d)
+    gradient: NotRequired[Floats]  # (n, d)
     boundary_measure: Floats  # (n,) share of the domain boundary, L^(d−1)
     neighbor_offsets: Indices  # (n + 1,)
-    neighbor_sites: Indices  # (k,)
+    neighbor_sites: Indices | NDArray[np.uint32]  # (k,)
     neighbor_measures: Floats  # (k,) L^(d−1)
     # In a periodic box: the image shift of each neighbour, in {-1, 0, 1}^d.
     neighbor_images: NotRequired[NDArray[np.int8]]  # (k, d)

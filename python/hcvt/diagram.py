@@ -129,7 +129,6 @@ class Diagram(Shows):
         # The sites the core computed with (the frame's), for the mesh.
         self._core_sites = domain.frame.to_core(sites) if core_sites is None else core_sites
         self.neighbor_offsets: NDArray[np.intp] = arrays["neighbor_offsets"]
-        self.neighbor_sites: NDArray[np.intp] = arrays["neighbor_sites"]
         self._allow_outside = allow_outside
         self._mesh: PolyMesh | None = None
         self._sphere_mesh: SphereMesh | None = None
@@ -140,7 +139,28 @@ class Diagram(Shows):
         return self._arrays.get("neighbor_images")
 
     def _in_input(self, name: CellField) -> Any:
-        return self._frame.to_input(name, self._arrays[name])
+        return self._frame.to_input(name, self._in_frame(name))
+
+    def _in_frame(self, name: CellField) -> Any:
+        """The core's ``name`` in the frame, from the arrays or made now.
+
+        ``_core.voronoi`` returns the cells' moments instead of the quantities (issue 32:
+        memory per site): each is made from them when first read, bit for bit the same.
+        """
+        if name in self._arrays or "moments" not in self._arrays:
+            return self._arrays[name]
+        return _core.diagram_field(
+            self.domain._core,
+            self._core_sites,
+            self._arrays["moments"],
+            self._arrays.get("weighted"),
+            name,
+        )
+
+    @cached_property
+    def neighbor_sites(self) -> NDArray[np.intp]:
+        """The site across each face, shape (m,), intp (uint32 in ``_core.voronoi``'s)."""
+        return np.asarray(self._arrays["neighbor_sites"], dtype=np.intp)
 
     @cached_property
     def volume(self) -> NDArray[np.float64]:
@@ -150,7 +170,9 @@ class Diagram(Shows):
     @cached_property
     def mass(self) -> NDArray[np.float64]:
         """``∫_cell ρ dx``, shape (n,); ``volume`` without a density."""
-        return self._in_input("mass") if "mass" in self._arrays else self.volume
+        if "mass" in self._arrays or "moments" in self._arrays:
+            return self._in_input("mass")
+        return self.volume
 
     @cached_property
     def centroid(self) -> NDArray[np.float64]:

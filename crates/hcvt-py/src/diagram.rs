@@ -1,10 +1,11 @@
 //! The clipped Voronoi diagram as numpy arrays.
 
 use hcvt_core::{
-    clipped_diagram, ConvexCell, CoreError, Diagram, DomainKind, Euclid, Options, PolygonCell,
-    PolyhedronCell, Request, Space,
+    clipped_diagram, ConvexCell, CoreError, Diagram, DomainKind, Euclid, Moments, Options,
+    PolygonCell, PolyhedronCell, Request, Space,
 };
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -13,8 +14,12 @@ use crate::density::{Coefficients, Given};
 use crate::domain::{by_kind, AnyDomain};
 
 /// Clipped diagram of `sites` (n, d) in `domain` (a polygon, d = 2, a solid, d = 3, or a
-/// box, periodic or not): a dict of arrays, row i = site i (see `hcvt.voronoi`); in a
-/// periodic box also `neighbor_images` (k, d) int8. With `keep_cells`, also each
+/// box, periodic or not): a dict of arrays, row i = site i: `moments` (n, d + 2), each
+/// cell's mass, first moment (d) and second moment about its site (also `weighted`, the
+/// ρ-weighted ones, with a density), from which `hcvt.Diagram` derives each quantity on
+/// first read ([`diagram_field`]), `energy`, `boundary_measure`, `neighbor_offsets`,
+/// `neighbor_sites` (uint32) and `neighbor_measures`; in a periodic box also
+/// `neighbor_images` (k, d) int8. With `keep_cells`, also each
 /// site's convex cell from the core (the Voronoi cell in the domain's box, already cut to
 /// the domain for most boundary cells of a convex domain, see `clipped_diagram`),
 /// absolute: in 2D `cell_offsets` (n+1,) and `cell_vertices` (m, 2), counter-clockwise;
@@ -81,8 +86,7 @@ where
         .detach(|| {
             crate::threads::run(|| {
                 let clipped = clipped_diagram::<D, C, _>(domain, &points, &request)?;
-                let arrays = DiagramArrays::new(domain, clipped.diagram, &points);
-                Ok::<_, CoreError>((arrays, clipped.cells))
+                Ok::<_, CoreError>((MomentArrays::new(clipped.diagram), clipped.cells))
             })
         })
         .map_err(|e| asked.given.error(e))?;
@@ -152,9 +156,8 @@ impl CellArrays<3> for PolyhedronCell {
     }
 }
 
-/// The arrays every diagram carries, in any dimension and kind: centroids retracted onto
-/// the domain (the sphere's `∫x/|∫x|`), second moments about them and `G` in the cells'
-/// dimension ([`DomainKind::central_second`], [`DomainKind::g_value`]).
+/// The arrays every diagram carries, in any dimension and kind (the CVT's, the
+/// transport's, a part's): [`Field`]'s quantities and the faces.
 pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
     py: Python<'py>,
     domain: &K,
@@ -162,6 +165,78 @@ pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
     sites: &[[f64; D]],
 ) -> PyResult<Bound<'py, PyDict>> {
     DiagramArrays::new(domain, diagram, sites).into_dict(py)
+}
+
+/// A quantity of each cell that `hcvt.Diagram` reads, from the cells' moments: centroids
+/// retracted onto the domain (the sphere's `∫x/|∫x|`), second moments about them and `G`
+/// in the cells' dimension ([`DomainKind::central_second`], [`DomainKind::g_value`]),
+/// gradients along the domain ([`DomainKind::tangent`]).
+#[derive(Clone, Copy)]
+enum Field {
+    Volume,
+    Mass,
+    Centroid,
+    SecondMoment,
+    G,
+    EnergyTerms,
+    Gradient,
+}
+
+impl Field {
+    /// The field of `hcvt.Diagram`'s attribute `name`.
+    fn named(name: &str) -> PyResult<Self> {
+        Ok(match name {
+            "volume" => Self::Volume,
+            "mass" => Self::Mass,
+            "centroid" => Self::Centroid,
+            "second_moment" => Self::SecondMoment,
+            "G" => Self::G,
+            "energy_terms" => Self::EnergyTerms,
+            "gradient" => Self::Gradient,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "no cell quantity named {name:?}: volume, mass, centroid, second_moment, \
+                     G, energy_terms or gradient"
+                )))
+            }
+        })
+    }
+
+    /// Values per cell: 1, or `D` for a point or a vector.
+    fn width<const D: usize>(self) -> usize {
+        match self {
+            Self::Centroid | Self::Gradient => D,
+            _ => 1,
+        }
+    }
+
+    /// Its values for `diagram` of `sites` in `domain`, row-major `(n, width)`.
+    fn of<const D: usize, K: DomainKind<D>>(
+        self,
+        domain: &K,
+        diagram: &Diagram<D>,
+        sites: &[[f64; D]],
+    ) -> Vec<f64> {
+        match self {
+            Self::Volume => diagram.volumes(),
+            Self::Mass => diagram.masses(),
+            Self::Centroid => (diagram.centroids(sites).into_iter())
+                .map(|c| domain.retract(c))
+                .collect::<Vec<[f64; D]>>()
+                .into_flattened(),
+            Self::SecondMoment => (diagram.moments.iter())
+                .map(|m| domain.central_second(m))
+                .collect(),
+            Self::G => (diagram.moments.iter())
+                .map(|m| domain.g_value(m).unwrap_or(f64::NAN))
+                .collect(),
+            Self::EnergyTerms => diagram.energy_terms(),
+            Self::Gradient => (diagram.gradient().into_iter().zip(sites))
+                .map(|(g, &x)| domain.tangent(x, g))
+                .collect::<Vec<[f64; D]>>()
+                .into_flattened(),
+        }
+    }
 }
 
 /// [`diagram_dict`]'s arrays as Rust vectors, each becoming numpy's without a copy: made
@@ -177,12 +252,7 @@ pub(crate) struct DiagramArrays<const D: usize> {
     energy_terms: Vec<f64>,
     energy: f64,
     gradient: Vec<f64>,
-    boundary_measure: Vec<f64>,
-    neighbor_offsets: Vec<isize>,
-    neighbor_sites: Vec<isize>,
-    neighbor_measures: Vec<f64>,
-    /// In a periodic box, each neighbour's image shift, `(k, D)`; else empty.
-    neighbor_images: Vec<i8>,
+    faces: FaceArrays<D, isize>,
 }
 
 impl<const D: usize> DiagramArrays<D> {
@@ -191,48 +261,36 @@ impl<const D: usize> DiagramArrays<D> {
     /// converted.
     pub(crate) fn new<K: DomainKind<D>>(
         domain: &K,
-        diagram: Diagram<D>,
+        mut diagram: Diagram<D>,
         sites: &[[f64; D]],
     ) -> Self {
-        let centroid = (diagram.centroids(sites).into_iter())
-            .map(|c| domain.retract(c))
-            .collect::<Vec<[f64; D]>>()
-            .into_flattened();
-        let gradient = (diagram.gradient().into_iter().zip(sites))
-            .map(|(g, &x)| domain.tangent(x, g))
-            .collect::<Vec<[f64; D]>>()
-            .into_flattened();
-        let arrays = Self {
-            volume: diagram.volumes(),
-            mass: diagram.masses(),
-            centroid,
-            second_moment: (diagram.moments.iter())
-                .map(|m| domain.central_second(m))
-                .collect(),
-            g: (diagram.moments.iter())
-                .map(|m| domain.g_value(m).unwrap_or(f64::NAN))
-                .collect(),
-            energy_terms: diagram.energy_terms(),
-            energy: diagram.energy(),
-            gradient,
-            boundary_measure: Vec::new(),
-            neighbor_offsets: Vec::new(),
-            neighbor_sites: Vec::new(),
-            neighbor_measures: Vec::new(),
-            neighbor_images: Vec::new(),
-        };
-        drop((diagram.moments, diagram.weighted));
+        let field = |f: Field| f.of(domain, &diagram, sites);
+        let (volume, mass, centroid) = (
+            field(Field::Volume),
+            field(Field::Mass),
+            field(Field::Centroid),
+        );
+        let (second_moment, g) = (field(Field::SecondMoment), field(Field::G));
+        let (energy_terms, gradient) = (field(Field::EnergyTerms), field(Field::Gradient));
+        let energy = diagram.energy();
+        drop((
+            std::mem::take(&mut diagram.moments),
+            std::mem::take(&mut diagram.weighted),
+        ));
         Self {
-            boundary_measure: diagram.boundary_measure,
-            neighbor_offsets: offsets_to_intp(diagram.neighbor_offsets),
-            neighbor_sites: sites_to_intp(diagram.neighbor_sites),
-            neighbor_measures: diagram.neighbor_measures,
-            neighbor_images: diagram.neighbor_images.into_flattened(),
-            ..arrays
+            volume,
+            mass,
+            centroid,
+            second_moment,
+            g,
+            energy_terms,
+            energy,
+            gradient,
+            faces: FaceArrays::take(&mut diagram, sites_to_intp),
         }
     }
 
-    /// The dict of `hcvt.voronoi`'s arrays (see `core_results.py`).
+    /// The dict of `hcvt.voronoi`'s arrays before issue 32 (see `core_results.py`).
     pub(crate) fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         let n = self.volume.len();
         let out = PyDict::new(py);
@@ -245,6 +303,165 @@ impl<const D: usize> DiagramArrays<D> {
         out.set_item("energy_terms", PyArray1::from_vec(py, self.energy_terms))?;
         out.set_item("energy", self.energy)?;
         out.set_item("gradient", by_row(self.gradient)?)?;
+        self.faces.set_items(py, &out)?;
+        Ok(out)
+    }
+}
+
+/// `hcvt.voronoi`'s arrays (issue 32: memory per site): each cell's moments, from which
+/// `hcvt.Diagram` derives a quantity when it is first read ([`diagram_field`]), rather
+/// than [`DiagramArrays`]' seven quantities (72 bytes a site in 2D, 80 in 3D, against 32
+/// and 40), and the faces' sites as `u32` (4 bytes a face, against 8). Made on the
+/// thread that assembled the diagram, as [`DiagramArrays`].
+pub(crate) struct MomentArrays<const D: usize> {
+    /// Rows `(mass, first moment (D), second moment)` about the site, flat.
+    moments: Vec<f64>,
+    /// The ρ-weighted ones alike, with a density; else empty.
+    weighted: Vec<f64>,
+    energy: f64,
+    faces: FaceArrays<D, u32>,
+}
+
+impl<const D: usize> MomentArrays<D> {
+    /// The arrays of `diagram`, consumed: each array is freed as soon as converted.
+    pub(crate) fn new(mut diagram: Diagram<D>) -> Self {
+        let energy = diagram.energy();
+        let moments = flat_moments(std::mem::take(&mut diagram.moments));
+        let weighted = flat_moments(std::mem::take(&mut diagram.weighted));
+        Self {
+            moments,
+            weighted,
+            energy,
+            faces: FaceArrays::take(&mut diagram, |sites| sites),
+        }
+    }
+
+    /// The dict of `hcvt.voronoi`'s arrays (see `core_results.py`).
+    pub(crate) fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+        let out = PyDict::new(py);
+        let by_row = |flat: Vec<f64>| {
+            let n = flat.len() / (D + 2);
+            PyArray1::from_vec(py, flat).reshape([n, D + 2])
+        };
+        out.set_item("moments", by_row(self.moments)?)?;
+        if !self.weighted.is_empty() {
+            out.set_item("weighted", by_row(self.weighted)?)?;
+        }
+        out.set_item("energy", self.energy)?;
+        self.faces.set_items(py, &out)?;
+        Ok(out)
+    }
+}
+
+/// Moments as rows `(mass, first (D), second)`, flat.
+fn flat_moments<const D: usize>(moments: Vec<Moments<D>>) -> Vec<f64> {
+    let mut flat = Vec::with_capacity(moments.len() * (D + 2));
+    for m in &moments {
+        flat.push(m.mass);
+        flat.extend_from_slice(&m.first);
+        flat.push(m.second);
+    }
+    flat
+}
+
+/// [`flat_moments`]' rows `(n, D + 2)` back into moments, bit for bit.
+fn moment_rows<const D: usize>(
+    rows: &PyReadonlyArray2<'_, f64>,
+    n: usize,
+    what: &str,
+) -> PyResult<Vec<Moments<D>>> {
+    if rows.shape() != [n, D + 2] {
+        return Err(PyValueError::new_err(format!(
+            "{what} must have shape ({n}, {}), got {:?}",
+            D + 2,
+            rows.shape()
+        )));
+    }
+    (rows.as_slice()?.chunks_exact(D + 2))
+        .map(|row| match row {
+            [mass, first @ .., second] => Ok(Moments {
+                mass: *mass,
+                first: <[f64; D]>::try_from(first)
+                    .map_err(|_| PyValueError::new_err(format!("{what}: bad row")))?,
+                second: *second,
+            }),
+            _ => Err(PyValueError::new_err(format!("{what}: bad row"))),
+        })
+        .collect()
+}
+
+/// Quantity `name` ("volume", "mass", "centroid", "second_moment", "G", "energy_terms" or
+/// "gradient", as `hcvt.Diagram` names them) of the cells whose `moments` (n, d + 2)
+/// [`voronoi`] returned for `sites` (n, d) in `domain`, with `weighted` (n, d + 2) when
+/// it returned those: (n,) or (n, d), the values the CVT's dict carries, bit for bit
+/// (the same code, on the same moments).
+#[pyfunction]
+#[pyo3(signature = (domain, sites, moments, weighted, name))]
+pub fn diagram_field<'py>(
+    py: Python<'py>,
+    domain: AnyDomain<'py>,
+    sites: PyReadonlyArray2<'py, f64>,
+    moments: PyReadonlyArray2<'py, f64>,
+    weighted: Option<PyReadonlyArray2<'py, f64>>,
+    name: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let field = Field::named(name)?;
+    by_kind!(
+        domain,
+        field_in(py, &sites, &moments, weighted.as_ref(), field)
+    )
+}
+
+// `by_kind!` names every kind's cell type `C`; a quantity of the moments needs none.
+#[allow(clippy::extra_unused_type_parameters)]
+fn field_in<'py, const D: usize, C, K: DomainKind<D>>(
+    domain: &K,
+    py: Python<'py>,
+    sites: &PyReadonlyArray2<'py, f64>,
+    moments: &PyReadonlyArray2<'py, f64>,
+    weighted: Option<&PyReadonlyArray2<'py, f64>>,
+    field: Field,
+) -> PyResult<Bound<'py, PyAny>> {
+    let points = rows::<f64, D>(sites, "sites")?;
+    let n = points.len();
+    let diagram = Diagram {
+        moments: moment_rows(moments, n, "moments")?,
+        weighted: weighted.map_or(Ok(Vec::new()), |w| moment_rows(w, n, "weighted"))?,
+        ..Diagram::default()
+    };
+    let values = PyArray1::from_vec(py, field.of(domain, &diagram, &points));
+    match field.width::<D>() {
+        1 => Ok(values.into_any()),
+        width => Ok(values.reshape([n, width])?.into_any()),
+    }
+}
+
+/// A diagram's faces and boundary shares as numpy takes them, the site across each face
+/// as `S` (`u32` or `np.intp`).
+struct FaceArrays<const D: usize, S> {
+    boundary_measure: Vec<f64>,
+    neighbor_offsets: Vec<isize>,
+    neighbor_sites: Vec<S>,
+    neighbor_measures: Vec<f64>,
+    /// In a periodic box, each neighbour's image shift, `(k, D)`; else empty.
+    neighbor_images: Vec<i8>,
+}
+
+impl<const D: usize, S: numpy::Element> FaceArrays<D, S> {
+    /// `diagram`'s faces, moved (the offsets converted in place), the sites by `convert`.
+    fn take(diagram: &mut Diagram<D>, convert: impl FnOnce(Vec<u32>) -> Vec<S>) -> Self {
+        use std::mem::take;
+        Self {
+            boundary_measure: take(&mut diagram.boundary_measure),
+            neighbor_offsets: offsets_to_intp(take(&mut diagram.neighbor_offsets)),
+            neighbor_sites: convert(take(&mut diagram.neighbor_sites)),
+            neighbor_measures: take(&mut diagram.neighbor_measures),
+            neighbor_images: take(&mut diagram.neighbor_images).into_flattened(),
+        }
+    }
+
+    /// Add the arrays to `out`.
+    fn set_items(self, py: Python<'_>, out: &Bound<'_, PyDict>) -> PyResult<()> {
         out.set_item(
             "boundary_measure",
             PyArray1::from_vec(py, self.boundary_measure),
@@ -267,7 +484,7 @@ impl<const D: usize> DiagramArrays<D> {
             let images = PyArray1::from_vec(py, self.neighbor_images).reshape([k, D])?;
             out.set_item("neighbor_images", images)?;
         }
-        Ok(out)
+        Ok(())
     }
 }
 
@@ -310,8 +527,8 @@ pub fn restricted_delaunay<'py>(
     out.set_item("faces", to_intp(py, &faces)?)?;
     out.set_item("repeated", to_intp2(py, &rdt.repeated)?)?;
     if with_diagram {
-        let diagram = std::mem::take(&mut rdt.diagram);
-        out.set_item("diagram", diagram_dict(py, kind, diagram, &points)?)?;
+        let diagram = MomentArrays::new(std::mem::take(&mut rdt.diagram));
+        out.set_item("diagram", diagram.into_dict(py)?)?;
     }
     Ok(out)
 }

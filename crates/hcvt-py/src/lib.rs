@@ -32,6 +32,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::SphereRegionDomain>()?;
     m.add_class::<domain::SurfaceDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi, m)?)?;
+    m.add_function(wrap_pyfunction!(diagram::diagram_field, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::optimal_transport, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(domain::closest_points, m)?)?;

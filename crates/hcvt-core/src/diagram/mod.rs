@@ -210,18 +210,28 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
         }
     }
 
-    /// Return the unused capacity of the face arrays (up to half of them after their
-    /// last doubling): the batches are all alive when the result is assembled.
+    /// Fit the face arrays to their length: after their last doubling up to half of
+    /// them is unused, and a 2D cell has ~6 of the 8 faces reserved, while all the
+    /// batches are alive when the result is assembled. A copy, not `shrink_to_fit`: an
+    /// allocator may shrink a block in place and keep it whole (mimalloc, the binding's,
+    /// does when it shrinks by less than half; issue 32, 2D 1M: 24 B/site).
     fn shrink(&mut self) {
-        self.neighbor_sites.shrink_to_fit();
-        self.neighbor_measures.shrink_to_fit();
-        self.face_integrals.shrink_to_fit();
+        fit(&mut self.neighbor_sites);
+        fit(&mut self.neighbor_measures);
+        fit(&mut self.face_integrals);
     }
 
     fn fail(&mut self, i: usize, error: CoreError) {
         if self.error.as_ref().is_none_or(|(first, _)| i < *first) {
             self.error = Some((i, error));
         }
+    }
+}
+
+/// `v` in a block of its length (see [`Batch::shrink`]).
+fn fit<T: Copy>(v: &mut Vec<T>) {
+    if v.capacity() > v.len() {
+        *v = v.to_vec();
     }
 }
 
@@ -770,10 +780,10 @@ fn part_power<'a, const D: usize, K: DomainKind<D>>(
 /// The diagram in index order from the batches (visiting order), the kept cells and the
 /// face integrals.
 ///
-/// The faces' sites are copied first, and the batches' copies dropped before the measures
-/// are allocated: the batches' faces (12 bytes a face) and the diagram's (12) are never
-/// all alive at once (issue 32: memory per site; 3D 100k: 579 -> 524 B/site at the peak,
-/// measured with the allocator purging at once, docs/results/memory.txt).
+/// Each kind of value is copied in turn, and each batch's copy freed as soon as it is
+/// copied, before the next kind is allocated: the per-cell values first, then the faces'
+/// sites, their measures and integrals. The batches' values (and the diagram's) are thus
+/// never all alive at once (issue 32: memory per site, docs/results/memory.txt).
 fn assemble<const D: usize, C: ConvexCell<D>>(
     sites: &[[f64; D]],
     order: Vec<u32>,
@@ -789,22 +799,9 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
         neighbor_offsets: face_offsets(n, &batches),
         ..Diagram::default()
     };
-    let faces = diagram.neighbor_offsets[n];
-    diagram.neighbor_sites = vec![0; faces];
-    for b in &mut batches {
-        let face_sites = std::mem::take(&mut b.neighbor_sites);
-        copy_faces(
-            &diagram.neighbor_offsets,
-            b,
-            &face_sites,
-            &mut diagram.neighbor_sites,
-        );
-    }
-    diagram.neighbor_measures = vec![0.0; faces];
     let mut sums = FaceIntegrals::default();
     if integrals {
         sums.cells = vec![[[0.0; D]; D]; n];
-        sums.faces = vec![[[0.0; D]; D]; faces];
     }
     let weighted = batches.iter().any(|b| !b.weighted.is_empty());
     if weighted {
@@ -814,8 +811,7 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
     if keep_cells {
         cells.resize_with(n, || None);
     }
-    let offsets = &diagram.neighbor_offsets;
-    for b in batches {
+    for b in &mut batches {
         for (k, &i) in b.sites.iter().enumerate() {
             let i = i as usize;
             diagram.moments[i] = b.moments[k];
@@ -827,18 +823,22 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
                 sums.cells[i] = b.cell_integrals[k];
             }
         }
-        copy_faces(
-            offsets,
-            &b,
-            &b.neighbor_measures,
-            &mut diagram.neighbor_measures,
-        );
-        if integrals {
-            copy_faces(offsets, &b, &b.face_integrals, &mut sums.faces);
-        }
-        for (&i, cell) in b.sites.iter().zip(b.cells) {
+        for (&i, cell) in b.sites.iter().zip(std::mem::take(&mut b.cells)) {
             cells[i as usize] = Some(cell);
         }
+        b.moments = Vec::new();
+        b.weighted = Vec::new();
+        b.boundary_measure = Vec::new();
+        b.cell_integrals = Vec::new();
+    }
+    let offsets = &diagram.neighbor_offsets;
+    diagram.neighbor_sites = scatter_faces(offsets, &mut batches, 0, |b| &mut b.neighbor_sites);
+    diagram.neighbor_measures =
+        scatter_faces(offsets, &mut batches, 0.0, |b| &mut b.neighbor_measures);
+    if integrals {
+        sums.faces = scatter_faces(offsets, &mut batches, [[0.0; D]; D], |b| {
+            &mut b.face_integrals
+        });
     }
     Clipped {
         diagram,
@@ -846,6 +846,22 @@ fn assemble<const D: usize, C: ConvexCell<D>>(
         face_integrals: sums,
         warm,
     }
+}
+
+/// One per-face value of every batch (`values` of it) in index order, in rows of
+/// `offsets`; each batch's values are freed once copied.
+fn scatter_faces<const D: usize, C, T: Copy>(
+    offsets: &[usize],
+    batches: &mut [Batch<D, C>],
+    zero: T,
+    values: impl Fn(&mut Batch<D, C>) -> &mut Vec<T>,
+) -> Vec<T> {
+    let mut to = vec![zero; offsets.last().copied().unwrap_or(0)];
+    for b in batches {
+        let from = std::mem::take(values(b));
+        copy_faces(offsets, b, &from, &mut to);
+    }
+    to
 }
 
 /// The face offsets of the diagram in index order: cell `i`'s faces are entries
