@@ -124,7 +124,7 @@ fn a_bcc_lattice_gives_truncated_octahedra() {
 }
 
 fn torus_volume<const D: usize>(torus: &PeriodicBox<D>) -> f64 {
-    torus.periods().iter().product()
+    torus.torus().periods().iter().product()
 }
 
 /// FCC sites of cube side 1 in `[0, m)³`: `4m³` rhombic dodecahedra of volume 1/4, each
@@ -223,13 +223,13 @@ fn assert_tiling_sites_agree<const D: usize, C: ConvexCell<D>>(
     hcvt_core::Euclid: hcvt_core::Space<D>,
 {
     let n = sites.len();
-    let axes = torus.periodic_axes();
+    let axes = torus.torus().periodic_axes();
     let (lo, hi) = {
         let b = hcvt_core::DomainKind::bounds(torus);
         (b.lo, b.hi)
     };
     let d = periodic::<D, C>(torus, sites);
-    let periods = torus.periods();
+    let periods = torus.torus().periods();
     let shifts: Vec<[i8; D]> = (0..3usize.pow(D as u32))
         .map(|code| std::array::from_fn(|m| (code / 3usize.pow(m as u32) % 3) as i8 - 1))
         .filter(|k: &[i8; D]| (0..D).all(|m| k[m] == 0 || axes[m]))
@@ -344,8 +344,8 @@ fn sites_outside_along_periodic_axes_are_wrapped() {
         assert!((p.mass - q.mass).abs() < 1e-13, "cell {i}");
         assert!((0..2).all(|k| (p.first[k] - q.first[k]).abs() < 1e-13));
     }
-    assert_eq!(torus.wrap([1.0, 0.5]), [0.0, 0.5]);
-    assert_eq!(torus.wrap([-0.25, 3.0]), [0.75, 3.0]);
+    assert_eq!(torus.torus().wrap([1.0, 0.5]), [0.0, 0.5]);
+    assert_eq!(torus.torus().wrap([-0.25, 3.0]), [0.75, 3.0]);
     // Outside along the non-periodic axis: refused by row.
     let mut outside = sites.clone();
     outside[17][1] = 1.5;
@@ -433,7 +433,7 @@ where
 
 /// The distance between `a` and `b` on the torus, coordinate by coordinate.
 fn torus_distance<const D: usize>(torus: &PeriodicBox<D>, a: [f64; D], b: [f64; D]) -> f64 {
-    let periods = torus.periods();
+    let periods = torus.torus().periods();
     (0..D)
         .map(|k| {
             let d = (a[k] - b[k]).rem_euclid(periods[k]);
@@ -452,8 +452,8 @@ fn a_bcc_lattice_is_a_fixed_point_on_the_torus() {
     let mut sites = Vec::new();
     for i in 0..m * m * m {
         let c = [i % m, i / m % m, i / (m * m)].map(|x| x as f64 + 0.37);
-        sites.push(torus.wrap(c));
-        sites.push(torus.wrap(c.map(|x| x + 0.5)));
+        sites.push(torus.torus().wrap(c));
+        sites.push(torus.torus().wrap(c.map(|x| x + 0.5)));
     }
     for method in [Method::Lloyd, Method::Lbfgs] {
         let out =

@@ -177,7 +177,7 @@ macro_rules! box_class {
             /// Which axes are periodic (d,).
             #[getter]
             fn periodic(&self) -> [bool; $d] {
-                self.0.periodic_axes()
+                self.0.torus().periodic_axes()
             }
 
             /// The `2^d` corners (2^d, d), the box's vertices.
@@ -206,7 +206,7 @@ macro_rules! box_class {
                 points: PyReadonlyArray2<'py, f64>,
             ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
                 let p = rows::<f64, $d>(&points, "points")?;
-                let wrapped: Vec<[f64; $d]> = p.iter().map(|&x| self.0.wrap(x)).collect();
+                let wrapped: Vec<[f64; $d]> = p.iter().map(|&x| self.0.torus().wrap(x)).collect();
                 to_array2(py, &wrapped)
             }
         }

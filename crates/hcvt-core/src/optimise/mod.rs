@@ -42,6 +42,7 @@ mod hessian;
 pub mod lbfgs;
 pub mod lloyd;
 mod newton;
+mod reduction;
 mod stopping;
 mod transport;
 
