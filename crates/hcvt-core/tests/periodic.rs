@@ -3,13 +3,16 @@
 //! volumes summing to the box's, symmetric neighbours with their images, determinism; and
 //! CVTs on the torus (sites wrap).
 
+mod common;
+use common::hessian_error;
+
 use std::collections::HashMap;
 use std::ops::ControlFlow;
 
 use hcvt_core::sample::Lcg;
 use hcvt_core::{
-    clipped_diagram, cvt, evaluate, BoxDomain, ConvexCell, CoreError, Diagram, Method, Outcome,
-    PeriodicBox, PointRequest, PolygonCell, PolyhedronCell, Request, Rule, Settings, StopReason,
+    clipped_diagram, cvt, BoxDomain, ConvexCell, CoreError, Diagram, Method, Outcome, PeriodicBox,
+    PolygonCell, PolyhedronCell, Request, Rule, Settings, StopReason,
 };
 
 fn periodic<const D: usize, C: ConvexCell<D>>(
@@ -516,46 +519,6 @@ fn random_sites_converge_on_the_torus() {
     assert!(out.history.last().unwrap().measures.rms_gap < tol);
 }
 
-/// The CVT Hessian in a periodic box against central differences of the gradient, with
-/// sites next to the box's sides: each face's term takes `z_j − z_i` from the image the
-/// face is shared with (the sites' own difference is off by a period across a side).
-fn torus_hessian_error<const D: usize, C: ConvexCell<D>>(
-    torus: &PeriodicBox<D>,
-    sites: Vec<[f64; D]>,
-) -> f64
-where
-    hcvt_core::Euclid: hcvt_core::Space<D>,
-{
-    let with_hessian = PointRequest {
-        hessian: true,
-        density: None,
-    };
-    let point = evaluate::<D, C, _>(torus, sites.clone(), &with_hessian).unwrap();
-    let h = (1.0 / sites.len() as f64).powf(1.0 / D as f64);
-    let v: Vec<[f64; D]> = sites
-        .iter()
-        .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
-        .collect();
-    let gradient_at = |t: f64| {
-        let moved: Vec<[f64; D]> = (sites.iter().zip(&v))
-            .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
-            .collect();
-        evaluate::<D, C, _>(torus, moved, &PointRequest::default())
-            .unwrap()
-            .gradient
-    };
-    let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
-    let exact = point.hessian_product(&v).unwrap();
-    let (mut err2, mut norm2) = (0.0, 0.0);
-    for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
-        for k in 0..D {
-            err2 += ((p[k] - m[k]) / 2.0 - e[k]).powi(2);
-            norm2 += e[k].powi(2);
-        }
-    }
-    (err2 / norm2).sqrt()
-}
-
 /// Random sites with a third of them within 2% of the box's sides.
 fn sites_near_the_sides<const D: usize>(n: usize, seed: u64) -> Vec<[f64; D]> {
     let mut sites = random_sites(n, [0.0; D], [1.0; D], seed);
@@ -570,13 +533,16 @@ fn sites_near_the_sides<const D: usize>(n: usize, seed: u64) -> Vec<[f64; D]> {
     sites
 }
 
+/// The CVT Hessian in a periodic box against central differences of the gradient, with
+/// sites next to the box's sides: each face's term takes `z_j − z_i` from the image the
+/// face is shared with (the sites' own difference is off by a period across a side).
 #[test]
 fn the_hessian_matches_differences_of_the_gradient_on_the_torus() {
     let torus = PeriodicBox::new([0.0; 2], [1.0; 2], [true; 2]).unwrap();
-    let err = torus_hessian_error::<2, PolygonCell>(&torus, sites_near_the_sides(60, 3));
+    let err = hessian_error::<2, PolygonCell, _>(&torus, sites_near_the_sides(60, 3));
     assert!(err < 1e-6, "2D: relative error {err:e}");
     let torus = PeriodicBox::new([0.0; 3], [1.0; 3], [true; 3]).unwrap();
-    let err = torus_hessian_error::<3, PolyhedronCell>(&torus, sites_near_the_sides(50, 4));
+    let err = hessian_error::<3, PolyhedronCell, _>(&torus, sites_near_the_sides(50, 4));
     assert!(err < 1e-6, "3D: relative error {err:e}");
 }
 

@@ -450,6 +450,7 @@ where
 mod tests {
     use super::*;
     use crate::diagram::{PeriodicBox, PolygonCell, PolyhedronCell};
+    use crate::optimise::central_difference::central_difference_error;
     use crate::sample::Lcg;
 
     /// Relative error of central differences of `W`'s gradient (each side a transport
@@ -482,23 +483,11 @@ mod tests {
             .map(|_| std::array::from_fn(|_| (rng.unit() - 0.5) * 1e-5 * h))
             .collect();
         let warm = at.transport.weights.clone();
-        let gradient_at = |t: f64| {
-            let moved: Vec<[f64; D]> = (sites.iter().zip(&v))
-                .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
-                .collect();
+        let exact = at.point.hessian_product(&v).unwrap();
+        central_difference_error(&sites, &v, &exact, |moved| {
             let solved = transport::<D, C, _>(torus, moved, &volumes, &[&warm], &asked).unwrap();
             solved.point.gradient
-        };
-        let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
-        let exact = at.point.hessian_product(&v).unwrap();
-        let (mut err2, mut norm2) = (0.0, 0.0);
-        for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
-            for k in 0..D {
-                err2 += ((p[k] - m[k]) / 2.0 - e[k]).powi(2);
-                norm2 += e[k].powi(2);
-            }
-        }
-        (err2 / norm2).sqrt()
+        })
     }
 
     #[test]

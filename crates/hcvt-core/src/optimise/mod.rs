@@ -38,6 +38,8 @@
 //! on the thread count, so neither does the result.
 
 mod capacity;
+#[cfg(test)]
+mod central_difference;
 mod hessian;
 pub mod lbfgs;
 pub mod lloyd;
