@@ -424,21 +424,11 @@ pub fn closest_points<'py>(
     nearest_arrays(py, closest_all(py, &set, &p))
 }
 
-/// Below this many points a nearest-point query runs on the calling thread: handing a
-/// few points to the pool and back costs more than they do (under load, milliseconds a
-/// call: `hcvt.surface.tighten` asks for a few points at a time, thousands of times).
-const SERIAL_CLOSEST: usize = 256;
-
-/// [`TriangleSet::closest_all`] without the GIL, on the pool for many points (each point
-/// alone either way: the answers do not depend on the threads).
+/// [`TriangleSet::closest_all`] without the GIL, on the pool when the core runs it in
+/// parallel ([`TriangleSet::closest_in_parallel`]).
 fn closest_all(py: Python<'_>, set: &TriangleSet, points: &[[f64; 3]]) -> Vec<([f64; 3], u32)> {
-    py.detach(|| {
-        if points.len() < SERIAL_CLOSEST {
-            points.iter().map(|&q| set.closest(q)).collect()
-        } else {
-            crate::threads::run(|| set.closest_all(points))
-        }
-    })
+    let parallel = TriangleSet::closest_in_parallel(points.len());
+    py.detach(|| crate::threads::run_if(parallel, || set.closest_all(points)))
 }
 
 /// [`TriangleSet::closest_all`]'s answers as numpy arrays.
