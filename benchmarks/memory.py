@@ -18,26 +18,22 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
 import gc
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 import hcvt
+from timing import run_child
 
 PAGE = os.sysconf("SC_PAGE_SIZE")
 # Issue 32's targets: peak bytes per site of one diagram, 2D at 1M sites, 3D at 100k.
 TARGET_BYTES_PER_SITE = {2: (250, 1_000_000), 3: (600, 100_000)}
 SPHERE = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d" / "sphere.ply"
 
+# Run by run_child, which defines status(key).
 CHILD = """
 import gc, sys, time, numpy as np, hcvt
-def status(key):
-    for line in open("/proc/self/status"):
-        if line.startswith(key):
-            return int(line.split()[1]) / 1024
 dim, n, path = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
 if dim == 2:
     domain = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
@@ -105,14 +101,7 @@ def child_peak(dim: int, n: int, purge_at_once: bool) -> tuple[int, float, float
     env = dict(os.environ)
     if purge_at_once:
         env["MIMALLOC_PURGE_DELAY"] = "0"
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, str(dim), str(n), str(SPHERE)],
-        check=True,
-        capture_output=True,
-        text=True,
-        env=env,
-    ).stdout.split()
-    count, hwm_before, resident, after, seconds, total = out
+    count, hwm_before, resident, after, seconds, total = run_child(CHILD, dim, n, SPHERE, env=env)
     own = float(after) - float(resident)
     return int(count), own, float(after) - float(hwm_before), seconds, total
 

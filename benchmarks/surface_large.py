@@ -20,18 +20,15 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse
-import subprocess
-import sys
 from pathlib import Path
+
+from timing import run_child
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
 
+# Run by run_child, which defines status(key).
 CHILD = """
 import sys, time, numpy as np, trimesh, hcvt
-def hwm_mib():
-    for line in open("/proc/self/status"):
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) / 1024
 path, n, subdivisions = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 mesh = trimesh.load(path, process=False)
 vertices, faces = mesh.vertices, mesh.faces
@@ -41,23 +38,18 @@ start = time.perf_counter()
 surface = hcvt.Domain.from_surface(vertices, faces)
 domain_seconds = time.perf_counter() - start
 sites = hcvt.initialise(surface, n, method="random", seed=0)
-before = hwm_mib()
+before = status("VmHWM:")
 start = time.perf_counter()
 diagram = hcvt.voronoi(surface, sites)
 seconds = time.perf_counter() - start
 error = abs(diagram.volume.sum() / surface.volume - 1)
-print(len(faces), len(sites), domain_seconds, seconds, before, hwm_mib(), error)
+print(len(faces), len(sites), domain_seconds, seconds, before, status("VmHWM:"), error)
 """
 
 
 def large_row(model: str = "armadillo.obj", sites: int = 1_000_000, subdivisions: int = 2) -> None:
     """Time one restricted diagram of ``sites`` sites on ``model`` subdivided, and print it."""
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD, str(DATA / model), str(sites), str(subdivisions)],
-        check=True,
-        capture_output=True,
-        text=True,
-    ).stdout.split()
+    out = run_child(CHILD, DATA / model, sites, subdivisions)
     triangles, count = int(out[0]), int(out[1])
     domain_s, seconds, before, after, error = map(float, out[2:])
     per_site = (after - before) * 2**20 / count

@@ -8,6 +8,7 @@ remeshed surface against the input's.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from functools import cache
 
@@ -272,6 +273,9 @@ def test_the_papers_rule_stops_too() -> None:
     res = hcvt.cvt(domain, hcvt.initialise(domain, 100, seed=8), "lbfgs", rule="paper", tol=1e-7)
     assert res.converged, res.stop_reason
     assert res.rule == "paper"
+    # The triangulation made with the final diagram (remesh reads it) survives a replace.
+    assert res._triangulation is not None
+    assert dataclasses.replace(res, seconds=0.0)._triangulation is res._triangulation
 
 
 # ---------------------------------------------------------------------------- remeshing
@@ -401,6 +405,9 @@ def test_the_surface_bvh_and_the_triangulation_diagram_match_the_separate_calls(
     nearest, triangle = domain._core.closest(sites)
     again, again_triangle = closest_points(domain._core.vertices, domain._core.faces, sites)
     assert np.array_equal(nearest, again) and np.array_equal(triangle, again_triangle)
+    # A few points are answered on the calling thread (the core's choice): the same bits.
+    few, few_triangle = domain._core.closest(sites[:10])
+    assert np.array_equal(few, nearest[:10]) and np.array_equal(few_triangle, triangle[:10])
     both = hcvt._core.restricted_delaunay(domain._core, sites, with_diagram=True)
     alone = hcvt._core.voronoi(domain._core, sites)
     assert set(both["diagram"]) == set(alone)

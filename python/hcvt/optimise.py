@@ -158,10 +158,9 @@ class CVTResult(Shows):
     seconds: float
     weights: NDArray[np.float64] | None = field(default=None, repr=False)
     #: On a surface: the restricted Delaunay triangulation of ``sites`` (core's frame),
-    #: computed with ``diagram``; :func:`hcvt.remesh` reads it instead of recomputing.
-    _triangulation: RestrictedDelaunayArrays | None = field(
-        default=None, init=False, repr=False, compare=False
-    )
+    #: computed with ``diagram``; :func:`hcvt.remesh` reads it instead of recomputing. An
+    #: ``__init__`` field, so that ``dataclasses.replace`` carries it along.
+    _triangulation: RestrictedDelaunayArrays | None = field(default=None, repr=False, compare=False)
 
     @property
     def mean_G(self) -> float:  # noqa: N802 (the paper's G)
@@ -300,7 +299,7 @@ def cvt(
         # Never moved: the input's bits, not their round trip through the frame.
         sites_out[held] = points[held]
     weights = frame.to_input("weights", out["weights"]) if "weights" in out else None
-    result = CVTResult(
+    return CVTResult(
         sites=sites_out,
         diagram=Diagram(
             domain, sites_out, out["diagram"], density, core_sites=out["sites"], weights=weights
@@ -314,9 +313,8 @@ def cvt(
         evaluations=int(out["evaluations"]),
         seconds=float(history["seconds"][-1]),
         weights=weights,
+        _triangulation=triangulation,
     )
-    result._triangulation = triangulation
-    return result
 
 
 def capacity_method(method: str | None) -> str:

@@ -3,7 +3,7 @@
 //! that happens to be the polynomial gives the polynomial's moments.
 
 mod common;
-use common::{dented_cube, interior_sites, polygon};
+use common::{central_difference_error, dented_cube, interior_sites, polygon};
 
 use hcvt_core::CoreError;
 use hcvt_core::{
@@ -63,22 +63,10 @@ where
     let v: Vec<[f64; D]> = (sites.iter())
         .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
         .collect();
-    let gradient_at = |t: f64| {
-        let moved = (sites.iter().zip(&v))
-            .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
-            .collect();
-        eval(moved, false).gradient
-    };
-    let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
     let exact = point.hessian_product(&v).unwrap();
-    let (mut err2, mut norm2) = (0.0, 0.0);
-    for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
-        for k in 0..D {
-            err2 += ((p[k] - m[k]) / 2.0 - e[k]).powi(2);
-            norm2 += e[k].powi(2);
-        }
-    }
-    (gradient_error, (err2 / norm2).sqrt())
+    let hessian_error =
+        central_difference_error(&sites, &v, &exact, |moved| eval(moved, false).gradient);
+    (gradient_error, hessian_error)
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! points, convergence in a non-convex polygon, reseeding of empty cells.
 
 mod common;
-use common::{dented_cube, interior_sites, polygon};
+use common::{dented_cube, hessian_error, interior_sites, polygon};
 
 use std::ops::ControlFlow;
 
@@ -81,60 +81,13 @@ fn gradient_matches_central_differences() {
     assert!(err < 1e-6, "3D: relative error {err:e}");
 }
 
-/// Relative error of central differences of the gradient along a random direction
-/// against the exact Hessian product.
-fn hessian_error<const D: usize, C: hcvt_core::ConvexCell<D>>(
-    boundary: &Boundary<D>,
-    sites: Vec<[f64; D]>,
-) -> f64
-where
-    Euclid: Space<D>,
-    Boundary<D>: DomainKind<D>,
-{
-    let h = (boundary.volume() / sites.len() as f64).powf(1.0 / D as f64);
-    let point = evaluate::<D, C, _>(
-        boundary,
-        sites.clone(),
-        &PointRequest {
-            hessian: true,
-            density: None,
-        },
-    )
-    .unwrap();
-    // A direction from the sites' own digits: deterministic, in every coordinate.
-    let v: Vec<[f64; D]> = sites
-        .iter()
-        .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
-        .collect();
-    let gradient_at = |t: f64| {
-        let moved: Vec<[f64; D]> = sites
-            .iter()
-            .zip(&v)
-            .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
-            .collect();
-        evaluate::<D, C, _>(boundary, moved, &PointRequest::default())
-            .unwrap()
-            .gradient
-    };
-    let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
-    let exact = point.hessian_product(&v).unwrap();
-    let (mut err2, mut norm2) = (0.0, 0.0);
-    for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
-        for k in 0..D {
-            err2 += ((p[k] - m[k]) / 2.0 - e[k]).powi(2);
-            norm2 += e[k].powi(2);
-        }
-    }
-    (err2 / norm2).sqrt()
-}
-
 #[test]
 fn hessian_matches_central_differences_of_the_gradient() {
     let l = l_shape();
-    let err = hessian_error::<2, PolygonCell>(&l, interior_sites(&l, 60, 1));
+    let err = hessian_error::<2, PolygonCell, _>(&l, interior_sites(&l, 60, 1));
     assert!(err < 1e-6, "2D: relative error {err:e}");
     let dented = dented_cube();
-    let err = hessian_error::<3, PolyhedronCell>(&dented, interior_sites(&dented, 60, 2));
+    let err = hessian_error::<3, PolyhedronCell, _>(&dented, interior_sites(&dented, 60, 2));
     assert!(err < 1e-6, "3D: relative error {err:e}");
     let without =
         evaluate::<2, PolygonCell, _>(&l, interior_sites(&l, 10, 1), &PointRequest::default())

@@ -3,13 +3,16 @@
 //! volumes summing to the box's, symmetric neighbours with their images, determinism; and
 //! CVTs on the torus (sites wrap).
 
+mod common;
+use common::hessian_error;
+
 use std::collections::HashMap;
 use std::ops::ControlFlow;
 
 use hcvt_core::sample::Lcg;
 use hcvt_core::{
-    clipped_diagram, cvt, evaluate, BoxDomain, ConvexCell, CoreError, Diagram, Method, Outcome,
-    PeriodicBox, PointRequest, PolygonCell, PolyhedronCell, Request, Rule, Settings, StopReason,
+    clipped_diagram, cvt, BoxDomain, ConvexCell, CoreError, Diagram, Method, Outcome, PeriodicBox,
+    PolygonCell, PolyhedronCell, Request, Rule, Settings, StopReason,
 };
 
 fn periodic<const D: usize, C: ConvexCell<D>>(
@@ -124,7 +127,7 @@ fn a_bcc_lattice_gives_truncated_octahedra() {
 }
 
 fn torus_volume<const D: usize>(torus: &PeriodicBox<D>) -> f64 {
-    torus.periods().iter().product()
+    torus.torus().periods().iter().product()
 }
 
 /// FCC sites of cube side 1 in `[0, m)³`: `4m³` rhombic dodecahedra of volume 1/4, each
@@ -223,13 +226,13 @@ fn assert_tiling_sites_agree<const D: usize, C: ConvexCell<D>>(
     hcvt_core::Euclid: hcvt_core::Space<D>,
 {
     let n = sites.len();
-    let axes = torus.periodic_axes();
+    let axes = torus.torus().periodic_axes();
     let (lo, hi) = {
         let b = hcvt_core::DomainKind::bounds(torus);
         (b.lo, b.hi)
     };
     let d = periodic::<D, C>(torus, sites);
-    let periods = torus.periods();
+    let periods = torus.torus().periods();
     let shifts: Vec<[i8; D]> = (0..3usize.pow(D as u32))
         .map(|code| std::array::from_fn(|m| (code / 3usize.pow(m as u32) % 3) as i8 - 1))
         .filter(|k: &[i8; D]| (0..D).all(|m| k[m] == 0 || axes[m]))
@@ -344,8 +347,8 @@ fn sites_outside_along_periodic_axes_are_wrapped() {
         assert!((p.mass - q.mass).abs() < 1e-13, "cell {i}");
         assert!((0..2).all(|k| (p.first[k] - q.first[k]).abs() < 1e-13));
     }
-    assert_eq!(torus.wrap([1.0, 0.5]), [0.0, 0.5]);
-    assert_eq!(torus.wrap([-0.25, 3.0]), [0.75, 3.0]);
+    assert_eq!(torus.torus().wrap([1.0, 0.5]), [0.0, 0.5]);
+    assert_eq!(torus.torus().wrap([-0.25, 3.0]), [0.75, 3.0]);
     // Outside along the non-periodic axis: refused by row.
     let mut outside = sites.clone();
     outside[17][1] = 1.5;
@@ -433,7 +436,7 @@ where
 
 /// The distance between `a` and `b` on the torus, coordinate by coordinate.
 fn torus_distance<const D: usize>(torus: &PeriodicBox<D>, a: [f64; D], b: [f64; D]) -> f64 {
-    let periods = torus.periods();
+    let periods = torus.torus().periods();
     (0..D)
         .map(|k| {
             let d = (a[k] - b[k]).rem_euclid(periods[k]);
@@ -452,8 +455,8 @@ fn a_bcc_lattice_is_a_fixed_point_on_the_torus() {
     let mut sites = Vec::new();
     for i in 0..m * m * m {
         let c = [i % m, i / m % m, i / (m * m)].map(|x| x as f64 + 0.37);
-        sites.push(torus.wrap(c));
-        sites.push(torus.wrap(c.map(|x| x + 0.5)));
+        sites.push(torus.torus().wrap(c));
+        sites.push(torus.torus().wrap(c.map(|x| x + 0.5)));
     }
     for method in [Method::Lloyd, Method::Lbfgs] {
         let out =
@@ -516,46 +519,6 @@ fn random_sites_converge_on_the_torus() {
     assert!(out.history.last().unwrap().measures.rms_gap < tol);
 }
 
-/// The CVT Hessian in a periodic box against central differences of the gradient, with
-/// sites next to the box's sides: each face's term takes `z_j − z_i` from the image the
-/// face is shared with (the sites' own difference is off by a period across a side).
-fn torus_hessian_error<const D: usize, C: ConvexCell<D>>(
-    torus: &PeriodicBox<D>,
-    sites: Vec<[f64; D]>,
-) -> f64
-where
-    hcvt_core::Euclid: hcvt_core::Space<D>,
-{
-    let with_hessian = PointRequest {
-        hessian: true,
-        density: None,
-    };
-    let point = evaluate::<D, C, _>(torus, sites.clone(), &with_hessian).unwrap();
-    let h = (1.0 / sites.len() as f64).powf(1.0 / D as f64);
-    let v: Vec<[f64; D]> = sites
-        .iter()
-        .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
-        .collect();
-    let gradient_at = |t: f64| {
-        let moved: Vec<[f64; D]> = (sites.iter().zip(&v))
-            .map(|(s, d)| std::array::from_fn(|k| s[k] + t * d[k]))
-            .collect();
-        evaluate::<D, C, _>(torus, moved, &PointRequest::default())
-            .unwrap()
-            .gradient
-    };
-    let (plus, minus) = (gradient_at(1.0), gradient_at(-1.0));
-    let exact = point.hessian_product(&v).unwrap();
-    let (mut err2, mut norm2) = (0.0, 0.0);
-    for ((p, m), e) in plus.iter().zip(&minus).zip(&exact) {
-        for k in 0..D {
-            err2 += ((p[k] - m[k]) / 2.0 - e[k]).powi(2);
-            norm2 += e[k].powi(2);
-        }
-    }
-    (err2 / norm2).sqrt()
-}
-
 /// Random sites with a third of them within 2% of the box's sides.
 fn sites_near_the_sides<const D: usize>(n: usize, seed: u64) -> Vec<[f64; D]> {
     let mut sites = random_sites(n, [0.0; D], [1.0; D], seed);
@@ -570,13 +533,16 @@ fn sites_near_the_sides<const D: usize>(n: usize, seed: u64) -> Vec<[f64; D]> {
     sites
 }
 
+/// The CVT Hessian in a periodic box against central differences of the gradient, with
+/// sites next to the box's sides: each face's term takes `z_j − z_i` from the image the
+/// face is shared with (the sites' own difference is off by a period across a side).
 #[test]
 fn the_hessian_matches_differences_of_the_gradient_on_the_torus() {
     let torus = PeriodicBox::new([0.0; 2], [1.0; 2], [true; 2]).unwrap();
-    let err = torus_hessian_error::<2, PolygonCell>(&torus, sites_near_the_sides(60, 3));
+    let err = hessian_error::<2, PolygonCell, _>(&torus, sites_near_the_sides(60, 3));
     assert!(err < 1e-6, "2D: relative error {err:e}");
     let torus = PeriodicBox::new([0.0; 3], [1.0; 3], [true; 3]).unwrap();
-    let err = torus_hessian_error::<3, PolyhedronCell>(&torus, sites_near_the_sides(50, 4));
+    let err = hessian_error::<3, PolyhedronCell, _>(&torus, sites_near_the_sides(50, 4));
     assert!(err < 1e-6, "3D: relative error {err:e}");
 }
 

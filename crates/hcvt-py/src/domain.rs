@@ -177,7 +177,7 @@ macro_rules! box_class {
             /// Which axes are periodic (d,).
             #[getter]
             fn periodic(&self) -> [bool; $d] {
-                self.0.periodic_axes()
+                self.0.torus().periodic_axes()
             }
 
             /// The `2^d` corners (2^d, d), the box's vertices.
@@ -206,7 +206,7 @@ macro_rules! box_class {
                 points: PyReadonlyArray2<'py, f64>,
             ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
                 let p = rows::<f64, $d>(&points, "points")?;
-                let wrapped: Vec<[f64; $d]> = p.iter().map(|&x| self.0.wrap(x)).collect();
+                let wrapped: Vec<[f64; $d]> = p.iter().map(|&x| self.0.torus().wrap(x)).collect();
                 to_array2(py, &wrapped)
             }
         }
@@ -424,21 +424,11 @@ pub fn closest_points<'py>(
     nearest_arrays(py, closest_all(py, &set, &p))
 }
 
-/// Below this many points a nearest-point query runs on the calling thread: handing a
-/// few points to the pool and back costs more than they do (under load, milliseconds a
-/// call: `hcvt.surface.tighten` asks for a few points at a time, thousands of times).
-const SERIAL_CLOSEST: usize = 256;
-
-/// [`TriangleSet::closest_all`] without the GIL, on the pool for many points (each point
-/// alone either way: the answers do not depend on the threads).
+/// [`TriangleSet::closest_all`] without the GIL, on the pool when the core runs it in
+/// parallel ([`TriangleSet::closest_in_parallel`]).
 fn closest_all(py: Python<'_>, set: &TriangleSet, points: &[[f64; 3]]) -> Vec<([f64; 3], u32)> {
-    py.detach(|| {
-        if points.len() < SERIAL_CLOSEST {
-            points.iter().map(|&q| set.closest(q)).collect()
-        } else {
-            crate::threads::run(|| set.closest_all(points))
-        }
-    })
+    let parallel = TriangleSet::closest_in_parallel(points.len());
+    py.detach(|| crate::threads::run_if(parallel, || set.closest_all(points)))
 }
 
 /// [`TriangleSet::closest_all`]'s answers as numpy arrays.

@@ -73,3 +73,13 @@ pub fn run<T: Send>(f: impl FnOnce() -> T + Send) -> T {
         None => f(),
     }
 }
+
+/// [`run`] when `parallel` (the core's answer: whether the work runs in parallel), else
+/// `f` on the calling thread, where a little work costs less than the hand-off.
+pub fn run_if<T: Send>(parallel: bool, f: impl FnOnce() -> T + Send) -> T {
+    if parallel {
+        run(f)
+    } else {
+        f()
+    }
+}

@@ -391,15 +391,13 @@ def constrained_cvt(
         key: np.concatenate([r.history[key][1 if k else 0 :] for k, r in enumerate(runs)])
         for key in last.history
     }
-    out = replace(
+    return replace(
         last,
         history=history,
         iterations=sum(r.iterations for r in runs),
         evaluations=sum(r.evaluations for r in runs),
         seconds=time.perf_counter() - start,
     )
-    out._triangulation = last._triangulation  # not an __init__ field: replace drops it
-    return out
 
 
 __all__ = [

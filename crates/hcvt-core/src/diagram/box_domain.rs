@@ -36,13 +36,16 @@ impl<const D: usize> BoxDomain<D> {
             let volume = (0..D).map(|k| hi[k] - lo[k]).product();
             return Err(CoreError::NonPositiveVolume { volume });
         }
+        Ok(Self::of_checked(Aabb { lo, hi }))
+    }
+
+    /// The box `bounds`, checked already (finite, sides of positive length).
+    pub(super) fn of_checked(bounds: Aabb<D>) -> Self {
+        let Aabb { lo, hi } = bounds;
         let corners = (0..1usize << D)
             .map(|bits| std::array::from_fn(|k| if bits >> k & 1 == 0 { lo[k] } else { hi[k] }))
             .collect();
-        Ok(Self {
-            bounds: Aabb { lo, hi },
-            corners,
-        })
+        Self { bounds, corners }
     }
 
     /// The sides along the axes `along` marks, relative to `site`, each with its boundary

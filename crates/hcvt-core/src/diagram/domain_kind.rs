@@ -9,12 +9,12 @@
 //!
 //! The kinds: the region bounded by simplices ([`Boundary`]: a polygon with holes in 2D, a
 //! solid bounded by triangles in 3D), measured through signed cones (`clip.rs`); an
-//! axis-aligned box ([`super::BoxDomain`]); and a periodic box ([`PeriodicBox`]: no
-//! boundary along its periodic axes, the cell itself, its neighbours' images through
-//! [`DomainKind::periodic`]). The sphere and a triangle surface (great-circle and triangle
-//! pieces, cells of dimension 2) will implement the same methods. The conforming mesh
-//! (`mesh`) still reads a [`Boundary`]'s simplices: the boundary pieces a mesh needs join
-//! this trait with the first kind that meshes otherwise.
+//! axis-aligned box ([`super::BoxDomain`]); and a periodic box ([`super::PeriodicBox`]: no
+//! boundary along its periodic axes, the cell itself, its neighbours' images through the
+//! [`Torus`] of [`DomainKind::periodic`]). The sphere and a triangle surface (great-circle
+//! and triangle pieces, cells of dimension 2) will implement the same methods. The
+//! conforming mesh (`mesh`) still reads a [`Boundary`]'s simplices: the boundary pieces a
+//! mesh needs join this trait with the first kind that meshes otherwise.
 
 use crate::density::quadrature::Rule;
 use crate::density::{cone_node, sum_sampled, Cone};
@@ -25,8 +25,11 @@ use crate::moments::Moments;
 use super::clip::{clip_by_domain, cut_by_boundary, domain_radius2, MeasureScratch};
 use super::convex_cell::ConvexCell;
 use super::faces::FaceRow;
-use super::periodic_box::PeriodicBox;
-use super::voronoi_cell::BOX_MARGIN;
+use super::torus::Torus;
+
+/// Margin of the starting box around the domain, relative to the domain's diagonal
+/// ([`DomainKind::start`]).
+pub(super) const BOX_MARGIN: f64 = 1e-3;
 
 /// What the diagram driver asks of a domain. Lengths in the input's unit `L`; a cell is
 /// given relative to its site (absolute coordinates `site + v`).
@@ -46,9 +49,9 @@ pub trait DomainKind<const D: usize>: Sync {
             .relative_to(site)
     }
 
-    /// (e) The periodic box whose images of the sites the cells are computed among, for a
+    /// (e) The torus whose images of the sites the cells are computed among, for a
     /// periodic kind; `None` (the default) for the others.
-    fn periodic(&self) -> Option<&PeriodicBox<D>> {
+    fn periodic(&self) -> Option<&Torus<D>> {
         None
     }
 

@@ -8,7 +8,7 @@
 use crate::moments::{FaceMoments, Moments};
 
 use super::convex_cell::{ConvexCell, Face};
-use super::weighted::WeightedSums;
+use super::weighted_sums::WeightedSums;
 
 /// A `D × D` matrix, row-major: what a [`FaceIntegrand`] sums per face and per cell.
 pub type Matrix<const D: usize> = [[f64; D]; D];

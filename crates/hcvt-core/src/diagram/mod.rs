@@ -16,20 +16,23 @@
 //! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |
 //! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
 //! | `periodic_box.rs` | [`PeriodicBox`], a box periodic along some or all axes: cells among the sites' images in a band, each neighbour with its image shift (DESIGN §14) |
+//! | `torus.rs` | [`Torus`], a periodic box's periods and axes as a value: what the driver and the optimisers ask of a periodic domain (the wrap into the box) |
 //! | `surface.rs` | [`Surface`], a triangle surface as a domain kind: restricted Voronoi cells, the surface's triangles clipped by each convex cell (DESIGN §12) |
 //! | `polygon_clip.rs` | one Sutherland–Hodgman step, shared by the surface's pieces and the mesh's boundary pieces |
 //! | `sphere.rs` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
 //! | `sphere_density.rs` | a density on the sphere: fan triangles mapped onto it, their rule's nodes and Jacobian, the sums with a constant exact |
-//! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), and its implementation for a [`crate::domain::Boundary`] |
+//! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), the margin of the box a cell starts from, and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
 //! | `faces.rs` | each cell's face measures (neighbours, boundary share) and a caller's [`FaceIntegrand`] over them |
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | `convex_cell.rs`, `polygon_cell.rs`, `polyhedron_cell/` | the convex cell ([`ConvexCell`]) in 2D and 3D |
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
+//! | `scratch.rs` | per-thread buffers reused from cell to cell (`with_scratch`) |
 //! | `warm.rs` | [`WarmStart`]: the previous diagram's near-site lists, which certify a cell's nearest sites without the index |
 //! | `power.rs` | a power diagram's weights: its planes and how far its cells look for sites (DESIGN §14) |
 //! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
+//! | `weighted_sums.rs` | with a density: one cell's weighted sums over its pieces, as `faces.rs` measures them |
 //! | `mesh/` | cell geometry and the conforming mesh of all cells ([`PolyMesh`], DESIGN §9) |
 
 mod box_domain;
@@ -45,13 +48,16 @@ mod polygon_cell;
 mod polygon_clip;
 mod polyhedron_cell;
 mod power;
+mod scratch;
 mod sphere;
 mod sphere_density;
 mod sphere_region;
 mod surface;
+mod torus;
 mod voronoi_cell;
 mod warm;
 mod weighted;
+mod weighted_sums;
 
 use rayon::prelude::*;
 
@@ -78,9 +84,11 @@ pub use power::PowerWhole;
 pub use sphere::{Sphere, ON_SPHERE_TOL};
 pub use sphere_region::{SphereRegion, MAX_REACH_DEGREES};
 pub use surface::{RestrictedDelaunay, Surface};
+pub use torus::Torus;
 use voronoi_cell::{voronoi_cell, CellScratch};
 use warm::Moved;
 pub use warm::WarmStart;
+use weighted_sums::{FaceNodes, WeightedSums};
 
 /// How to treat unusual input.
 #[derive(Debug, Clone, Copy, Default)]
@@ -141,7 +149,7 @@ struct Batch<const D: usize, C> {
     /// With a sampled density and a face integrand on the sphere: each cell's number of
     /// deferred faces, and the faces, cell after cell.
     face_node_counts: Vec<u32>,
-    face_nodes: Vec<weighted::FaceNodes<D>>,
+    face_nodes: Vec<FaceNodes<D>>,
     /// With [`Request::warm`]: each cell's near sites for the next diagram, their number
     /// per cell and the squared distance within which they are complete.
     near_counts: Vec<u32>,
@@ -353,7 +361,7 @@ where
             return Ok(out);
         }
     }
-    let weighted_sums = weighted::WeightedSums::new(density)?;
+    let weighted_sums = WeightedSums::new(density)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
     let moved = request.warm.and_then(|w| w.moved(sites));
@@ -524,7 +532,7 @@ where
         visit: &[u32],
         integrand: Option<&dyn FaceIntegrand<D>>,
         keep_cells: bool,
-        weighted: &weighted::WeightedSums<D>,
+        weighted: &WeightedSums<D>,
     ) -> Vec<Batch<D, C>> {
         let convex = domain.is_convex();
         visit
@@ -699,7 +707,7 @@ where
             return Ok(part);
         }
     }
-    let weighted_sums = weighted::WeightedSums::new(density)?;
+    let weighted_sums = WeightedSums::new(density)?;
     let index = SiteIndex::new(sites)?;
     let visit = Visit {
         sites,

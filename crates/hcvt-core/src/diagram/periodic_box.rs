@@ -29,7 +29,7 @@
 //! `2 d b / n^{1/d}` of the sites as images: 10% at 100k sites in 2D, 40% in 3D.
 //!
 //! **Sites.** Along periodic axes a site may lie anywhere: its cell is that of its image in
-//! `[lo, hi)` ([`PeriodicBox::wrap`]) and, as moments are taken about the site, the same
+//! `[lo, hi)` ([`Torus::wrap`]) and, as moments are taken about the site, the same
 //! for both; the centroid ([`super::Diagram::centroids`]) is next to the site as given, and
 //! the image shifts are those between the wrapped sites. The optimisers need nothing more:
 //! a step may carry a site across a periodic side, and [`DomainKind::locate`] says it is
@@ -44,10 +44,10 @@ use crate::moments::{FaceMoments, Moments};
 use super::box_domain::BoxDomain;
 use super::clip::{measure, MeasureScratch};
 use super::convex_cell::ConvexCell;
-use super::domain_kind::DomainKind;
+use super::domain_kind::{DomainKind, BOX_MARGIN};
 use super::faces::{FaceIntegrals, FaceIntegrand, FaceRow, Matrix};
-use super::voronoi_cell::BOX_MARGIN;
-use super::weighted::WeightedSums;
+use super::torus::Torus;
+use super::weighted_sums::WeightedSums;
 use super::{
     checked_part, checked_windings, morton_order, without_errors, Batch, Clipped, Diagram,
     PartCells, Power, Request, SiteIndex, Visit,
@@ -70,10 +70,7 @@ const FIRST_BAND: [f64; 4] = [8.0, 8.0, 8.0, 3.0];
 pub struct PeriodicBox<const D: usize> {
     /// The plain box: its corners, and its sides along the axes that are not periodic.
     plain: BoxDomain<D>,
-    bounds: Aabb<D>,
-    periodic: [bool; D],
-    /// `hi − lo`, `L`.
-    periods: [f64; D],
+    torus: Torus<D>,
 }
 
 impl<const D: usize> PeriodicBox<D> {
@@ -84,96 +81,72 @@ impl<const D: usize> PeriodicBox<D> {
     /// negative length.
     pub fn new(lo: [f64; D], hi: [f64; D], periodic: [bool; D]) -> Result<Self, CoreError> {
         let plain = BoxDomain::new(lo, hi)?;
-        let periods = sub(hi, lo);
-        if periods.iter().any(|&p| !p.is_finite()) {
+        let torus = Torus::new(Aabb { lo, hi }, periodic);
+        if torus.periods().iter().any(|&p| !p.is_finite()) {
             return Err(CoreError::NonPositiveVolume {
-                volume: periods.iter().product(),
+                volume: torus.volume(),
             });
         }
-        Ok(Self {
-            plain,
-            bounds: Aabb { lo, hi },
-            periodic,
-            periods,
-        })
+        Ok(Self { plain, torus })
+    }
+
+    /// The box of `torus` (a [`PeriodicBox`]'s, so checked already).
+    fn of(torus: &Torus<D>) -> Self {
+        Self {
+            plain: BoxDomain::of_checked(torus.bounds()),
+            torus: *torus,
+        }
+    }
+
+    /// The box as a torus: its periods, its periodic axes, the wrap into `[lo, hi)`.
+    pub fn torus(&self) -> &Torus<D> {
+        &self.torus
     }
 
     /// The axes that are not periodic: where the box's sides clip.
     fn fixed(&self) -> [bool; D] {
-        self.periodic.map(|p| !p)
-    }
-
-    /// Which axes are periodic.
-    pub fn periodic_axes(&self) -> [bool; D] {
-        self.periodic
-    }
-
-    /// `hi − lo` along each axis, `L`.
-    pub fn periods(&self) -> [f64; D] {
-        self.periods
-    }
-
-    /// `p` moved by whole periods into `[lo, hi)` along the periodic axes (unchanged along
-    /// the others, and where it is in already). Non-finite coordinates stay non-finite.
-    pub fn wrap(&self, p: [f64; D]) -> [f64; D] {
-        std::array::from_fn(|k| {
-            let (lo, hi, x) = (self.bounds.lo[k], self.bounds.hi[k], p[k]);
-            if !self.periodic[k] || (lo <= x && x < hi) || !x.is_finite() {
-                return x;
-            }
-            let wrapped = lo + (x - lo).rem_euclid(self.periods[k]);
-            // Rounding may land on `hi` itself (a site just below `lo`): the same point.
-            if wrapped < hi {
-                wrapped
-            } else {
-                lo
-            }
-        })
-    }
-
-    /// The largest period along a periodic axis, `L`.
-    fn largest_period(&self) -> f64 {
-        (0..D)
-            .filter(|&k| self.periodic[k])
-            .fold(0.0, |m: f64, k| m.max(self.periods[k]))
+        self.torus.periodic_axes().map(|p| !p)
     }
 }
 
 impl<const D: usize> DomainKind<D> for PeriodicBox<D> {
     fn bounds(&self) -> Aabb<D> {
-        self.bounds
+        self.torus.bounds()
     }
 
     /// The torus' size along the periodic axes, centred on the site (and a thousandth of
     /// a period more: its own images then cut the cell, and each such face is a neighbour
     /// face); the box, a little larger, along the others.
     fn start(&self, site: [f64; D]) -> Aabb<D> {
-        let margin = BOX_MARGIN * self.bounds.diagonal();
-        let half: [f64; D] = std::array::from_fn(|k| (0.5 + BOX_MARGIN) * self.periods[k]);
+        let (bounds, periodic) = (self.torus.bounds(), self.torus.periodic_axes());
+        let margin = BOX_MARGIN * bounds.diagonal();
+        let periods = self.torus.periods();
+        let half: [f64; D] = std::array::from_fn(|k| (0.5 + BOX_MARGIN) * periods[k]);
         Aabb {
             lo: std::array::from_fn(|k| {
-                if self.periodic[k] {
+                if periodic[k] {
                     -half[k]
                 } else {
-                    self.bounds.lo[k] - margin - site[k]
+                    bounds.lo[k] - margin - site[k]
                 }
             }),
             hi: std::array::from_fn(|k| {
-                if self.periodic[k] {
+                if periodic[k] {
                     half[k]
                 } else {
-                    self.bounds.hi[k] + margin - site[k]
+                    bounds.hi[k] + margin - site[k]
                 }
             }),
         }
     }
 
-    fn periodic(&self) -> Option<&PeriodicBox<D>> {
-        self.periodic.iter().any(|&p| p).then_some(self)
+    fn periodic(&self) -> Option<&Torus<D>> {
+        let periodic = self.torus.periodic_axes();
+        periodic.iter().any(|&p| p).then_some(&self.torus)
     }
 
     fn volume(&self) -> f64 {
-        self.periods.iter().product()
+        self.torus.volume()
     }
 
     /// Along periodic axes every point is inside (it stands for its image in the box); the
@@ -207,7 +180,7 @@ impl<const D: usize> DomainKind<D> for PeriodicBox<D> {
         row: Option<FaceRow<'_, D>>,
         scratch: &mut MeasureScratch<D, C>,
     ) -> Moments<D> {
-        if self.periodic.iter().all(|&p| p) {
+        if self.torus.periodic_axes().iter().all(|&p| p) {
             return measure(cell, row, &mut scratch.faces);
         }
         let piece = scratch.piece.get_or_insert_with(|| cell.clone());
@@ -232,8 +205,9 @@ struct Images<const D: usize> {
 }
 
 impl<const D: usize> Images<D> {
-    fn new(torus: &PeriodicBox<D>, wrapped: &[[f64; D]], band: f64) -> Self {
-        let (lo, hi, periods) = (torus.bounds.lo, torus.bounds.hi, torus.periods);
+    fn new(torus: &Torus<D>, wrapped: &[[f64; D]], band: f64) -> Self {
+        let (Aabb { lo, hi }, periods) = (torus.bounds(), torus.periods());
+        let periodic = torus.periodic_axes();
         // Shift codes: digit m of the code in base 3 is k_m = 0, +1, −1; code 0 is the site.
         let shifts: Vec<[i8; D]> = (1..3usize.pow(D as u32))
             .map(|code| {
@@ -243,7 +217,7 @@ impl<const D: usize> Images<D> {
                     _ => -1,
                 })
             })
-            .filter(|k: &[i8; D]| (0..D).all(|m| k[m] == 0 || torus.periodic[m]))
+            .filter(|k: &[i8; D]| (0..D).all(|m| k[m] == 0 || periodic[m]))
             .collect();
         let mut sites = wrapped.to_vec();
         let (mut source, mut shift) = (Vec::new(), Vec::new());
@@ -251,9 +225,7 @@ impl<const D: usize> Images<D> {
         // side has no image in it: most sites, skipped before trying the 3^p − 1 shifts.
         let reach: [f64; D] = std::array::from_fn(|m| band + 1e-9 * periods[m]);
         let near_a_side = |z: &[f64; D]| {
-            (0..D).any(|m| {
-                torus.periodic[m] && (z[m] - lo[m] <= reach[m] || hi[m] - z[m] <= reach[m])
-            })
+            (0..D).any(|m| periodic[m] && (z[m] - lo[m] <= reach[m] || hi[m] - z[m] <= reach[m]))
         };
         for (i, z) in wrapped.iter().enumerate() {
             if !near_a_side(z) {
@@ -289,14 +261,14 @@ impl<const D: usize> Images<D> {
 
     /// The cell of the wrapped `site`, which read the sites within `√reach2` of it, read
     /// every image it needed.
-    fn covers(&self, torus: &PeriodicBox<D>, site: [f64; D], reach2: f64) -> bool {
+    fn covers(&self, torus: &Torus<D>, site: [f64; D], reach2: f64) -> bool {
         if self.band == f64::INFINITY {
             return true;
         }
         let reach = reach2.sqrt() * (1.0 + 1e-9);
-        let (lo, hi) = (torus.bounds.lo, torus.bounds.hi);
+        let (Aabb { lo, hi }, periodic) = (torus.bounds(), torus.periodic_axes());
         (0..D)
-            .filter(|&m| torus.periodic[m])
+            .filter(|&m| periodic[m])
             .all(|m| reach <= self.band + (site[m] - lo[m]).min(hi[m] - site[m]))
     }
 }
@@ -312,7 +284,7 @@ impl<const D: usize> Images<D> {
 /// Errors: those of [`super::clipped_diagram`] (coinciding sites are also sites at the
 /// same point of the torus), and a density, which a periodic box does not take yet.
 pub(super) fn clipped_diagram<const D: usize, C: ConvexCell<D>>(
-    torus: &PeriodicBox<D>,
+    torus: &Torus<D>,
     sites: &[[f64; D]],
     weights: Option<&[f64]>,
     request: &Request<'_, D>,
@@ -332,10 +304,11 @@ where
         }
     }
     let wrapped: Vec<[f64; D]> = sites.iter().map(|&s| torus.wrap(s)).collect();
-    let windings = checked_windings(torus, &wrapped, request.options)?;
+    let domain = PeriodicBox::of(torus);
+    let windings = checked_windings(&domain, &wrapped, request.options)?;
     let n = sites.len();
     let passes = band_passes::<D, C>(
-        torus,
+        &domain,
         &wrapped,
         &windings,
         morton_order(&wrapped),
@@ -361,7 +334,7 @@ where
 /// cell whose reach (in the torus) the sites given cover is the whole problem's, bit for
 /// bit. Not with a density or weights yet.
 pub(super) fn clipped_cells<const D: usize, C: ConvexCell<D>>(
-    torus: &PeriodicBox<D>,
+    torus: &Torus<D>,
     sites: &[[f64; D]],
     own: &[u32],
     total_sites: usize,
@@ -386,10 +359,11 @@ where
         }
     }
     let wrapped: Vec<[f64; D]> = sites.iter().map(|&s| torus.wrap(s)).collect();
-    let (windings, _) = checked_part(torus, &wrapped, own, request.options)?;
+    let domain = PeriodicBox::of(torus);
+    let (windings, _) = checked_part(&domain, &wrapped, own, request.options)?;
     let n = sites.len();
     let passes = band_passes::<D, C>(
-        torus,
+        &domain,
         &wrapped,
         &windings,
         own.to_vec(),
@@ -419,7 +393,7 @@ where
 /// the band doubled, until none does (the band of a problem of `total_sites` sites).
 #[allow(clippy::too_many_arguments)] // the sites, and what the diagram is asked for
 fn band_passes<const D: usize, C: ConvexCell<D>>(
-    torus: &PeriodicBox<D>,
+    domain: &PeriodicBox<D>,
     wrapped: &[[f64; D]],
     windings: &[Option<i32>],
     mut visit_order: Vec<u32>,
@@ -431,6 +405,7 @@ fn band_passes<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D>,
 {
+    let torus = domain.torus();
     let spacing = (torus.volume() / total_sites as f64).powf(1.0 / D as f64);
     let full = torus.largest_period();
     let none = WeightedSums::new(None)?;
@@ -466,7 +441,7 @@ where
         });
         let through = through.as_ref().map(|t| t as &dyn FaceIntegrand<D>);
         let batches =
-            visit.batches::<C, PeriodicBox<D>>(torus, &visit_order, through, keep_cells, &none);
+            visit.batches::<C, PeriodicBox<D>>(domain, &visit_order, through, keep_cells, &none);
         let batches = without_errors(batches)
             .map_err(|e| e.with_site_rows(|j| images.image(j).0 as usize))?;
         // The cells to compute again, in the order they were visited.

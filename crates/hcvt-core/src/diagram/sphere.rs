@@ -76,8 +76,9 @@ use super::clip::MeasureScratch;
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::faces::{FaceRow, FaceSums};
+use super::scratch::with_scratch;
 use super::sphere_density;
-use super::weighted::{FaceNodes, FACE_NODES};
+use super::weighted_sums::{FaceNodes, FACE_NODES};
 
 /// How far from the unit sphere a site may lie, `| |x|² − 1 | ≤ 2·ON_SPHERE_TOL` (so
 /// `| |x| − 1 |` about `ON_SPHERE_TOL`): the sites are then taken as their directions. A
@@ -604,17 +605,9 @@ fn arc_moments(a: [f64; 3], b: [f64; 3], theta: f64) -> FaceMoments<3> {
     }
 }
 
-// This thread's polygon, reused from cell to cell.
+// This thread's polygon, reused from cell to cell ([`with_scratch`]).
 thread_local! {
-    static SCRATCH: RefCell<SphericalPolygon> = RefCell::new(SphericalPolygon::default());
-}
-
-/// Run `f` with this thread's polygon (a fresh one if it is taken).
-fn with_polygon<T>(f: impl FnOnce(&mut SphericalPolygon) -> T) -> T {
-    SCRATCH.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut poly) => f(&mut poly),
-        Err(_) => f(&mut SphericalPolygon::default()),
-    })
+    static POLYGON: RefCell<SphericalPolygon> = RefCell::new(SphericalPolygon::default());
 }
 
 /// The cell's polygon in the cap around its site (`poly`), and whether it lies there:
@@ -642,7 +635,7 @@ fn measure_polygons<C: ConvexCell<3>>(
     faces.clear();
     let frame = SiteFrame::at(site);
     let arcs = row.map(|row| ArcRow { row, frame: &frame });
-    let sums = with_polygon(|poly| {
+    let sums = with_scratch(&POLYGON, |poly| {
         if cap_polygon(poly, cell, &frame) {
             return measure_upper(poly, &frame, faces, arcs);
         }
@@ -753,7 +746,9 @@ impl DomainKind<3> for Sphere {
     /// is measured by [`DomainKind::clip`].
     fn cut_convex<C: ConvexCell<3>>(&self, cell: &mut C, site: [f64; 3], _: &mut Vec<u32>) -> bool {
         let frame = SiteFrame::at(site);
-        let depth = with_polygon(|poly| cap_polygon(poly, cell, &frame).then(|| poly.depth()));
+        let depth = with_scratch(&POLYGON, |poly| {
+            cap_polygon(poly, cell, &frame).then(|| poly.depth())
+        });
         if let Some(depth) = depth {
             cut_to_slab(cell, site, &frame, depth);
         }
@@ -764,7 +759,9 @@ impl DomainKind<3> for Sphere {
     /// for a cell reaching beyond 45° of its site.
     fn local_radius2<C: ConvexCell<3>>(&self, cell: &C, site: [f64; 3]) -> f64 {
         let frame = SiteFrame::at(site);
-        let depth = with_polygon(|poly| cap_polygon(poly, cell, &frame).then(|| poly.depth()));
+        let depth = with_scratch(&POLYGON, |poly| {
+            cap_polygon(poly, cell, &frame).then(|| poly.depth())
+        });
         radius2_within_depth(site, depth)
     }
 

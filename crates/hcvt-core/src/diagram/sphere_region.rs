@@ -47,6 +47,7 @@ use super::clip::MeasureScratch;
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::faces::{FaceRow, FaceSums};
+use super::scratch::with_scratch;
 use super::sphere::{
     cap_polygon, cut_to_slab, measure_lower, measure_upper, radius2_within_depth, unit, SiteFrame,
     Sphere, SphericalPolygon, Sums, ON_SPHERE_TOL,
@@ -486,16 +487,9 @@ struct RegionScratch {
     arcs: Vec<(Face, f64, f64)>,
 }
 
+// This thread's buffers, reused from cell to cell ([`with_scratch`]).
 thread_local! {
     static SCRATCH: RefCell<RegionScratch> = RefCell::new(RegionScratch::default());
-}
-
-/// Run `f` with this thread's buffers (fresh ones if they are taken).
-fn with_scratch<T>(f: impl FnOnce(&mut RegionScratch) -> T) -> T {
-    SCRATCH.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut s) => f(&mut s),
-        Err(_) => f(&mut RegionScratch::default()),
-    })
 }
 
 /// No two edges of the plane rings meet but consecutive edges of a ring, at their vertex
@@ -605,7 +599,7 @@ impl DomainKind<3> for SphereRegion {
     /// equator. Always `false`, as on the sphere: the slab tightens as the cell shrinks.
     fn cut_convex<C: ConvexCell<3>>(&self, cell: &mut C, site: [f64; 3], _: &mut Vec<u32>) -> bool {
         let frame = SiteFrame::at(site);
-        match with_scratch(|s| self.part_depth(cell, &frame, s)) {
+        match with_scratch(&SCRATCH, |s| self.part_depth(cell, &frame, s)) {
             Some(depth) => cut_to_slab(cell, site, &frame, depth),
             None => {
                 // `cos_reach ≤ x·c ≤ 1` relative to the site, a little wider.
@@ -635,7 +629,10 @@ impl DomainKind<3> for SphereRegion {
     /// for a part reaching to the site's equator.
     fn local_radius2<C: ConvexCell<3>>(&self, cell: &C, site: [f64; 3]) -> f64 {
         let frame = SiteFrame::at(site);
-        radius2_within_depth(site, with_scratch(|s| self.part_depth(cell, &frame, s)))
+        radius2_within_depth(
+            site,
+            with_scratch(&SCRATCH, |s| self.part_depth(cell, &frame, s)),
+        )
     }
 
     fn clip<C: ConvexCell<3>>(
@@ -647,7 +644,9 @@ impl DomainKind<3> for SphereRegion {
         scratch: &mut MeasureScratch<3, C>,
     ) -> Moments<3> {
         let frame = SiteFrame::at(site);
-        with_scratch(|s| self.measure(cell, &frame, &mut scratch.faces, s))
+        with_scratch(&SCRATCH, |s| {
+            self.measure(cell, &frame, &mut scratch.faces, s)
+        })
     }
 
     fn cell_dim(&self) -> usize {

@@ -40,6 +40,7 @@ use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::faces::{FaceRow, FaceSums};
 use super::polygon_clip::clip_polygon;
+use super::scratch::with_scratch;
 
 /// Neighbours a cell streams before its pieces are validated
 /// ([`DomainKind::validate_part_after`]): a restricted cell has about six, as a planar one.
@@ -226,7 +227,7 @@ impl Surface {
             }
         };
         let key = site.map(f64::to_bits);
-        with_buffers(|buffers| {
+        with_scratch(&BUFFERS, |buffers| {
             let Buffers {
                 polygon,
                 spare,
@@ -386,16 +387,9 @@ struct Buffers {
     met_by: Option<[u64; 3]>,
 }
 
+// This thread's buffers, reused from cell to cell ([`with_scratch`]).
 thread_local! {
     static BUFFERS: RefCell<Buffers> = RefCell::new(Buffers::default());
-}
-
-/// Run `f` with this thread's buffers (fresh ones if they are taken).
-fn with_buffers<T>(f: impl FnOnce(&mut Buffers) -> T) -> T {
-    BUFFERS.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut b) => f(&mut b),
-        Err(_) => f(&mut Buffers::default()),
-    })
 }
 
 /// Add the piece `polygon` (of triangle `t`, relative to the site) to `total`: the fan

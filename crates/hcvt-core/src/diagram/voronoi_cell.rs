@@ -14,10 +14,6 @@ use super::knn::{NearScratch, SiteIndex};
 use super::power::Power;
 use super::warm::margin2;
 
-/// Margin of the starting box around the domain, relative to the domain's diagonal
-/// ([`DomainKind::start`]).
-pub(super) const BOX_MARGIN: f64 = 1e-3;
-
 /// Neighbour count, per dimension, after which a cell that has not reached its security
 /// radius is localised to the domain (see [`DomainKind::local_radius2`]). 16 in 2D: a CVT of the star
 /// spends 23% less per diagram than with 64 (2.36 against 3.05 ms at 2,000 sites), the unit

@@ -58,6 +58,12 @@ pub struct TriangleSet {
     bvh: Bvh<3>,
 }
 
+/// Below this many points [`TriangleSet::closest_all`] runs on the calling thread: handing
+/// a few points to a thread pool and back costs more than they do (under load,
+/// milliseconds a call: `hcvt.surface.tighten` asks for a few points at a time, thousands
+/// of times).
+const SERIAL_CLOSEST: usize = 256;
+
 impl TriangleSet {
     /// Index `triangles` over `vertices`: finite coordinates, indices in range, at least
     /// one triangle.
@@ -146,10 +152,22 @@ impl TriangleSet {
         (best.1, best.2)
     }
 
-    /// [`TriangleSet::closest`] of every point, in parallel (each point alone: the result
+    /// Whether [`TriangleSet::closest_all`] of `count` points runs in parallel: from
+    /// [`SERIAL_CLOSEST`] points on. A caller that would hand the work to a thread pool
+    /// (the Python binding) asks first: below, the hand-off costs more than the points.
+    pub fn closest_in_parallel(count: usize) -> bool {
+        count >= SERIAL_CLOSEST
+    }
+
+    /// [`TriangleSet::closest`] of every point, in parallel for many points
+    /// ([`TriangleSet::closest_in_parallel`]; each point alone either way: the result
     /// does not depend on the threads).
     pub fn closest_all(&self, points: &[[f64; 3]]) -> Vec<([f64; 3], u32)> {
-        points.par_iter().map(|&p| self.closest(p)).collect()
+        if Self::closest_in_parallel(points.len()) {
+            points.par_iter().map(|&p| self.closest(p)).collect()
+        } else {
+            points.iter().map(|&p| self.closest(p)).collect()
+        }
     }
 }
 

@@ -9,7 +9,7 @@ use crate::diagram::{Diagram, DomainKind, FaceIntegrals, FaceIntegrand, Matrix};
 use crate::geometry::{add, dot, norm2, sub};
 use crate::moments::FaceMoments;
 
-use super::capacity::Reduction;
+use super::reduction::Reduction;
 
 /// The Hessian of the CVT energy `E(X) = Σ_i ∫_{Ω_i} |x − x_i|²`, exact, in `D × D` blocks.
 ///

@@ -38,10 +38,13 @@
 //! on the thread count, so neither does the result.
 
 mod capacity;
+#[cfg(test)]
+mod central_difference;
 mod hessian;
 pub mod lbfgs;
 pub mod lloyd;
 mod newton;
+mod reduction;
 mod stopping;
 mod transport;
 

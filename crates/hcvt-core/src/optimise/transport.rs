@@ -399,7 +399,7 @@ impl<const D: usize> FaceIntegrand<D> for FaceMass {
 /// The graph Laplacian of a power diagram, `c_ij = ∫_{F_ij} ρ / (2|z_i − z_j|)`, in the
 /// diagram's face list; row 0 held fixed. It is `∂m/∂w`, the Jacobian of the cells'
 /// masses in the weights, which the sites' reduced Hessian also solves with
-/// (`capacity::Reduction`).
+/// (`reduction::Reduction`).
 pub(super) struct Laplacian<'a, const D: usize> {
     diagram: &'a Diagram<D>,
     /// `c_e` per face entry (0 for a cell's faces with its own images).

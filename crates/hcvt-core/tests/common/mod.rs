@@ -2,10 +2,17 @@
 
 use std::path::{Path, PathBuf};
 
-use hcvt_core::{Polygon, Solid};
+use hcvt_core::{evaluate, ConvexCell, DomainKind, Euclid, PointRequest, Polygon, Solid, Space};
 
 #[allow(unused_imports)] // not every test file uses it
 pub use hcvt_core::sample::interior_sites;
+
+// One check of a Hessian for the unit and the integration tests: the crate's own file.
+#[allow(dead_code)]
+#[path = "../../src/optimise/central_difference.rs"]
+mod central_difference;
+#[allow(unused_imports)]
+pub use central_difference::central_difference_error;
 
 /// The unit cube with its top face (z = 1) pushed in to a point at z = 0.8: not convex.
 #[allow(dead_code)] // not every test file uses it
@@ -73,4 +80,33 @@ pub fn read_mesh(path: &Path) -> Solid {
         })
         .collect();
     Solid::new(vertices, faces).unwrap()
+}
+
+/// Relative error of central differences of the CVT energy's gradient against the exact
+/// Hessian product, along a direction made from the sites' own digits (deterministic, in
+/// every coordinate) of 1e-6 mean spacings.
+#[allow(dead_code)]
+pub fn hessian_error<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: Vec<[f64; D]>,
+) -> f64
+where
+    Euclid: Space<D>,
+{
+    let h = (domain.volume() / sites.len() as f64).powf(1.0 / D as f64);
+    let with_hessian = PointRequest {
+        hessian: true,
+        density: None,
+    };
+    let point = evaluate::<D, C, _>(domain, sites.clone(), &with_hessian).unwrap();
+    let v: Vec<[f64; D]> = sites
+        .iter()
+        .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
+        .collect();
+    let exact = point.hessian_product(&v).unwrap();
+    central_difference_error(&sites, &v, &exact, |moved| {
+        evaluate::<D, C, _>(domain, moved, &PointRequest::default())
+            .unwrap()
+            .gradient
+    })
 }

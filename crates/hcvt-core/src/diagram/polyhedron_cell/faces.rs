@@ -4,6 +4,7 @@
 
 use super::PolyhedronCell;
 use crate::diagram::convex_cell::Face;
+use crate::diagram::scratch::with_scratch;
 use crate::geometry::{add, cross, dot, norm2, scale, sub};
 use crate::moments::{FaceMoments, Moments};
 
@@ -66,13 +67,7 @@ impl PolyhedronCell {
     /// [`PolyhedronCell::walk_faces`] with per-thread buffers: every cell of every diagram
     /// is walked. A nested walk (from inside `f`) finds them taken and uses fresh ones.
     pub(super) fn for_each_ring(&self, mut f: impl FnMut(Face, &[u32])) {
-        WALK_BUFFERS.with(|cell| {
-            let mut fresh = WalkBuffers::default();
-            let mut taken = cell.try_borrow_mut();
-            let b = match taken.as_deref_mut() {
-                Ok(b) => b,
-                Err(_) => &mut fresh,
-            };
+        with_scratch(&WALK_BUFFERS, |b| {
             self.walk_faces(&mut b.first, &mut b.ring, |plane, ring| {
                 f(self.planes[plane as usize].face, ring);
             });

@@ -15,6 +15,7 @@ mod faces;
 mod tests;
 
 use super::convex_cell::{ConvexCell, Face};
+use super::scratch::with_scratch;
 use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
 
@@ -80,6 +81,13 @@ impl Scratch {
     }
 }
 
+impl Default for Scratch {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+// This thread's buffers, reused from clip to clip ([`with_scratch`]).
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = const { std::cell::RefCell::new(Scratch::new()) };
 }
@@ -156,10 +164,7 @@ impl PolyhedronCell {
         if farthest <= tol {
             return Some(false);
         }
-        SCRATCH.with(|cell| match cell.try_borrow_mut() {
-            Ok(mut scratch) => self.cut(h, face, tol, &mut scratch),
-            Err(_) => self.cut(h, face, tol, &mut Scratch::new()),
-        })
+        with_scratch(&SCRATCH, |scratch| self.cut(h, face, tol, scratch))
     }
 
     /// The part of [`PolyhedronCell::try_clip`] that changes the cell.
