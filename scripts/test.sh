@@ -53,7 +53,7 @@ echo "== ruff";     python -m ruff check python tests benchmarks examples docs/c
 python -m ruff format --check python tests benchmarks examples docs/conf.py
 echo "== mypy";     python -m mypy && python -m mypy.stubtest hcvt._core
 # Doctests from the installed package (--pyargs): the source tree has no compiled core.
-echo "== pytest";   python -m pytest --pyargs hcvt tests
+echo "== pytest";   python -m pytest --pyargs hcvt tests --durations=25
 # A miscompilation seen once with one codegen unit (crates/hcvt-core/src/moments.rs,
 # FaceMoments::simplex): the Hessian's finite-difference test, built that way too.
 echo "== cargo test, one codegen unit"
