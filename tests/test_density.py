@@ -286,7 +286,7 @@ def test_the_weighted_gradient_matches_finite_differences(dim: int) -> None:
 
 def test_newton_with_a_polynomial_density_converges_with_fewer_diagrams() -> None:
     # The Hessian's face terms are weighted by ρ (checked against finite differences in
-    # crates/hcvt-core/tests/density.rs): Newton converges in fewer diagrams, and near a
+    # crates/hcvt-core/tests/it/density.rs): Newton converges in fewer diagrams, and near a
     # CVT it converges quadratically (measured: RMS gap 1e-7, 3e-11, 6e-16).
     domain = hcvt.load_domain(DATA / "2d" / "triangle_double_hex.geojson")
     sites = hcvt.initialise(domain, 200, seed=2)

@@ -3,9 +3,7 @@
 //! (the lists certify nearly every cell) and large ones (most cells fall back to the
 //! index), with any number of threads; and the warm path is really taken.
 
-mod common;
-
-use common::{data_3d, dented_cube, interior_sites, polygon, read_mesh};
+use crate::common::{data_3d, dented_cube, interior_sites, polygon, read_mesh};
 use hcvt_core::lloyd::lloyd_step;
 use hcvt_core::sample::Lcg;
 use hcvt_core::{

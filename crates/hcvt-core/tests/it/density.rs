@@ -2,8 +2,7 @@
 //! central differences, in a non-convex polygon with a hole and in a dented cube; a field
 //! that happens to be the polynomial gives the polynomial's moments.
 
-mod common;
-use common::{central_difference_error, dented_cube, interior_sites, polygon};
+use crate::common::{central_difference_error, dented_cube, interior_sites, polygon};
 
 use hcvt_core::CoreError;
 use hcvt_core::{

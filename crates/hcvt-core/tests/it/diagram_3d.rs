@@ -1,8 +1,7 @@
 //! The 3D clipped diagram against closed forms (lattices in a cube) and against the
 //! domain's own integrals on the real meshes of `../shared/data/3d`.
 
-mod common;
-use common::{data_3d, dented_cube, interior_sites, read_mesh};
+use crate::common::{data_3d, dented_cube, interior_sites, read_mesh};
 
 use hcvt_core::{clipped_diagram, Diagram, PolyhedronCell, Request, Solid};
 

@@ -4,8 +4,7 @@
 //!
 //! `PROPTEST_CASES` sets the number of cases per property (default 1,000 here; 3,000 in all).
 
-mod common;
-use common::{data_3d, read_mesh};
+use crate::common::{data_3d, read_mesh};
 
 use hcvt_core::{
     clipped_diagram, CoreError, Diagram, Options, Polygon, PolygonCell, PolyhedronCell, Request,

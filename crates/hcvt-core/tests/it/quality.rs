@@ -7,8 +7,7 @@
 //! (a piece of a bisector cut by a non-convex domain), and we follow OpenFOAM. They are
 //! checked in convex domains.
 
-mod common;
-use common::{data_3d, dented_cube, interior_sites, polygon, read_mesh};
+use crate::common::{data_3d, dented_cube, interior_sites, polygon, read_mesh};
 
 use hcvt_core::{
     clipped_diagram, conforming_mesh, mesh_quality, Boundary, ConvexCell, Diagram, DomainKind,

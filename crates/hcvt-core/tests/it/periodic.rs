@@ -3,8 +3,7 @@
 //! volumes summing to the box's, symmetric neighbours with their images, determinism; and
 //! CVTs on the torus (sites wrap).
 
-mod common;
-use common::hessian_error;
+use crate::common::hessian_error;
 
 use std::collections::HashMap;
 use std::ops::ControlFlow;

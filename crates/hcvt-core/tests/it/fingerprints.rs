@@ -8,8 +8,7 @@
 //! algorithm, not a refactor), say so in its commit and record the new values printed by
 //! `cargo test --release --test fingerprints -- --nocapture`.
 
-mod common;
-use common::{data_3d, interior_sites, polygon, read_mesh};
+use crate::common::{data_3d, interior_sites, polygon, read_mesh};
 
 use std::ops::ControlFlow;
 

@@ -1,8 +1,7 @@
 //! CVT optimisation in the core: exact gradient, Lloyd's monotonicity, lattice fixed
 //! points, convergence in a non-convex polygon, reseeding of empty cells.
 
-mod common;
-use common::{dented_cube, hessian_error, interior_sites, polygon};
+use crate::common::{dented_cube, hessian_error, interior_sites, polygon};
 
 use std::ops::ControlFlow;
 
