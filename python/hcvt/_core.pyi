@@ -35,6 +35,7 @@ __all__ = [
     "check_settings",
     "closest_points",
     "cvt",
+    "diagram_field",
     "get_num_threads",
     "lbfgs_coefficients",
     "lbfgs_direction",
