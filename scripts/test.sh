@@ -48,7 +48,10 @@ export HCVT_REQUIRE_BROWSER=1  # the screenshot test fails, not skips, without o
 
 echo "== rustfmt";  cargo fmt --all -- --check
 echo "== clippy";   cargo clippy --workspace --all-targets --release -- -D warnings
-echo "== cargo test"; cargo test --workspace --release
+# --lib --tests: not the examples (clippy --all-targets checks they build; linking each
+# with thin LTO cost minutes); the doc tests separately (cargo cannot mix --doc with them).
+echo "== cargo test"; cargo test --workspace --release --lib --tests
+cargo test --workspace --release --doc
 echo "== ruff";     python -m ruff check python tests benchmarks examples docs/conf.py
 python -m ruff format --check python tests benchmarks examples docs/conf.py
 echo "== mypy";     python -m mypy && python -m mypy.stubtest hcvt._core

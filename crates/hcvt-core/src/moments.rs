@@ -203,7 +203,7 @@ impl<const D: usize> FaceMoments<D> {
     // Not inlined: inlined into `PolygonCell::moments_and_face_moments`, rustc 1.95 built
     // with one codegen unit got the cross term `∫ y_0 y_1` wrong (as if the two vertices
     // had swapped their y: the diagonal terms and the first moment stayed right), and the
-    // Hessian missed its finite differences by 57% (`cargo test --release --test optimise`
+    // Hessian missed its finite differences by 57% (`cargo test --release --test it optimise::`
     // with CARGO_PROFILE_RELEASE_CODEGEN_UNITS=1; the debug build and 4 or 16 units were
     // right). scripts/test.sh runs that check. Not reduced (issue 16, 30 minutes): the
     // same face pass and Hessian accumulation copied into an integration test computed

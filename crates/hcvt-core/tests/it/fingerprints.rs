@@ -6,7 +6,7 @@
 //!
 //! A change of behaviour, however small, changes a hash. When a change is meant (a better
 //! algorithm, not a refactor), say so in its commit and record the new values printed by
-//! `cargo test --release --test fingerprints -- --nocapture`.
+//! `cargo test --release --test it fingerprints:: -- --nocapture`.
 
 use crate::common::{data_3d, interior_sites, polygon, read_mesh};
 
