@@ -428,7 +428,8 @@ def test_cells_are_written_per_part_without_a_gather(client, holes, tmp_path):
     expected = hcvt.voronoi(domain, sites)
     parted = partitioned_voronoi(domain, sites, client, sites_per_partition=1000)
     paths = parted.write(tmp_path)
-    assert len(paths) == parted.parts * (2 + 11)  # rows, sites, 11 per-cell arrays (mass too)
+    # rows, sites, 12 per-cell arrays (mass and the core's moments too)
+    assert len(paths) == parted.parts * (2 + 12)
     volume = np.full(len(sites), np.nan)
     for p in range(parted.parts):
         rows = np.load(tmp_path / f"part{p:05d}.rows.npy")

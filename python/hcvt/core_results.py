@@ -35,29 +35,22 @@ Indices = NDArray[np.intp]
 
 
 class DiagramArrays(TypedDict):
-    """A clipped diagram, row ``i`` the cell of site ``i``.
+    """A clipped diagram, row ``i`` the cell of site ``i``: one shape for every producer.
 
-    ``_core.voronoi`` (and ``_core.restricted_delaunay``'s ``diagram``) return the cells'
-    ``moments`` (and ``weighted``) and the faces, ``neighbor_sites`` as uint32; the
-    quantities between are made from the moments when read (``_core.diagram_field``,
-    :class:`hcvt.Diagram`; issue 32: memory per site). The CVT's, the transport's and a
-    part's dicts carry those quantities and no moments.
+    ``_core.voronoi``, the CVT's, the transport's, a part's and
+    ``_core.restricted_delaunay``'s ``diagram`` all return the cells' ``moments`` (and
+    ``weighted``) and the faces; the quantities of :class:`hcvt.Diagram` (volume,
+    centroid, G, ...) are made from the moments when read (``_core.diagram_field``;
+    issue 32: memory per site).
     """
 
     # Rows (mass, first moment (d), second moment) of each cell about its site.
-    moments: NotRequired[Floats]  # (n, d + 2)
-    weighted: NotRequired[Floats]  # (n, d + 2), ρ-weighted, with a density
-    volume: NotRequired[Floats]  # (n,) L^d
-    mass: NotRequired[Floats]  # (n,) ∫ρ, the volume without a density
-    centroid: NotRequired[Floats]  # (n, d) L, ρ-weighted with a density
-    second_moment: NotRequired[Floats]  # (n,) ∫|x − c_i|², L^(d+2)
-    G: NotRequired[Floats]  # (n,) dimensionless second moment
-    energy_terms: NotRequired[Floats]  # (n,) ∫ρ|x − x_i|²
+    moments: Floats  # (n, d + 2)
+    weighted: NotRequired[Floats]  # (n, d + 2), ρ-weighted: only with a density
     energy: float
-    gradient: NotRequired[Floats]  # (n, d)
     boundary_measure: Floats  # (n,) share of the domain boundary, L^(d−1)
     neighbor_offsets: Indices  # (n + 1,)
-    neighbor_sites: Indices | NDArray[np.uint32]  # (k,)
+    neighbor_sites: Indices | NDArray[np.uint32]  # (k,): uint32; a part's, problem rows
     neighbor_measures: Floats  # (k,) L^(d−1)
     # In a periodic box: the image shift of each neighbour, in {-1, 0, 1}^d.
     neighbor_images: NotRequired[NDArray[np.int8]]  # (k, d)
@@ -88,7 +81,6 @@ CellField = Literal[
 class PartCellsArrays(DiagramArrays):
     """A part's own cells (``_core.partition_cells``): neighbours in the problem's rows."""
 
-    first: Floats  # (n_own, d) first moments about the sites
     reach2: Floats  # (n_own,) L²
 
 

@@ -142,12 +142,12 @@ class Diagram(Shows):
         return self._frame.to_input(name, self._in_frame(name))
 
     def _in_frame(self, name: CellField) -> Any:
-        """The core's ``name`` in the frame, from the arrays or made now.
+        """The core's ``name`` in the frame, as returned or made from the moments now.
 
-        ``_core.voronoi`` returns the cells' moments instead of the quantities (issue 32:
-        memory per site): each is made from them when first read, bit for bit the same.
+        The core returns the cells' moments, not the quantities (issue 32: memory per
+        site): each is made from them when first read (``_core.diagram_field``).
         """
-        if name in self._arrays or "moments" not in self._arrays:
+        if name in ("energy", "boundary_measure", "neighbor_measures"):
             return self._arrays[name]
         return _core.diagram_field(
             self.domain._core,
@@ -159,7 +159,7 @@ class Diagram(Shows):
 
     @cached_property
     def neighbor_sites(self) -> NDArray[np.intp]:
-        """The site across each face, shape (m,), intp (uint32 in ``_core.voronoi``'s)."""
+        """The site across each face, shape (m,), intp (uint32 in the core's arrays)."""
         return np.asarray(self._arrays["neighbor_sites"], dtype=np.intp)
 
     @cached_property
@@ -170,9 +170,7 @@ class Diagram(Shows):
     @cached_property
     def mass(self) -> NDArray[np.float64]:
         """``∫_cell ρ dx``, shape (n,); ``volume`` without a density."""
-        if "mass" in self._arrays or "moments" in self._arrays:
-            return self._in_input("mass")
-        return self.volume
+        return self._in_input("mass")
 
     @cached_property
     def centroid(self) -> NDArray[np.float64]:

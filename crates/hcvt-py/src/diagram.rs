@@ -86,7 +86,7 @@ where
         .detach(|| {
             crate::threads::run(|| {
                 let clipped = clipped_diagram::<D, C, _>(domain, &points, &request)?;
-                Ok::<_, CoreError>((MomentArrays::new(clipped.diagram), clipped.cells))
+                Ok::<_, CoreError>((DiagramArrays::new(clipped.diagram), clipped.cells))
             })
         })
         .map_err(|e| asked.given.error(e))?;
@@ -156,15 +156,13 @@ impl CellArrays<3> for PolyhedronCell {
     }
 }
 
-/// The arrays every diagram carries, in any dimension and kind (the CVT's, the
-/// transport's, a part's): [`Field`]'s quantities and the faces.
-pub(crate) fn diagram_dict<'py, const D: usize, K: DomainKind<D>>(
-    py: Python<'py>,
-    domain: &K,
+/// The dict of a diagram's arrays (see `core_results.py`), the one shape every producer
+/// returns (`voronoi`, the CVT's, the transport's, a part's, `restricted_delaunay`'s).
+pub(crate) fn diagram_dict<const D: usize>(
+    py: Python<'_>,
     diagram: Diagram<D>,
-    sites: &[[f64; D]],
-) -> PyResult<Bound<'py, PyDict>> {
-    DiagramArrays::new(domain, diagram, sites).into_dict(py)
+) -> PyResult<Bound<'_, PyDict>> {
+    DiagramArrays::new(diagram).into_dict(py)
 }
 
 /// A quantity of each cell that `hcvt.Diagram` reads, from the cells' moments: centroids
@@ -239,90 +237,22 @@ impl Field {
     }
 }
 
-/// [`diagram_dict`]'s arrays as Rust vectors, each becoming numpy's without a copy: made
-/// without the GIL, on the thread that allocated the diagram, so that the memory of each
-/// quantity dropped is reused by the next (issue 32: memory per site). Row-major `(n, D)`
-/// arrays are flat.
+/// A diagram's arrays as Rust vectors, each becoming numpy's without a copy (issue 32:
+/// memory per site): each cell's moments, from which `hcvt.Diagram` derives a quantity
+/// when it is first read ([`diagram_field`]), rather than seven quantities (72 bytes a
+/// site in 2D, 80 in 3D, against 32 and 40), and the faces' sites as `u32` (4 bytes a
+/// face, against 8). Made without the GIL where it can be, on the thread that assembled
+/// the diagram, so that the memory of each array dropped is reused by the next.
 pub(crate) struct DiagramArrays<const D: usize> {
-    volume: Vec<f64>,
-    mass: Vec<f64>,
-    centroid: Vec<f64>,
-    second_moment: Vec<f64>,
-    g: Vec<f64>,
-    energy_terms: Vec<f64>,
-    energy: f64,
-    gradient: Vec<f64>,
-    faces: FaceArrays<D, isize>,
-}
-
-impl<const D: usize> DiagramArrays<D> {
-    /// The arrays of `diagram` of `sites` in `domain`. The diagram is consumed: its
-    /// arrays are moved where the types agree, and the others are dropped as soon as
-    /// converted.
-    pub(crate) fn new<K: DomainKind<D>>(
-        domain: &K,
-        mut diagram: Diagram<D>,
-        sites: &[[f64; D]],
-    ) -> Self {
-        let field = |f: Field| f.of(domain, &diagram, sites);
-        let (volume, mass, centroid) = (
-            field(Field::Volume),
-            field(Field::Mass),
-            field(Field::Centroid),
-        );
-        let (second_moment, g) = (field(Field::SecondMoment), field(Field::G));
-        let (energy_terms, gradient) = (field(Field::EnergyTerms), field(Field::Gradient));
-        let energy = diagram.energy();
-        drop((
-            std::mem::take(&mut diagram.moments),
-            std::mem::take(&mut diagram.weighted),
-        ));
-        Self {
-            volume,
-            mass,
-            centroid,
-            second_moment,
-            g,
-            energy_terms,
-            energy,
-            gradient,
-            faces: FaceArrays::take(&mut diagram, sites_to_intp),
-        }
-    }
-
-    /// The dict of `hcvt.voronoi`'s arrays before issue 32 (see `core_results.py`).
-    pub(crate) fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-        let n = self.volume.len();
-        let out = PyDict::new(py);
-        out.set_item("volume", PyArray1::from_vec(py, self.volume))?;
-        out.set_item("mass", PyArray1::from_vec(py, self.mass))?;
-        let by_row = |flat: Vec<f64>| PyArray1::from_vec(py, flat).reshape([n, D]);
-        out.set_item("centroid", by_row(self.centroid)?)?;
-        out.set_item("second_moment", PyArray1::from_vec(py, self.second_moment))?;
-        out.set_item("G", PyArray1::from_vec(py, self.g))?;
-        out.set_item("energy_terms", PyArray1::from_vec(py, self.energy_terms))?;
-        out.set_item("energy", self.energy)?;
-        out.set_item("gradient", by_row(self.gradient)?)?;
-        self.faces.set_items(py, &out)?;
-        Ok(out)
-    }
-}
-
-/// `hcvt.voronoi`'s arrays (issue 32: memory per site): each cell's moments, from which
-/// `hcvt.Diagram` derives a quantity when it is first read ([`diagram_field`]), rather
-/// than [`DiagramArrays`]' seven quantities (72 bytes a site in 2D, 80 in 3D, against 32
-/// and 40), and the faces' sites as `u32` (4 bytes a face, against 8). Made on the
-/// thread that assembled the diagram, as [`DiagramArrays`].
-pub(crate) struct MomentArrays<const D: usize> {
     /// Rows `(mass, first moment (D), second moment)` about the site, flat.
     moments: Vec<f64>,
     /// The ρ-weighted ones alike, with a density; else empty.
     weighted: Vec<f64>,
     energy: f64,
-    faces: FaceArrays<D, u32>,
+    faces: FaceArrays<D>,
 }
 
-impl<const D: usize> MomentArrays<D> {
+impl<const D: usize> DiagramArrays<D> {
     /// The arrays of `diagram`, consumed: each array is freed as soon as converted.
     pub(crate) fn new(mut diagram: Diagram<D>) -> Self {
         let energy = diagram.energy();
@@ -332,11 +262,11 @@ impl<const D: usize> MomentArrays<D> {
             moments,
             weighted,
             energy,
-            faces: FaceArrays::take(&mut diagram, |sites| sites),
+            faces: FaceArrays::take(&mut diagram),
         }
     }
 
-    /// The dict of `hcvt.voronoi`'s arrays (see `core_results.py`).
+    /// The dict of the arrays (`DiagramArrays` in `core_results.py`).
     pub(crate) fn into_dict(self, py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         let out = PyDict::new(py);
         let by_row = |flat: Vec<f64>| {
@@ -393,8 +323,7 @@ fn moment_rows<const D: usize>(
 /// Quantity `name` ("volume", "mass", "centroid", "second_moment", "G", "energy_terms" or
 /// "gradient", as `hcvt.Diagram` names them) of the cells whose `moments` (n, d + 2)
 /// [`voronoi`] returned for `sites` (n, d) in `domain`, with `weighted` (n, d + 2) when
-/// it returned those: (n,) or (n, d), the values the CVT's dict carries, bit for bit
-/// (the same code, on the same moments).
+/// it returned those: (n,) or (n, d), in the domain's frame.
 #[pyfunction]
 #[pyo3(signature = (domain, sites, moments, weighted, name))]
 pub fn diagram_field<'py>(
@@ -437,24 +366,24 @@ fn field_in<'py, const D: usize, C, K: DomainKind<D>>(
 }
 
 /// A diagram's faces and boundary shares as numpy takes them, the site across each face
-/// as `S` (`u32` or `np.intp`).
-struct FaceArrays<const D: usize, S> {
+/// as `u32`.
+struct FaceArrays<const D: usize> {
     boundary_measure: Vec<f64>,
     neighbor_offsets: Vec<isize>,
-    neighbor_sites: Vec<S>,
+    neighbor_sites: Vec<u32>,
     neighbor_measures: Vec<f64>,
     /// In a periodic box, each neighbour's image shift, `(k, D)`; else empty.
     neighbor_images: Vec<i8>,
 }
 
-impl<const D: usize, S: numpy::Element> FaceArrays<D, S> {
-    /// `diagram`'s faces, moved (the offsets converted in place), the sites by `convert`.
-    fn take(diagram: &mut Diagram<D>, convert: impl FnOnce(Vec<u32>) -> Vec<S>) -> Self {
+impl<const D: usize> FaceArrays<D> {
+    /// `diagram`'s faces, moved (the offsets converted in place).
+    fn take(diagram: &mut Diagram<D>) -> Self {
         use std::mem::take;
         Self {
             boundary_measure: take(&mut diagram.boundary_measure),
             neighbor_offsets: offsets_to_intp(take(&mut diagram.neighbor_offsets)),
-            neighbor_sites: convert(take(&mut diagram.neighbor_sites)),
+            neighbor_sites: take(&mut diagram.neighbor_sites),
             neighbor_measures: take(&mut diagram.neighbor_measures),
             neighbor_images: take(&mut diagram.neighbor_images).into_flattened(),
         }
@@ -494,12 +423,6 @@ fn offsets_to_intp(offsets: Vec<usize>) -> Vec<isize> {
     offsets.into_iter().map(|x| x as isize).collect()
 }
 
-/// Site numbers as `np.intp`: lossless, `np.intp` being 64-bit wherever the binding builds.
-fn sites_to_intp(sites: Vec<u32>) -> Vec<isize> {
-    const _: () = assert!(isize::BITS > u32::BITS, "np.intp holds every u32");
-    sites.into_iter().map(|j| j as isize).collect()
-}
-
 /// The restricted Delaunay triangulation of `sites` (n, 3) on `surface`: a dict with
 /// `triangles` (m, 3) intp (a triangle per point where three cells meet on the surface,
 /// counter-clockwise about the surface's normal there), `points` (m, 3) the meeting
@@ -527,7 +450,7 @@ pub fn restricted_delaunay<'py>(
     out.set_item("faces", to_intp(py, &faces)?)?;
     out.set_item("repeated", to_intp2(py, &rdt.repeated)?)?;
     if with_diagram {
-        let diagram = MomentArrays::new(std::mem::take(&mut rdt.diagram));
+        let diagram = DiagramArrays::new(std::mem::take(&mut rdt.diagram));
         out.set_item("diagram", diagram.into_dict(py)?)?;
     }
     Ok(out)

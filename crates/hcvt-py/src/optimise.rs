@@ -457,7 +457,7 @@ where
         return Err(err);
     }
     let (outcome, capacity) = outcome.map_err(|e| given.error(e))?;
-    let out = outcome_dict(py, boundary, outcome)?;
+    let out = outcome_dict(py, outcome)?;
     if let Some(c) = capacity {
         capacity_items(py, &out, c)?;
     }
@@ -503,11 +503,10 @@ fn call<const D: usize>(
     callback.bind(py).call1((info,))?.is_truthy()
 }
 
-fn outcome_dict<'py, const D: usize, K: DomainKind<D>>(
-    py: Python<'py>,
-    domain: &K,
+fn outcome_dict<const D: usize>(
+    py: Python<'_>,
     mut outcome: Outcome<D>,
-) -> PyResult<Bound<'py, PyDict>> {
+) -> PyResult<Bound<'_, PyDict>> {
     let h = &outcome.history;
     let column = |f: fn(&Record) -> f64| PyArray1::from_iter(py, h.iter().map(f));
     let history = PyDict::new(py);
@@ -527,12 +526,7 @@ fn outcome_dict<'py, const D: usize, K: DomainKind<D>>(
     out.set_item("sites", to_array2(py, &outcome.sites)?)?;
     out.set_item(
         "diagram",
-        diagram_dict(
-            py,
-            domain,
-            std::mem::take(&mut outcome.diagram),
-            &outcome.sites,
-        )?,
+        diagram_dict(py, std::mem::take(&mut outcome.diagram))?,
     )?;
     out.set_item("history", history)?;
     out.set_item("stop_reason", outcome.stop_reason.as_str())?;
@@ -608,7 +602,7 @@ where
         .map_err(|e| asked.given.error(e))?;
     let result = PyDict::new(py);
     result.set_item("weights", PyArray1::from_vec(py, out.weights))?;
-    result.set_item("diagram", diagram_dict(py, domain, out.diagram, &points)?)?;
+    result.set_item("diagram", diagram_dict(py, out.diagram)?)?;
     result.set_item("targets", PyArray1::from_vec(py, out.targets))?;
     result.set_item("max_error", out.max_error)?;
     result.set_item("converged", out.converged)?;

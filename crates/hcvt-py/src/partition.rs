@@ -7,16 +7,15 @@ use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{increasing_rows, rows, to_array2, to_intp};
+use crate::arrays::{increasing_rows, rows, to_intp};
 use crate::density::{Coefficients, Given};
 use crate::diagram::diagram_dict;
 use crate::domain::{by_kind, AnyDomain};
 
 /// Cells of `sites[own]` among `sites` (n, d), a part of a problem of `total_sites` sites
-/// whose row numbers are `rows` (n,), increasing: a diagram dict with one row per own site
-/// and neighbours in the problem's rows, plus `first` (k, d), each cell's first moment
-/// about its site (ρ-weighted with a density, as `mass`, `centroid` and `energy_terms`),
-/// and `reach2` (k,) (see `hcvt.distributed`). The density as for `voronoi`. A part of a
+/// whose row numbers are `rows` (n,), increasing: `voronoi`'s dict with one row per own
+/// site (moments about `sites[own]`) and neighbours in the problem's rows (intp), plus
+/// `reach2` (k,) (see `hcvt.distributed`). The density as for `voronoi`. A part of a
 /// power diagram takes `weights` (n,), indexed like `sites`, and `power_whole`, the whole
 /// problem's `(lo (d,), hi (d,), largest weight)` of its sites (`hcvt_core::PowerWhole`).
 #[pyfunction]
@@ -124,21 +123,15 @@ where
             job.given
                 .error(e.with_site_rows(|i| global.get(i).copied().unwrap_or(i)))
         })?;
-    let own_sites: Vec<[f64; D]> = own
-        .iter()
-        .filter_map(|&i| points.get(i as usize).copied())
-        .collect();
     let mut diagram = part.diagram;
-    let firsts: Vec<[f64; D]> = diagram.mass_moments().iter().map(|m| m.first).collect();
     let neighbors: Vec<usize> = diagram
         .neighbor_sites
         .iter()
         .map(|&j| global.get(j as usize).copied().unwrap_or(usize::MAX))
         .collect();
     diagram.neighbor_sites.clear();
-    let out = diagram_dict(py, domain, diagram, &own_sites)?;
+    let out = diagram_dict(py, diagram)?;
     out.set_item("neighbor_sites", to_intp(py, &neighbors)?)?;
-    out.set_item("first", to_array2(py, &firsts)?)?;
     out.set_item("reach2", PyArray1::from_vec(py, part.reach2))?;
     Ok(out)
 }

@@ -23,7 +23,6 @@ from hcvt.distributed import partition as pt
 from hcvt.distributed import partition_mesh
 from hcvt.errors import InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain
-from hcvt.geometry.frame import Frame
 from hcvt.optimise import CVTResult, ProgressBar, chain_observers
 
 #: Parts hold at most this many sites unless told otherwise.
@@ -299,30 +298,6 @@ def _peak_rss() -> float:
     return pt.peak_rss_mb()
 
 
-def _wrapped_with_centroids(
-    domain: Domain, sites: NDArray[np.float64], arrays: dict[str, Any], first: Any
-) -> NDArray[np.float64]:
-    """``sites`` (n, d) wrapped into a periodic box, ``arrays["centroid"]`` moved with them.
-
-    The core's ``site + first / mass`` about the wrapped site (in its frame), as the
-    single-process CVT reports it.
-    """
-    wrapped = domain.wrap(sites)
-    moved = np.any(wrapped != sites, axis=1)
-    if moved.any():
-        # An empty cell's centroid is its site; the others', the site plus the shift.
-        centroid = np.array(arrays["centroid"])
-        centroid[moved] = wrapped[moved]
-        rows = np.flatnonzero(moved & (arrays["mass"] != 0))
-        frame = domain.frame
-        w = frame.to_core(wrapped[rows])
-        m = frame.quantity_to_core("mass", arrays["mass"][rows])
-        f = frame.quantity_to_core("first", first[rows])
-        centroid[rows] = frame.to_input("centroid", w + f * (1.0 / m)[:, None])
-        arrays["centroid"] = centroid
-    return wrapped
-
-
 class PartitionedDiagram:
     """A diagram whose cells stay on the workers, one :class:`PartCells` per part.
 
@@ -417,21 +392,29 @@ class PartitionedDiagram:
             take = starts + np.arange(len(starts))
             for key, values in face_arrays.items():
                 values[take] = f[key]
-        first = arrays.pop("first")
-        # The core's tangent gradient on the sphere; -2 first, exactly, elsewhere.
-        if "gradient" not in arrays:
-            arrays["gradient"] = first * -2.0
-        arrays.update(energy=self.energy, neighbor_offsets=offsets, **face_arrays)
-        allow_outside = self._cluster.allow_outside
+        # Made from the moments, in the core's frame, as one process's diagram is: the
+        # measures and the energy go back there (exactly: the scale is a power of two).
+        frame = domain.frame
+        core: dict[str, Any] = {k: arrays[k] for k in ("moments", "weighted") if k in arrays}
+        core.update(
+            energy=float(frame.quantity_to_core("energy", np.array([self.energy]))[0]),
+            boundary_measure=frame.quantity_to_core("boundary_measure", arrays["boundary_measure"]),
+            neighbor_offsets=offsets,
+            **face_arrays,
+        )
+        core["neighbor_measures"] = frame.quantity_to_core(
+            "neighbor_measures", face_arrays["neighbor_measures"]
+        )
         if wrap and any(domain.periodic):
-            sites = _wrapped_with_centroids(domain, sites, arrays, first)
+            # Centroids about the wrapped sites, as a single-process CVT reports them.
+            sites = domain.wrap(sites)
         return Diagram(
             domain,
             sites,
-            cast(DiagramArrays, arrays),  # the parts' rows of every DiagramArrays field
+            cast(DiagramArrays, core),  # the parts' rows of every DiagramArrays field
             self._cluster.density,
-            allow_outside=allow_outside,
-            frame=Frame.identity(d),  # the parts' arrays are in L already
+            allow_outside=self._cluster.allow_outside,
+            core_sites=frame.steps_to_core(sites),
             weights=self._cluster.weights,
         )
 

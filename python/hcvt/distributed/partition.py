@@ -330,11 +330,14 @@ class PartCells:
     Attributes
     ----------
     arrays : dict of str to ndarray
+        ``moments`` (k, d + 2) (and ``weighted``, with a density) as the core returned
+        them, in its frame, about the sites; in L, made from them (:func:`cell_fields`):
         ``volume``, ``mass``, ``centroid``, ``second_moment``, ``G``, ``energy_terms``,
         ``first`` (moments about the sites, ρ-weighted with a density as ``mass``,
-        ``centroid`` and ``energy_terms``; the gradient is ``-2 first``, exactly),
-        ``boundary_measure``, and the faces in CSR layout ``neighbor_offsets`` (k + 1,),
-        ``neighbor_sites`` (problem rows), ``neighbor_measures``.
+        ``centroid`` and ``energy_terms``; the gradient is ``-2 first``, exactly, but on
+        the sphere, where ``gradient`` is kept), ``boundary_measure``, and the faces in
+        CSR layout ``neighbor_offsets`` (k + 1,), ``neighbor_sites`` (problem rows),
+        ``neighbor_measures``.
     reach : ndarray, shape (k,)
         Distance from each site within which its cell read the sites, L.
     certified : ndarray of bool, shape (k,)
@@ -392,9 +395,9 @@ def empty_cells(d: int) -> PartCells:
     """The cells of a part of no sites."""
     arrays = {
         key: np.zeros((0, d) if key in ("centroid", "first") else 0)
-        for key in ("volume", "mass", "centroid", "second_moment", "G", "energy_terms")
-        + ("first", "boundary_measure", "neighbor_measures")
+        for key in (*CELL_FIELDS, "first", "boundary_measure", "neighbor_measures")
     }
+    arrays["moments"] = np.zeros((0, d + 2))
     arrays["neighbor_offsets"] = np.zeros(1, dtype=np.intp)
     arrays["neighbor_sites"] = np.zeros(0, dtype=np.intp)
     return PartCells(arrays, np.zeros(0), np.zeros(0, dtype=bool))
@@ -615,10 +618,11 @@ def part_cells(
         own = np.searchsorted(rows, part.rows[todo])[visit]
     # The core works in the domain's frame; a part's cells are kept in L.
     frame = domain.frame
+    core_sites = frame.steps_to_core(sites)
     with frame.input_errors():
         out = _core.partition_cells(
             domain._core,
-            frame.steps_to_core(sites),
+            core_sites,
             rows,
             own.astype(np.uint32),
             int(total_sites),
@@ -627,13 +631,19 @@ def part_cells(
             power_whole=power_whole,
             **core_arguments(frame.density_to_core(density), domain.dim, quadrature_degree),
         )
-    # Kept once: the energy is summed by the client, the gradient is -2 first but on the
-    # sphere (the core's projection onto the tangent plane).
-    dropped = ("energy",) if domain.is_sphere else ("energy", "gradient")
-    cells = {key: frame.to_input(key, value) for key, value in out.items() if key not in dropped}
+    reach = np.sqrt(frame.to_input("reach2", out["reach2"]))
+    moments, weighted = out["moments"], out.get("weighted")
+    fields = cell_fields(domain, core_sites[own], moments, weighted)
+    # The energy is summed by the client; the moments stay in the core's frame (a
+    # gathered diagram is made from them), the rest is kept in L.
+    kept = {k: v for k, v in out.items() if k not in ("reach2", "energy", "moments", "weighted")}
+    cells = {key: frame.to_input(key, value) for key, value in {**kept, **fields}.items()}
+    cells["moments"] = moments
+    if weighted is not None:
+        cells["weighted"] = weighted
     if not in_place:
+        reach[visit] = reach.copy()
         cells = _in_row_order(cells, visit)
-    reach = np.sqrt(frame.to_input("reach2", cells.pop("reach2")))
     # Halos and balls are about the sites wrapped into a periodic box (the core's reach is
     # about its site wrapped, among the images of the sites given).
     own_sites = part.sites if torus is None else torus.wrap(part.sites)
@@ -661,6 +671,34 @@ def part_cells(
     previous.certified[todo] = certified
     previous.halo, previous.computed = halo, len(todo)
     return previous
+
+
+#: A part's quantities of each cell, made from the core's moments (``_core.diagram_field``)
+#: as :class:`hcvt.Diagram` makes them; ``gradient`` too on the sphere (the core's
+#: projection onto the tangent plane; ``-2 first`` exactly elsewhere).
+CELL_FIELDS = ("volume", "mass", "centroid", "second_moment", "G", "energy_terms")
+
+
+def cell_fields(
+    domain: Domain,
+    core_sites: NDArray[np.float64],
+    moments: NDArray[np.float64],
+    weighted: NDArray[np.float64] | None,
+) -> dict[str, NDArray[np.float64]]:
+    """:data:`CELL_FIELDS` and ``first`` of cells whose ``moments`` are about ``core_sites``.
+
+    In the core's frame; ``first`` (k, d) is the first moment about the site, ρ-weighted
+    with a density (``weighted``), as ``mass``, ``centroid`` and ``energy_terms``.
+    """
+    names = CELL_FIELDS + (("gradient",) if domain.is_sphere else ())
+    core_sites = np.ascontiguousarray(core_sites)
+    out = {
+        name: _core.diagram_field(domain._core, core_sites, moments, weighted, name)
+        for name in names
+    }
+    d = core_sites.shape[1]
+    out["first"] = np.ascontiguousarray((moments if weighted is None else weighted)[:, 1 : d + 1])
+    return out
 
 
 def room_in_box(
