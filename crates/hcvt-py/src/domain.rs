@@ -31,62 +31,85 @@ fn winding_numbers<'py, const D: usize, K: DomainKind<D>>(
     (PyArray1::from_vec(py, w), PyArray1::from_vec(py, on))
 }
 
-/// A domain class held by Python: the methods every kind of boundary shares, and
-/// `$extra` (methods of that kind alone).
-macro_rules! domain_class {
-    (
-        $(#[$doc:meta])*
-        $name:ident($inner:ty, $d:literal, $simplices:ident, $measure:literal) { $($extra:tt)* }
-    ) => {
-        $(#[$doc])*
-        #[pyclass(frozen, module = "hcvt._core")]
-        pub struct $name(pub $inner);
-
+/// One `#[pymethods]` block for a domain class (PyO3 takes one per class), with the
+/// getters and methods the kinds share written once here. `Class(d) { items }`: each item
+/// below, then `{ … }` the class's own methods (`#[new]` among them), verbatim. A value is
+/// given as a function of the core's kind (`Surface::area`, or a closure): an expression
+/// naming `self` would not reach the method the macro writes.
+///
+/// - `volume("doc") = f`: getter `volume`, f64.
+/// - `first_moment("doc") = f`: getter, `∫ x dx` as `[f64; d]`.
+/// - `bounds("doc")`: getter `(lo, hi)` of the kind's bounding box.
+/// - `vertices("doc") = f`: getter, `f`'s `&[[f64; d]]` as an (V, d) array.
+/// - `simplices name("doc") = f`: getter `name`, `f`'s `&[[u32; d]]` as (S, d) `np.intp`.
+/// - `winding_numbers("doc")`: the kind's [`DomainKind::locate`] of each point (m, d), by
+///   [`winding_numbers`].
+macro_rules! domain_methods {
+    ($name:ident($d:tt) { $($items:tt)* }) => {
+        domain_methods!(@munch $name $d [] $($items)*);
+    };
+    (@munch $name:ident $d:tt [$($done:tt)*] { $($own:tt)* }) => {
         #[pymethods]
         impl $name {
-            #[new]
-            fn new(
-                vertices: PyReadonlyArray2<'_, f64>,
-                $simplices: PyReadonlyArray2<'_, u32>,
-            ) -> PyResult<Self> {
-                let v = rows::<f64, $d>(&vertices, "vertices")?;
-                let s = rows::<u32, $d>(&$simplices, stringify!($simplices))?;
-                <$inner>::new(v, s).map(Self).map_err(to_py_err)
-            }
-
-            #[doc = concat!($measure, " of the domain.")]
+            $($done)*
+            $($own)*
+        }
+    };
+    (@munch $name:ident $d:tt [$($done:tt)*] volume($doc:expr) = $f:expr, $($rest:tt)*) => {
+        domain_methods!(@munch $name $d [$($done)*
+            #[doc = $doc]
             #[getter]
             fn volume(&self) -> f64 {
-                self.0.volume()
+                ($f)(&self.0)
             }
-
-            #[doc = concat!("First moment `∫ x dx` (", $d, ",) about the coordinate origin.")]
+        ] $($rest)*);
+    };
+    (@munch $name:ident $d:tt [$($done:tt)*] first_moment($doc:expr) = $f:expr, $($rest:tt)*) => {
+        domain_methods!(@munch $name $d [$($done)*
+            #[doc = $doc]
             #[getter]
             fn first_moment(&self) -> [f64; $d] {
-                self.0.first_moment()
+                ($f)(&self.0)
             }
-
-            /// `(lo, hi)` corners of the bounding box.
+        ] $($rest)*);
+    };
+    (@munch $name:ident $d:tt [$($done:tt)*] bounds($doc:expr), $($rest:tt)*) => {
+        domain_methods!(@munch $name $d [$($done)*
+            #[doc = $doc]
             #[getter]
             fn bounds(&self) -> ([f64; $d], [f64; $d]) {
                 let b = self.0.bounds();
                 (b.lo, b.hi)
             }
-
-            #[doc = concat!("`vertices` (V, ", $d, ") as indexed.")]
+        ] $($rest)*);
+    };
+    (@munch $name:ident $d:tt [$($done:tt)*] vertices($doc:expr) = $f:expr, $($rest:tt)*) => {
+        domain_methods!(@munch $name $d [$($done)*
+            #[doc = $doc]
             #[getter]
             fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-                to_array2(py, self.0.vertices())
+                to_array2(py, ($f)(&self.0))
             }
-
-            #[doc = concat!("`", stringify!($simplices), "` (S, ", $d, ") as indexed, `np.intp`.")]
+        ] $($rest)*);
+    };
+    (
+        @munch $name:ident $d:tt [$($done:tt)*]
+        simplices $simplices:ident($doc:expr) = $f:expr, $($rest:tt)*
+    ) => {
+        domain_methods!(@munch $name $d [$($done)*
+            #[doc = $doc]
             #[getter]
-            fn $simplices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
-                to_intp2(py, self.0.simplices())
+            fn $simplices<'py>(
+                &self,
+                py: Python<'py>,
+            ) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
+                to_intp2(py, ($f)(&self.0))
             }
-
-            /// Exact winding number of each point (m,); `on_boundary` marks points on the
-            /// boundary (their winding number is reported as 0).
+        ] $($rest)*);
+    };
+    (@munch $name:ident $d:tt [$($done:tt)*] winding_numbers($doc:expr), $($rest:tt)*) => {
+        domain_methods!(@munch $name $d [$($done)*
+            #[doc = $doc]
             fn winding_numbers<'py>(
                 &self,
                 py: Python<'py>,
@@ -95,19 +118,63 @@ macro_rules! domain_class {
                 let p = rows::<f64, $d>(&points, "points")?;
                 Ok(winding_numbers(py, &self.0, &p))
             }
+        ] $($rest)*);
+    };
+}
 
-            $($extra)*
+/// A domain class bounded by simplices (a polygon's segments, a solid's triangles),
+/// checked by the core's `new(vertices, simplices)`, and `$own` (methods of that kind alone).
+macro_rules! simplex_class {
+    (
+        $(#[$doc:meta])*
+        $name:ident($inner:ty, $d:tt, $simplices:ident, $measure:literal) { $($own:tt)* }
+    ) => {
+        $(#[$doc])*
+        #[pyclass(frozen, module = "hcvt._core")]
+        pub struct $name(pub $inner);
+
+        domain_methods! {
+            $name($d) {
+                volume(concat!($measure, " of the domain.")) = <$inner>::volume,
+                first_moment(concat!(
+                    "First moment `∫ x dx` (", $d, ",) about the coordinate origin."
+                ))
+                    = <$inner>::first_moment,
+                bounds("`(lo, hi)` corners of the bounding box."),
+                vertices(concat!("`vertices` (V, ", $d, ") as indexed.")) = <$inner>::vertices,
+                simplices $simplices(concat!(
+                    "`", stringify!($simplices), "` (S, ", $d, ") as indexed, `np.intp`."
+                ))
+                    = <$inner>::simplices,
+                winding_numbers(concat!(
+                    "Exact winding number of each point (m,); `on_boundary` marks points on the\n",
+                    "boundary (their winding number is reported as 0)."
+                )),
+                {
+                    #[new]
+                    fn new(
+                        vertices: PyReadonlyArray2<'_, f64>,
+                        $simplices: PyReadonlyArray2<'_, u32>,
+                    ) -> PyResult<Self> {
+                        let v = rows::<f64, $d>(&vertices, "vertices")?;
+                        let s = rows::<u32, $d>(&$simplices, stringify!($simplices))?;
+                        <$inner>::new(v, s).map(Self).map_err(to_py_err)
+                    }
+
+                    $($own)*
+                }
+            }
         }
     };
 }
 
-domain_class! {
+simplex_class! {
     /// A polygonal domain: `vertices` (V, 2) float64 and `segments` (S, 2) uint32, outer
     /// rings counter-clockwise and holes clockwise (interior on the left of every segment).
     PolygonDomain(Polygon, 2, segments, "Area") {}
 }
 
-domain_class! {
+simplex_class! {
     /// A solid: `vertices` (V, 3) float64 and `faces` (F, 3) uint32, a closed triangle mesh
     /// with every face counter-clockwise seen from outside (checked: every directed edge has
     /// its reverse, positive volume).
@@ -142,72 +209,52 @@ domain_class! {
 
 /// A box domain class held by Python: `lo`, `hi` (d,) and which axes are periodic.
 macro_rules! box_class {
-    ($(#[$doc:meta])* $name:ident($d:literal)) => {
+    ($(#[$doc:meta])* $name:ident($d:tt)) => {
         $(#[$doc])*
         #[pyclass(frozen, module = "hcvt._core")]
         pub struct $name(pub PeriodicBox<$d>);
 
-        #[pymethods]
-        impl $name {
-            #[new]
-            fn new(lo: [f64; $d], hi: [f64; $d], periodic: [bool; $d]) -> PyResult<Self> {
-                PeriodicBox::new(lo, hi, periodic).map(Self).map_err(to_py_err)
-            }
+        domain_methods! {
+            $name($d) {
+                volume("Area (2D) or volume (3D) of the box.") = PeriodicBox::<$d>::volume,
+                first_moment("First moment `∫ x dx` (d,) about the coordinate origin.")
+                    = |k: &PeriodicBox<$d>| {
+                        let v = k.volume();
+                        k.bounds().center().map(|c| v * c)
+                    },
+                bounds("`(lo, hi)` corners."),
+                vertices("The `2^d` corners (2^d, d), the box's vertices.")
+                    = PeriodicBox::<$d>::density_checkpoints,
+                winding_numbers(concat!(
+                    "Winding number of each point (m,): 1 inside (along periodic axes every\n",
+                    "point is inside), 0 outside; `on_boundary` marks points on a side that is\n",
+                    "not periodic (reported as 0)."
+                )),
+                {
+                    #[new]
+                    fn new(lo: [f64; $d], hi: [f64; $d], periodic: [bool; $d]) -> PyResult<Self> {
+                        PeriodicBox::new(lo, hi, periodic).map(Self).map_err(to_py_err)
+                    }
 
-            /// Area (2D) or volume (3D) of the box.
-            #[getter]
-            fn volume(&self) -> f64 {
-                self.0.volume()
-            }
+                    /// Which axes are periodic (d,).
+                    #[getter]
+                    fn periodic(&self) -> [bool; $d] {
+                        self.0.torus().periodic_axes()
+                    }
 
-            /// First moment `∫ x dx` (d,) about the coordinate origin.
-            #[getter]
-            fn first_moment(&self) -> [f64; $d] {
-                let v = self.0.volume();
-                self.0.bounds().center().map(|c| v * c)
-            }
-
-            /// `(lo, hi)` corners.
-            #[getter]
-            fn bounds(&self) -> ([f64; $d], [f64; $d]) {
-                let b = self.0.bounds();
-                (b.lo, b.hi)
-            }
-
-            /// Which axes are periodic (d,).
-            #[getter]
-            fn periodic(&self) -> [bool; $d] {
-                self.0.torus().periodic_axes()
-            }
-
-            /// The `2^d` corners (2^d, d), the box's vertices.
-            #[getter]
-            fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-                to_array2(py, self.0.density_checkpoints())
-            }
-
-            /// Winding number of each point (m,): 1 inside (along periodic axes every
-            /// point is inside), 0 outside; `on_boundary` marks points on a side that is
-            /// not periodic (reported as 0).
-            fn winding_numbers<'py>(
-                &self,
-                py: Python<'py>,
-                points: PyReadonlyArray2<'py, f64>,
-            ) -> PyResult<Windings<'py>> {
-                let p = rows::<f64, $d>(&points, "points")?;
-                Ok(winding_numbers(py, &self.0, &p))
-            }
-
-            /// `points` (m, d) moved by whole periods into `[lo, hi)` along the periodic
-            /// axes.
-            fn wrap<'py>(
-                &self,
-                py: Python<'py>,
-                points: PyReadonlyArray2<'py, f64>,
-            ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-                let p = rows::<f64, $d>(&points, "points")?;
-                let wrapped: Vec<[f64; $d]> = p.iter().map(|&x| self.0.torus().wrap(x)).collect();
-                to_array2(py, &wrapped)
+                    /// `points` (m, d) moved by whole periods into `[lo, hi)` along the periodic
+                    /// axes.
+                    fn wrap<'py>(
+                        &self,
+                        py: Python<'py>,
+                        points: PyReadonlyArray2<'py, f64>,
+                    ) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
+                        let p = rows::<f64, $d>(&points, "points")?;
+                        let torus = self.0.torus();
+                        let wrapped: Vec<[f64; $d]> = p.iter().map(|&x| torus.wrap(x)).collect();
+                        to_array2(py, &wrapped)
+                    }
+                }
             }
         }
     };
@@ -229,45 +276,21 @@ box_class! {
 #[pyclass(frozen, module = "hcvt._core")]
 pub struct SphereDomain(pub Sphere);
 
-#[pymethods]
-impl SphereDomain {
-    #[new]
-    fn new() -> Self {
-        Self(Sphere::new())
-    }
-
-    /// Area of the unit sphere, 4π.
-    #[getter]
-    fn volume(&self) -> f64 {
-        self.0.volume()
-    }
-
-    /// First moment `∫ x dA` (3,): zero.
-    #[getter]
-    fn first_moment(&self) -> [f64; 3] {
-        [0.0; 3]
-    }
-
-    /// `(lo, hi)` corners of the bounding box.
-    #[getter]
-    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        let b = self.0.bounds();
-        (b.lo, b.hi)
-    }
-
-    /// 1 for points (m, 3) on the unit sphere (to `ON_SPHERE_TOL`), else 0; `on_boundary`
-    /// all false (the sphere has none).
-    fn winding_numbers<'py>(
-        &self,
-        py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
-    ) -> PyResult<Windings<'py>> {
-        let p = rows::<f64, 3>(&points, "points")?;
-        let w: Vec<i32> = p.iter().map(|q| self.0.locate(q).unwrap_or(0)).collect();
-        Ok((
-            PyArray1::from_vec(py, w),
-            PyArray1::from_vec(py, vec![false; p.len()]),
-        ))
+domain_methods! {
+    SphereDomain(3) {
+        volume("Area of the unit sphere, 4π.") = Sphere::volume,
+        first_moment("First moment `∫ x dA` (3,): zero.") = |_: &Sphere| [0.0; 3],
+        bounds("`(lo, hi)` corners of the bounding box."),
+        winding_numbers(concat!(
+            "1 for points (m, 3) on the unit sphere (to `ON_SPHERE_TOL`), else 0; `on_boundary`\n",
+            "all false (the sphere has none)."
+        )),
+        {
+            #[new]
+            fn new() -> Self {
+                Self(Sphere::new())
+            }
+        }
     }
 }
 
@@ -277,62 +300,47 @@ impl SphereDomain {
 #[pyclass(frozen, module = "hcvt._core")]
 pub struct SphereRegionDomain(pub SphereRegion);
 
-#[pymethods]
-impl SphereRegionDomain {
-    /// `rings`: a list of (m, 3) float64 arrays of points on the unit sphere (normalised
-    /// here), the outline first, then holes; checked (`SphereRegion::new`).
-    #[new]
-    fn new(rings: Vec<PyReadonlyArray2<'_, f64>>) -> PyResult<Self> {
-        let rings = (rings.iter().enumerate())
-            .map(|(r, ring)| rows::<f64, 3>(ring, &format!("rings[{r}]")))
-            .collect::<PyResult<Vec<_>>>()?;
-        SphereRegion::new(rings).map(Self).map_err(to_py_err)
-    }
+domain_methods! {
+    SphereRegionDomain(3) {
+        volume("Area of the region on the unit sphere.") = SphereRegion::volume,
+        bounds("`(lo, hi)` corners of the bounding box of the sphere."),
+        winding_numbers(concat!(
+            "1 for points (m, 3) on the unit sphere inside the region, else 0; `on_boundary`\n",
+            "where a point lies on the region's boundary."
+        )),
+        {
+            /// `rings`: a list of (m, 3) float64 arrays of points on the unit sphere (normalised
+            /// here), the outline first, then holes; checked (`SphereRegion::new`).
+            #[new]
+            fn new(rings: Vec<PyReadonlyArray2<'_, f64>>) -> PyResult<Self> {
+                let rings = (rings.iter().enumerate())
+                    .map(|(r, ring)| rows::<f64, 3>(ring, &format!("rings[{r}]")))
+                    .collect::<PyResult<Vec<_>>>()?;
+                SphereRegion::new(rings).map(Self).map_err(to_py_err)
+            }
 
-    /// Area of the region on the unit sphere.
-    #[getter]
-    fn volume(&self) -> f64 {
-        self.0.volume()
-    }
+            /// Length of the region's boundary on the unit sphere.
+            #[getter]
+            fn perimeter(&self) -> f64 {
+                self.0.perimeter()
+            }
 
-    /// Length of the region's boundary on the unit sphere.
-    #[getter]
-    fn perimeter(&self) -> f64 {
-        self.0.perimeter()
-    }
+            /// The unit vector (3,) about which the region lies.
+            #[getter]
+            fn centre(&self) -> [f64; 3] {
+                self.0.centre()
+            }
 
-    /// The unit vector (3,) about which the region lies.
-    #[getter]
-    fn centre(&self) -> [f64; 3] {
-        self.0.centre()
-    }
-
-    /// `(lo, hi)` corners of the bounding box of the sphere.
-    #[getter]
-    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        let b = self.0.bounds();
-        (b.lo, b.hi)
-    }
-
-    /// The rings as oriented by the check (outline counter-clockwise seen from outside,
-    /// holes clockwise): a list of (m, 3) arrays of unit vectors.
-    #[getter]
-    fn rings<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, numpy::PyArray2<f64>>>> {
-        self.0.rings().iter().map(|r| to_array2(py, r)).collect()
-    }
-
-    /// 1 for points (m, 3) on the unit sphere inside the region, else 0; `on_boundary`
-    /// where a point lies on the region's boundary.
-    fn winding_numbers<'py>(
-        &self,
-        py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
-    ) -> PyResult<Windings<'py>> {
-        let p = rows::<f64, 3>(&points, "points")?;
-        let located: Vec<Option<i32>> = p.iter().map(|q| self.0.locate(q)).collect();
-        let w: Vec<i32> = located.iter().map(|w| w.unwrap_or(0)).collect();
-        let on: Vec<bool> = located.iter().map(Option::is_none).collect();
-        Ok((PyArray1::from_vec(py, w), PyArray1::from_vec(py, on)))
+            /// The rings as oriented by the check (outline counter-clockwise seen from outside,
+            /// holes clockwise): a list of (m, 3) arrays of unit vectors.
+            #[getter]
+            fn rings<'py>(
+                &self,
+                py: Python<'py>,
+            ) -> PyResult<Vec<Bound<'py, numpy::PyArray2<f64>>>> {
+                self.0.rings().iter().map(|r| to_array2(py, r)).collect()
+            }
+        }
     }
 }
 
@@ -342,61 +350,39 @@ impl SphereRegionDomain {
 #[pyclass(frozen, module = "hcvt._core")]
 pub struct SurfaceDomain(pub Surface);
 
-#[pymethods]
-impl SurfaceDomain {
-    /// `vertices` (V, 3) float64 and `faces` (F, 3) uint32, checked: no degenerate or
-    /// repeated triangles, no non-manifold edges, consistent orientation.
-    #[new]
-    fn new(
-        vertices: PyReadonlyArray2<'_, f64>,
-        faces: PyReadonlyArray2<'_, u32>,
-    ) -> PyResult<Self> {
-        let v = rows::<f64, 3>(&vertices, "vertices")?;
-        let f = rows::<u32, 3>(&faces, "faces")?;
-        Surface::new(v, f).map(Self).map_err(to_py_err)
-    }
+domain_methods! {
+    SurfaceDomain(3) {
+        volume("Area of the surface.") = Surface::area,
+        first_moment("First moment `∫ x dA` (3,) about the coordinate origin.")
+            = Surface::first_moment,
+        bounds("`(lo, hi)` corners of the bounding box."),
+        vertices("`vertices` (V, 3) as indexed.") = Surface::vertices,
+        simplices faces("`faces` (F, 3) as indexed, `np.intp`.") = Surface::triangles,
+        {
+            /// `vertices` (V, 3) float64 and `faces` (F, 3) uint32, checked: no degenerate or
+            /// repeated triangles, no non-manifold edges, consistent orientation.
+            #[new]
+            fn new(
+                vertices: PyReadonlyArray2<'_, f64>,
+                faces: PyReadonlyArray2<'_, u32>,
+            ) -> PyResult<Self> {
+                let v = rows::<f64, 3>(&vertices, "vertices")?;
+                let f = rows::<u32, 3>(&faces, "faces")?;
+                Surface::new(v, f).map(Self).map_err(to_py_err)
+            }
 
-    /// Area of the surface.
-    #[getter]
-    fn volume(&self) -> f64 {
-        self.0.area()
-    }
-
-    /// First moment `∫ x dA` (3,) about the coordinate origin.
-    #[getter]
-    fn first_moment(&self) -> [f64; 3] {
-        self.0.first_moment()
-    }
-
-    /// `(lo, hi)` corners of the bounding box.
-    #[getter]
-    fn bounds(&self) -> ([f64; 3], [f64; 3]) {
-        let b = self.0.bounds();
-        (b.lo, b.hi)
-    }
-
-    /// `vertices` (V, 3) as indexed.
-    #[getter]
-    fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<f64>>> {
-        to_array2(py, self.0.vertices())
-    }
-
-    /// `faces` (F, 3) as indexed, `np.intp`.
-    #[getter]
-    fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, numpy::PyArray2<isize>>> {
-        to_intp2(py, self.0.triangles())
-    }
-
-    /// The nearest point of the surface to each of `points` (m, 3): `(nearest (m, 3),
-    /// triangle (m,) np.intp)`, as [`closest_points`] of the surface's vertices and faces
-    /// but through the surface's own BVH, built once with it (armadillo: 1 s a call saved).
-    fn closest<'py>(
-        &self,
-        py: Python<'py>,
-        points: PyReadonlyArray2<'py, f64>,
-    ) -> PyResult<Nearest<'py>> {
-        let p = rows::<f64, 3>(&points, "points")?;
-        nearest_arrays(py, closest_all(py, self.0.triangle_set(), &p))
+            /// The nearest point of the surface to each of `points` (m, 3): `(nearest (m, 3),
+            /// triangle (m,) np.intp)`, as [`closest_points`] of the surface's vertices and faces
+            /// but through the surface's own BVH, built once with it (armadillo: 1 s a call saved).
+            fn closest<'py>(
+                &self,
+                py: Python<'py>,
+                points: PyReadonlyArray2<'py, f64>,
+            ) -> PyResult<Nearest<'py>> {
+                let p = rows::<f64, 3>(&points, "points")?;
+                nearest_arrays(py, closest_all(py, self.0.triangle_set(), &p))
+            }
+        }
     }
 }
 
