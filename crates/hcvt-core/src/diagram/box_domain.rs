@@ -86,6 +86,27 @@ impl<const D: usize> BoxDomain<D> {
         }
     }
 
+    /// [`DomainKind::clip`] of a cell by the sides along the axes `along` marks (all of them
+    /// for this box; the non-periodic ones for a [`super::PeriodicBox`]): the moments of
+    /// `cell` (relative to `site`) cut by those sides, in a copy kept in `scratch`, or of
+    /// `cell` itself when no axis is marked (a box periodic along every axis).
+    pub(super) fn clip_along<C: ConvexCell<D>>(
+        &self,
+        cell: &C,
+        site: [f64; D],
+        along: [bool; D],
+        row: Option<FaceRow<'_, D>>,
+        scratch: &mut MeasureScratch<D, C>,
+    ) -> Moments<D> {
+        if !along.contains(&true) {
+            return measure(cell, row, &mut scratch.faces);
+        }
+        let piece = scratch.piece.get_or_insert_with(|| cell.clone());
+        piece.clone_from(cell);
+        self.cut_along(piece, site, along);
+        measure(piece, row, &mut scratch.faces)
+    }
+
     /// The inside test along the axes `along` marks (every coordinate counts as inside along
     /// the others): 0 outside, `None` on a side, 1 inside.
     pub(super) fn locate_along(&self, point: &[f64; D], along: [bool; D]) -> Option<i32> {
@@ -142,10 +163,7 @@ impl<const D: usize> DomainKind<D> for BoxDomain<D> {
         row: Option<FaceRow<'_, D>>,
         scratch: &mut MeasureScratch<D, C>,
     ) -> Moments<D> {
-        let piece = scratch.piece.get_or_insert_with(|| cell.clone());
-        piece.clone_from(cell);
-        self.cut_along(piece, site, [true; D]);
-        measure(piece, row, &mut scratch.faces)
+        self.clip_along(cell, site, [true; D], row, scratch)
     }
 }
 

@@ -42,7 +42,7 @@ use crate::geometry::{sub, Aabb, Euclid, Space};
 use crate::moments::{FaceMoments, Moments};
 
 use super::box_domain::BoxDomain;
-use super::clip::{measure, MeasureScratch};
+use super::clip::MeasureScratch;
 use super::convex_cell::ConvexCell;
 use super::domain_kind::{DomainKind, BOX_MARGIN};
 use super::faces::{FaceIntegrals, FaceIntegrand, FaceRow, Matrix};
@@ -180,13 +180,8 @@ impl<const D: usize> DomainKind<D> for PeriodicBox<D> {
         row: Option<FaceRow<'_, D>>,
         scratch: &mut MeasureScratch<D, C>,
     ) -> Moments<D> {
-        if self.torus.periodic_axes().iter().all(|&p| p) {
-            return measure(cell, row, &mut scratch.faces);
-        }
-        let piece = scratch.piece.get_or_insert_with(|| cell.clone());
-        piece.clone_from(cell);
-        self.plain.cut_along(piece, site, self.fixed());
-        measure(piece, row, &mut scratch.faces)
+        self.plain
+            .clip_along(cell, site, self.fixed(), row, scratch)
     }
 }
 
@@ -292,18 +287,7 @@ pub(super) fn clipped_diagram<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D>,
 {
-    if request.density.is_some() {
-        return Err(CoreError::InvalidDensity {
-            reason: "a periodic box takes no density yet".into(),
-        });
-    }
-    // Non-finite first, so that the error names the value given, not its wrap.
-    for (index, s) in sites.iter().enumerate() {
-        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
-            return Err(CoreError::NonFiniteSite { index, value });
-        }
-    }
-    let wrapped: Vec<[f64; D]> = sites.iter().map(|&s| torus.wrap(s)).collect();
+    let wrapped = wrapped_sites(torus, sites, request)?;
     let domain = PeriodicBox::of(torus);
     let windings = checked_windings(&domain, &wrapped, request.options)?;
     let n = sites.len();
@@ -343,22 +327,12 @@ pub(super) fn clipped_cells<const D: usize, C: ConvexCell<D>>(
 where
     Euclid: Space<D>,
 {
-    if request.density.is_some() {
-        return Err(CoreError::InvalidDensity {
-            reason: "a periodic box takes no density yet".into(),
-        });
-    }
+    let wrapped = wrapped_sites(torus, sites, request)?;
     if request.weights.is_some() {
         return Err(CoreError::InvalidWeights {
             reason: "the cells of a part of a periodic power diagram are not computed yet".into(),
         });
     }
-    for (index, s) in sites.iter().enumerate() {
-        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
-            return Err(CoreError::NonFiniteSite { index, value });
-        }
-    }
-    let wrapped: Vec<[f64; D]> = sites.iter().map(|&s| torus.wrap(s)).collect();
     let domain = PeriodicBox::of(torus);
     let (windings, _) = checked_part(&domain, &wrapped, own, request.options)?;
     let n = sites.len();
@@ -386,6 +360,27 @@ where
         diagram: whole.rows(own),
         reach2: own.iter().map(|&i| reach2[i as usize]).collect(),
     })
+}
+
+/// `sites` wrapped into the torus' box, after the checks both entry points make: no
+/// density (not taken yet), every coordinate finite (checked first, so that the error
+/// names the value given, not its wrap).
+fn wrapped_sites<const D: usize>(
+    torus: &Torus<D>,
+    sites: &[[f64; D]],
+    request: &Request<'_, D>,
+) -> Result<Vec<[f64; D]>, CoreError> {
+    if request.density.is_some() {
+        return Err(CoreError::InvalidDensity {
+            reason: "a periodic box takes no density yet".into(),
+        });
+    }
+    for (index, s) in sites.iter().enumerate() {
+        if let Some(&value) = s.iter().find(|x| !x.is_finite()) {
+            return Err(CoreError::NonFiniteSite { index, value });
+        }
+    }
+    Ok(sites.iter().map(|&s| torus.wrap(s)).collect())
 }
 
 /// The cells of the wrapped sites `visit_order` among `wrapped` and their images in a
