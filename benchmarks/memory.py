@@ -6,6 +6,7 @@
    3D, each in a fresh child process: VmHWM from /proc/self/status (ru_maxrss of a child
    can carry its parent's peak across exec) after the diagram, above VmRSS just before it
    (VmHWM reset there through /proc/self/clear_refs); see peak().
+3. Held: the bytes per site a CVT result's diagram keeps (200k sites, 2D); see held().
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/memory.py [--quick]
 """
@@ -140,6 +141,21 @@ def peak(dim: int, n: int) -> None:
     )
 
 
+def held(n: int) -> None:
+    """Print the bytes per site a CVT result's diagram holds (its arrays, summed).
+
+    Two L-BFGS iterations from ``n`` random sites in the unit square: what
+    ``CVTResult.diagram`` keeps until a quantity is read (the cells' moments and faces
+    since every producer returns them; seven quantities before).
+    """
+    square = hcvt.Domain.from_polygon([(0, 0), (1, 0), (1, 1), (0, 1)])
+    sites = np.random.default_rng(0).uniform(0, 1, size=(n, 2))
+    result = hcvt.cvt(square, sites, max_iter=2)
+    arrays = result.diagram._arrays
+    total = sum(v.nbytes for v in arrays.values() if isinstance(v, np.ndarray))
+    print(f"CVT result 2D, {n:,} sites: its diagram holds {total / n:.1f} B/site", sorted(arrays))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="100 repeats, 100k / 10k peak")
@@ -148,10 +164,12 @@ def main() -> None:
         flatness(100, 10_000)
         peak(2, 100_000)
         peak(3, 10_000)
+        held(100_000)
     else:
         flatness(1000, 10_000)
         peak(2, 1_000_000)
         peak(3, 100_000)
+        held(200_000)
 
 
 if __name__ == "__main__":
