@@ -10,7 +10,9 @@ mod mesh;
 mod optimise;
 mod partition;
 mod quality;
+mod steps;
 mod threads;
+mod transport;
 
 use pyo3::prelude::*;
 
@@ -33,7 +35,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<domain::SurfaceDomain>()?;
     m.add_function(wrap_pyfunction!(diagram::voronoi, m)?)?;
     m.add_function(wrap_pyfunction!(diagram::diagram_field, m)?)?;
-    m.add_function(wrap_pyfunction!(optimise::optimal_transport, m)?)?;
+    m.add_function(wrap_pyfunction!(transport::optimal_transport, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(domain::closest_points, m)?)?;
     m.add_function(wrap_pyfunction!(diagram::restricted_delaunay, m)?)?;
@@ -41,12 +43,12 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(partition::partition_cells, m)?)?;
     m.add_function(wrap_pyfunction!(quality::mesh_quality, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::cvt, m)?)?;
-    m.add_function(wrap_pyfunction!(optimise::step_fields, m)?)?;
-    m.add_function(wrap_pyfunction!(optimise::lloyd_step, m)?)?;
-    m.add_function(wrap_pyfunction!(optimise::lbfgs_direction, m)?)?;
-    m.add_function(wrap_pyfunction!(optimise::lbfgs_coefficients, m)?)?;
-    m.add_function(wrap_pyfunction!(optimise::line_search_accepts, m)?)?;
-    m.add_function(wrap_pyfunction!(optimise::positive_curvature, m)?)?;
+    m.add_function(wrap_pyfunction!(steps::step_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(steps::lloyd_step, m)?)?;
+    m.add_function(wrap_pyfunction!(steps::lbfgs_direction, m)?)?;
+    m.add_function(wrap_pyfunction!(steps::lbfgs_coefficients, m)?)?;
+    m.add_function(wrap_pyfunction!(steps::line_search_accepts, m)?)?;
+    m.add_function(wrap_pyfunction!(steps::positive_curvature, m)?)?;
     m.add_function(wrap_pyfunction!(optimise::check_settings, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(threads::get_num_threads, m)?)?;

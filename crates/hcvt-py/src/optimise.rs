@@ -1,10 +1,7 @@
 //! CVTs as numpy arrays: `cvt` runs the whole iteration in the core with
 //! the GIL released; the calling thread checks for Ctrl-C meanwhile, and the GIL is taken
-//! once per iteration only when there is a callback to call.
-//!
-//! The steps of one part of a partitioned run (`hcvt.partition`, `hcvt.distributed`) are
-//! the core's too: its Lloyd step and guards, the L-BFGS coefficients, direction and
-//! acceptance, and the check of the settings.
+//! once per iteration only when there is a callback to call. `check_settings` checks a
+//! CVT's settings for every driver; the steps of a partitioned run are in `steps.rs`.
 
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -12,15 +9,11 @@ use std::sync::mpsc::{self, RecvTimeoutError};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use hcvt_core::lbfgs::{self, LineSearch};
 use hcvt_core::{
-    capacity_cvt, cvt as core_cvt, lloyd, optimal_transport as core_transport, CapacityRecord,
-    CapacitySettings, ConvexCell, DomainKind, Euclid, Frame, Moments, Named, Outcome, Record,
-    Settings, Space, TransportRecord, TransportSettings, DEFAULT_VOLUME_TOL,
+    capacity_cvt, cvt as core_cvt, CapacityRecord, CapacitySettings, ConvexCell, DomainKind,
+    Euclid, Frame, Named, Outcome, Record, Settings, Space, DEFAULT_VOLUME_TOL,
 };
-use numpy::{
-    PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods,
-};
+use numpy::{PyArray1, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -78,58 +71,6 @@ pub fn cvt<'py>(
     by_kind!(domain, run(py, &sites, job))
 }
 
-/// What a part's next step needs from its cells (`hcvt.distributed.partition`): the shift
-/// to the centroid (k, d) (0 for an empty cell), whether each site is pinned (k,), and the
-/// preconditioner `1/(2 m_i)` (k,), each by the core's Lloyd and L-BFGS.
-#[pyfunction]
-pub fn step_fields<'py>(
-    py: Python<'py>,
-    domain: AnyDomain<'py>,
-    sites: PyReadonlyArray2<'py, f64>,
-    mass: PyReadonlyArray1<'py, f64>,
-    first: PyReadonlyArray2<'py, f64>,
-    boundary_measure: PyReadonlyArray1<'py, f64>,
-) -> PyResult<StepFields<'py>> {
-    by_kind!(domain, dim step_fields_in(py, &sites, &mass, &first, &boundary_measure))
-}
-
-/// The core's Lloyd step of `sites` (k, d) by `shifts` (k, d), held inside.
-#[pyfunction]
-pub fn lloyd_step<'py>(
-    py: Python<'py>,
-    domain: AnyDomain<'py>,
-    sites: PyReadonlyArray2<'py, f64>,
-    shifts: PyReadonlyArray2<'py, f64>,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    by_kind!(domain, dim lloyd_step_in(py, &sites, &shifts))
-}
-
-/// One part's rows (k, d) of the L-BFGS direction from the coefficients of
-/// `lbfgs_coefficients`, held inside: `gradient` (k, d), pairs `s` and `y` (m, k, d) oldest
-/// first, `preconditioner` (k,).
-#[pyfunction]
-#[allow(clippy::too_many_arguments)]
-pub fn lbfgs_direction<'py>(
-    py: Python<'py>,
-    domain: AnyDomain<'py>,
-    sites: PyReadonlyArray2<'py, f64>,
-    gradient: PyReadonlyArray2<'py, f64>,
-    s: PyReadonlyArray3<'py, f64>,
-    y: PyReadonlyArray3<'py, f64>,
-    preconditioner: PyReadonlyArray1<'py, f64>,
-    c: PyReadonlyArray1<'py, f64>,
-    e: PyReadonlyArray1<'py, f64>,
-) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let part = PartPairs {
-        sites: &sites,
-        gradient: &gradient,
-        s: &s,
-        y: &y,
-        preconditioner: &preconditioner,
-    };
-    by_kind!(domain, dim lbfgs_direction_in(py, part, &c, &e))
-}
-
 /// The settings of a CVT, checked by the core once for every driver (`hcvt.cvt`, the
 /// partitioned run): the tolerance to use, the rule's default when `tol` is None.
 #[pyfunction]
@@ -143,172 +84,6 @@ pub fn check_settings(
 ) -> PyResult<f64> {
     let named = Named::parse(method, rule, tol, max_iter, memory).map_err(to_py_err)?;
     Ok(named.tol)
-}
-
-/// The coefficients `(c, e)` of the L-BFGS direction from the Gram matrices `plain` and
-/// `weighted` (2m+1, 2m+1) of `[s, y, g]`, summed over the parts: the core's two-loop
-/// recursion in coefficient space.
-#[pyfunction]
-pub fn lbfgs_coefficients<'py>(
-    py: Python<'py>,
-    plain: PyReadonlyArray2<'py, f64>,
-    weighted: PyReadonlyArray2<'py, f64>,
-) -> PyResult<Coefficients2<'py>> {
-    let (c, e) =
-        lbfgs::gram_coefficients(plain.as_slice()?, weighted.as_slice()?).map_err(to_py_err)?;
-    Ok((PyArray1::from_vec(py, c), PyArray1::from_vec(py, e)))
-}
-
-/// Whether the partitioned run's backtracking line search accepts the step `t` with
-/// energy `value` and slope `slope` from `phi0`, `slope0` (the core's acceptance).
-#[pyfunction]
-pub fn line_search_accepts(phi0: f64, slope0: f64, t: f64, value: f64, slope: f64) -> bool {
-    LineSearch::backtracking(1).accepts(phi0, slope0, t, value, slope)
-}
-
-/// Whether an L-BFGS pair with these products is kept (the core's curvature test).
-#[pyfunction]
-pub fn positive_curvature(sy: f64, ss: f64, yy: f64) -> bool {
-    lbfgs::positive_curvature(sy, ss, yy)
-}
-
-/// `c` (m + 1,) and `e` (m,).
-type Coefficients2<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>);
-
-/// Shifts (k, d), pinned (k,), preconditioner (k,).
-type StepFields<'py> = (
-    Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray1<bool>>,
-    Bound<'py, PyArray1<f64>>,
-);
-
-fn values(array: &PyReadonlyArray1<'_, f64>, n: usize, what: &str) -> PyResult<Vec<f64>> {
-    let out = array.as_slice()?.to_vec();
-    if out.len() != n {
-        return Err(PyValueError::new_err(format!(
-            "{what} must have shape ({n},), got {:?}",
-            array.shape()
-        )));
-    }
-    Ok(out)
-}
-
-fn step_fields_in<'py, const D: usize, K: DomainKind<D>>(
-    boundary: &K,
-    py: Python<'py>,
-    sites: &PyReadonlyArray2<'py, f64>,
-    mass: &PyReadonlyArray1<'py, f64>,
-    first: &PyReadonlyArray2<'py, f64>,
-    boundary_measure: &PyReadonlyArray1<'py, f64>,
-) -> PyResult<StepFields<'py>>
-where
-    Euclid: Space<D>,
-{
-    let points = rows::<f64, D>(sites, "sites")?;
-    let n = points.len();
-    let mass = values(mass, n, "mass")?;
-    let first = rows::<f64, D>(first, "first")?;
-    let measure = values(boundary_measure, n, "boundary_measure")?;
-    if first.len() != n {
-        return Err(PyValueError::new_err("first must have one row per site"));
-    }
-    let moments: Vec<Moments<D>> = (mass.iter().zip(&first))
-        .map(|(&mass, &first)| Moments {
-            mass,
-            first,
-            second: 0.0,
-        })
-        .collect();
-    let shifts = lloyd::centroid_shifts(&moments);
-    let pinned = py.detach(|| lloyd::pinned(boundary, &points, &shifts, &measure));
-    let shifts: Vec<[f64; D]> = shifts.iter().map(|s| s.unwrap_or([0.0; D])).collect();
-    Ok((
-        to_array2(py, &shifts)?,
-        PyArray1::from_vec(py, pinned),
-        PyArray1::from_vec(py, lbfgs::preconditioner(mass)),
-    ))
-}
-
-fn lloyd_step_in<'py, const D: usize, K: DomainKind<D>>(
-    boundary: &K,
-    py: Python<'py>,
-    sites: &PyReadonlyArray2<'py, f64>,
-    shifts: &PyReadonlyArray2<'py, f64>,
-) -> PyResult<Bound<'py, PyArray2<f64>>>
-where
-    Euclid: Space<D>,
-{
-    let points = rows::<f64, D>(sites, "sites")?;
-    let shifts = rows::<f64, D>(shifts, "shifts")?;
-    if shifts.len() != points.len() {
-        return Err(PyValueError::new_err("shifts must have one row per site"));
-    }
-    let moved = py.detach(|| lloyd::lloyd_step(boundary, &points, &shifts));
-    to_array2(py, &moved)
-}
-
-/// A part's sites and per-row L-BFGS state, as numpy arrays.
-struct PartPairs<'a, 'py> {
-    sites: &'a PyReadonlyArray2<'py, f64>,
-    gradient: &'a PyReadonlyArray2<'py, f64>,
-    s: &'a PyReadonlyArray3<'py, f64>,
-    y: &'a PyReadonlyArray3<'py, f64>,
-    preconditioner: &'a PyReadonlyArray1<'py, f64>,
-}
-
-/// An (m, k, D) array as m vectors of k rows.
-fn pairs<const D: usize>(
-    array: &PyReadonlyArray3<'_, f64>,
-    k: usize,
-    what: &str,
-) -> PyResult<Vec<Vec<[f64; D]>>> {
-    let shape = array.shape();
-    if shape.get(1..) != Some(&[k, D][..]) {
-        return Err(PyValueError::new_err(format!(
-            "{what} must have shape (m, {k}, {D}), got {shape:?}"
-        )));
-    }
-    let flat = array.as_slice()?;
-    Ok(flat
-        .chunks_exact((k * D).max(1))
-        .map(|pair| {
-            pair.chunks_exact(D)
-                .filter_map(|row| <[f64; D]>::try_from(row).ok())
-                .collect()
-        })
-        .collect())
-}
-
-fn lbfgs_direction_in<'py, const D: usize, K: DomainKind<D>>(
-    boundary: &K,
-    py: Python<'py>,
-    part: PartPairs<'_, 'py>,
-    c: &PyReadonlyArray1<'py, f64>,
-    e: &PyReadonlyArray1<'py, f64>,
-) -> PyResult<Bound<'py, PyArray2<f64>>>
-where
-    Euclid: Space<D>,
-{
-    let points = rows::<f64, D>(part.sites, "sites")?;
-    let k = points.len();
-    let gradient = rows::<f64, D>(part.gradient, "gradient")?;
-    let s = pairs::<D>(part.s, k, "s")?;
-    let y = pairs::<D>(part.y, k, "y")?;
-    if gradient.len() != k {
-        return Err(PyValueError::new_err("gradient must have one row per site"));
-    }
-    let preconditioner = part.preconditioner.as_slice()?;
-    let mut direction = lbfgs::combine(
-        c.as_slice()?,
-        e.as_slice()?,
-        &gradient,
-        &s,
-        &y,
-        preconditioner,
-    )
-    .map_err(to_py_err)?;
-    py.detach(|| lloyd::hold_inside(boundary, &points, &mut direction));
-    to_array2(py, &direction)
 }
 
 /// `(centre (d,), scale)` of `hcvt.geometry.frame.Frame`, checked.
@@ -533,92 +308,4 @@ fn outcome_dict<const D: usize>(
     out.set_item("iterations", outcome.iterations())?;
     out.set_item("evaluations", outcome.evaluations())?;
     Ok(out)
-}
-
-/// Semi-discrete optimal transport (see `hcvt.optimal_transport`): the weights of the power
-/// diagram of `sites` (n, d) in `domain` whose cell i has mass `masses[i]` (with a density,
-/// ∫ρ), by the core's damped Newton iteration. A dict with `weights` (n,), `diagram` (the
-/// arrays of `voronoi` for those weights), `targets` (n,), `max_error`, `converged` and
-/// `history` (per Newton step: `max_error`, `step`, `cg_iterations`, `diagrams`,
-/// `min_mass`).
-#[pyfunction]
-#[pyo3(signature = (domain, sites, masses, tol=1e-10, max_iter=100, normalise=false, polynomial=None, function=None, quadrature_degree=4))]
-#[allow(clippy::too_many_arguments)]
-pub fn optimal_transport<'py>(
-    py: Python<'py>,
-    domain: AnyDomain<'py>,
-    sites: PyReadonlyArray2<'py, f64>,
-    masses: PyReadonlyArray1<'py, f64>,
-    tol: f64,
-    max_iter: usize,
-    normalise: bool,
-    polynomial: Option<Coefficients>,
-    function: Option<Py<PyAny>>,
-    quadrature_degree: usize,
-) -> PyResult<Bound<'py, PyDict>> {
-    let given = Given::new(polynomial, function, quadrature_degree)?;
-    let asked = Transported {
-        masses: masses.as_array().to_vec(),
-        tol,
-        max_iter,
-        normalise,
-        given: &given,
-    };
-    by_kind!(domain, transport_in(py, sites, &asked))
-}
-
-/// What `optimal_transport` is asked for besides its domain and sites.
-struct Transported<'a> {
-    masses: Vec<f64>,
-    tol: f64,
-    max_iter: usize,
-    normalise: bool,
-    given: &'a Given,
-}
-
-fn transport_in<'py, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
-    domain: &K,
-    py: Python<'py>,
-    sites: PyReadonlyArray2<'py, f64>,
-    asked: &Transported<'_>,
-) -> PyResult<Bound<'py, PyDict>>
-where
-    Euclid: Space<D>,
-{
-    let points = rows::<f64, D>(&sites, "sites")?;
-    let density = asked.given.density::<D>()?;
-    let settings = TransportSettings {
-        tol: asked.tol,
-        max_iter: asked.max_iter,
-        density: density.as_ref(),
-        normalise: asked.normalise,
-    };
-    let out = py
-        .detach(|| {
-            crate::threads::run(|| {
-                core_transport::<D, C, K>(domain, &points, &asked.masses, &settings)
-            })
-        })
-        .map_err(|e| asked.given.error(e))?;
-    let result = PyDict::new(py);
-    result.set_item("weights", PyArray1::from_vec(py, out.weights))?;
-    result.set_item("diagram", diagram_dict(py, out.diagram)?)?;
-    result.set_item("targets", PyArray1::from_vec(py, out.targets))?;
-    result.set_item("max_error", out.max_error)?;
-    result.set_item("converged", out.converged)?;
-    let history = PyDict::new(py);
-    let column =
-        |f: fn(&TransportRecord) -> f64| -> Vec<f64> { out.history.iter().map(f).collect() };
-    history.set_item("max_error", PyArray1::from_vec(py, column(|r| r.max_error)))?;
-    history.set_item("step", PyArray1::from_vec(py, column(|r| r.step)))?;
-    history.set_item("min_mass", PyArray1::from_vec(py, column(|r| r.min_mass)))?;
-    let counts =
-        |f: fn(&TransportRecord) -> usize| -> Vec<usize> { out.history.iter().map(f).collect() };
-    history.set_item(
-        "cg_iterations",
-        PyArray1::from_vec(py, counts(|r| r.cg_iterations)),
-    )?;
-    history.set_item("diagrams", PyArray1::from_vec(py, counts(|r| r.diagrams)))?;
-    result.set_item("history", history)?;
-    Ok(result)
 }
