@@ -64,7 +64,7 @@ use rayon::prelude::*;
 use crate::density::Density;
 use crate::diagram::{
     clipped_diagram, ConvexCell, Diagram, DomainKind, FaceIntegrals, FaceIntegrand, Matrix,
-    Request as DiagramRequest, WarmStart,
+    Request as DiagramRequest,
 };
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
@@ -186,13 +186,9 @@ where
         Some(w) => w.to_vec(),
         None => vec![0.0; n],
     };
-    // The sites stay put: every diagram streams each cell's near sites from the previous
-    // diagram's lists (the same cells bit for bit, `diagram::warm`).
-    let mut near = WarmStart::new();
     // The fill-reducing ordering of an earlier step, kept while its factor stays small.
     let mut ordering = None;
-    let mut current =
-        Evaluation::new::<C, K>(domain, sites, &weights, settings.density, &mut near)?;
+    let mut current = Evaluation::new::<C, K>(domain, sites, &weights, settings.density, None)?;
     let total: f64 = current.masses.iter().sum();
     let given: f64 = masses.iter().sum();
     let targets: Vec<f64> = if settings.normalise {
@@ -247,8 +243,14 @@ where
                 .zip(&direction)
                 .map(|(w, d)| w + step * d)
                 .collect();
-            let evaluation =
-                Evaluation::new::<C, K>(domain, sites, &trial, settings.density, &mut near)?;
+            // Each cell starts from its neighbours in the last accepted diagram.
+            let evaluation = Evaluation::new::<C, K>(
+                domain,
+                sites,
+                &trial,
+                settings.density,
+                Some(&current.diagram),
+            )?;
             diagrams += 1;
             let min_mass = evaluation
                 .masses
@@ -348,26 +350,23 @@ impl<const D: usize> Evaluation<D> {
         sites: &[[f64; D]],
         weights: &[f64],
         density: Option<&Density<'_, D>>,
-        near: &mut WarmStart<D>,
+        power_start: Option<&Diagram<D>>,
     ) -> Result<Self, CoreError>
     where
         Euclid: Space<D>,
     {
         let integrand = density.map(|_| FaceMass);
-        let mut clipped = clipped_diagram::<D, C, K>(
+        let clipped = clipped_diagram::<D, C, K>(
             domain,
             sites,
             &DiagramRequest {
                 density,
                 weights: Some(weights),
                 integrand: integrand.as_ref().map(|f| f as &dyn FaceIntegrand<D>),
-                warm: Some(near),
+                power_start,
                 ..DiagramRequest::default()
             },
         )?;
-        if let Some(lists) = clipped.warm.take() {
-            *near = lists;
-        }
         let masses = clipped.diagram.masses();
         Ok(Self {
             diagram: clipped.diagram,
