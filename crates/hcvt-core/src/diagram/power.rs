@@ -31,6 +31,12 @@
 //! stream's), so the cell is the Voronoi cell bit for bit. The cells are equal to the
 //! references of `tests/test_power.py` as before, though not bit for bit the cells of the
 //! one-pass stream with weights (the planes are clipped in another order).
+//!
+//! **Started cells.** Within a Newton iteration (`optimise::transport`) a cell is clipped
+//! first by its neighbours in the previous power diagram and then certified by the blocks
+//! near the mean of its vertices ([`Power::hinted_cell`], the proof there): no stream from
+//! the site, which at convergence lies outside 76% of the cells (10,000 sites, equal
+//! masses).
 
 use crate::geometry::{add, dot, norm2, sub, Aabb, HalfSpace};
 
