@@ -456,7 +456,8 @@ impl<'a, const D: usize> Power<'a, D> {
     /// `start` clipped by the sites `neighbours` (a previous power diagram's neighbours of
     /// the cell, other weights), then certified. `false` when the cell is too large for
     /// the certificate to pay (its vertices farther than [`HINT_SPAN`] blocks from their
-    /// mean): the caller computes it by the stream instead; `cell` is then garbage.
+    /// mean), or when a site to clip by coincides with site `i`: the caller computes it
+    /// by the stream instead (which names coinciding sites); `cell` is then garbage.
     ///
     /// **The certificate.** The power cell in `start` is `start ∩ ⋂_j H_j`, `H_j` the
     /// half-space of site `j` ([`Power::bisector`]); clipping by any of them, in any
@@ -489,6 +490,9 @@ impl<'a, const D: usize> Power<'a, D> {
         for &j in neighbours {
             if j as usize != i {
                 let q = sub(sites[j as usize], site);
+                if norm2(q) == 0.0 {
+                    return false;
+                }
                 cell.clip(&self.bisector(q, i, j as usize), Face::Neighbor(j));
             }
         }
@@ -547,6 +551,9 @@ impl<'a, const D: usize> Power<'a, D> {
                             let margin = HINT_ROUNDING * (q2 + 2.0 * qc.abs() + delta.abs() + ball);
                             if low - ball >= margin || j as usize == i || neighbours.contains(&j) {
                                 continue;
+                            }
+                            if q2 == 0.0 {
+                                return false;
                             }
                             if cell.clip(&self.bisector(q, i, j as usize), Face::Neighbor(j)) {
                                 if cell.is_empty() {
