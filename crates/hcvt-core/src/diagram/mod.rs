@@ -266,6 +266,13 @@ pub struct Request<'a, const D: usize> {
     /// cold) and return this diagram's in [`Clipped::warm`]: the cells are the cold ones
     /// bit for bit, faster when the sites moved little. Ignored in a periodic box.
     pub warm: Option<&'a WarmStart<D>>,
+    /// With [`Request::weights`]: a power diagram of the same sites (other weights, e.g.
+    /// the previous Newton step's) whose neighbours each cell is clipped by first, then
+    /// certified by the blocks of sites near it (`Power::hinted_cell`): the same cells to
+    /// round-off (not bit for bit: the planes come in another order), each cell's
+    /// nearest-site stream saved. Ignored without weights, for a part, in a periodic box,
+    /// and when its number of cells differs.
+    pub power_start: Option<&'a Diagram<D>>,
 }
 
 /// The weights of `request` checked against `n` sites in `domain`: `None` when absent or
@@ -378,18 +385,27 @@ where
     let batches = {
         let windings = checked_windings(domain, sites, request.options)?;
         let index = SiteIndex::new(sites)?;
+        let power_start = request
+            .power_start
+            .filter(|d| weights.is_some() && d.len() == sites.len());
         let visit = Visit {
             sites,
             index: &index,
             windings: &windings,
             power: weights.map(|w| Power::new(w, sites)),
+            power_start,
             total_sites: sites.len(),
-            warm: request.warm.zip(moved.as_ref()),
+            // A power start replaces the warm lists (its cells stream no sites).
+            warm: request
+                .warm
+                .zip(moved.as_ref())
+                .filter(|_| power_start.is_none()),
             // Sites moved too far are not recorded: the next diagram starts from an empty
             // state and records the lists afresh (cold).
-            record: request
-                .warm
-                .is_some_and(|w| w.len() != sites.len() || moved.is_some()),
+            record: power_start.is_none()
+                && request
+                    .warm
+                    .is_some_and(|w| w.len() != sites.len() || moved.is_some()),
             reach: false,
         };
         visit.batches::<C, K>(
@@ -510,6 +526,9 @@ struct Visit<'a, const D: usize> {
     windings: &'a [Option<i32>],
     /// The weights of a power diagram, indexed like `sites`.
     power: Option<Power<'a, D>>,
+    /// A power diagram of the same sites whose neighbours start each power cell
+    /// ([`Request::power_start`]).
+    power_start: Option<&'a Diagram<D>>,
     total_sites: usize,
     /// A previous diagram's near-site lists and how far the sites moved since.
     warm: Option<(&'a WarmStart<D>, &'a Moved)>,
@@ -524,6 +543,24 @@ impl<const D: usize> Visit<'_, D>
 where
     Euclid: Space<D>,
 {
+    /// Power cell `i` from [`Visit::power_start`]'s neighbours (`Power::hinted_cell`), in
+    /// `buffer`; `None` without a start, or for a cell left to the stream.
+    fn started_cell<'c, C: ConvexCell<D>, K: DomainKind<D>>(
+        &self,
+        domain: &K,
+        i: usize,
+        buffer: &'c mut Option<C>,
+    ) -> Option<&'c C> {
+        let (power, start) = (self.power.as_ref()?, self.power_start?);
+        let neighbours =
+            &start.neighbor_sites[start.neighbor_offsets[i]..start.neighbor_offsets[i + 1]];
+        let bounds = domain.start(self.sites[i]);
+        let cell = buffer.get_or_insert_with(|| C::from_box(&bounds));
+        power
+            .hinted_cell(cell, &bounds, self.sites, i, neighbours)
+            .then_some(&*cell)
+    }
+
     /// The cells of the sites `visit`, in that order, measured in batches of [`BATCH`] in
     /// parallel; errors are kept in their batch.
     fn batches<C: ConvexCell<D>, K: DomainKind<D>>(
@@ -541,9 +578,9 @@ where
                 || {
                     let mut measuring = MeasureScratch::default();
                     measuring.faces.weighted = weighted.clone();
-                    (CellScratch::default(), measuring)
+                    (CellScratch::default(), measuring, None)
                 },
-                |(scratch, measuring), chunk| {
+                |(scratch, measuring, hinted), chunk| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
                     for &i in chunk {
                         let i = i as usize;
@@ -552,17 +589,23 @@ where
                         // boundary near the cell assumes it does (`cut_by_boundary`).
                         let convex_inside = convex && winding == Some(1) && self.power.is_none();
                         let warm = self.warm.and_then(|(w, moved)| w.certified(i, moved));
-                        let (cell, inside) = match voronoi_cell::<D, C, K>(
-                            domain,
-                            self.index,
-                            self.sites,
-                            self.power.as_ref(),
-                            self.total_sites,
-                            i,
-                            convex_inside,
-                            warm,
-                            self.record,
-                            scratch,
+                        let started = self.started_cell(domain, i, hinted);
+                        let (cell, inside) = match started.map_or_else(
+                            || {
+                                voronoi_cell::<D, C, K>(
+                                    domain,
+                                    self.index,
+                                    self.sites,
+                                    self.power.as_ref(),
+                                    self.total_sites,
+                                    i,
+                                    convex_inside,
+                                    warm,
+                                    self.record,
+                                    scratch,
+                                )
+                            },
+                            |cell| Ok((cell, cell.is_empty())),
                         ) {
                             Ok(found) => found,
                             Err(e) => {
@@ -714,6 +757,7 @@ where
         index: &index,
         windings: &windings,
         power,
+        power_start: None,
         total_sites: total_sites.max(sites.len()),
         warm: None,
         record: false,

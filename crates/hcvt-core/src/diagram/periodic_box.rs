@@ -425,6 +425,7 @@ where
             power: image_weights
                 .as_deref()
                 .map(|w| Power::new(w, &images.sites)),
+            power_start: None,
             total_sites: images.sites.len().max(total_sites),
             warm: None,
             record: false,

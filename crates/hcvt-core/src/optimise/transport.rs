@@ -46,8 +46,16 @@
 //! summed in index order, and the factorisation runs on one thread: the weights do not
 //! depend on the thread count.
 //!
-//! **Diagrams.** The sites do not move: each diagram is warm-started from the previous
-//! one's near-site lists (`diagram::warm`; the same cells bit for bit).
+//! **Diagrams.** The sites do not move: each trial diagram starts every cell from its
+//! neighbours in the last accepted diagram (`Request::power_start`), then certifies it by
+//! the blocks of sites near it (`diagram::power`, `Power::hinted_cell`): the exact power
+//! cells, equal to the streamed ones to round-off. Why: at convergence (10,000 sites,
+//! equal masses) 76% of the power cells do not hold their own site, and a cell's stream
+//! from its site read some 40 sites against some 12 for a Voronoi cell; started from its
+//! neighbours, a cell clips by about 6 and tests some 20 more by a bound. The transport's
+//! CPU time at 10,000 sites fell from 0.51 to 0.35 s in the square (the whole run, one
+//! thread, `docs/results/transport.txt`). The first diagram (zero weights: the Voronoi
+//! diagram, or given weights) is streamed.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -64,7 +72,7 @@ use rayon::prelude::*;
 use crate::density::Density;
 use crate::diagram::{
     clipped_diagram, ConvexCell, Diagram, DomainKind, FaceIntegrals, FaceIntegrand, Matrix,
-    Request as DiagramRequest, WarmStart,
+    Request as DiagramRequest,
 };
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
@@ -186,13 +194,9 @@ where
         Some(w) => w.to_vec(),
         None => vec![0.0; n],
     };
-    // The sites stay put: every diagram streams each cell's near sites from the previous
-    // diagram's lists (the same cells bit for bit, `diagram::warm`).
-    let mut near = WarmStart::new();
-    // The fill-reducing ordering of an earlier step, kept while its factor stays small.
-    let mut ordering = None;
-    let mut current =
-        Evaluation::new::<C, K>(domain, sites, &weights, settings.density, &mut near)?;
+    // The fill-reducing ordering and symbolic factorisation of earlier steps.
+    let mut ordering = Kept::default();
+    let mut current = Evaluation::new::<C, K>(domain, sites, &weights, settings.density, None)?;
     let total: f64 = current.masses.iter().sum();
     let given: f64 = masses.iter().sum();
     let targets: Vec<f64> = if settings.normalise {
@@ -247,8 +251,14 @@ where
                 .zip(&direction)
                 .map(|(w, d)| w + step * d)
                 .collect();
-            let evaluation =
-                Evaluation::new::<C, K>(domain, sites, &trial, settings.density, &mut near)?;
+            // Each cell starts from its neighbours in the last accepted diagram.
+            let evaluation = Evaluation::new::<C, K>(
+                domain,
+                sites,
+                &trial,
+                settings.density,
+                Some(&current.diagram),
+            )?;
             diagrams += 1;
             let min_mass = evaluation
                 .masses
@@ -348,26 +358,23 @@ impl<const D: usize> Evaluation<D> {
         sites: &[[f64; D]],
         weights: &[f64],
         density: Option<&Density<'_, D>>,
-        near: &mut WarmStart<D>,
+        power_start: Option<&Diagram<D>>,
     ) -> Result<Self, CoreError>
     where
         Euclid: Space<D>,
     {
         let integrand = density.map(|_| FaceMass);
-        let mut clipped = clipped_diagram::<D, C, K>(
+        let clipped = clipped_diagram::<D, C, K>(
             domain,
             sites,
             &DiagramRequest {
                 density,
                 weights: Some(weights),
                 integrand: integrand.as_ref().map(|f| f as &dyn FaceIntegrand<D>),
-                warm: Some(near),
+                power_start,
                 ..DiagramRequest::default()
             },
         )?;
-        if let Some(lists) = clipped.warm.take() {
-            *near = lists;
-        }
         let masses = clipped.diagram.masses();
         Ok(Self {
             diagram: clipped.diagram,
@@ -584,15 +591,30 @@ impl<const D: usize> Laplacian<'_, D> {
     /// is symmetrised, each face's coupling read from its lower-numbered cell and the
     /// diagonal summed from the couplings, so that it is exactly positive semi-definite.
     /// The fill-reducing ordering is AMD's, or an earlier step's while its factor stays
-    /// small ([`Laplacian::analyse`]).
-    fn direct(&self, b: &[f64], ordering: &mut Option<Ordering>) -> Option<Vec<f64>> {
+    /// small ([`analyse`]); the symbolic factorisation is the last step's when the matrix
+    /// has its pattern ([`Kept`]).
+    fn direct(&self, b: &[f64], kept: &mut Kept) -> Option<Vec<f64>> {
         let n = b.len();
         if n < 2 {
             return None;
         }
-        let (matrix, fixed) = self.grounded()?;
+        let held = kept.analysed.as_ref().map(|a| a.fixed).filter(|&f| f < n);
+        let (matrix, fixed) = self.grounded(held)?;
         let par = Par::Seq;
-        let symbolic = analyse(&matrix, ordering)?;
+        let pattern = matrix.symbolic();
+        let same = kept.analysed.as_ref().is_some_and(|a| {
+            a.fixed == fixed && a.col_ptr == pattern.col_ptr() && a.rows == pattern.row_idx()
+        });
+        if !same {
+            let symbolic = analyse(&matrix, &mut kept.ordering)?;
+            kept.analysed = Some(Analysed {
+                fixed,
+                col_ptr: pattern.col_ptr().to_vec(),
+                rows: pattern.row_idx().to_vec(),
+                symbolic,
+            });
+        }
+        let symbolic = &kept.analysed.as_ref()?.symbolic;
         if symbolic.len_val() > MAX_FILL_PER_ROW * n {
             return None;
         }
@@ -625,9 +647,10 @@ impl<const D: usize> Laplacian<'_, D> {
     }
 
     /// The symmetrised Laplacian's lower triangle in compressed columns with the row and
-    /// column of the cell with the largest diagonal replaced by the identity, and that
-    /// cell; `None` when the face graph is not connected (a zero coupling counts as none).
-    fn grounded(&self) -> Option<(SparseColMat<usize, f64>, usize)> {
+    /// column of cell `held` (when given), else of the cell with the largest diagonal,
+    /// replaced by the identity, and that cell; `None` when the face graph is not
+    /// connected (a zero coupling counts as none).
+    fn grounded(&self, held: Option<usize>) -> Option<(SparseColMat<usize, f64>, usize)> {
         let d = self.diagram;
         let n = d.len();
         // Each column's couplings to higher-numbered cells, merged (a periodic cell can
@@ -666,12 +689,14 @@ impl<const D: usize> Laplacian<'_, D> {
         if !components.connected() {
             return None;
         }
-        let fixed = (0..n).fold(0, |best, i| {
-            if diagonal[i] > diagonal[best] {
-                i
-            } else {
-                best
-            }
+        let fixed = held.unwrap_or_else(|| {
+            (0..n).fold(0, |best, i| {
+                if diagonal[i] > diagonal[best] {
+                    i
+                } else {
+                    best
+                }
+            })
         });
         let mut col_ptr = Vec::with_capacity(n + 1);
         let mut rows = Vec::with_capacity(lower.len() + n);
@@ -704,6 +729,27 @@ struct Ordering {
     forward: Vec<usize>,
     inverse: Vec<usize>,
     fill: usize,
+}
+
+/// What the factorisations of a run keep from step to step: the AMD ordering
+/// ([`analyse`]) and the last symbolic factorisation with the pattern it was made for.
+/// Why: the symbolic analysis and AMD took 22% of the transport's samples at 100,000
+/// sites (perf, one thread, the square, power cells started from their neighbours), and
+/// once Newton converges the faces stop changing: the last steps' matrices have the
+/// pattern of their predecessors', the weight held fixed being the first step's.
+#[derive(Default)]
+struct Kept {
+    ordering: Option<Ordering>,
+    analysed: Option<Analysed>,
+}
+
+/// A symbolic factorisation and the matrix pattern it was made for: the grounded cell and
+/// the lower triangle's compressed columns.
+struct Analysed {
+    fixed: usize,
+    col_ptr: Vec<usize>,
+    rows: Vec<usize>,
+    symbolic: SymbolicCholesky<usize>,
 }
 
 /// A kept ordering is used while its factor holds at most this factor more entries than
