@@ -3,6 +3,18 @@
 use crate::geometry::{Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
 
+/// Whether `pred` holds for some item, tested four at a time without branches between
+/// them (`|`, not `||`), then the rest one by one: the clips' test of whether any vertex
+/// lies beyond the half-space, which most clips of a Voronoi cell answer "no" after
+/// reading every vertex. A running maximum of the distances instead made that pass wait
+/// on its chain of comparisons (3D: 44% fewer samples in the test, `perf`, ball 1k).
+#[inline]
+pub(super) fn any_by_fours<T>(items: &[T], pred: impl Fn(&T) -> bool) -> bool {
+    let mut fours = items.chunks_exact(4);
+    (fours.by_ref()).any(|c| pred(&c[0]) | pred(&c[1]) | pred(&c[2]) | pred(&c[3]))
+        || fours.remainder().iter().any(pred)
+}
+
 /// What made a face of a convex cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Face {

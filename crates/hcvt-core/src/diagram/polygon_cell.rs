@@ -1,6 +1,6 @@
 //! The 2D convex cell: a counter-clockwise polygon whose edges remember their face.
 
-use super::convex_cell::{ConvexCell, Face};
+use super::convex_cell::{any_by_fours, ConvexCell, Face};
 use crate::geometry::{dot, norm2, sub, Aabb, HalfSpace};
 use crate::moments::{triangle_moments, FaceMoments, Moments};
 
@@ -78,7 +78,13 @@ impl ConvexCell<2> for PolygonCell {
     fn clip(&mut self, h: &HalfSpace<2>, face: Face) -> bool {
         let n = self.vertices.len();
         let dist = |v: [f64; 2]| dot(h.normal, v) - h.offset;
-        if n == 0 || self.vertices.iter().all(|&v| dist(v) <= 0.0) {
+        // Some vertex not inside (a NaN distance counts as outside).
+        if n == 0
+            || !any_by_fours(&self.vertices, |&v| {
+                let d = dist(v);
+                d > 0.0 || d.is_nan()
+            })
+        {
             return false;
         }
         let mut vertices = std::mem::take(&mut self.spare_vertices);
@@ -136,7 +142,8 @@ impl ConvexCell<2> for PolygonCell {
     }
 
     fn max_dist2(&self) -> f64 {
-        self.vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max)
+        // `f64::max` as a plain comparison (which passes over a NaN alike).
+        (self.vertices.iter()).fold(0.0, |m, &v| if norm2(v) > m { norm2(v) } else { m })
     }
 
     fn bounds(&self) -> Aabb<2> {

@@ -190,5 +190,7 @@ fn mat_vec<const D: usize>(m: &Matrix<D>, v: [f64; D]) -> [f64; D] {
     m.map(|row| dot(row, v))
 }
 
-/// Rows of a Hessian product per parallel task: a few microseconds of work each.
-const PRODUCT_ROWS: usize = 1024;
+/// Rows of a Hessian product per parallel task: some 5 (2D) to 25 (3D) microseconds of
+/// work each. With 1,024 the product of a 1,000-site problem was one task, and the CG
+/// iterations (10-13% of a Newton run) kept one of two threads idle.
+const PRODUCT_ROWS: usize = 256;

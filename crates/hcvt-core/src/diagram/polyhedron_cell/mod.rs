@@ -14,7 +14,7 @@ mod faces;
 #[cfg(test)]
 mod tests;
 
-use super::convex_cell::{ConvexCell, Face};
+use super::convex_cell::{any_by_fours, ConvexCell, Face};
 use super::scratch::with_scratch;
 use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
@@ -150,18 +150,9 @@ impl PolyhedronCell {
     /// One attempt of [`ConvexCell::clip`]: remove the vertices farther than `tol` beyond
     /// `h`. Returns `false`, changing nothing, when the removed region is not a disk.
     fn try_clip(&mut self, h: &HalfSpace<3>, face: Face, tol: f64) -> Option<bool> {
-        let dist = |v: &[f64; 3]| dot(h.normal, *v) - h.offset;
-        // Most clips of a Voronoi cell change nothing: decide that in one branch-free pass
-        // (a plain comparison, cheaper than `f64::max`; a NaN distance removes nothing).
-        let farthest = self.vertices.iter().fold(f64::NEG_INFINITY, |m, v| {
-            let d = dist(v);
-            if d > m {
-                d
-            } else {
-                m
-            }
-        });
-        if farthest <= tol {
+        // Most clips of a Voronoi cell change nothing: decide that in one pass that stops
+        // at the first vertex beyond (a NaN distance removes nothing).
+        if !any_by_fours(&self.vertices, |v| dot(h.normal, *v) - h.offset > tol) {
             return Some(false);
         }
         with_scratch(&SCRATCH, |scratch| self.cut(h, face, tol, scratch))
@@ -175,19 +166,25 @@ impl PolyhedronCell {
         tol: f64,
         scratch: &mut Scratch,
     ) -> Option<bool> {
-        scratch.dist.clear();
-        scratch.free.clear();
         scratch.tol = tol;
-        scratch.kept_dist2 = 0.0;
-        for (t, v) in self.vertices.iter().enumerate() {
-            let d = dot(h.normal, *v) - h.offset;
-            scratch.dist.push(d);
+        // The distances in one pass without branches, then which side each vertex is on.
+        scratch.dist.clear();
+        (scratch.dist).extend(self.vertices.iter().map(|v| dot(h.normal, *v) - h.offset));
+        scratch.free.clear();
+        let mut kept_dist2: f64 = 0.0;
+        for (t, (&d, v)) in scratch.dist.iter().zip(&self.vertices).enumerate() {
             if d > tol {
                 scratch.free.push(t);
-            } else {
-                scratch.kept_dist2 = scratch.kept_dist2.max(norm2(*v));
+                continue;
+            }
+            let n2 = norm2(*v);
+            if n2 > kept_dist2 {
+                // `f64::max` as a plain comparison (which passes over a NaN alike): one
+                // instruction on the loop's chain instead of five.
+                kept_dist2 = n2;
             }
         }
+        scratch.kept_dist2 = kept_dist2;
         if scratch.free.len() == self.triangles.len() {
             self.triangles.clear();
             self.neighbors.clear();
@@ -248,7 +245,12 @@ impl PolyhedronCell {
         let free = &scratch.free;
         let slot = |k: usize| free.get(k).copied().unwrap_or(first_new + k - free.len()) as u32;
         let (mut prev, mut here) = (slot(n - 1), slot(0));
+        let mut max_dist2 = scratch.kept_dist2;
         for (k, e) in scratch.cycle.iter().enumerate() {
+            let n2 = norm2(e.vertex);
+            if n2 > max_dist2 {
+                max_dist2 = n2;
+            }
             let tri = [e.a, e.b, p];
             let next = if k + 1 < n { slot(k + 1) } else { slot(0) };
             let row = [e.kept, next, prev];
@@ -284,15 +286,38 @@ impl PolyhedronCell {
                 }
             }
         }
-        self.max_dist2 =
-            (scratch.cycle.iter()).fold(scratch.kept_dist2, |m, e| m.max(norm2(e.vertex)));
+        self.max_dist2 = max_dist2;
     }
 }
 
 impl ConvexCell<3> for PolyhedronCell {
     fn from_box(b: &Aabb<3>) -> Self {
+        let mut cell = Self {
+            planes: Vec::with_capacity(32),
+            triangles: Vec::with_capacity(64),
+            neighbors: Vec::with_capacity(64),
+            vertices: Vec::with_capacity(64),
+            max_dist2: 0.0,
+        };
+        cell.reset_to_box(b);
+        cell
+    }
+
+    /// Every cell of a diagram starts as a box: refilled in place, its arrays keep the
+    /// room they grew to in earlier cells instead of being allocated anew.
+    fn reset_to_box(&mut self, b: &Aabb<3>) {
+        let Self {
+            planes,
+            triangles,
+            neighbors,
+            vertices,
+            max_dist2,
+        } = self;
+        planes.clear();
+        triangles.clear();
+        neighbors.clear();
+        vertices.clear();
         // Planes 2k and 2k+1 bound axis k below and above.
-        let mut planes = Vec::with_capacity(32);
         for k in 0..3 {
             let axis: [f64; 3] = std::array::from_fn(|j| if j == k { 1.0 } else { 0.0 });
             planes.push(Plane {
@@ -306,8 +331,6 @@ impl ConvexCell<3> for PolyhedronCell {
                 face: Face::Box,
             });
         }
-        let mut triangles = Vec::with_capacity(64);
-        let mut vertices = Vec::with_capacity(64);
         for corner in 0..8u16 {
             let bit = |k: u16| (corner >> k) & 1;
             let (x, y, z) = (bit(0), 2 + bit(1), 4 + bit(2));
@@ -322,7 +345,6 @@ impl ConvexCell<3> for PolyhedronCell {
         }
         // Edge k of corner c runs along the axis of neither of its planes, that of the
         // third plane `tri[k + 2]`: its other end is the corner across that axis.
-        let mut neighbors = Vec::with_capacity(64);
         neighbors.extend(
             triangles
                 .iter()
@@ -331,14 +353,7 @@ impl ConvexCell<3> for PolyhedronCell {
                     std::array::from_fn(|k| (c ^ (1 << (tri[(k + 2) % 3] / 2))) as u32)
                 }),
         );
-        let max_dist2 = vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
-        Self {
-            planes,
-            triangles,
-            neighbors,
-            vertices,
-            max_dist2,
-        }
+        *max_dist2 = vertices.iter().map(|&v| norm2(v)).fold(0.0, f64::max);
     }
 
     /// Remove the vertices strictly beyond `h`; a vertex exactly on it stays, so a plane
