@@ -19,7 +19,7 @@ from shapely.geometry import Polygon
 import hcvt
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry.surface_points import closest_points
-from hcvt.surface.quality import edge_topology, triangle_quality
+from hcvt.surface.quality import edge_topology, hausdorff_one_sided, triangle_quality
 from hcvt.surface.remesh import REMESH_TOL
 from helpers import DATA
 
@@ -283,7 +283,7 @@ def test_the_papers_rule_stops_too() -> None:
 @pytest.mark.parametrize(("name", "n"), [("kitten.obj", 2000), ("bunny.off", 1500)])
 def test_remeshing_keeps_the_count_and_the_topology(name: str, n: int) -> None:
     domain = surface(name)
-    out = hcvt.remesh(domain, n, seed=1, samples=20_000)
+    out = hcvt.remesh(domain, n, seed=1)
     assert out.vertices.shape == (n, 3)
     assert out.defects == []
     given = edge_topology(domain.faces, len(domain.vertices))
@@ -306,7 +306,7 @@ def test_remeshing_an_open_surface_names_its_border_defects() -> None:
     # no triangle (borders need a 1D restricted diagram of their own: not done). Both are
     # reported, naming the site; the rest is a manifold of the scan's genus.
     domain = surface(OPEN)
-    out = hcvt.remesh(domain, 1500, seed=1, samples=20_000)
+    out = hcvt.remesh(domain, 1500, seed=1)
     got = edge_topology(out.faces, 1500)
     assert got["manifold"] and not got["closed"] and got["genus"] == 0
     assert 1 <= got["border_loops"] <= 5
@@ -347,12 +347,39 @@ def test_topology_by_edge_counts() -> None:
     ball = trimesh.creation.icosphere(2)
     two = np.concatenate([ball.faces, ball.faces + len(ball.vertices)])
     vertices = np.concatenate([ball.vertices, ball.vertices + 3.0])
-    q = hcvt.surface_quality(vertices, two, reference=(ball.vertices, ball.faces), samples=2000)
+    q = hcvt.surface_quality(vertices, two, reference=(ball.vertices, ball.faces))
     assert q.components == 2 and q.genus == 0 and q.euler == 4
     # One copy lies on the reference, the other 3√3 away: the distance is one-sided.
     diagonal = np.linalg.norm(ball.vertices.max(axis=0) - ball.vertices.min(axis=0))
     assert q.hausdorff_from_reference == pytest.approx(0.0, abs=1e-12)
     assert q.hausdorff_to_reference > 100 * 2.0 / diagonal
+
+
+def test_hausdorff_distance_inside_a_triangle_to_its_tolerance(monkeypatch) -> None:
+    # From the unit square (z = 0, two triangles) to two walls, the planes x = 0 and
+    # x = 0.8: the distance min(x, 0.8 - x) is largest on the line x = 0.4, through no
+    # vertex or halving point of the square's triangles (sampling finds only less).
+    square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
+    walls = np.array([[[x, -10, -10], [x, 30, -10], [x, -10, 30]] for x in (0.0, 0.8)]).reshape(
+        -1, 3
+    )
+    reference = (square, np.array([[0, 1, 2], [0, 2, 3]]))
+    target = (walls, np.array([[0, 1, 2], [3, 4, 5]]))
+    for rtol in (1e-3, 1e-4):
+        distance, point, bound = hausdorff_one_sided(reference, target, rtol)
+        assert 0.4 / (1 + rtol) <= distance <= 0.4 <= bound == distance * (1 + rtol)
+        assert point[2] == 0.0 and min(point[0], 0.8 - point[0]) == pytest.approx(
+            distance, abs=1e-15
+        )
+    # Too tight for the budget of nearest points: the bound is what is left, still a bound.
+    monkeypatch.setattr("hcvt.surface.quality._HAUSDORFF_QUERIES", (16, 2000))
+    distance, _, bound = hausdorff_one_sided(reference, target, 1e-6)
+    assert distance <= 0.4 <= bound < 0.41 and bound > distance * (1 + 1e-6)
+    with pytest.raises(ValueError, match="rtol"):
+        hausdorff_one_sided(reference, reference, 0.0)
+    # A mesh on its reference: zero both ways (round-off).
+    q = hcvt.surface_quality(*reference, reference=reference)
+    assert q.hausdorff == pytest.approx(0.0, abs=1e-14)
 
 
 # ---------------------------------------------------------------------------- command line

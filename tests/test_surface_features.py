@@ -64,7 +64,7 @@ def test_the_box_remeshed_keeps_its_edges() -> None:
     domain = box_surface()
     n = 400
     plan = plan_feature_sites(domain, n, 40.0)
-    out = hcvt.remesh(domain, n, seed=2, features=40.0, samples=20_000)
+    out = hcvt.remesh(domain, n, seed=2, features=40.0)
     assert out.vertices.shape == (n, 3) and out.defects == []
     # Flat faces, straight edges: the remeshed box is the box (to round-off).
     assert out.quality.hausdorff is not None and out.quality.hausdorff < 1e-9
@@ -77,8 +77,8 @@ def test_features_bring_the_fandisk_closer() -> None:
     domain = fandisk()
     n = 1500
     # The features' own effect: without the tightening moves on either side.
-    plain = hcvt.remesh(domain, n, seed=1, samples=20_000, tighten=False)
-    sharp = hcvt.remesh(domain, n, seed=1, samples=20_000, features=40.0, tighten=False)
+    plain = hcvt.remesh(domain, n, seed=1, tighten=False)
+    sharp = hcvt.remesh(domain, n, seed=1, features=40.0, tighten=False)
     assert sharp.vertices.shape == (n, 3) and sharp.defects == []
     topology = edge_topology(sharp.faces, n)
     assert topology["manifold"] and topology["closed"] and topology["genus"] == 0

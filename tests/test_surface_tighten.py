@@ -1,8 +1,8 @@
 """The Hausdorff step of remeshing (issue 33): ``hcvt.remesh(tighten=True)``.
 
 Checked another way: on the kitten, the Hausdorff distance measured by
-:func:`hcvt.surface_quality` (its own samples) before and after the moves, the least angle
-and Q before and after, the vertices on the input (the core's nearest points), no triangle
+:func:`hcvt.surface_quality` (to 0.1%, not sampled) before and after the moves, the least
+angle and Q before and after, the vertices on the input (the core's nearest points), no triangle
 turned over.
 """
 
@@ -27,17 +27,17 @@ needs_data = pytest.mark.skipif(not DATA_3D.is_dir(), reason="../shared/data/3d 
 @cache
 def kitten_remeshed() -> tuple[hcvt.Domain, hcvt.RemeshResult]:
     domain = hcvt.load_domain(DATA_3D / "kitten.obj", surface=True)
-    return domain, hcvt.remesh(domain, 1000, seed=0, samples=20_000, tighten=False)
+    return domain, hcvt.remesh(domain, 1000, seed=0, tighten=False)
 
 
 @needs_data
 def test_tighten_lowers_the_hausdorff_distance_of_the_kitten() -> None:
     domain, out = kitten_remeshed()
     reference = (domain.vertices, domain.faces)
-    before = hcvt.surface_quality(out.vertices, out.faces, reference, samples=50_000, seed=7)
+    before = hcvt.surface_quality(out.vertices, out.faces, reference)
     for min_angle in (None, 30.0):
-        moved = tighten(out.vertices, out.faces, domain, samples=20_000, min_angle=min_angle)
-        after = hcvt.surface_quality(moved.vertices, out.faces, reference, samples=50_000, seed=7)
+        moved = tighten(out.vertices, out.faces, domain, min_angle=min_angle)
+        after = hcvt.surface_quality(moved.vertices, out.faces, reference)
         assert moved.moves > 0 and moved.after < moved.before
         # Measured so: 0.949% -> 0.750% (14 moves), 0.666% with 30° (52 moves).
         assert after.hausdorff < 0.9 * before.hausdorff
@@ -62,7 +62,7 @@ def test_tighten_lowers_the_hausdorff_distance_of_the_kitten() -> None:
 @needs_data
 def test_remesh_tightens_by_default_and_keeps_its_quality() -> None:
     domain, plain = kitten_remeshed()
-    out = hcvt.remesh(domain, 1000, seed=0, samples=20_000)
+    out = hcvt.remesh(domain, 1000, seed=0)
     np.testing.assert_array_equal(out.faces, plain.faces)  # the connectivity is the CVT's
     assert out.moves > 0 and out.defects == []
     assert out.quality.hausdorff < plain.quality.hausdorff

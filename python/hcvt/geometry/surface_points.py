@@ -2,9 +2,9 @@
 
 Used by :func:`hcvt.initialise` on a surface (exactly ``n`` sites, random by area), by
 :func:`hcvt.cvt` on a surface (its sites move freely in space and are projected onto the
-surface at the end, as in Yan et al. 2009) and by :func:`hcvt.surface_quality` (sampled
-Hausdorff distances). The nearest points come from the core's BVH
-(``_core.closest_points``).
+surface at the end, as in Yan et al. 2009) and by :func:`hcvt.surface_quality` (Hausdorff
+distances, bounded by the distances to single triangles). The nearest points come from the
+core's BVH (``_core.closest_points``).
 """
 
 from __future__ import annotations
@@ -55,6 +55,38 @@ def sample_by_area(
     return np.ascontiguousarray(points), which
 
 
+def point_triangle_distances(
+    points: NDArray[np.float64],
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    c: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Distance (m,) of each of ``points`` (m, 3) to its triangle ``(a, b, c)`` (m, 3 each).
+
+    The distance to the triangle's plane where the foot lies inside it, else the least
+    distance to its three edges (a degenerate triangle: its edges).
+    """
+    ab, ac, ap = b - a, c - a, points - a
+    normal = cross_rows(ab, ac)
+    nn = np.einsum("ij,ij->i", normal, normal)
+    flat = nn > 0.0
+    safe = np.where(flat, nn, 1.0)
+    # The foot a + s·ab + t·ac: s, t from the triple products.
+    s = np.einsum("ij,ij->i", cross_rows(ap, ac), normal) / safe
+    t = np.einsum("ij,ij->i", cross_rows(ab, ap), normal) / safe
+    inside = flat & (s >= 0.0) & (t >= 0.0) & (s + t <= 1.0)
+    plane = np.abs(np.einsum("ij,ij->i", ap, normal)) / np.sqrt(safe)
+
+    def to_edge(u: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:
+        d = w - u
+        dd = np.einsum("ij,ij->i", d, d)
+        h = np.clip(np.einsum("ij,ij->i", points - u, d) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+        return np.linalg.norm(points - u - h[:, None] * d, axis=1)
+
+    edges = np.minimum(np.minimum(to_edge(a, b), to_edge(b, c)), to_edge(c, a))
+    return np.where(inside, plane, edges)
+
+
 def closest_points(
     vertices: ArrayLike, faces: ArrayLike, points: ArrayLike
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
@@ -79,4 +111,10 @@ def closest_points(
     return np.asarray(nearest), np.asarray(triangle)
 
 
-__all__ = ["closest_points", "cross_rows", "sample_by_area", "triangle_areas"]
+__all__ = [
+    "closest_points",
+    "cross_rows",
+    "point_triangle_distances",
+    "sample_by_area",
+    "triangle_areas",
+]

@@ -176,7 +176,6 @@ def remesh(
     tol: float | None = REMESH_TOL,
     max_iter: int = 200,
     check: bool = False,
-    samples: int = 200_000,
     features: float | None = None,
     tighten: bool = True,
     min_angle: float | None = None,
@@ -191,7 +190,7 @@ def remesh(
     n : int
         The number of vertices, exactly.
     seed : int
-        Seeds the initial sites (random by area) and the quality's samples.
+        Seeds the initial sites (random by area) and ``tighten``'s samples of the input.
     method : {"lbfgs", "lloyd"}
         The CVT's optimiser (:func:`hcvt.cvt`).
     tol : float or None
@@ -204,8 +203,6 @@ def remesh(
     check : bool
         Raise :class:`RemeshError` naming the cells where the triangulation is not a
         manifold mesh of the surface, instead of listing them in ``defects``.
-    samples : int
-        Points per mesh for the sampled Hausdorff distance of ``quality``.
     features : float or None
         Keep the sharp features: edges whose triangles' normals differ by more than this
         many degrees (in (0, 180)), and the border of an open surface, chained into curves.
@@ -308,7 +305,7 @@ def remesh(
     seconds = time.perf_counter() - start
     if check and defects:
         raise RemeshError("restricted Delaunay triangulation: " + "; ".join(defects))
-    quality = surface_quality(vertices, faces, reference, samples=samples, seed=seed)
+    quality = surface_quality(vertices, faces, reference)
     return RemeshResult(vertices, faces, quality, run, defects, seconds, iterations, moves)
 
 
