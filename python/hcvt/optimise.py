@@ -132,7 +132,10 @@ class CVTResult(Shows):
     converged : bool
         Whether the rule's value (``rms_gap`` or ``grad_norm``) fell below ``tol``.
     stop_reason : str
-        ``"converged"``, ``"max_iter"`` or ``"interrupted"`` (the callback asked).
+        ``"converged"``, ``"max_iter"``, ``"interrupted"`` (the callback asked) or
+        ``"stalled"``: no site moved by more than round-off (1e-12 of the mean spacing)
+        and the energy did not change beyond it for 3 iterations, and again for 3 after
+        a restart (L-BFGS's memory forgotten: its next direction is the Lloyd step).
     iterations : int
         Steps taken.
     evaluations : int

@@ -17,7 +17,10 @@
 //! **Stopping rules** ([`stopping`], DESIGN §7). By default a run stops when the RMS over
 //! the sites of the scale-free gap `|x_i − c_i| / V_i^{1/d}` is below the tolerance; the
 //! paper's `‖g‖/‖X‖ < 1e-10` in the input coordinates is selectable by name
-//! ([`Rule::Paper`]). Every record holds both, and the largest gap.
+//! ([`Rule::Paper`]). Every record holds both, and the largest gap. A run that no longer
+//! moves (no site by more than round-off, the energy unchanged within it) for a few
+//! iterations restarts its memory once, then stops as [`StopReason::Stalled`]
+//! ([`stopping::Stall`]) rather than running to `max_iter`.
 //!
 //! **Round-off.** Near a minimum, energy differences between line-search trials sink into
 //! round-off once the gap is about `√eps`. The line search then also accepts a step whose
@@ -63,6 +66,7 @@ use hessian::{Hessian, HessianTerms};
 use lbfgs::{LineSearch, Memory};
 use newton::TrustRegion;
 pub use stopping::{Frame, Measures, Rule};
+use stopping::{Stall, Stalled};
 pub use transport::{
     optimal_transport, optimal_transport_from, Transport, TransportRecord, TransportSettings,
 };
@@ -235,15 +239,19 @@ pub enum StopReason {
     MaxIter,
     /// The observer asked to stop.
     Interrupted,
+    /// The sites no longer moved and the energy no longer changed beyond round-off, before
+    /// and after a restart ([`stopping::Stall`]).
+    Stalled,
 }
 
 impl StopReason {
-    /// `"converged"`, `"max_iter"` or `"interrupted"`.
+    /// `"converged"`, `"max_iter"`, `"interrupted"` or `"stalled"`.
     pub fn as_str(self) -> &'static str {
         match self {
             Self::Converged => "converged",
             Self::MaxIter => "max_iter",
             Self::Interrupted => "interrupted",
+            Self::Stalled => "stalled",
         }
     }
 }
@@ -764,6 +772,8 @@ where
         search: LineSearch::new(settings.max_line_evaluations),
     };
     let (mut record, mut pinned) = tracker.record(domain, &point, Step::Start);
+    let mut stall = Stall::default();
+    let mut stalled = Stalled::No;
     let stop = loop {
         if observer(&record, &point.sites).is_break() {
             break StopReason::Interrupted;
@@ -773,6 +783,11 @@ where
         }
         if tracker.history.len() > settings.max_iter {
             break StopReason::MaxIter;
+        }
+        match stalled {
+            Stalled::No => {}
+            Stalled::Restart => solver.memory.clear(),
+            Stalled::Stop => break StopReason::Stalled,
         }
         let h = tracker.h;
         let (next, step) = match lloyd::reseed_empty(domain, &point, h) {
@@ -789,6 +804,15 @@ where
                 &mut tracker,
             )?,
         };
+        let idle = Stall::idle(
+            &point.sites,
+            &next.sites,
+            point.energy,
+            next.energy,
+            tracker.h,
+            ENERGY_NOISE,
+        );
+        stalled = stall.after(idle);
         point = next;
         (record, pinned) = tracker.record(domain, &point, step);
     };

@@ -9,7 +9,7 @@ use hcvt_core::lloyd::reseed_empty;
 use hcvt_core::{
     clipped_diagram, cvt, evaluate, Boundary, CoreError, DomainKind, Euclid, Measures, Method,
     Options, Outcome, Point, PointRequest, Polygon, PolygonCell, PolyhedronCell, Request, Rule,
-    Settings, Solid, Space, Step, StopReason,
+    Settings, Solid, Space, Step, StopReason, Surface,
 };
 
 /// An L-shaped polygon with a square hole: non-convex, and with a hole.
@@ -271,6 +271,37 @@ fn empty_cells_are_reseeded_deterministically_inside() {
     let out = run::<2, PolygonCell>(&l, reseeded, &settings(Method::Lbfgs, 1e-6, 500));
     assert_eq!(out.stop_reason, StopReason::Converged);
     assert!(fresh_measures::<2, PolygonCell>(&l, &out).rms_gap < 1e-6);
+}
+
+#[test]
+fn a_run_that_no_longer_moves_stops_as_stalled() {
+    // The unit square in the plane x = 0 as a surface, 30 sites on it and one 3 off it:
+    // its cell is empty, and reseeding puts it a quarter spacing along +x from the
+    // largest cell's site, off the plane again, where it is as empty. Every iteration
+    // then reseeds to the same sites: without a stall stop the run went to max_iter.
+    let square = Surface::new(
+        vec![[0., 0., 0.], [0., 1., 0.], [0., 1., 1.], [0., 0., 1.]],
+        vec![[0, 1, 2], [0, 2, 3]],
+    )
+    .unwrap();
+    let mut sites: Vec<[f64; 3]> = interior_sites(&l_shape(), 30, 8)
+        .iter()
+        .map(|p| [0.0, p[0] / 4.0, p[1] / 4.0])
+        .collect();
+    sites.push([3.0, 0.5, 0.5]);
+    let out = cvt::<3, PolyhedronCell, _>(
+        &square,
+        sites,
+        &settings(Method::Lbfgs, 1e-9, 50),
+        &mut |_, _| ControlFlow::Continue(()),
+    )
+    .unwrap();
+    assert_eq!(out.stop_reason, StopReason::Stalled);
+    // The first reseed moves the site; then three idle iterations, a restart, three more.
+    assert_eq!(out.iterations(), 7);
+    assert!(out.history[1..].iter().all(|r| r.step == Step::Reseed));
+    let energy = out.history[0].energy;
+    assert!(out.history.iter().all(|r| r.energy == energy));
 }
 
 /// Newton from `sites` reaches the paper's rule with fewer diagrams than L-BFGS (both
