@@ -829,7 +829,7 @@ where
 fn empties<const D: usize>(before: &Point<D>, after: &Point<D>) -> bool {
     (before.diagram.moments.iter())
         .zip(&after.diagram.moments)
-        .any(|(b, a)| b.mass > 0.0 && !(a.mass > 0.0))
+        .any(|(b, a)| b.mass > 0.0 && (a.mass.is_nan() || a.mass <= 0.0))
 }
 
 /// The method and what it keeps from step to step.
