@@ -18,6 +18,7 @@ import hcvt
 from hcvt.surface.features import (
     FeatureSites,
     detect_features,
+    long_curves,
     move_intruders,
     plan_feature_sites,
     restore_segments,
@@ -56,6 +57,11 @@ def test_a_box_has_twelve_edges_between_eight_corners() -> None:
     )
     assert lengths == [1.0] * 8 + [2.0] * 4
     assert len(features.edges) == 48  # four mesh edges per box edge, no face diagonal
+    # Curves shorter than 1.5 dropped: the four long edges and their eight corners stay.
+    long = long_curves(features, domain.vertices, 1.5)
+    assert len(long.curves) == 4 and len(long.edges) == 16
+    assert np.array_equal(long.corners, features.corners)
+    assert len(long_curves(features, domain.vertices, 2.5).corners) == 0
     # Edges of 90°: none above 95°.
     assert len(detect_features(domain.vertices, domain.faces, 95.0).edges) == 0
 
