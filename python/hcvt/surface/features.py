@@ -12,6 +12,8 @@ diagram of their own"):
    sites at equal arc lengths (the 1D CVT of a curve of constant density, ends fixed), at
    most ``FEATURE_SPACING`` times the surface's site spacing ``h = sqrt(2A / (√3 n))`` apart
    (the edge of an equilateral triangle of area ``A / (2n)``, ``A`` the total area).
+   Curves shorter than ``SHORTEST_CURVE`` times ``h`` are dropped first, with the corners
+   they alone end at (:func:`long_curves`: a scanned mesh's short creases).
 3. **The constrained CVT** (:func:`constrained_cvt`). The feature sites are held fixed;
    the others move freely in space (Yan et al. 2009) to minimise the same energy
    ``F = Σ ∫_{Ω_i} |x - z_i|² dA`` of the whole diagram, by the core's L-BFGS with those

@@ -206,6 +206,8 @@ def remesh(
     features : float or None
         Keep the sharp features: edges whose triangles' normals differ by more than this
         many degrees (in (0, 180)), and the border of an open surface, chained into curves.
+        Curves shorter than one site spacing are dropped (a scanned mesh's short creases;
+        a border loop that short too, so a hole that small is not kept).
         Their corners and sites about 0.7 spacings apart along them are held fixed through
         the CVT, so the triangulation runs along them (:mod:`hcvt.surface.features`; a
         segment of a curve missing from the triangles is a defect: where free sites that
