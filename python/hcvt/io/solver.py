@@ -22,6 +22,16 @@ never changed):
    non-orthogonal correction still changes);
 4. the last step's ``T`` is compared with the exact field at the cell centres.
 
+A box periodic along every axis has no walls to hold a linear field (it would not be
+periodic): there the check is transient instead, a decaying Fourier mode. ``T`` starts as
+``sin(2π b·x)`` with ``b = Σ_a e_a / L_a`` over the periods ``L_a`` (the largest
+component of the cyclic patches' ``separationVector`` along each axis: the axis-aligned
+boxes :class:`hcvt.Domain` writes), which is periodic; backward Euler with the diffusivity
+chosen so that ``λ Δt = 1/4`` (``λ = 4π²|b|²``) multiplies the exact mode by
+``1/(1 + λ Δt)`` per step, so after ``steps`` steps ``T`` must be ``1.25^-steps`` times the
+initial mode at the cell centres, to the mesh's discretisation error; the non-orthogonal
+correctors must converge within each step as in the steady check.
+
 The case's verdict is :class:`LaplaceCheck`: the last solve's initial residual (OpenFOAM's
 normalised residual), converged when it is below ``tol`` (1e-10), and the RMS and largest
 error of ``T``.
@@ -73,8 +83,11 @@ class LaplaceCheck:
     """Largest ``|T - T_exact|`` over the cells (inf if not finite)."""
     cells: int
     """Cells of the mesh."""
+    field: str = "linear"
+    """``"linear"`` (the steady linear field), or ``"decaying mode"`` in a box periodic
+    along every axis (module docs)."""
 
-    def summary(self) -> dict[str, float | int | bool]:
+    def summary(self) -> dict[str, float | int | bool | str]:
         """The figures as plain numbers, for JSON."""
         return {
             "converged": self.converged,
@@ -83,6 +96,7 @@ class LaplaceCheck:
             "rms_error": self.rms_error,
             "max_error": self.max_error,
             "cells": self.cells,
+            "field": self.field,
         }
 
 
@@ -157,10 +171,6 @@ def _run(
         else:
             shutil.rmtree(link)
     link.symlink_to((case / "constant" / "polyMesh").resolve(), target_is_directory=True)
-    (constant / "transportProperties").write_text(
-        foam_header("dictionary", "transportProperties", location="constant")
-        + "DT              DT [0 2 -1 0 0 0 0] 1;\n"
-    )
     system = root / "system"
     system.mkdir(exist_ok=True)
     for stale in root.iterdir():  # time directories of an earlier run in workdir
@@ -170,10 +180,7 @@ def _run(
         foam_header("dictionary", "controlDict", location="system")
         + _CONTROL_DICT.format(end=steps)
     )
-    (system / "fvSchemes").write_text(
-        foam_header("dictionary", "fvSchemes", location="system")
-        + _FV_SCHEMES.format(sn_grad=sn_grad)
-    )
+    _write_schemes(root, sn_grad, transient=False)  # postProcess reads them
     (system / "fvSolution").write_text(
         foam_header("dictionary", "fvSolution", location="system")
         + _FV_SOLUTION.format(correctors=correctors)
@@ -197,6 +204,9 @@ def _run(
         _, sigma, basis = np.linalg.svd(shifts)
         span = basis[: int(np.sum(sigma > 1e-12 * sigma[0]))]
         direction -= span.T @ (span @ direction)
+    if not face_centre:  # periodic along every axis: no wall to hold a linear field
+        return _decaying_mode(root, patches, shifts, cell_centre, steps, sn_grad, tol)
+    _write_diffusivity(root, 1.0)
     along = {name: c @ direction for name, c in face_centre.items()}
     values = np.concatenate([*along.values(), cell_centre @ direction])
     lo, hi = float(values.min()), float(values.max())
@@ -205,14 +215,61 @@ def _run(
         return 2.0 * (projection - lo) / (hi - lo) - 1.0
 
     _write_t(root / "0" / "T", patches, {name: exact(a) for name, a in along.items()})
+    residuals, t = _solve(root, steps, len(cell_centre))
+    return _verdict(residuals, t - exact(cell_centre @ direction), tol, "linear")
+
+
+def _decaying_mode(
+    root: Path,
+    patches: dict[str, str],
+    shifts: NDArray[np.float64],
+    cell_centre: NDArray[np.float64],
+    steps: int,
+    sn_grad: str,
+    tol: float,
+) -> LaplaceCheck:
+    """The transient check of a box periodic along every axis (module docs)."""
+    periods = np.abs(shifts).max(axis=0)
+    b = np.divide(1.0, periods, out=np.zeros(3), where=periods > 0)
+    rate = 4.0 * np.pi**2 * float(b @ b)  # λ of the mode for a diffusivity of 1
+    _write_schemes(root, sn_grad, transient=True)
+    _write_diffusivity(root, 0.25 / rate)
+    mode = np.sin(2.0 * np.pi * (cell_centre @ b))
+    _write_t(root / "0" / "T", patches, {}, internal=mode)
+    residuals, t = _solve(root, steps, len(cell_centre))
+    return _verdict(residuals, t - mode * 1.25**-steps, tol, "decaying mode")
+
+
+def _write_schemes(root: Path, sn_grad: str, *, transient: bool) -> None:
+    """The case's ``system/fvSchemes``: backward Euler in time, or steady."""
+    (root / "system" / "fvSchemes").write_text(
+        foam_header("dictionary", "fvSchemes", location="system")
+        + _FV_SCHEMES.format(sn_grad=sn_grad, ddt="Euler" if transient else "steadyState")
+    )
+
+
+def _write_diffusivity(root: Path, diffusivity: float) -> None:
+    """The case's ``constant/transportProperties``: ``DT`` in m²/s."""
+    (root / "constant" / "transportProperties").write_text(
+        foam_header("dictionary", "transportProperties", location="constant")
+        + f"DT              DT [0 2 -1 0 0 0 0] {diffusivity!r};\n"
+    )
+
+
+def _solve(root: Path, steps: int, cells: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Run laplacianFoam: every solve's initial residual, and ``T`` after ``steps`` steps."""
     log = _foam(["laplacianFoam"], root)
     residuals = np.array(
         [float(r) for r in re.findall(rf"Solving for T, Initial residual = ({_NUMBER})", log)]
     )
     if len(residuals) == 0:
         raise OpenFOAMError(f"laplacianFoam solved nothing in {root}:\n{log[-2000:]}")
-    t = _scalars(_internal((root / str(steps) / "T").read_text()), len(cell_centre))
-    error = t - exact(cell_centre @ direction)
+    return residuals, _scalars(_internal((root / str(steps) / "T").read_text()), cells)
+
+
+def _verdict(
+    residuals: NDArray[np.float64], error: NDArray[np.float64], tol: float, field: str
+) -> LaplaceCheck:
     finite = bool(np.isfinite(error).all())
     residual = float(residuals[-1])
     return LaplaceCheck(
@@ -221,7 +278,8 @@ def _run(
         residuals=residuals,
         rms_error=float(np.sqrt(np.mean(error**2))) if finite else float("inf"),
         max_error=float(np.abs(error).max()) if finite else float("inf"),
-        cells=len(cell_centre),
+        cells=len(error),
+        field=field,
     )
 
 
@@ -287,25 +345,38 @@ def _scalars(entry: str, n: int) -> NDArray[np.float64]:
 
 
 # ----------------------------------------------------------------------------- files
-def _write_t(path: Path, patches: dict[str, str], values: dict[str, NDArray[np.float64]]) -> None:
+def _write_t(
+    path: Path,
+    patches: dict[str, str],
+    values: dict[str, NDArray[np.float64]],
+    internal: NDArray[np.float64] | None = None,
+) -> None:
+    """``0/T``: fixed ``values`` on the wall patches, ``internal`` in the cells (else 0)."""
     entries = []
     for name, kind in patches.items():
         if kind in ("empty", "cyclic"):
             entries.append(f"    {name}\n    {{\n        type            {kind};\n    }}\n")
             continue
-        v = values[name]
-        words = "\n".join(v.astype(str).tolist())
         entries.append(
             f"    {name}\n    {{\n        type            fixedValue;\n"
-            f"        value           nonuniform List<scalar>\n{len(v)}\n(\n{words}\n)\n;\n    }}\n"
+            f"        value           {_field_entry(values[name])};\n    }}\n"
         )
     path.write_text(
         foam_header("volScalarField", "T", location="0")
-        + "dimensions      [0 0 0 0 0 0 0];\n\ninternalField   uniform 0;\n\n"
+        + "dimensions      [0 0 0 0 0 0 0];\n\ninternalField   "
+        + _field_entry(internal)
+        + ";\n\n"
         + "boundaryField\n{\n"
         + "".join(entries)
         + "}\n"
     )
+
+
+def _field_entry(values: NDArray[np.float64] | None) -> str:
+    if values is None:
+        return "uniform 0"
+    words = "\n".join(np.asarray(values, dtype=np.float64).astype(str).tolist())
+    return f"nonuniform List<scalar>\n{len(values)}\n(\n{words}\n)\n"
 
 
 _CONTROL_DICT = """application     laplacianFoam;
@@ -325,7 +396,7 @@ timePrecision   6;
 runTimeModifiable false;
 """
 
-_FV_SCHEMES = """ddtSchemes {{ default steadyState; }}
+_FV_SCHEMES = """ddtSchemes {{ default {ddt}; }}
 gradSchemes {{ default Gauss linear; }}
 divSchemes {{ default none; }}
 laplacianSchemes {{ default Gauss linear {sn_grad}; }}
