@@ -11,8 +11,11 @@ it and as a power diagram of the returned weights computes it again), the RMS ga
 spread of the grain volumes.
 
 The grains are then written as an OpenFOAM case with cyclic patch pairs (``--case``;
-``Diagram.mesh()`` of the periodic power diagram) and ``checkMesh`` runs on it when it is on
-PATH.
+``Diagram.mesh()`` of the periodic power diagram), and ``checkMesh`` and ``laplacianFoam``
+(``hcvt.export.laplace_check``: a Fourier mode decaying on the torus) run on it when they are
+on PATH. 100,000 grains (2026-12-04, ``--n 100000 --methods newton``, resumed once with
+``--resume``): 403 outer iterations in all, largest volume error 7.9e-11, RMS gap 9.5e-9,
+checkMesh "Mesh OK", laplacianFoam last residual 9.9e-16, RMS error 8.3e-4.
 
 The machine is shared with other jobs: timings are "under load" unless it is idle.
 Measured 2026-12-03 under heavy load (load average 15-20 on 2 cores, 2 threads): 300
@@ -71,7 +74,7 @@ from typing import Any
 import numpy as np
 
 import hcvt
-from hcvt.export import write_openfoam
+from hcvt.export import laplace_check, write_openfoam
 from hcvt.optimise import CAPACITY_METHOD
 
 
@@ -189,6 +192,11 @@ def write_case(out: hcvt.CVTResult, case: Path) -> None:
     verdict = "Mesh OK" if "Mesh OK." in log else "FAILED"
     failures = [line.strip() for line in log.splitlines() if "***" in line]
     print(f"checkMesh: {verdict}" + "".join(f"\n  {f}" for f in failures))
+    solved = laplace_check(case)  # a box periodic along every axis: a decaying mode
+    print(
+        f"laplacianFoam ({solved.field}): converged {solved.converged}, last residual "
+        f"{solved.residual:.2e}, RMS error {solved.rms_error:.2e}, max {solved.max_error:.2e}"
+    )
 
 
 def main() -> None:
