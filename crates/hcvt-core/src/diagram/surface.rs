@@ -208,7 +208,10 @@ impl Surface {
     ///
     /// `triangles` says where the triangles come from ([`Triangles`]): a walk of the
     /// BVH, or those an earlier walk for the same site and a larger cell met (in the
-    /// walk's order).
+    /// walk's order). The pieces of a recording walk, or of the recorded triangles, are
+    /// kept with the planes they were clipped by: a later call for the same site whose
+    /// cell has the same planes (bit for bit; the measure after a validation that cut
+    /// nothing) replays them instead of clipping again.
     fn for_each_piece<C: ConvexCell<3>>(
         &self,
         cell: &C,
@@ -229,38 +232,35 @@ impl Surface {
         let key = site.map(f64::to_bits);
         with_scratch(&BUFFERS, |buffers| {
             let Buffers {
-                polygon,
-                spare,
-                sides,
+                clip,
                 planes,
                 met,
                 met_by,
+                kept,
             } = buffers;
             planes.clear();
             cell.for_each_plane(|face, h| planes.push((face, *h)));
-            let mut piece = |t: u32| {
-                let rel = self.corners(t).map(|v| sub(v, site));
-                let outside = |(_, h): &(Face, HalfSpace<3>)| {
-                    rel.iter().all(|&v| dot(h.normal, v) > h.offset)
-                };
-                if planes.iter().any(outside) {
-                    return false;
-                }
-                clip_triangle(planes, rel, polygon, spare, sides);
-                if polygon.len() < 3 {
-                    return false;
-                }
-                f(t, polygon);
-                true
-            };
-            if matches!(triangles, Triangles::Met | Triangles::LastMet) && *met_by == Some(key) {
-                for &t in met.iter() {
-                    piece(t);
+            let mine = *met_by == Some(key);
+            if matches!(triangles, Triangles::Met | Triangles::LastMet) && mine {
+                if kept.planes == *planes {
+                    for (k, &(t, end)) in kept.pieces.iter().enumerate() {
+                        let start = if k == 0 { 0 } else { kept.pieces[k - 1].1 };
+                        f(t, &kept.nodes[start as usize..end as usize]);
+                    }
+                } else {
+                    kept.restart(planes);
+                    for &t in met.iter() {
+                        if let Some(polygon) = clip.triangle(planes, self.relative(t, site)) {
+                            kept.push(t, polygon);
+                            f(t, polygon);
+                        }
+                    }
                 }
             } else {
                 let record = triangles == Triangles::Record;
                 if record {
                     met.clear();
+                    kept.restart(planes);
                 }
                 let bvh = self.set.bvh();
                 bvh.walk(|node, is_leaf| {
@@ -272,8 +272,12 @@ impl Surface {
                         return true;
                     }
                     for &t in bvh.node_items(node) {
-                        if piece(t) && record {
-                            met.push(t);
+                        if let Some(polygon) = clip.triangle(planes, self.relative(t, site)) {
+                            if record {
+                                met.push(t);
+                                kept.push(t, polygon);
+                            }
+                            f(t, polygon);
                         }
                     }
                     false
@@ -285,6 +289,11 @@ impl Surface {
                 Triangles::Walk | Triangles::Met => {}
             }
         });
+    }
+
+    /// Triangle `t`'s corners relative to `site`.
+    fn relative(&self, t: u32, site: [f64; 3]) -> [[f64; 3]; 3] {
+        self.corners(t).map(|v| sub(v, site))
     }
 }
 
@@ -333,58 +342,112 @@ struct Node {
     out: Edge,
 }
 
-/// The triangle `rel` (relative to the site) clipped by every plane of a cell, into
-/// `polygon` (empty when nothing is left).
-fn clip_triangle(
-    planes: &[(Face, HalfSpace<3>)],
-    rel: [[f64; 3]; 3],
-    polygon: &mut Vec<Node>,
-    spare: &mut Vec<Node>,
-    sides: &mut Vec<(f64, bool)>,
-) {
-    polygon.clear();
-    polygon.extend((0..3).map(|k| Node {
-        x: rel[k],
-        out: Edge::Triangle(k as u8),
-    }));
-    for &(face, ref h) in planes {
-        if polygon.len() < 3 {
-            return;
-        }
-        sides.clear();
-        sides.extend(
-            polygon
-                .iter()
-                .map(|n| (dot(h.normal, n.x) - h.offset, false)),
-        );
-        if sides.iter().all(|&(d, _)| d <= 0.0) {
-            continue;
-        }
-        clip_polygon(polygon, sides, spare, |u, w, (su, _), (sw, _)| {
-            let r = su / (su - sw);
-            Node {
-                x: std::array::from_fn(|c| u.x[c] + r * (w.x[c] - u.x[c])),
-                out: if su <= 0.0 { Edge::Plane(face) } else { u.out },
+/// Buffers of [`Clipper::triangle`].
+#[derive(Debug, Default)]
+struct Clipper {
+    polygon: Vec<Node>,
+    spare: Vec<Node>,
+    sides: Vec<(f64, bool)>,
+    /// The planes cutting the triangle (by index) and its corners' sides of each.
+    cutting: Vec<(usize, [f64; 3])>,
+}
+
+impl Clipper {
+    /// The triangle `rel` (relative to the site) clipped by every plane of a cell, or
+    /// `None` when nothing is left. One pass over the planes finds the corners' sides of
+    /// each: a plane with every corner outside leaves nothing, one with every corner
+    /// inside leaves the triangle (and every piece of it, convex) whole; only the planes
+    /// between cut, in their order.
+    fn triangle(&mut self, planes: &[(Face, HalfSpace<3>)], rel: [[f64; 3]; 3]) -> Option<&[Node]> {
+        let Self {
+            polygon,
+            spare,
+            sides,
+            cutting,
+        } = self;
+        cutting.clear();
+        for (p, (_, h)) in planes.iter().enumerate() {
+            let d = rel.map(|v| dot(h.normal, v) - h.offset);
+            let out = d.iter().filter(|&&x| x > 0.0).count();
+            if out == 3 {
+                return None;
             }
-        });
-        std::mem::swap(polygon, spare);
-        if polygon.len() < 3 {
-            polygon.clear();
+            if out > 0 {
+                cutting.push((p, d));
+            }
         }
+        polygon.clear();
+        polygon.extend((0..3).map(|k| Node {
+            x: rel[k],
+            out: Edge::Triangle(k as u8),
+        }));
+        for (at, &(p, corners)) in cutting.iter().enumerate() {
+            let (face, ref h) = planes[p];
+            sides.clear();
+            if at == 0 {
+                sides.extend(corners.iter().map(|&d| (d, false)));
+            } else {
+                sides.extend(
+                    polygon
+                        .iter()
+                        .map(|n| (dot(h.normal, n.x) - h.offset, false)),
+                );
+                if sides.iter().all(|&(d, _)| d <= 0.0) {
+                    continue;
+                }
+            }
+            clip_polygon(polygon, sides, spare, |u, w, (su, _), (sw, _)| {
+                let r = su / (su - sw);
+                Node {
+                    x: std::array::from_fn(|c| u.x[c] + r * (w.x[c] - u.x[c])),
+                    out: if su <= 0.0 { Edge::Plane(face) } else { u.out },
+                }
+            });
+            std::mem::swap(polygon, spare);
+            if polygon.len() < 3 {
+                return None;
+            }
+        }
+        Some(polygon)
+    }
+}
+
+/// The pieces one cell's planes clipped ([`Surface::for_each_piece`]), for replay.
+#[derive(Debug, Default)]
+struct Kept {
+    /// The planes they were clipped by.
+    planes: Vec<(Face, HalfSpace<3>)>,
+    /// Each piece's triangle and the end of its nodes in `nodes`.
+    pieces: Vec<(u32, u32)>,
+    nodes: Vec<Node>,
+}
+
+impl Kept {
+    /// Forget the pieces: those of `planes` follow.
+    fn restart(&mut self, planes: &[(Face, HalfSpace<3>)]) {
+        self.planes.clear();
+        self.planes.extend_from_slice(planes);
+        self.pieces.clear();
+        self.nodes.clear();
+    }
+
+    fn push(&mut self, t: u32, polygon: &[Node]) {
+        self.nodes.extend_from_slice(polygon);
+        self.pieces.push((t, self.nodes.len() as u32));
     }
 }
 
 /// One thread's buffers, reused from cell to cell.
 #[derive(Debug, Default)]
 struct Buffers {
-    polygon: Vec<Node>,
-    spare: Vec<Node>,
-    sides: Vec<(f64, bool)>,
+    clip: Clipper,
     /// The cell's planes, relative to its site.
     planes: Vec<(Face, HalfSpace<3>)>,
     /// The triangles a walk met for the site of bits `met_by` ([`Triangles`]).
     met: Vec<u32>,
     met_by: Option<[u64; 3]>,
+    /// The last pieces clipped from `met`, for the same site.
+    kept: Kept,
 }
 
 // This thread's buffers, reused from cell to cell ([`with_scratch`]).
