@@ -237,6 +237,7 @@ impl Surface {
                 met,
                 met_by,
                 kept,
+                box_hint,
             } = buffers;
             planes.clear();
             cell.for_each_plane(|face, h| planes.push((face, *h)));
@@ -265,21 +266,32 @@ impl Surface {
                 let bvh = self.set.bvh();
                 bvh.walk(|node, is_leaf| {
                     let bounds = bvh.node_bounds(node);
-                    if !bounds.overlaps(&reach) || box_outside(planes, &bounds, site) {
+                    if !bounds.overlaps(&reach) {
                         return false;
                     }
-                    if !is_leaf {
-                        return true;
-                    }
-                    for &t in bvh.node_items(node) {
-                        if let Some(polygon) = clip.triangle(planes, self.relative(t, site)) {
-                            if record {
-                                met.push(t);
-                                kept.push(t, polygon);
+                    let inside = match box_side(planes, &bounds, site, box_hint) {
+                        BoxSide::Outside => return false,
+                        BoxSide::Inside => true,
+                        BoxSide::Across if !is_leaf => return true,
+                        BoxSide::Across => false,
+                    };
+                    bvh.for_each_leaf_under(node, |leaf| {
+                        for &t in bvh.node_items(leaf) {
+                            let rel = self.relative(t, site);
+                            let piece = if inside {
+                                Some(clip.whole(rel))
+                            } else {
+                                clip.triangle(planes, rel)
+                            };
+                            if let Some(polygon) = piece {
+                                if record {
+                                    met.push(t);
+                                    kept.push(t, polygon);
+                                }
+                                f(t, polygon);
                             }
-                            f(t, polygon);
                         }
-                    }
+                    });
                     false
                 });
             }
@@ -315,17 +327,61 @@ enum Triangles {
     LastMet,
 }
 
-/// Some plane of `planes` (relative to `site`) has the whole box `b` (absolute) strictly
-/// outside: its least value over the box, at the corner the normal points away from,
-/// exceeds the offset.
-fn box_outside(planes: &[(Face, HalfSpace<3>)], b: &Aabb<3>, site: [f64; 3]) -> bool {
+/// Where a box of the BVH lies against a cell ([`box_side`]).
+enum BoxSide {
+    /// Strictly outside some plane: none of its triangles meets the cell.
+    Outside,
+    /// Inside every plane with a margin for round-off: its triangles are whole pieces.
+    Inside,
+    /// Neither.
+    Across,
+}
+
+/// Where the box `b` (absolute) lies against the cell of `planes` (relative to `site`):
+/// strictly outside a plane when its least value over the box, at the corner the
+/// normal points away from, exceeds the offset; inside every plane when the greatest
+/// is below it by more than the round-off of either (the triangles' corners, in the
+/// box, are then inside as [`Clipper::triangle`] computes them, and it would leave them
+/// whole).
+///
+/// The plane that last put a box outside (`hint`) is tried first: neighbouring boxes
+/// tend to lie outside the same one.
+fn box_side(
+    planes: &[(Face, HalfSpace<3>)],
+    b: &Aabb<3>,
+    site: [f64; 3],
+    hint: &mut usize,
+) -> BoxSide {
     let (lo, hi) = (sub(b.lo, site), sub(b.hi, site));
-    planes.iter().any(|(_, h)| {
-        let least: f64 = (0..3)
+    let least = |h: &HalfSpace<3>| -> f64 {
+        (0..3)
             .map(|k| h.normal[k] * if h.normal[k] > 0.0 { lo[k] } else { hi[k] })
-            .sum();
-        least > h.offset
-    })
+            .sum()
+    };
+    if planes.get(*hint).is_some_and(|(_, h)| least(h) > h.offset) {
+        return BoxSide::Outside;
+    }
+    let mut inside = true;
+    for (p, (_, h)) in planes.iter().enumerate() {
+        if least(h) > h.offset {
+            *hint = p;
+            return BoxSide::Outside;
+        }
+        if inside {
+            let (mut greatest, mut size) = (0.0, h.offset.abs());
+            for k in 0..3 {
+                let (l, u) = (h.normal[k] * lo[k], h.normal[k] * hi[k]);
+                greatest += l.max(u);
+                size += l.abs().max(u.abs());
+            }
+            inside = greatest <= h.offset - 1e-12 * size;
+        }
+    }
+    if inside {
+        BoxSide::Inside
+    } else {
+        BoxSide::Across
+    }
 }
 
 /// What an edge of a clipped piece lies on: edge `k` of its triangle, or a plane of the cell.
@@ -350,37 +406,52 @@ struct Clipper {
     sides: Vec<(f64, bool)>,
     /// The planes cutting the triangle (by index) and its corners' sides of each.
     cutting: Vec<(usize, [f64; 3])>,
+    /// The plane that last had a whole triangle outside, tried first.
+    hint: usize,
 }
 
 impl Clipper {
+    /// The triangle `rel` (relative to the site) whole, as a piece.
+    fn whole(&mut self, rel: [[f64; 3]; 3]) -> &[Node] {
+        self.polygon.clear();
+        self.polygon.extend((0..3).map(|k| Node {
+            x: rel[k],
+            out: Edge::Triangle(k as u8),
+        }));
+        &self.polygon
+    }
+
     /// The triangle `rel` (relative to the site) clipped by every plane of a cell, or
     /// `None` when nothing is left. One pass over the planes finds the corners' sides of
     /// each: a plane with every corner outside leaves nothing, one with every corner
     /// inside leaves the triangle (and every piece of it, convex) whole; only the planes
     /// between cut, in their order.
     fn triangle(&mut self, planes: &[(Face, HalfSpace<3>)], rel: [[f64; 3]; 3]) -> Option<&[Node]> {
-        let Self {
-            polygon,
-            spare,
-            sides,
-            cutting,
-        } = self;
+        let Self { cutting, hint, .. } = self;
+        let outside = |h: &HalfSpace<3>| rel.iter().all(|&v| dot(h.normal, v) > h.offset);
+        if planes.get(*hint).is_some_and(|(_, h)| outside(h)) {
+            return None;
+        }
         cutting.clear();
         for (p, (_, h)) in planes.iter().enumerate() {
             let d = rel.map(|v| dot(h.normal, v) - h.offset);
             let out = d.iter().filter(|&&x| x > 0.0).count();
             if out == 3 {
+                *hint = p;
                 return None;
             }
             if out > 0 {
                 cutting.push((p, d));
             }
         }
-        polygon.clear();
-        polygon.extend((0..3).map(|k| Node {
-            x: rel[k],
-            out: Edge::Triangle(k as u8),
-        }));
+        self.whole(rel);
+        let Self {
+            polygon,
+            spare,
+            sides,
+            cutting,
+            ..
+        } = self;
         for (at, &(p, corners)) in cutting.iter().enumerate() {
             let (face, ref h) = planes[p];
             sides.clear();
@@ -448,6 +519,8 @@ struct Buffers {
     met_by: Option<[u64; 3]>,
     /// The last pieces clipped from `met`, for the same site.
     kept: Kept,
+    /// The plane that last put a box of the BVH outside the cell ([`box_outside`]).
+    box_hint: usize,
 }
 
 // This thread's buffers, reused from cell to cell ([`with_scratch`]).
