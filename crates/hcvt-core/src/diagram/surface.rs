@@ -24,8 +24,18 @@
 //! vertex has the cell's site as a nearest one: each piece is convex, so it then lies in
 //! the Voronoi cell, and the cell's part on the surface is exact while the rest of the
 //! 3D cell (a needle along the normal, open until sites across the model cut it) need not
-//! be. The triangles the first check's walk met are recorded per thread ([`Triangles`]):
-//! the later checks and the measure clip only those.
+//! be. Before that check, the security radius of the pieces: when the last of those
+//! neighbours lies beyond twice the farthest piece node, no other site can be nearer
+//! any point of the pieces, and the cell is exact without a nearest-site query (most
+//! cells: the nearest-site queries went from 16% of a kitten diagram's samples to 3%).
+//! The triangles the first look's walk met are recorded per thread ([`Triangles`]),
+//! with their pieces: the later checks clip only those, and the measure replays the
+//! pieces when the cell was not cut since.
+//!
+//! **Whole triangles.** A box of the BVH inside every plane of the cell (with a margin
+//! for round-off) gives its triangles whole, without testing them plane by plane; the
+//! other triangles are tested against every plane once ([`Clipper::triangle`]) and
+//! clipped only by the planes that cut them.
 
 use std::cell::RefCell;
 use std::collections::HashMap;
