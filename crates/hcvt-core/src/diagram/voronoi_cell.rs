@@ -219,7 +219,15 @@ where
         clipped += 1;
         if validate_after == Some(clipped) && clipped < total_sites && !cell.is_empty() {
             let (stayed_warm, vouched2) = (near.is_warm(), near.vouched2());
-            let reach = validate_vertices(domain, cell, index, sites, power, i)?;
+            // The security radius of the cell's part: every site not taken lies at least
+            // `last` from the site, and one that close cannot be nearer than the site to
+            // a point of the part within `r` of it when `last > 2 r`.
+            let part2 = domain.local_radius2(cell, site);
+            if 4.0 * part2 < last2 {
+                scratch.reach2 = last2;
+                return Ok((false, stayed_warm, vouched2));
+            }
+            let reach = validate_vertices(domain, cell, index, sites, power, i, true)?;
             scratch.reach2 = last2.max(reach * reach);
             return Ok((false, stayed_warm, vouched2));
         }
@@ -238,7 +246,7 @@ where
             if local2 <= LOCAL_REACH2 * last2 {
                 localise(cell, local2.sqrt());
                 let (stayed_warm, vouched2) = (near.is_warm(), near.vouched2());
-                let reach = validate_vertices(domain, cell, index, sites, power, i)?;
+                let reach = validate_vertices(domain, cell, index, sites, power, i, false)?;
                 scratch.reach2 = last2.max(reach * reach);
                 return Ok((false, stayed_warm, vouched2));
             }
@@ -357,6 +365,10 @@ const MAX_VALIDATIONS: usize = 100_000;
 ///
 /// With `power`, each vertex is checked against the site of least power there
 /// ([`least_power`]), and `δ` is the distance within which that search read sites.
+///
+/// `asked`: the domain was asked this cell's [`DomainKind::local_radius2`] just before
+/// (so its first [`DomainKind::validation_points`] is not the first look at the cell).
+#[allow(clippy::too_many_arguments)]
 fn validate_vertices<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     cell: &mut C,
@@ -364,6 +376,7 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     sites: &[[f64; D]],
     power: Option<&Power<'_, D>>,
     i: usize,
+    asked: bool,
 ) -> Result<f64, CoreError> {
     let site = sites[i];
     let mut valid: Vec<[u64; D]> = Vec::new();
@@ -373,7 +386,7 @@ fn validate_vertices<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     let mut points = Vec::new();
     for round in 0..MAX_VALIDATIONS {
         let mut cut = None;
-        let own = domain.validation_points(cell, site, round == 0, &mut points);
+        let own = domain.validation_points(cell, site, round == 0 && !asked, &mut points);
         let vertices: &[[f64; D]] = if own { &points } else { cell.vertices() };
         for &v in vertices {
             let key = v.map(f64::to_bits);

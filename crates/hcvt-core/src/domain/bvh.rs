@@ -115,11 +115,29 @@ impl<const D: usize> Bvh<D> {
 
     /// Depth-first walk from the root: `visit(node, is_leaf)` returns whether to descend
     /// into the node's children (ignored at leaves). Fixed order, as [`Bvh::query`].
-    pub fn walk(&self, mut visit: impl FnMut(usize, bool) -> bool) {
+    pub fn walk(&self, visit: impl FnMut(usize, bool) -> bool) {
+        self.walk_from(0, visit);
+    }
+
+    /// The leaves under node `i` (itself if a leaf), in the order [`Bvh::walk`] visits
+    /// them: a walk that stops at a node and takes its leaves sees its elements in the
+    /// order of one that descended.
+    pub fn for_each_leaf_under(&self, i: usize, mut leaf: impl FnMut(usize)) {
+        if i < self.nodes.len() {
+            self.walk_from(i, |at, is_leaf| {
+                if is_leaf {
+                    leaf(at);
+                }
+                true
+            });
+        }
+    }
+
+    fn walk_from(&self, root: usize, mut visit: impl FnMut(usize, bool) -> bool) {
         if self.boxes.is_empty() {
             return;
         }
-        let mut stack = [0u32; 64];
+        let mut stack = [root as u32; 64];
         let mut top = 1usize;
         while top > 0 {
             top -= 1;
