@@ -27,8 +27,8 @@
 //! only if 30 iterations do not reach it. Why: factorising every step (AMD, symbolic and
 //! numeric) took a third of the transport's samples at 10,000 sites (perf, one thread);
 //! with the kept factor one factorisation serves the whole run at 10,000 and 100,000 sites
-//! in the square (2 to 21 iterations a step), CPU time 7.1 to 5.6 s at 100,000
-//! (`docs/results/transport.txt`). Its residual is then checked
+//! in the square and the L-shape (10 to 20 iterations a step, solving to a fiftieth of the
+//! goal), CPU time 6.4 to 4.6 s in the L-shape at 100,000 (`docs/results/transport.txt`). Its residual is then checked
 //! cell by cell against the inexact-Newton goal below and, if short of it, polished by
 //! the conjugate gradients, which also solve every system the factorisation does not take:
 //! a face graph that is not connected, or a factor fuller than `MAX_FILL_PER_ROW` (3D:
