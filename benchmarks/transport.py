@@ -12,10 +12,11 @@ also its power diagrams and conjugate-gradient iterations. No density: pysdot ta
 piecewise-constant or image densities, hcvt polynomial and sampled ones.
 
 hcvt's linear solver: in 2D a sparse Cholesky factorisation (faer, AMD ordering) of the
-graph Laplacian at every Newton step, in the core; conjugate gradients preconditioned by
-the diagonal where the factor would be too full (3D) or the face graph is not connected
-(the CG iterations printed are those). pysdot's: the first of PETSc, then scipy that
-imports (printed).
+graph Laplacian at the first Newton step, in the core, then conjugate gradients
+preconditioned by that factor (refactorised when they fall short); conjugate gradients
+preconditioned by the diagonal where the factor would be too full (3D) or the face graph
+is not connected. The CG iterations printed are those of both. pysdot's: the first of
+PETSc, then scipy that imports (printed).
 
 Both run in this process one after the other on one thread (``hcvt.set_num_threads(1)``;
 pysdot is single-threaded), after an untimed warm-up of both on 1,000 sites. The machine

@@ -38,6 +38,8 @@
 //! the site, which at convergence lies outside 76% of the cells (10,000 sites, equal
 //! masses).
 
+use std::ops::ControlFlow;
+
 use crate::geometry::{add, dot, norm2, sub, Aabb, HalfSpace};
 
 use super::convex_cell::{ConvexCell, Face};
@@ -266,6 +268,46 @@ impl<const D: usize> MaxGrid<D> {
         (self.near2(at, at, p), far2)
     }
 
+    /// The two-level scan of both passes ([`Power::clip_heavier`], [`Power::hinted_cell`])
+    /// over the blocks `from..=to`: each coarse block in order, its blocks in order if
+    /// `reach2(state, W, first, last)` (its largest weight `W`, its blocks `first..=last`
+    /// within the cube) is `Some`, then each member `k` of a block, in index order, with
+    /// `member(state, k, block2)` if that block's `reach2` is `Some(block2)`; `reach2` sees
+    /// the state as `member` left it. Stops at the first `Break`.
+    fn scan<S, B>(
+        &self,
+        from: [usize; D],
+        to: [usize; D],
+        state: &mut S,
+        reach2: impl Fn(&S, f64, [usize; D], [usize; D]) -> Option<f64>,
+        mut member: impl FnMut(&mut S, usize, f64) -> ControlFlow<B>,
+    ) -> ControlFlow<B> {
+        let (coarse_from, coarse_to) = (from.map(|x| x / COARSE), to.map(|x| x / COARSE));
+        let mut coarse = coarse_from;
+        loop {
+            let first = std::array::from_fn(|k| (coarse[k] * COARSE).max(from[k]));
+            let last = std::array::from_fn(|k| (coarse[k] * COARSE + COARSE - 1).min(to[k]));
+            let coarse_max = self.coarse_max[self.coarse_flat(coarse)];
+            if reach2(state, coarse_max, first, last).is_some() {
+                let mut at = first;
+                loop {
+                    let b = self.flat(at);
+                    if let Some(block2) = reach2(state, self.max[b], at, at) {
+                        for k in self.starts[b] as usize..self.starts[b + 1] as usize {
+                            member(state, k, block2)?;
+                        }
+                    }
+                    if !next_block(&mut at, first, last) {
+                        break;
+                    }
+                }
+            }
+            if !next_block(&mut coarse, coarse_from, coarse_to) {
+                return ControlFlow::Continue(());
+            }
+        }
+    }
+
     /// The cube of blocks within `outer` of `p`, as its first and last block.
     fn cube(&self, p: [f64; D], outer: f64) -> ([usize; D], [usize; D]) {
         let centre = self.block(&p);
@@ -386,8 +428,8 @@ impl<'a, const D: usize> Power<'a, D> {
         let own = self.weights[i];
         let site = sites[i];
         let grid = &self.grid;
-        let mut radius2 = cell.max_dist2();
-        let mut r = radius2.sqrt();
+        let radius2 = cell.max_dist2();
+        let r = radius2.sqrt();
         let Some(outer) = cut_reach(r, radius2, self.slack(i)) else {
             return;
         };
@@ -398,58 +440,44 @@ impl<'a, const D: usize> Power<'a, D> {
         // The squared distance (with the rounding margin) within which a site of weight at
         // most `w` in the blocks `first..=last` can cut the cell, when that reaches beyond
         // the streamed distance and the blocks lie within it; `None` when no such site can.
-        let reach2_of = |w: f64, first, last, r: f64, radius2: f64| {
+        let reach2_of = |&(r, radius2): &(f64, f64), w: f64, first, last| {
             let reach = cut_reach(r, radius2, w - own)?;
             let reach2 = reach * reach * (1.0 + ROUNDING);
             (reach2 > covered2 && grid.near2(first, last, site) < reach2).then_some(reach2)
         };
-        let (coarse_from, coarse_to) = (from.map(|x| x / COARSE), to.map(|x| x / COARSE));
-        let mut coarse = coarse_from;
-        loop {
-            let first = std::array::from_fn(|k| (coarse[k] * COARSE).max(from[k]));
-            let last = std::array::from_fn(|k| (coarse[k] * COARSE + COARSE - 1).min(to[k]));
-            let coarse_max = grid.coarse_max[grid.coarse_flat(coarse)];
-            if reach2_of(coarse_max, first, last, r, radius2).is_some() {
-                let mut at = first;
-                loop {
-                    let b = grid.flat(at);
-                    if let Some(block2) = reach2_of(grid.max[b], at, at, r, radius2) {
-                        for k in grid.starts[b] as usize..grid.starts[b + 1] as usize {
-                            let q = sub(grid.member_sites[k], site);
-                            let dist2 = norm2(q);
-                            // Streamed (site `i` itself among them), or beyond the reach
-                            // of the block's heaviest weight, at least the member's own
-                            // (rounded operations are monotone, and the cell has only
-                            // shrunk since): the same sites clipped in the same order,
-                            // most of the others turned away without a square root.
-                            if dist2 <= covered2 || dist2 >= block2 {
-                                continue;
-                            }
-                            let excess = grid.member_weights[k] - own;
-                            let j = grid.members[k];
-                            let Some(reach) = cut_reach(r, radius2, excess) else {
-                                continue;
-                            };
-                            if dist2 < reach * reach * (1.0 + ROUNDING)
-                                && cell.clip(&self.bisector(q, i, j as usize), Face::Neighbor(j))
-                            {
-                                if cell.is_empty() {
-                                    return;
-                                }
-                                radius2 = cell.max_dist2();
-                                r = radius2.sqrt();
-                            }
-                        }
-                    }
-                    if !next_block(&mut at, first, last) {
-                        break;
-                    }
+        let mut state = (r, radius2);
+        let _ = grid.scan(
+            from,
+            to,
+            &mut state,
+            reach2_of,
+            |(r, radius2), k, block2| {
+                let q = sub(grid.member_sites[k], site);
+                let dist2 = norm2(q);
+                // Streamed (site `i` itself among them), or beyond the reach of the block's
+                // heaviest weight, at least the member's own (rounded operations are monotone,
+                // and the cell has only shrunk since): the same sites clipped in the same
+                // order, most of the others turned away without a square root.
+                if dist2 <= covered2 || dist2 >= block2 {
+                    return ControlFlow::Continue(());
                 }
-            }
-            if !next_block(&mut coarse, coarse_from, coarse_to) {
-                return;
-            }
-        }
+                let excess = grid.member_weights[k] - own;
+                let j = grid.members[k];
+                let Some(reach) = cut_reach(*r, *radius2, excess) else {
+                    return ControlFlow::Continue(());
+                };
+                if dist2 < reach * reach * (1.0 + ROUNDING)
+                    && cell.clip(&self.bisector(q, i, j as usize), Face::Neighbor(j))
+                {
+                    if cell.is_empty() {
+                        return ControlFlow::Break(());
+                    }
+                    *radius2 = cell.max_dist2();
+                    *r = radius2.sqrt();
+                }
+                ControlFlow::Continue(())
+            },
+        );
     }
 
     /// Cell `i` (relative to its site) of this power diagram, from a hint: the start box
@@ -507,11 +535,11 @@ impl<'a, const D: usize> Power<'a, D> {
                 .iter()
                 .fold(0.0, |m: f64, &v| m.max(norm2(sub(v, centre))))
         };
-        let mut rho2 = spread2(cell);
+        let rho2 = spread2(cell);
         if rho2 > (HINT_SPAN * grid.side).powi(2) {
             return false;
         }
-        let (mut rho, mut radius2) = (rho2.sqrt(), cell.max_dist2());
+        let (rho, radius2) = (rho2.sqrt(), cell.max_dist2());
         let Some(outer) = cut_reach(rho, radius2, self.slack(i)) else {
             return true; // no site can cut (cannot happen for a cell holding a point)
         };
@@ -519,60 +547,50 @@ impl<'a, const D: usize> Power<'a, D> {
         let (from, to) = grid.cube(at, outer);
         // Within this squared distance of `c` a site of weight at most `w` in the blocks
         // `first..=last` may cut; `None` when the blocks lie beyond it.
-        let reach2_of = |w: f64, first, last, rho: f64, radius2: f64| {
+        let reach2_of = |&(rho, radius2): &(f64, f64), w: f64, first, last| {
             let reach = cut_reach(rho, radius2, w - own)?;
             let reach2 = reach * reach * (1.0 + ROUNDING);
             (grid.near2(first, last, at) < reach2).then_some(reach2)
         };
-        let (coarse_from, coarse_to) = (from.map(|x| x / COARSE), to.map(|x| x / COARSE));
-        let mut coarse = coarse_from;
-        loop {
-            let first = std::array::from_fn(|k| (coarse[k] * COARSE).max(from[k]));
-            let last = std::array::from_fn(|k| (coarse[k] * COARSE + COARSE - 1).min(to[k]));
-            let coarse_max = grid.coarse_max[grid.coarse_flat(coarse)];
-            if reach2_of(coarse_max, first, last, rho, radius2).is_some() {
-                let mut block = first;
-                loop {
-                    let b = grid.flat(block);
-                    if let Some(block2) = reach2_of(grid.max[b], block, block, rho, radius2) {
-                        for k in grid.starts[b] as usize..grid.starts[b + 1] as usize {
-                            let q = sub(grid.member_sites[k], site);
-                            let from_centre = sub(q, centre);
-                            // (b) for the site's own weight, at most the block's.
-                            if norm2(from_centre) >= block2 {
-                                continue;
-                            }
-                            let j = grid.members[k];
-                            let delta = grid.member_weights[k] - own;
-                            let (q2, qc) = (norm2(q), dot(q, centre));
-                            let low = q2 - 2.0 * qc - delta;
-                            let ball = 2.0 * rho * q2.sqrt();
-                            // (a), with a margin for the rounding of every term.
-                            let margin = HINT_ROUNDING * (q2 + 2.0 * qc.abs() + delta.abs() + ball);
-                            if low - ball >= margin || j as usize == i || neighbours.contains(&j) {
-                                continue;
-                            }
-                            if q2 == 0.0 {
-                                return false;
-                            }
-                            if cell.clip(&self.bisector(q, i, j as usize), Face::Neighbor(j)) {
-                                if cell.is_empty() {
-                                    return true;
-                                }
-                                rho2 = spread2(cell);
-                                rho = rho2.sqrt();
-                                radius2 = cell.max_dist2();
-                            }
-                        }
-                    }
-                    if !next_block(&mut block, first, last) {
-                        break;
-                    }
+        let mut state = (rho, radius2);
+        let scanned = grid.scan(
+            from,
+            to,
+            &mut state,
+            reach2_of,
+            |(rho, radius2), k, block2| {
+                let q = sub(grid.member_sites[k], site);
+                let from_centre = sub(q, centre);
+                // (b) for the site's own weight, at most the block's.
+                if norm2(from_centre) >= block2 {
+                    return ControlFlow::Continue(());
                 }
-            }
-            if !next_block(&mut coarse, coarse_from, coarse_to) {
-                return true;
-            }
+                let j = grid.members[k];
+                let delta = grid.member_weights[k] - own;
+                let (q2, qc) = (norm2(q), dot(q, centre));
+                let low = q2 - 2.0 * qc - delta;
+                let ball = 2.0 * *rho * q2.sqrt();
+                // (a), with a margin for the rounding of every term.
+                let margin = HINT_ROUNDING * (q2 + 2.0 * qc.abs() + delta.abs() + ball);
+                if low - ball >= margin || j as usize == i || neighbours.contains(&j) {
+                    return ControlFlow::Continue(());
+                }
+                if q2 == 0.0 {
+                    return ControlFlow::Break(false);
+                }
+                if cell.clip(&self.bisector(q, i, j as usize), Face::Neighbor(j)) {
+                    if cell.is_empty() {
+                        return ControlFlow::Break(true);
+                    }
+                    *rho = spread2(cell).sqrt();
+                    *radius2 = cell.max_dist2();
+                }
+                ControlFlow::Continue(())
+            },
+        );
+        match scanned {
+            ControlFlow::Break(done) => done,
+            ControlFlow::Continue(()) => true,
         }
     }
 

@@ -21,7 +21,14 @@
 //! (`Laplacian::direct`): the symmetrised `L` with the weight of its best-connected cell
 //! held fixed, factorised by faer's supernodal Cholesky after an AMD ordering (17 to 21
 //! entries a row in the factor at 10,000 sites; an earlier step's ordering is reused
-//! while its factor stays within 10% of that size, [`analyse`]), serially. Its residual is then checked
+//! while its factor stays within 10% of that size, [`analyse`]), serially. Later steps
+//! first solve by conjugate gradients preconditioned by the last factor, an earlier step's
+//! matrix (`Kept::preconditioned`), to the inexact-Newton goal below, and factorise afresh
+//! only if 30 iterations do not reach it. Why: factorising every step (AMD, symbolic and
+//! numeric) took a third of the transport's samples at 10,000 sites (perf, one thread);
+//! with the kept factor one factorisation serves the whole run at 10,000 and 100,000 sites
+//! in the square and the L-shape (10 to 20 iterations a step, solving to a fiftieth of the
+//! goal), CPU time 6.4 to 4.6 s in the L-shape at 100,000 (`docs/results/transport.txt`). Its residual is then checked
 //! cell by cell against the inexact-Newton goal below and, if short of it, polished by
 //! the conjugate gradients, which also solve every system the factorisation does not take:
 //! a face graph that is not connected, or a factor fuller than `MAX_FILL_PER_ROW` (3D:
@@ -39,7 +46,7 @@
 //! system as it is (Kaasschieter 1988; a drift along the kernel shifts every weight
 //! alike, which changes no cell), only as accurately as the step needs (inexact Newton:
 //! each cell's residual within `min(0.1, e) · e` of its target, `e` the present largest
-//! relative error). Tried for them and not kept: symmetric successive over-relaxation in
+//! relative error, or `tol / 10` once that is within `10 tol`). Tried for them and not kept: symmetric successive over-relaxation in
 //! the Morton order (2.5-fold fewer iterations at 10,000 sites, each 3.5 times dearer:
 //! no faster), and fusing each iteration's eight passes over the rows into three (CG's
 //! share of samples unchanged). Products run in parallel rows and every dot product is
@@ -61,7 +68,8 @@ use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymmetricOrdering,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
+    SymmetricOrdering,
 };
 use std::borrow::Cow;
 
@@ -237,11 +245,24 @@ where
             .collect();
         let laplacian = Laplacian::new(&current, sites, domain);
         // Inexact Newton: the linear model's error in each cell's mass a fraction
-        // min(0.1, error) of the present one (superlinear convergence), and no smaller
-        // than round-off allows.
-        let goal = (error * error.min(0.1)).max(0.01 * settings.tol);
-        let start = laplacian.direct(&residual, &mut ordering);
+        // min(0.1, error) of the present one (superlinear convergence); a tenth of the
+        // tolerance once that comes within ten times it, so that a step that can end the
+        // run does (10,000 sites in the square, CG preconditioned by the last factor: a
+        // goal of 2.8e-10 left 1.1e-10 against tol = 1e-10, a Newton step and a diagram
+        // more).
+        let model = error * error.min(0.1);
+        let goal = if model <= 10.0 * settings.tol {
+            0.1 * settings.tol
+        } else {
+            model
+        };
+        let (start, preconditioned) =
+            match laplacian.direct(&residual, &targets, goal, &mut ordering) {
+                Some((x, iterations)) => (Some(x), iterations),
+                None => (None, 0),
+            };
         let (direction, cg_iterations) = laplacian.solve(&residual, &targets, goal, start);
+        let cg_iterations = cg_iterations + preconditioned;
         let norm = norm_of(&residual);
         let mut step = first_trial;
         let mut diagrams = 0;
@@ -592,8 +613,17 @@ impl<const D: usize> Laplacian<'_, D> {
     /// diagonal summed from the couplings, so that it is exactly positive semi-definite.
     /// The fill-reducing ordering is AMD's, or an earlier step's while its factor stays
     /// small ([`analyse`]); the symbolic factorisation is the last step's when the matrix
-    /// has its pattern ([`Kept`]).
-    fn direct(&self, b: &[f64], kept: &mut Kept) -> Option<Vec<f64>> {
+    /// has its pattern ([`Kept`]). Before factorising, the system is solved to `goal`
+    /// (relative to `targets`, as [`Laplacian::solve`]) by conjugate gradients
+    /// preconditioned by the last factorisation, when there is one
+    /// ([`Kept::preconditioned`]); the iterations are returned with the solution.
+    fn direct(
+        &self,
+        b: &[f64],
+        targets: &[f64],
+        goal: f64,
+        kept: &mut Kept,
+    ) -> Option<(Vec<f64>, usize)> {
         let n = b.len();
         if n < 2 {
             return None;
@@ -601,6 +631,18 @@ impl<const D: usize> Laplacian<'_, D> {
         let held = kept.analysed.as_ref().map(|a| a.fixed).filter(|&f| f < n);
         let (matrix, fixed) = self.grounded(held)?;
         let par = Par::Seq;
+        let mean = b.iter().sum::<f64>() / n as f64;
+        let mut x: Vec<f64> = b.iter().map(|b| b - mean).collect();
+        x[fixed] = 0.0;
+        // Preconditioned, the system is solved fifty times closer than the goal (to 1e-12
+        // at most): the iterations cost little against a diagram, and at the goal alone
+        // the L-shape at 100,000 sites took 9 Newton steps and 12 diagrams where the exact
+        // solves took 7 and 10 (each step's error falling less while large); a thousand
+        // times closer took the exact solves' steps too, with 100 iterations against 80.
+        let sharper = (goal * 0.02).max(goal.min(1e-12));
+        if let Some(solved) = kept.preconditioned(&matrix, fixed, &x, targets, sharper) {
+            return Some(solved);
+        }
         let pattern = matrix.symbolic();
         let same = kept.analysed.as_ref().is_some_and(|a| {
             a.fixed == fixed && a.col_ptr == pattern.col_ptr() && a.rows == pattern.row_idx()
@@ -614,6 +656,7 @@ impl<const D: usize> Laplacian<'_, D> {
                 symbolic,
             });
         }
+        kept.values = None;
         let symbolic = &kept.analysed.as_ref()?.symbolic;
         if symbolic.len_val() > MAX_FILL_PER_ROW * n {
             return None;
@@ -634,16 +677,17 @@ impl<const D: usize> Laplacian<'_, D> {
                 Default::default(),
             )
             .ok()?;
-        let mean = b.iter().sum::<f64>() / n as f64;
-        let mut x: Vec<f64> = b.iter().map(|b| b - mean).collect();
-        x[fixed] = 0.0;
         factor.solve_in_place_with_conj(
             Conj::No,
             MatMut::from_column_major_slice_mut(&mut x, n, 1),
             par,
             MemStack::new(&mut memory),
         );
-        x.iter().all(|x| x.is_finite()).then_some(x)
+        if !x.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        kept.values = Some(values);
+        Some((x, 0))
     }
 
     /// The symmetrised Laplacian's lower triangle in compressed columns with the row and
@@ -732,7 +776,8 @@ struct Ordering {
 }
 
 /// What the factorisations of a run keep from step to step: the AMD ordering
-/// ([`analyse`]) and the last symbolic factorisation with the pattern it was made for.
+/// ([`analyse`]), the last symbolic factorisation with the pattern it was made for, and
+/// the last numeric factor, a preconditioner for later steps ([`Kept::preconditioned`]).
 /// Why: the symbolic analysis and AMD took 22% of the transport's samples at 100,000
 /// sites (perf, one thread, the square, power cells started from their neighbours), and
 /// once Newton converges the faces stop changing: the last steps' matrices have the
@@ -741,6 +786,103 @@ struct Ordering {
 struct Kept {
     ordering: Option<Ordering>,
     analysed: Option<Analysed>,
+    /// The numeric factor of `analysed` (its values), from the last factorisation.
+    values: Option<Vec<f64>>,
+}
+
+/// Most iterations of [`Kept::preconditioned`] before the system is factorised afresh.
+const PRECONDITIONED_ITERATIONS: usize = 30;
+
+impl Kept {
+    /// `x` with `A x = rhs` (`A` the grounded Laplacian `matrix`, lower triangle, cell
+    /// `fixed` held; `rhs[fixed] = 0`) by conjugate gradients preconditioned by the last
+    /// factorisation, an earlier step's matrix with the same cell held, and the iterations
+    /// taken; `None` when there is none or it does not reach `goal` within
+    /// [`PRECONDITIONED_ITERATIONS`]. Reached: every row's residual within `goal` of its
+    /// cell's target (`|r_i| ≤ goal · ν_i`), the held cell's too (`−Σ r_i`, the columns of
+    /// the symmetrised Laplacian summing to zero).
+    fn preconditioned(
+        &self,
+        matrix: &SparseColMat<usize, f64>,
+        fixed: usize,
+        rhs: &[f64],
+        targets: &[f64],
+        goal: f64,
+    ) -> Option<(Vec<f64>, usize)> {
+        let analysed = self.analysed.as_ref().filter(|a| a.fixed == fixed)?;
+        let values = self.values.as_ref()?;
+        let n = rhs.len();
+        if analysed.symbolic.nrows() != n {
+            return None;
+        }
+        let factor = LltRef::new(&analysed.symbolic, values);
+        let par = Par::Seq;
+        let mut memory =
+            MemBuffer::try_new(analysed.symbolic.solve_in_place_scratch::<f64>(1, par)).ok()?;
+        let mut precondition = |r: &[f64], z: &mut [f64]| {
+            z.copy_from_slice(r);
+            factor.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(z, n, 1),
+                par,
+                MemStack::new(&mut memory),
+            );
+        };
+        let done = |r: &[f64]| {
+            r.iter().zip(targets).all(|(r, t)| r.abs() <= goal * t)
+                && r.iter().sum::<f64>().abs() <= goal * targets[fixed]
+        };
+        let mut x = vec![0.0; n];
+        let mut r = rhs.to_vec();
+        if done(&r) {
+            return Some((x, 0));
+        }
+        let mut z = vec![0.0; n];
+        precondition(&r, &mut z);
+        let mut p = z.clone();
+        let mut ap = vec![0.0; n];
+        let mut rz = dot(&r, &z);
+        for iteration in 1..=PRECONDITIONED_ITERATIONS {
+            symmetric_product(matrix, &p, &mut ap);
+            let pap = dot(&p, &ap);
+            if !(pap > 0.0 && rz > 0.0) {
+                return None;
+            }
+            let alpha = rz / pap;
+            x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
+            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
+            if done(&r) {
+                return x.iter().all(|x| x.is_finite()).then_some((x, iteration));
+            }
+            precondition(&r, &mut z);
+            let rz_next = dot(&r, &z);
+            let beta = rz_next / rz;
+            rz = rz_next;
+            p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
+        }
+        None
+    }
+}
+
+/// `out = A x` for the symmetric `A` of which `matrix` holds the lower triangle.
+fn symmetric_product(matrix: &SparseColMat<usize, f64>, x: &[f64], out: &mut [f64]) {
+    let (col_ptr, rows, values) = (
+        matrix.symbolic().col_ptr(),
+        matrix.symbolic().row_idx(),
+        matrix.val(),
+    );
+    out.fill(0.0);
+    for (j, &xj) in x.iter().enumerate() {
+        let mut sum = 0.0;
+        for k in col_ptr[j]..col_ptr[j + 1] {
+            let i = rows[k];
+            out[i] += values[k] * xj;
+            if i != j {
+                sum += values[k] * x[i];
+            }
+        }
+        out[j] += sum;
+    }
 }
 
 /// A symbolic factorisation and the matrix pattern it was made for: the grounded cell and
