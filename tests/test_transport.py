@@ -114,8 +114,10 @@ def test_bad_masses_are_refused_by_name():
 
 
 def test_newton_systems_are_factorised_and_the_same_on_1_and_3_threads():
-    """2D: every Newton step solved by the sparse Cholesky (no CG iteration), bitwise alike
-    on 1 and 3 threads, and the first cells' areas from shapely within 1e-10."""
+    """2D: the first Newton step solved by the sparse Cholesky (no CG iteration), the later
+    ones by CG preconditioned by that factor (at most 30 iterations each, else factorised
+    afresh; measured 6-16 on 2026-12-04), bitwise alike on 1
+    and 3 threads, and the first cells' areas from shapely within 1e-10."""
     l_shape = shapely.Polygon([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)])
     domain = hcvt.Domain.from_polygon(l_shape)
     n = 1500
@@ -131,7 +133,8 @@ def test_newton_systems_are_factorised_and_the_same_on_1_and_3_threads():
         hcvt.set_num_threads(before)
     one, three = runs
     assert one.converged
-    assert np.all(one.history["cg_iterations"] == 0)
+    iterations = one.history["cg_iterations"]
+    assert iterations[0] == 0 and np.all(iterations <= 30)
     assert np.array_equal(one.weights, three.weights)
     assert np.array_equal(one.diagram.mass, three.diagram.mass)
     first = 30
