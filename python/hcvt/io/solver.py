@@ -69,8 +69,7 @@ class OpenFOAMError(RuntimeError):
 
 @dataclass(frozen=True)
 class LaplaceCheck:
-    """What :func:`laplace_check` measured (``T`` spans ``[-1, 1]``, range 2; the decaying
-    mode starts at amplitude 1)."""
+    """What :func:`laplace_check` measured (``T`` spans ``[-1, 1]``, or a mode of amplitude 1)."""
 
     converged: bool
     """Whether the last solve's initial residual is below the tolerance."""
@@ -110,8 +109,9 @@ def laplace_check(
     tol: float = RESIDUAL_TOL,
     workdir: str | Path | None = None,
 ) -> LaplaceCheck:
-    """Run ``laplacianFoam`` on a linear field over the mesh of ``case`` or, in a box
-    periodic along every axis, on a decaying Fourier mode (module docs).
+    """Run ``laplacianFoam`` on a known solution over the mesh of ``case`` (module docs).
+
+    A linear field, or in a box periodic along every axis a decaying Fourier mode.
 
     Parameters
     ----------
