@@ -32,8 +32,10 @@ from hcvt.seeding.initialisation import initialise
 from hcvt.surface.features import (
     FeatureSites,
     constrained_cvt,
+    intruding_sites,
     move_intruders,
     plan_feature_sites,
+    release_sites,
     restore_segments,
     segment_defects,
 )
@@ -146,6 +148,12 @@ def _defects(
         if topology[key] != input_topology[key]:
             out.append(f"{key} {topology[key]}, the surface's {input_topology[key]}")
     return out
+
+
+def _stuck_held(repeated: NDArray[np.intp], n: int, held: int) -> NDArray[np.intp]:
+    """The held sites (the last ``held`` of ``n``) in triples of cells meeting twice."""
+    sites = np.unique(np.asarray(repeated, dtype=np.intp).ravel())
+    return sites[sites >= n - held]
 
 
 def _cvt(
@@ -277,6 +285,21 @@ def remesh(
             defects += segment_defects(faces, plan, n)
         if not defects or tol is None or iterations >= max_iter or round_ == TIGHTER_ROUNDS:
             break
+        # Held sites among cells that are not discs, or parting a feature segment's
+        # ends: free them (the CVT cannot move them), same tol.
+        stuck = _stuck_held(np.asarray(rdt["repeated"]), n, held)
+        if plan is not None:
+            parting = intruding_sites(run.sites, faces, plan)
+            stuck = np.union1d(stuck, parting[parting >= n - held])
+        if plan is not None and len(stuck):
+            plan = release_sites(plan, stuck - (n - held))
+            # The free sites, the freed ones, then those still held (last, as before).
+            still = np.setdiff1d(np.arange(n - held, n), stuck)
+            order = np.concatenate([np.arange(n - held), stuck, still])
+            held = len(plan.points)
+            run = _cvt(surface, run.sites[order], plan, method, tol, max_iter - iterations)
+            iterations += run.iterations
+            continue
         # The only defect free sites cutting feature segments: move them, same tol.
         alone = plan is not None and len(defects) == 1
         moved = move_intruders(run.sites, faces, plan) if alone and plan else None
