@@ -477,22 +477,35 @@ def move_intruders(
     step or two: the rest is converged) spaces the sites again. None when nothing moves.
     """
     first = len(vertices) - len(plan.points)
-    intruders = {c for c in intruding_sites(vertices, faces, plan).tolist() if c < first}
+    intruders = [c for c in intruding_sites(vertices, faces, plan).tolist() if c < first]
+    moved, count = move_to_gaps(vertices, faces, first, intruders)
+    return moved if count else None
+
+
+def move_to_gaps(
+    vertices: NDArray[np.float64], faces: NDArray[np.intp], first: int, sites: list[int]
+) -> tuple[NDArray[np.float64], int]:
+    """``vertices`` (n, 3) with ``sites`` moved to the widest gaps, and how many moved.
+
+    Each, in order, to the centroid of the largest triangle of ``faces`` (f, 3) whose
+    vertices are all below ``first`` (free sites), none sharing a vertex with another
+    chosen or with ``sites`` (:func:`move_intruders`).
+    """
     free = faces[(faces < first).all(axis=1)]
     corners = vertices[free]
     area = np.linalg.norm(
         np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
     )
     gaps = iter(np.argsort(-area, kind="stable").tolist())
-    moved, taken, count = vertices.copy(), set(intruders), 0
-    for c in sorted(intruders):
+    moved, taken, count = vertices.copy(), set(sites), 0
+    for c in sites:
         gap = next((t for t in gaps if not taken & set(free[t].tolist())), None)
         if gap is None:
             break
         taken |= set(free[gap].tolist())
         moved[c] = corners[gap].mean(axis=0)
         count += 1
-    return moved if count else None
+    return moved, count
 
 
 def release_sites(plan: FeatureSites, rows: NDArray[np.intp]) -> FeatureSites:
@@ -583,6 +596,7 @@ __all__ = [
     "long_curves",
     "missing_segments",
     "move_intruders",
+    "move_to_gaps",
     "plan_feature_sites",
     "release_sites",
     "restore_segments",

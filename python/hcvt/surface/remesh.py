@@ -34,6 +34,7 @@ from hcvt.surface.features import (
     constrained_cvt,
     intruding_sites,
     move_intruders,
+    move_to_gaps,
     plan_feature_sites,
     release_sites,
     restore_segments,
@@ -286,7 +287,8 @@ def remesh(
         if not defects or tol is None or iterations >= max_iter or round_ == TIGHTER_ROUNDS:
             break
         # Held sites among cells that are not discs, or parting a feature segment's
-        # ends: free them (the CVT cannot move them), same tol.
+        # ends: free them (the CVT cannot move them) and move them to the widest gaps
+        # (at the same place they would stay: the CVT has converged around them), same tol.
         stuck = _stuck_held(np.asarray(rdt["repeated"]), n, held)
         if plan is not None:
             parting = intruding_sites(run.sites, faces, plan)
@@ -296,8 +298,9 @@ def remesh(
             # The free sites, the freed ones, then those still held (last, as before).
             still = np.setdiff1d(np.arange(n - held, n), stuck)
             order = np.concatenate([np.arange(n - held), stuck, still])
+            again, _ = move_to_gaps(run.sites, faces, n - held, stuck.tolist())
             held = len(plan.points)
-            run = _cvt(surface, run.sites[order], plan, method, tol, max_iter - iterations)
+            run = _cvt(surface, again[order], plan, method, tol, max_iter - iterations)
             iterations += run.iterations
             continue
         # The only defect free sites cutting feature segments: move them, same tol.
