@@ -221,8 +221,12 @@ def remesh(
         the CVT, so the triangulation runs along them (:mod:`hcvt.surface.features`; a
         segment of a curve missing from the triangles is a defect: where free sites that
         settled on the curve cause it, they are moved to the widest gaps and the CVT goes
-        on at the same tolerance, :func:`hcvt.surface.features.move_intruders`). None: no
-        features.
+        on at the same tolerance, :func:`hcvt.surface.features.move_intruders`). Held
+        sites closer than 0.4 spacings to another are welded into it (at corners, and
+        between curves within 15° of parallel: :func:`hcvt.surface.features.weld_sites`);
+        held sites among cells that are not discs, or parting a segment's ends, are freed
+        and moved to the widest gaps, their segments no longer required
+        (:func:`hcvt.surface.features.release_sites`). None: no features.
     tighten : bool
         Then lower the Hausdorff distance to the surface (bunny, n = 5,000: 0.485% ->
         0.359% of the diagonal, for 17% of the remeshing's time; False to skip it):
