@@ -151,10 +151,17 @@ def _defects(
     return out
 
 
-def _stuck_held(repeated: NDArray[np.intp], n: int, held: int) -> NDArray[np.intp]:
-    """The held sites (the last ``held`` of ``n``) in triples of cells meeting twice."""
-    sites = np.unique(np.asarray(repeated, dtype=np.intp).ravel())
-    return sites[sites >= n - held]
+def _stuck_held(
+    repeated: NDArray[np.intp], faces: NDArray[np.intp], n: int, held: int
+) -> NDArray[np.intp]:
+    """The held sites (the last ``held`` of ``n``) in triples of cells meeting twice.
+
+    Also those at an end of an edge of ``faces`` in three or more triangles.
+    """
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+    pairs, counts = np.unique(edges, axis=0, return_counts=True)
+    sites = np.union1d(np.asarray(repeated, dtype=np.intp).ravel(), pairs[counts >= 3].ravel())
+    return sites[sites >= n - held].astype(np.intp)
 
 
 def _cvt(
@@ -290,10 +297,10 @@ def remesh(
             defects += segment_defects(faces, plan, n)
         if not defects or tol is None or iterations >= max_iter or round_ == TIGHTER_ROUNDS:
             break
-        # Held sites among cells that are not discs, or parting a feature segment's
-        # ends: free them (the CVT cannot move them) and move them to the widest gaps
-        # (at the same place they would stay: the CVT has converged around them), same tol.
-        stuck = _stuck_held(np.asarray(rdt["repeated"]), n, held)
+        # Held sites among cells that are not discs (or on an edge of three triangles),
+        # or parting a feature segment's ends: free them (the CVT cannot move them) and
+        # move them to the widest gaps (where they are the CVT has converged), same tol.
+        stuck = _stuck_held(np.asarray(rdt["repeated"]), faces, n, held)
         if plan is not None:
             parting = intruding_sites(run.sites, faces, plan)
             stuck = np.union1d(stuck, parting[parting >= n - held])
