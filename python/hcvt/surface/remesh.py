@@ -101,6 +101,8 @@ REMESH_TOL = 1e-2
 #: Rounds, each at a tolerance ``TIGHTER`` times the last, while the triangulation of an
 #: early stop has defects (a cell not yet a disc).
 TIGHTER_ROUNDS, TIGHTER = 3, 0.25
+#: The most rounds in all, those freeing held sites (features) among them.
+_MOST_ROUNDS = 12
 #: The least angle (degrees) ``tighten`` may leave by default: its moves lower the mesh's
 #: least angle to this, not below (nor below the CVT mesh's own where that is lower). The
 #: peers' least angles are 1-26° (pyacvd, MeshLab; ``benchmarks/remesh.py``). Kitten, n =
@@ -284,7 +286,10 @@ def remesh(
         sites = np.vstack([sites, plan.points])
     run = _cvt(surface, sites, plan, method, tol, max_iter)
     iterations = run.iterations
-    for round_ in range(TIGHTER_ROUNDS + 1):
+    # Rounds after the first run: at most TIGHTER_ROUNDS that tighten the tol or move
+    # intruders, and those that free held sites (each frees at least one) besides.
+    rounds = 0
+    for round_ in range(_MOST_ROUNDS):
         # The CVT's own, computed with its final diagram (else afresh).
         rdt = run._triangulation or _core.restricted_delaunay(
             surface._core, surface.frame.to_core(run.sites)
@@ -295,7 +300,8 @@ def remesh(
         defects = _defects(faces, n, np.asarray(rdt["repeated"]), input_topology)
         if plan is not None:
             defects += segment_defects(faces, plan, n)
-        if not defects or tol is None or iterations >= max_iter or round_ == TIGHTER_ROUNDS:
+        last = rounds == TIGHTER_ROUNDS or round_ == _MOST_ROUNDS - 1
+        if not defects or tol is None or iterations >= max_iter or last:
             break
         # Held sites among cells that are not discs (or on an edge of three triangles),
         # or parting a feature segment's ends: free them (the CVT cannot move them) and
@@ -321,6 +327,7 @@ def remesh(
             # Cells that are not yet discs (the closed-ball property fails) in an early
             # stop: iterate on from the projected sites to a tighter gap.
             tol *= TIGHTER
+        rounds += 1
         again = run.sites if moved is None else moved
         run = _cvt(surface, again, plan, method, tol, max_iter - iterations)
         iterations += run.iterations
