@@ -120,6 +120,7 @@ def run_hcvt(
     )
     info = {
         "moves": out.moves,
+        "freed": out.freed,
         "seconds": out.seconds,  # the CVT and the triangulation, not the quality
         "iterations": out.iterations,
         "stop": out.cvt.stop_reason,
@@ -330,7 +331,8 @@ def main() -> None:
             print(
                 f"{'':10} hcvt: {extra['iterations']} iterations ({extra['stop']}), "
                 f"{extra['moves']} vertices moved by tighten, "
-                f"defects {extra['defects'] or 'none'}{peers}",
+                + (f"{extra['freed']} feature sites freed, " if extra["freed"] else "")
+                + f"defects {extra['defects'] or 'none'}{peers}",
                 flush=True,
             )
             if args.pictures:

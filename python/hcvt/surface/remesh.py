@@ -79,6 +79,9 @@ class RemeshResult:
         CVT iterations in all, over the rounds (``cvt`` is the last round's run).
     moves : int
         Vertices moved by ``tighten`` (:func:`hcvt.surface.tighten.tighten`).
+    freed : int
+        With ``features``: the feature sites freed (cells that were not discs around
+        them, or parting a feature segment): the features are not kept there.
     """
 
     vertices: NDArray[np.float64]
@@ -89,6 +92,7 @@ class RemeshResult:
     seconds: float = 0.0
     iterations: int = 0
     moves: int = 0
+    freed: int = 0
 
 
 #: The CVT's default tolerance on the gap rule in :func:`remesh`: the least angle has
@@ -288,7 +292,7 @@ def remesh(
     iterations = run.iterations
     # Rounds after the first run: at most TIGHTER_ROUNDS that tighten the tol or move
     # intruders, and those that free held sites (each frees at least one) besides.
-    rounds = 0
+    rounds = freed = 0
     for round_ in range(_MOST_ROUNDS):
         # The CVT's own, computed with its final diagram (else afresh).
         rdt = run._triangulation or _core.restricted_delaunay(
@@ -316,7 +320,7 @@ def remesh(
             still = np.setdiff1d(np.arange(n - held, n), stuck)
             order = np.concatenate([np.arange(n - held), stuck, still])
             again, _ = move_to_gaps(run.sites, faces, n - held, stuck.tolist())
-            held = len(plan.points)
+            held, freed = len(plan.points), freed + len(stuck)
             run = _cvt(surface, again[order], plan, method, tol, max_iter - iterations)
             iterations += run.iterations
             continue
@@ -352,7 +356,7 @@ def remesh(
     if check and defects:
         raise RemeshError("restricted Delaunay triangulation: " + "; ".join(defects))
     quality = surface_quality(vertices, faces, reference)
-    return RemeshResult(vertices, faces, quality, run, defects, seconds, iterations, moves)
+    return RemeshResult(vertices, faces, quality, run, defects, seconds, iterations, moves, freed)
 
 
 __all__ = ["RemeshError", "RemeshResult", "remesh"]
