@@ -13,7 +13,8 @@ diagram of their own"):
    most ``FEATURE_SPACING`` times the surface's site spacing ``h = sqrt(2A / (√3 n))`` apart
    (the edge of an equilateral triangle of area ``A / (2n)``, ``A`` the total area).
    Curves shorter than ``SHORTEST_CURVE`` times ``h`` are dropped first, with the corners
-   they alone end at (:func:`long_curves`: a scanned mesh's short creases).
+   they alone end at (:func:`long_curves`: a scanned mesh's short creases). Sites of
+   different curves closer than ``WELD`` h are then merged (:func:`weld_sites`).
 3. **The constrained CVT** (:func:`constrained_cvt`). The feature sites are held fixed;
    the others move freely in space (Yan et al. 2009) to minimise the same energy
    ``F = Σ ∫_{Ω_i} |x - z_i|² dA`` of the whole diagram, by the core's L-BFGS with those
@@ -24,6 +25,8 @@ diagram of their own"):
 The restricted Delaunay triangulation then joins consecutive sites of a curve: their
 cells meet on the curve, no other cell reaches it between them (checked:
 :attr:`FeatureSites.segments` missing from the triangles are reported as defects).
+Held sites the CVT cannot help (among cells that are not discs, or parting a segment's
+ends) are freed by :func:`hcvt.remesh` (:func:`release_sites`, counted in its ``freed``).
 
 Lévy and Liu's Lp-CVT (SIGGRAPH 2010) keeps features by normal anisotropy instead;
 geogram's and CGAL's remeshers, like this module, hold vertices on the feature curves.
