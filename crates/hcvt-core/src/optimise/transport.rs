@@ -567,31 +567,19 @@ impl<'a, const D: usize> Laplacian<'a, D> {
             .iter()
             .map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 })
             .collect();
-        let mut z: Vec<f64> = r.iter().zip(&inverse).map(|(r, m)| r * m).collect();
-        let mut p = z.clone();
-        let mut ap = vec![0.0; n];
-        let mut rz = dot(&r, &z);
         // CG ends in at most n steps in exact arithmetic; the cap stops a stagnating solve.
-        let max_iterations = 10 * n + 100;
-        let mut iterations = 0;
-        while !done(&r) && iterations < max_iterations && rz > 0.0 {
-            self.product(&p, &mut ap);
-            let pap = dot(&p, &ap);
-            if pap <= 0.0 || pap.is_nan() {
-                break;
-            }
-            let alpha = rz / pap;
-            x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
-            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-            z.iter_mut()
-                .zip(r.iter().zip(&inverse))
-                .for_each(|(z, (r, m))| *z = r * m);
-            let rz_next = dot(&r, &z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
-            iterations += 1;
-        }
+        let (iterations, _) = conjugate_gradients(
+            |p, ap| self.product(p, ap),
+            |r, z| {
+                z.iter_mut()
+                    .zip(r.iter().zip(&inverse))
+                    .for_each(|(z, (r, m))| *z = r * m);
+            },
+            &mut x,
+            &mut r,
+            done,
+            10 * n + 100,
+        );
         (x, iterations)
     }
 }
@@ -819,7 +807,7 @@ impl Kept {
         let par = Par::Seq;
         let mut memory =
             MemBuffer::try_new(analysed.symbolic.solve_in_place_scratch::<f64>(1, par)).ok()?;
-        let mut precondition = |r: &[f64], z: &mut [f64]| {
+        let precondition = |r: &[f64], z: &mut [f64]| {
             z.copy_from_slice(r);
             factor.solve_in_place_with_conj(
                 Conj::No,
@@ -834,34 +822,65 @@ impl Kept {
         };
         let mut x = vec![0.0; n];
         let mut r = rhs.to_vec();
-        if done(&r) {
-            return Some((x, 0));
-        }
-        let mut z = vec![0.0; n];
-        precondition(&r, &mut z);
-        let mut p = z.clone();
-        let mut ap = vec![0.0; n];
-        let mut rz = dot(&r, &z);
-        for iteration in 1..=PRECONDITIONED_ITERATIONS {
-            symmetric_product(matrix, &p, &mut ap);
-            let pap = dot(&p, &ap);
-            if !(pap > 0.0 && rz > 0.0) {
-                return None;
-            }
-            let alpha = rz / pap;
-            x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
-            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-            if done(&r) {
-                return x.iter().all(|x| x.is_finite()).then_some((x, iteration));
-            }
-            precondition(&r, &mut z);
-            let rz_next = dot(&r, &z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
-        }
-        None
+        let (iterations, reached) = conjugate_gradients(
+            |p, ap| symmetric_product(matrix, p, ap),
+            precondition,
+            &mut x,
+            &mut r,
+            done,
+            PRECONDITIONED_ITERATIONS,
+        );
+        (reached && x.iter().all(|x| x.is_finite())).then_some((x, iterations))
     }
+}
+
+/// Preconditioned conjugate gradients on the symmetric positive semi-definite `A`
+/// (`product(p, out)`: `out = A p`) with the preconditioner `precondition(r, z)`
+/// (`z = M⁻¹ r`, `M` symmetric positive definite): `x` improved in place from its value,
+/// `r = b − A x` given and kept, until `done(r)` or after `max_iterations`. Returns the
+/// iterations taken and whether `done` was reached; a breakdown (`r·z` or `p·A p` not
+/// positive, or NaN: a solution in the kernel, or round-off) ends it unreached. The one
+/// CG of both solvers: by the diagonal ([`Laplacian::solve`]) and by the last Cholesky
+/// factor ([`Kept::preconditioned`]). Every dot product is summed in index order.
+fn conjugate_gradients(
+    mut product: impl FnMut(&[f64], &mut [f64]),
+    mut precondition: impl FnMut(&[f64], &mut [f64]),
+    x: &mut [f64],
+    r: &mut [f64],
+    done: impl Fn(&[f64]) -> bool,
+    max_iterations: usize,
+) -> (usize, bool) {
+    if done(r) {
+        return (0, true);
+    }
+    let n = r.len();
+    let mut z = vec![0.0; n];
+    precondition(r, &mut z);
+    let mut p = z.clone();
+    let mut ap = vec![0.0; n];
+    let mut rz = dot(r, &z);
+    for iteration in 1..=max_iterations {
+        if rz <= 0.0 || rz.is_nan() {
+            return (iteration - 1, false);
+        }
+        product(&p, &mut ap);
+        let pap = dot(&p, &ap);
+        if pap <= 0.0 || pap.is_nan() {
+            return (iteration - 1, false);
+        }
+        let alpha = rz / pap;
+        x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
+        r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
+        if done(r) {
+            return (iteration, true);
+        }
+        precondition(r, &mut z);
+        let rz_next = dot(r, &z);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
+    }
+    (max_iterations, false)
 }
 
 /// `out = A x` for the symmetric `A` of which `matrix` holds the lower triangle.
