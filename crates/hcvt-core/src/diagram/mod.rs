@@ -363,8 +363,8 @@ struct MassFloor {
 /// [`clipped_diagram`] of a trial of optimal transport's damped Newton step (DESIGN §14),
 /// or `None` as soon as a cell's mass (its volume: without a density) is found below
 /// `floor`, the step's guard, when the caller would reject the trial whatever the other
-/// cells: their cells are not computed. Why: the rejected trials of 10,000 and 100,000
-/// sites (uniform, equal masses) all failed the guard, each a whole power diagram. With a
+/// cells: their cells are not computed. Why: the rejected trials traced (uniform sites,
+/// equal masses, 10,000 and 100,000) failed the guard, each a whole power diagram. With a
 /// density the floor is not applied (the cells' masses are weighed after the clip). The
 /// answer does not depend on the thread count: `None` exactly when some cell of the
 /// whole diagram is below the floor.

@@ -63,10 +63,11 @@
 //! CPU time at 10,000 sites fell from 0.51 to 0.35 s in the square (the whole run, one
 //! thread, `docs/results/transport.txt`). The first diagram (zero weights: the Voronoi
 //! diagram, or given weights) is streamed. A trial stops at the first cell found below
-//! the guard's floor (`diagram::trial_diagram`): every rejected trial measured (10,000 and
-//! 100,000 sites, the square and the L-shape) failed the guard, and paid a whole diagram;
-//! stopped, it costs a fraction (CPU time 4.70 to 3.85 s in the L-shape at 100,000, two
-//! rejected trials of ten diagrams; `docs/results/transport.txt`).
+//! the guard's floor (`diagram::trial_diagram`): the rejected trials traced (the square
+//! at 10,000 sites, the L-shape at 100,000) failed the guard, not the decrease, and each
+//! paid a whole diagram; stopped, one costs a fraction (CPU time 4.5-4.9 to 3.8-4.0 s in
+//! the L-shape at 100,000, two rejected trials of ten diagrams; the same weights bit for
+//! bit; `docs/results/transport.txt` §8-9).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
