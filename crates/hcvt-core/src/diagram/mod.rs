@@ -13,7 +13,7 @@
 //!
 //! | file | owns |
 //! |------|------|
-//! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |
+//! | `mod.rs` | [`Options`], [`Request`], the result [`Diagram`] and the drivers [`clipped_diagram`] (and [`trial_diagram`], stopped below a mass floor) and [`clipped_cells`]: validation, batches of cells in Morton order, assembly in index order |
 //! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
 //! | `periodic_box.rs` | [`PeriodicBox`], a box periodic along some or all axes: cells among the sites' images in a band, each neighbour with its image shift (DESIGN §14) |
 //! | `torus.rs` | [`Torus`], a periodic box's periods and axes as a value: what the driver and the optimisers ask of a periodic domain (the wrap into the box) |
@@ -60,6 +60,7 @@ mod weighted;
 mod weighted_sums;
 
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::density::{Cone, Density};
 use crate::error::CoreError;
@@ -345,9 +346,58 @@ pub fn clipped_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
+    clipped_diagram_above::<D, C, K>(domain, sites, request, None)?.ok_or_else(|| {
+        CoreError::InvalidSettings {
+            reason: "a diagram without a mass floor stopped below one".into(),
+        }
+    })
+}
+
+/// A floor on the cells' masses below which a diagram is of no use to its caller
+/// ([`trial_diagram`]): the first cell found under it stops every batch.
+struct MassFloor {
+    mass: f64,
+    below: AtomicBool,
+}
+
+/// [`clipped_diagram`] of a trial of optimal transport's damped Newton step (DESIGN §14),
+/// or `None` as soon as a cell's mass (its volume: without a density) is found below
+/// `floor`, the step's guard, when the caller would reject the trial whatever the other
+/// cells: their cells are not computed. Why: the rejected trials traced (uniform sites,
+/// equal masses, 10,000 and 100,000) failed the guard, each a whole power diagram. With a
+/// density the floor is not applied (the cells' masses are weighed after the clip). The
+/// answer does not depend on the thread count: `None` exactly when some cell of the
+/// whole diagram is below the floor.
+pub(crate) fn trial_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    request: &Request<'_, D>,
+    floor: f64,
+) -> Result<Option<Clipped<D, C>>, CoreError>
+where
+    Euclid: Space<D>,
+{
+    let floor = MassFloor {
+        mass: floor,
+        below: AtomicBool::new(false),
+    };
+    let floor = request.density.is_none().then_some(&floor);
+    clipped_diagram_above::<D, C, K>(domain, sites, request, floor)
+}
+
+/// [`clipped_diagram`], or `None` when a cell is below `floor` ([`trial_diagram`]).
+fn clipped_diagram_above<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    request: &Request<'_, D>,
+    floor: Option<&MassFloor>,
+) -> Result<Option<Clipped<D, C>>, CoreError>
+where
+    Euclid: Space<D>,
+{
     let weights = checked_weights(domain, sites.len(), request)?;
     if let Some(torus) = domain.periodic() {
-        return periodic_box::clipped_diagram::<D, C>(torus, sites, weights, request);
+        return periodic_box::clipped_diagram::<D, C>(torus, sites, weights, request).map(Some);
     }
     let density = request.density;
     if let Some(Density::Polynomial(q)) = density {
@@ -365,7 +415,7 @@ where
                 *m = m.map(|row| scale(row, q.constant));
             }
             out.diagram.weighted = weighted::scaled(&out.diagram.moments, q.constant);
-            return Ok(out);
+            return Ok(Some(out));
         }
     }
     let weighted_sums = WeightedSums::new(density)?;
@@ -407,6 +457,7 @@ where
                     .warm
                     .is_some_and(|w| w.len() != sites.len() || moved.is_some()),
             reach: false,
+            floor,
         };
         visit.batches::<C, K>(
             domain,
@@ -417,6 +468,9 @@ where
         )
     };
     let mut batches = without_errors(batches)?;
+    if floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
+        return Ok(None);
+    }
     if let Some(d @ Density::Sampled { field, .. }) = density {
         let rule = d.rule_in(domain.cell_dim())?;
         weighted::sample(domain, *field, &rule, sites, &mut batches, integrand)?;
@@ -435,7 +489,7 @@ where
     if request.warm.is_some() && out.warm.is_none() {
         out.warm = Some(WarmStart::new());
     }
-    Ok(out)
+    Ok(Some(out))
 }
 
 /// Check `sites` against `domain` (finite, inside unless allowed, not too far outside)
@@ -537,6 +591,8 @@ struct Visit<'a, const D: usize> {
     /// Keep each cell's reach ([`Batch::reach2`]): a part's cells and the periodic box's
     /// bands need it, a whole diagram does not.
     reach: bool,
+    /// Stop at the first cell below this mass ([`trial_diagram`]).
+    floor: Option<&'a MassFloor>,
 }
 
 impl<const D: usize> Visit<'_, D>
@@ -583,6 +639,9 @@ where
                 |(scratch, measuring, hinted), chunk| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
                     for &i in chunk {
+                        if self.floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
+                            break;
+                        }
                         let i = i as usize;
                         let winding = self.windings[i];
                         // A power cell need not hold its site: the early cut by the
@@ -629,6 +688,9 @@ where
                         } else {
                             domain.clip(cell, self.sites[i], winding, row, measuring)
                         };
+                        if let Some(f) = self.floor.filter(|f| moments.mass < f.mass) {
+                            f.below.store(true, Ordering::Relaxed);
+                        }
                         batch.push(i, moments, &mut measuring.faces, integrand.is_some());
                         if keep_cells {
                             batch.cells.push(cell.clone());
@@ -762,6 +824,7 @@ where
         warm: None,
         record: false,
         reach: true,
+        floor: None,
     };
     let mut batches =
         without_errors(visit.batches::<C, K>(domain, own, None, false, &weighted_sums))?;

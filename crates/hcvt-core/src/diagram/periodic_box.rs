@@ -430,6 +430,7 @@ where
             warm: None,
             record: false,
             reach: true,
+            floor: None,
         };
         let through = integrand.map(|inner| ThroughImages {
             inner,

@@ -62,7 +62,12 @@
 //! neighbours, a cell clips by about 6 and tests some 20 more by a bound. The transport's
 //! CPU time at 10,000 sites fell from 0.51 to 0.35 s in the square (the whole run, one
 //! thread, `docs/results/transport.txt`). The first diagram (zero weights: the Voronoi
-//! diagram, or given weights) is streamed.
+//! diagram, or given weights) is streamed. A trial stops at the first cell found below
+//! the guard's floor (`diagram::trial_diagram`): the rejected trials traced (the square
+//! at 10,000 sites, the L-shape at 100,000) failed the guard, not the decrease, and each
+//! paid a whole diagram; stopped, one costs a fraction (CPU time 4.5-4.9 to 3.8-4.0 s in
+//! the L-shape at 100,000, two rejected trials of ten diagrams; the same weights bit for
+//! bit; `docs/results/transport.txt` §8-9).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -79,8 +84,8 @@ use rayon::prelude::*;
 
 use crate::density::Density;
 use crate::diagram::{
-    clipped_diagram, ConvexCell, Diagram, DomainKind, FaceIntegrals, FaceIntegrand, Matrix,
-    Request as DiagramRequest,
+    clipped_diagram, trial_diagram, Clipped, ConvexCell, Diagram, DomainKind, FaceIntegrals,
+    FaceIntegrand, Matrix, Request as DiagramRequest,
 };
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
@@ -204,7 +209,7 @@ where
     };
     // The fill-reducing ordering and symbolic factorisation of earlier steps.
     let mut ordering = Kept::default();
-    let mut current = Evaluation::new::<C, K>(domain, sites, &weights, settings.density, None)?;
+    let mut current = Evaluation::new::<C, K>(domain, sites, &weights, settings.density)?;
     let total: f64 = current.masses.iter().sum();
     let given: f64 = masses.iter().sum();
     let targets: Vec<f64> = if settings.normalise {
@@ -272,26 +277,30 @@ where
                 .zip(&direction)
                 .map(|(w, d)| w + step * d)
                 .collect();
-            // Each cell starts from its neighbours in the last accepted diagram.
-            let evaluation = Evaluation::new::<C, K>(
+            // Each cell starts from its neighbours in the last accepted diagram; a trial
+            // with a cell below the guard is rejected as soon as that cell is found.
+            let evaluation = Evaluation::trial::<C, K>(
                 domain,
                 sites,
                 &trial,
                 settings.density,
-                Some(&current.diagram),
+                &current.diagram,
+                floor,
             )?;
             diagrams += 1;
-            let min_mass = evaluation
-                .masses
-                .iter()
-                .fold(f64::INFINITY, |m, &x| m.min(x));
-            let left: Vec<f64> = targets
-                .iter()
-                .zip(&evaluation.masses)
-                .map(|(t, m)| t - m)
-                .collect();
-            if min_mass >= floor && norm_of(&left) <= (1.0 - 0.5 * step) * norm {
-                break Some((trial, evaluation, min_mass));
+            if let Some(evaluation) = evaluation {
+                let min_mass = evaluation
+                    .masses
+                    .iter()
+                    .fold(f64::INFINITY, |m, &x| m.min(x));
+                let left: Vec<f64> = targets
+                    .iter()
+                    .zip(&evaluation.masses)
+                    .map(|(t, m)| t - m)
+                    .collect();
+                if min_mass >= floor && norm_of(&left) <= (1.0 - 0.5 * step) * norm {
+                    break Some((trial, evaluation, min_mass));
+                }
             }
             if diagrams > MAX_HALVINGS {
                 break None;
@@ -374,34 +383,64 @@ struct Evaluation<const D: usize> {
 }
 
 impl<const D: usize> Evaluation<D> {
+    /// The power diagram of `weights`.
     fn new<C: ConvexCell<D>, K: DomainKind<D>>(
         domain: &K,
         sites: &[[f64; D]],
         weights: &[f64],
         density: Option<&Density<'_, D>>,
-        power_start: Option<&Diagram<D>>,
     ) -> Result<Self, CoreError>
     where
         Euclid: Space<D>,
     {
         let integrand = density.map(|_| FaceMass);
-        let clipped = clipped_diagram::<D, C, K>(
-            domain,
-            sites,
-            &DiagramRequest {
-                density,
-                weights: Some(weights),
-                integrand: integrand.as_ref().map(|f| f as &dyn FaceIntegrand<D>),
-                power_start,
-                ..DiagramRequest::default()
-            },
-        )?;
+        let request = Self::request(weights, density, integrand.as_ref(), None);
+        let clipped = clipped_diagram::<D, C, K>(domain, sites, &request)?;
+        Ok(Self::of(clipped, density))
+    }
+
+    /// The power diagram of the trial `weights`, each cell started from its neighbours in
+    /// `start`, or `None` as soon as a cell's mass is found below `floor`
+    /// ([`trial_diagram`]).
+    fn trial<C: ConvexCell<D>, K: DomainKind<D>>(
+        domain: &K,
+        sites: &[[f64; D]],
+        weights: &[f64],
+        density: Option<&Density<'_, D>>,
+        start: &Diagram<D>,
+        floor: f64,
+    ) -> Result<Option<Self>, CoreError>
+    where
+        Euclid: Space<D>,
+    {
+        let integrand = density.map(|_| FaceMass);
+        let request = Self::request(weights, density, integrand.as_ref(), Some(start));
+        let clipped = trial_diagram::<D, C, K>(domain, sites, &request, floor)?;
+        Ok(clipped.map(|clipped| Self::of(clipped, density)))
+    }
+
+    fn request<'a>(
+        weights: &'a [f64],
+        density: Option<&'a Density<'a, D>>,
+        integrand: Option<&'a FaceMass>,
+        power_start: Option<&'a Diagram<D>>,
+    ) -> DiagramRequest<'a, D> {
+        DiagramRequest {
+            density,
+            weights: Some(weights),
+            integrand: integrand.map(|f| f as &dyn FaceIntegrand<D>),
+            power_start,
+            ..DiagramRequest::default()
+        }
+    }
+
+    fn of<C>(clipped: Clipped<D, C>, density: Option<&Density<'_, D>>) -> Self {
         let masses = clipped.diagram.masses();
-        Ok(Self {
+        Self {
             diagram: clipped.diagram,
             masses,
             face_mass: density.map(|_| clipped.face_integrals),
-        })
+        }
     }
 }
 
@@ -567,31 +606,19 @@ impl<'a, const D: usize> Laplacian<'a, D> {
             .iter()
             .map(|&d| if d > 0.0 { 1.0 / d } else { 0.0 })
             .collect();
-        let mut z: Vec<f64> = r.iter().zip(&inverse).map(|(r, m)| r * m).collect();
-        let mut p = z.clone();
-        let mut ap = vec![0.0; n];
-        let mut rz = dot(&r, &z);
         // CG ends in at most n steps in exact arithmetic; the cap stops a stagnating solve.
-        let max_iterations = 10 * n + 100;
-        let mut iterations = 0;
-        while !done(&r) && iterations < max_iterations && rz > 0.0 {
-            self.product(&p, &mut ap);
-            let pap = dot(&p, &ap);
-            if pap <= 0.0 || pap.is_nan() {
-                break;
-            }
-            let alpha = rz / pap;
-            x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
-            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-            z.iter_mut()
-                .zip(r.iter().zip(&inverse))
-                .for_each(|(z, (r, m))| *z = r * m);
-            let rz_next = dot(&r, &z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
-            iterations += 1;
-        }
+        let (iterations, _) = conjugate_gradients(
+            |p, ap| self.product(p, ap),
+            |r, z| {
+                z.iter_mut()
+                    .zip(r.iter().zip(&inverse))
+                    .for_each(|(z, (r, m))| *z = r * m);
+            },
+            &mut x,
+            &mut r,
+            done,
+            10 * n + 100,
+        );
         (x, iterations)
     }
 }
@@ -819,7 +846,7 @@ impl Kept {
         let par = Par::Seq;
         let mut memory =
             MemBuffer::try_new(analysed.symbolic.solve_in_place_scratch::<f64>(1, par)).ok()?;
-        let mut precondition = |r: &[f64], z: &mut [f64]| {
+        let precondition = |r: &[f64], z: &mut [f64]| {
             z.copy_from_slice(r);
             factor.solve_in_place_with_conj(
                 Conj::No,
@@ -834,34 +861,65 @@ impl Kept {
         };
         let mut x = vec![0.0; n];
         let mut r = rhs.to_vec();
-        if done(&r) {
-            return Some((x, 0));
-        }
-        let mut z = vec![0.0; n];
-        precondition(&r, &mut z);
-        let mut p = z.clone();
-        let mut ap = vec![0.0; n];
-        let mut rz = dot(&r, &z);
-        for iteration in 1..=PRECONDITIONED_ITERATIONS {
-            symmetric_product(matrix, &p, &mut ap);
-            let pap = dot(&p, &ap);
-            if !(pap > 0.0 && rz > 0.0) {
-                return None;
-            }
-            let alpha = rz / pap;
-            x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
-            r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
-            if done(&r) {
-                return x.iter().all(|x| x.is_finite()).then_some((x, iteration));
-            }
-            precondition(&r, &mut z);
-            let rz_next = dot(&r, &z);
-            let beta = rz_next / rz;
-            rz = rz_next;
-            p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
-        }
-        None
+        let (iterations, reached) = conjugate_gradients(
+            |p, ap| symmetric_product(matrix, p, ap),
+            precondition,
+            &mut x,
+            &mut r,
+            done,
+            PRECONDITIONED_ITERATIONS,
+        );
+        (reached && x.iter().all(|x| x.is_finite())).then_some((x, iterations))
     }
+}
+
+/// Preconditioned conjugate gradients on the symmetric positive semi-definite `A`
+/// (`product(p, out)`: `out = A p`) with the preconditioner `precondition(r, z)`
+/// (`z = M⁻¹ r`, `M` symmetric positive definite): `x` improved in place from its value,
+/// `r = b − A x` given and kept, until `done(r)` or after `max_iterations`. Returns the
+/// iterations taken and whether `done` was reached; a breakdown (`r·z` or `p·A p` not
+/// positive, or NaN: a solution in the kernel, or round-off) ends it unreached. The one
+/// CG of both solvers: by the diagonal ([`Laplacian::solve`]) and by the last Cholesky
+/// factor ([`Kept::preconditioned`]). Every dot product is summed in index order.
+fn conjugate_gradients(
+    mut product: impl FnMut(&[f64], &mut [f64]),
+    mut precondition: impl FnMut(&[f64], &mut [f64]),
+    x: &mut [f64],
+    r: &mut [f64],
+    done: impl Fn(&[f64]) -> bool,
+    max_iterations: usize,
+) -> (usize, bool) {
+    if done(r) {
+        return (0, true);
+    }
+    let n = r.len();
+    let mut z = vec![0.0; n];
+    precondition(r, &mut z);
+    let mut p = z.clone();
+    let mut ap = vec![0.0; n];
+    let mut rz = dot(r, &z);
+    for iteration in 1..=max_iterations {
+        if rz <= 0.0 || rz.is_nan() {
+            return (iteration - 1, false);
+        }
+        product(&p, &mut ap);
+        let pap = dot(&p, &ap);
+        if pap <= 0.0 || pap.is_nan() {
+            return (iteration - 1, false);
+        }
+        let alpha = rz / pap;
+        x.iter_mut().zip(&p).for_each(|(x, p)| *x += alpha * p);
+        r.iter_mut().zip(&ap).for_each(|(r, a)| *r -= alpha * a);
+        if done(r) {
+            return (iteration, true);
+        }
+        precondition(r, &mut z);
+        let rz_next = dot(r, &z);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        p.iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
+    }
+    (max_iterations, false)
 }
 
 /// `out = A x` for the symmetric `A` of which `matrix` holds the lower triangle.
