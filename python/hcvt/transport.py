@@ -4,10 +4,13 @@
 where ``|x - z_i|² - w_i`` is least) gives each cell the mass asked for. The iteration runs
 in the Rust core (``hcvt-core/src/optimise/transport.rs``): damped Newton on the weights
 (Kitagawa, Mérigot and Thibert 2019) with the exact Hessian, the graph Laplacian of the
-power diagram with edge weights ``∫_F ρ / (2|z_i - z_j|)``, solved by a sparse Cholesky
-factorisation in 2D (conjugate gradients preconditioned by its diagonal in 3D, or when the
-face graph is not connected); each step halved until no cell holds less than half of
-``min(initial mass, target)`` and the mass error has dropped. The first step from zero
+power diagram with edge weights ``∫_F ρ / (2|z_i - z_j|)``, solved in 2D by a sparse
+Cholesky factorisation on the first step and by conjugate gradients preconditioned by that
+factor on the later ones (factorised afresh only if 30 iterations miss the step's goal);
+in 3D, or when the face graph is not connected, by conjugate gradients preconditioned by
+the diagonal. Each step is halved until no cell holds less than half of
+``min(initial mass, target)`` and the mass error has dropped; a trial diagram stops at the
+first cell below that floor (the trial is rejected either way). The first step from zero
 weights tries half a step first, the others a full one: every trial costs a power diagram.
 """
 
