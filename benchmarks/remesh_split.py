@@ -18,21 +18,14 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse
 import importlib
 import time
-from pathlib import Path
 
 import numpy as np
 
 import hcvt
 from hcvt.seeding.initialisation import initialise
 from hcvt.surface.quality import edge_topology, triangle_angles
+from remesh import DATA, MODELS  # benchmarks/remesh.py: the same meshes
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
-MODELS = {
-    "bunny": "bunny.off",
-    "kitten": "kitten.obj",
-    "fandisk": "fandisk.off",
-    "armadillo": "armadillo.obj",
-}
 # The modules, not the functions hcvt.surface exports under the same names.
 REMESH = importlib.import_module("hcvt.surface.remesh")
 TIGHTEN = importlib.import_module("hcvt.surface.tighten")
