@@ -17,11 +17,17 @@ Every output is measured by :func:`hcvt.surface_quality` against the input: Q mi
 (Frey–Borouchaki ``6/√3 · A/(p·h)``), least angle θmin, % of angles < 30°, Hausdorff
 distance both ways (% of the bounding-box diagonal, to 0.1%: a branch and bound over
 each mesh's triangles, not sampled), manifold/closed and genus
-by edge counts, and the seconds of the remeshing itself. One thread each (hcvt and
-pyacvd; MeshLab is single-threaded). Timings are under load (other jobs share the
-machine): ratios are of runs taken in turn in the same process.
+by edge counts, and the seconds of the remeshing itself, wall and CPU (their ratio is the
+cores it used). Every code gets the same cores: by default all of the machine's (hcvt's
+default threads; pyacvd's kd-tree runs OpenMP threads: it is not single-threaded, it used
+~1.8 cores on armadillo 5k; MeshLab's remeshing is single-threaded), with ``--cores 1``
+every thread pinned to one CPU, hcvt on one thread and ``OMP_NUM_THREADS=1``
+(``timing.use_cores``). Until 2026-12-04 this script pinned hcvt alone to one thread and
+left pyacvd its OpenMP threads. Timings are under load (other jobs share the machine):
+ratios are of runs taken in turn in the same process.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh.py [--quick] [--models bunny ...] [--n ...]
+        [--cores 1]
 
 (Where pymeshlab's plugins fail to load, "libgomp.so.1: cannot allocate memory in static
 TLS block", and ``meshing_isotropic_explicit_remeshing`` is then missing: run with
@@ -60,6 +66,7 @@ from pathlib import Path
 import numpy as np
 
 import hcvt
+from timing import cpu_seconds, use_cores
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "3d"
 MODELS = {
@@ -109,6 +116,7 @@ def run_hcvt(
     tighten: bool = True,
     min_angle: float | None = None,
 ) -> tuple[dict, np.ndarray, np.ndarray]:
+    cpu = cpu_seconds()
     out = hcvt.remesh(
         domain,
         n,
@@ -122,6 +130,7 @@ def run_hcvt(
         "moves": out.moves,
         "freed": out.freed,
         "seconds": out.seconds,  # the CVT and the triangulation, not the quality
+        "cpu": cpu_seconds() - cpu,  # the whole call: also its quality (no reference: cheap)
         "iterations": out.iterations,
         "stop": out.cvt.stop_reason,
         "defects": out.defects,
@@ -136,7 +145,7 @@ def run_pyacvd(
     import pyvista as pv
 
     mesh = pv.PolyData(vertices, np.hstack([np.full((len(faces), 1), 3), faces]).ravel())
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), cpu_seconds()
     clus = pyacvd.Clustering(mesh)
     # Each subdivision about quadruples the vertices.
     subdivisions = math.ceil(math.log(3 * n / len(vertices), 4)) if 3 * n > len(vertices) else 0
@@ -144,26 +153,28 @@ def run_pyacvd(
         clus.subdivide(subdivisions)
     clus.cluster(n)
     out = clus.create_mesh()
-    seconds = time.perf_counter() - start
+    seconds, cpu = time.perf_counter() - start, cpu_seconds() - cpu
     f = out.faces.reshape(-1, 4)[:, 1:] if out.n_cells else np.zeros((0, 3), dtype=int)
-    return {"seconds": seconds, "subdivisions": subdivisions}, np.asarray(out.points), f
+    info = {"seconds": seconds, "cpu": cpu, "subdivisions": subdivisions}
+    return info, np.asarray(out.points), f
 
 
 def meshlab_once(
     vertices: np.ndarray, faces: np.ndarray, length: float, features: float | None = None
-) -> tuple[float, np.ndarray, np.ndarray]:
+) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """Wall and CPU seconds, vertices and faces of one MeshLab remeshing at ``length``."""
     import pymeshlab
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertices, faces))
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), cpu_seconds()
     crease = {} if features is None else {"featuredeg": features}
     ms.meshing_isotropic_explicit_remeshing(
         iterations=10, targetlen=pymeshlab.PureValue(length), **crease
     )
-    seconds = time.perf_counter() - start
+    seconds, cpu = time.perf_counter() - start, cpu_seconds() - cpu
     m = ms.current_mesh()
-    return seconds, m.vertex_matrix(), m.face_matrix()
+    return seconds, cpu, m.vertex_matrix(), m.face_matrix()
 
 
 def run_meshlab(
@@ -172,14 +183,15 @@ def run_meshlab(
     length = math.sqrt(2.0 * area / (math.sqrt(3.0) * n))
     tuning, tries = 0.0, 0
     while True:
-        seconds, v, f = meshlab_once(vertices, faces, length, features)
+        seconds, cpu, v, f = meshlab_once(vertices, faces, length, features)
         tries += 1
         count = len(v)
         if abs(count - n) <= COUNT_RTOL * n or tries == MAX_TUNING:
             break
         tuning += seconds
         length *= math.sqrt(count / n)
-    return {"seconds": seconds, "tries": tries, "tuning_seconds": tuning, "length": length}, v, f
+    info = {"seconds": seconds, "cpu": cpu, "tries": tries, "tuning_seconds": tuning}
+    return {**info, "length": length}, v, f
 
 
 def picture(model: str, n: int, meshes: dict, path: Path) -> None:
@@ -271,6 +283,9 @@ def main() -> None:
         "down to this least angle (°)",
     )
     parser.add_argument(
+        "--cores", type=int, default=None, help="pin every code to this many CPUs (default: all)"
+    )
+    parser.add_argument(
         "--hcvt-only",
         action="store_true",
         help="only hcvt's rows (the peers' quality does not change from run to run; their "
@@ -279,13 +294,15 @@ def main() -> None:
     args = parser.parse_args()
     if args.quick:
         args.models, args.n = ["bunny", "fandisk"], [5000]
-    hcvt.set_num_threads(1)
+    cores = use_cores(args.cores)
+    if args.cores is not None:
+        hcvt.set_num_threads(args.cores)
     rows = []
     header = (
         f"{'model':10} {'n':>6} {'code':8} {'verts':>6} {'Qmin':>6} {'Qmean':>6} {'θmin':>6} "
-        f"{'%<30':>6} {'H %':>6} {'manif':>5} {'genus':>5} {'s':>8} {'s/hcvt':>7}"
+        f"{'%<30':>6} {'H %':>6} {'manif':>5} {'genus':>5} {'s':>8} {'cpu s':>8} {'s/hcvt':>7}"
     )
-    print("under load: other jobs share this 2-core machine; ratios are in-run")
+    print(f"under load: other jobs share this machine; ratios are in-run; {cores}")
     if args.features is not None:
         print(f"sharp features above {args.features}° kept by hcvt and MeshLab")
     print(header)
@@ -317,7 +334,7 @@ def main() -> None:
                     f"{model:10} {n:6d} {code:8} {q['vertices']:6d} {q['q_min']:6.3f} "
                     f"{q['q_mean']:6.3f} {q['angle_min']:6.2f} {q['below_30']:6.2f} "
                     f"{q['hausdorff']:6.3f} {str(q['manifold']):>5} {q['genus']:5d} "
-                    f"{info['seconds']:8.2f} {info['seconds'] / base:7.2f}",
+                    f"{info['seconds']:8.2f} {info['cpu']:8.2f} {info['seconds'] / base:7.2f}",
                     flush=True,
                 )
             extra = results["hcvt"][0]
