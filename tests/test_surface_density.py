@@ -119,7 +119,7 @@ def test_cells_match_weighted_pieces_clipped_in_their_planes(kind: str) -> None:
     d = hcvt.voronoi(domain, sites, density=given)
     h = np.sqrt(domain.volume / n)
     rng = np.random.default_rng(0)
-    for i in rng.choice(n, 6, replace=False):
+    for i in rng.choice(n, 4, replace=False):
         mass, moment = 0.0, np.zeros(3)
         for t, origin, e1, e2, piece in clipped_pieces(v, f, sites, int(i), 4.0 * h):
             ring = np.asarray(piece.exterior.coords)[:-1]
@@ -185,15 +185,15 @@ def test_remesh_puts_more_vertices_where_the_density_is_higher() -> None:
     out = hcvt.remesh(domain, 600, seed=1, density=rho, tighten=False)
     assert len(out.vertices) == 600 and not out.defects
     ratio = np.sum(out.vertices[:, 0] > middle) / np.sum(out.vertices[:, 0] <= middle)
-    # A uniform remesh has the halves' ratio of areas (1.25 here); ρ 16 times higher gives
-    # about 4 times the vertices per area there (ρ^(1/2)): measured 4.4 against 1.25.
+    # A uniform remesh has about the halves' ratio of areas (0.99; measured 0.94); ρ 9
+    # times higher gives about 3 times the vertices per area there (ρ^(1/2)): measured 2.75.
     corners = v[f]
     areas = 0.5 * np.linalg.norm(
         np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1
     )
     right = corners[:, :, 0].mean(axis=1) > middle
     uniform = areas[right].sum() / areas[~right].sum()
-    assert ratio > 2.5 * uniform, (ratio, uniform)
+    assert ratio > 2.0 * uniform, (ratio, uniform)
 
 
 @needs_data

@@ -99,10 +99,10 @@ def curvature_density(
 
     Examples
     --------
-    >>> import hcvt, trimesh
-    >>> ball = trimesh.creation.icosphere(3)
+    >>> import hcvt, numpy as np, trimesh
+    >>> ball = trimesh.creation.icosphere(3)  # κ = κ̄ = 1 nearly everywhere: ρ ≈ 1 + 1
     >>> rho = hcvt.surface.curvature_density(hcvt.Domain.from_surface(ball.vertices, ball.faces))
-    >>> bool(np.allclose(rho, 2.0))
+    >>> bool(np.allclose(rho, 2.0, rtol=0.03))
     True
     """
     if not surface.is_surface:
