@@ -1,15 +1,15 @@
-"""Curvature-adapted remeshing: ``hcvt.remesh(density=curvature_density(...))`` against the
-uniform remesh, same n, same seed.
+"""Curvature-adapted remeshing against the uniform remesh, same n, same seed.
 
-For each model, the uniform remesh (``density=None``) and one per ``--powers`` value ``p``
-of :func:`hcvt.surface.curvature_density` (``ρ = (floor + κ/κ̄)^p``, spacing
-``∝ ρ^(-1/4)``), every output measured by :func:`hcvt.surface_quality` against the input
-(Q min/mean, θmin, % of angles < 30°, Hausdorff distance both ways as % of the diagonal,
-manifold, genus) with the remeshing's seconds and CVT iterations. One thread; timings
-under load.
+For each model, the uniform remesh (``density=None``) and one per ``--powers`` value
+``p`` of ``hcvt.remesh(density=hcvt.surface.curvature_density(surface, p))``
+(``ρ = (floor + κ/κ̄)^p``, spacing ``∝ ρ^(-1/4)``). Every output is measured by
+:func:`hcvt.surface_quality` against the input: Q min/mean, θmin, % of angles < 30°,
+Hausdorff distance both ways as % of the diagonal, manifold, genus; with the
+remeshing's seconds and CVT iterations (``--plain``: without ``tighten``, the CVT's own
+mesh). One thread; timings under load.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh_density.py [--models bunny kitten]
-        [--n 20000] [--powers 0.5 1 2] [--floor 1] [--smooth 5]
+        [--n 20000] [--powers 0.5 1 2] [--floor 1] [--smooth 5] [--seed 0] [--plain]
 """
 
 from __future__ import annotations
@@ -33,6 +33,9 @@ def main() -> None:
     parser.add_argument("--floor", type=float, default=1.0)
     parser.add_argument("--smooth", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--plain", action="store_true", help="tighten=False: the CVT's mesh as it is"
+    )
     args = parser.parse_args()
     print(
         f"{'model':8} {'n':>6} {'density':>10} {'verts':>6} {'Qmin':>6} {'Qmean':>6} "
@@ -55,7 +58,9 @@ def main() -> None:
             )
             cases.append((f"curv^{p:g}", rho))
         for name, density in cases:
-            out = hcvt.remesh(domain, args.n, seed=args.seed, density=density)
+            out = hcvt.remesh(
+                domain, args.n, seed=args.seed, density=density, tighten=not args.plain
+            )
             q = quality(out.vertices, out.faces, reference)
             print(
                 f"{model:8} {args.n:6d} {name:>10} {q['vertices']:6d} {q['q_min']:6.3f} "
