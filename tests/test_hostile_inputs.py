@@ -638,9 +638,9 @@ SPECIFIC: dict[str, list[Row]] = {
             Gives("area 6", lambda r: math.isclose(r.volume[0], 6.0, rel_tol=1e-14)),
         ),
         (
-            "surface: a density is refused with a message",
+            "surface: a density of 0 on part of it is refused, naming a point",
             lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0)], density=lambda x: x[:, 0]),
-            Raises(InvalidDensityError, "densities on a surface are not implemented yet"),
+            Raises(InvalidDensityError, r"the density is 0 at \[0.0, "),
         ),
         (
             "surface: Newton is refused with a message (was a panic)",

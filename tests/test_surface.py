@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Iterator
 from functools import cache
 
 import numpy as np
@@ -100,18 +101,19 @@ def _half_plane(normal: np.ndarray, offset: float, box: float) -> Polygon:
     return Polygon(kept) if len(kept) >= 3 else Polygon()
 
 
-def reference_cell(
+def clipped_pieces(
     vertices: np.ndarray, faces: np.ndarray, sites: np.ndarray, i: int, reach: float
-) -> tuple[float, np.ndarray]:
-    """Area and centroid of cell ``i``: each triangle within ``reach`` of site ``i`` clipped
-    in its own plane by the bisector half-planes of every site within ``2 reach`` (shapely)."""
+) -> Iterator[tuple[int, np.ndarray, np.ndarray, np.ndarray, Polygon]]:
+    """The pieces of cell ``i``: each triangle ``t`` within ``reach`` of site ``i`` clipped
+    in its own plane by the bisector half-planes of every site within ``2 reach``
+    (shapely), as ``(t, origin, e1, e2, piece)`` with ``piece`` in the plane's coordinates
+    ``x = origin + u e1 + v e2``."""
     z = sites[i]
     near = np.flatnonzero(np.linalg.norm(sites - z, axis=1) <= 2 * reach)
     near = near[near != i]
     corners = vertices[faces]
     closest = np.min(np.linalg.norm(corners - z, axis=2), axis=1)
     span = np.max(np.linalg.norm(corners - corners.mean(axis=1, keepdims=True), axis=2), axis=1)
-    area, moment = 0.0, np.zeros(3)
     for t in np.flatnonzero(closest <= reach + 2 * span):
         origin, e1, e2 = _frame(corners[t])
         local = (corners[t] - origin) @ np.column_stack([e1, e2])
@@ -130,10 +132,19 @@ def reference_cell(
             if piece.is_empty:
                 break
         if not piece.is_empty and piece.area > 0:
-            c = np.asarray(piece.centroid.coords[0])
-            area += piece.area
-            moment += piece.area * (origin + c[0] * e1 + c[1] * e2)
-    return area, moment / area if area > 0 else z
+            yield int(t), origin, e1, e2, piece
+
+
+def reference_cell(
+    vertices: np.ndarray, faces: np.ndarray, sites: np.ndarray, i: int, reach: float
+) -> tuple[float, np.ndarray]:
+    """Area and centroid of cell ``i`` from its :func:`clipped_pieces`."""
+    area, moment = 0.0, np.zeros(3)
+    for _, origin, e1, e2, piece in clipped_pieces(vertices, faces, sites, i, reach):
+        c = np.asarray(piece.centroid.coords[0])
+        area += piece.area
+        moment += piece.area * (origin + c[0] * e1 + c[1] * e2)
+    return area, moment / area if area > 0 else sites[i]
 
 
 @needs_data

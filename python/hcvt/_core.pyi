@@ -189,9 +189,11 @@ def restricted_delaunay(
 ) -> RestrictedDelaunayArrays: ...
 
 # A density is either `polynomial=(constant, linear (d,), quadratic (d, d))` or
-# `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`.
+# `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`,
+# or (a triangle surface only) `function=values`, a float64 array (V,) of one value per
+# vertex of the surface, linear on each triangle.
 _Coefficients = tuple[float, Sequence[float], Sequence[Sequence[float]]]
-_Function = Callable[[NDArray[np.float64]], ArrayLike]
+_Function = Callable[[NDArray[np.float64]], ArrayLike] | NDArray[np.float64]
 
 # Each function takes any kind of domain: a polygon (d = 2), a solid (d = 3), a box (mesh
 # and mesh_part raise InvalidDomainError for a box) or the

@@ -14,6 +14,15 @@ driven to the ρ-weighted centroids; asymptotically the cell size follows ``ρ^(
 - a :class:`SizingField` ``h(x)`` (target spacing), i.e. ``ρ = h^-(d+2)`` (CGAL's
   convention), so that the CVT's cell size follows ``h``.
 
+On a triangle surface (:meth:`hcvt.Domain.from_surface`; cells of dimension 2, so
+``ρ = h^-4`` and a cell's size follows ``ρ^(-1/4)``) ``density=`` is a callable of
+position (sampled at the triangle rule's nodes on each flat piece of a cell), a
+:class:`Polynomial` in x, y, z (exact: a degree-4 triangle rule), or a per-vertex field:
+a 1-D array of one value per vertex of the surface, linear on each input triangle
+(exact: interpolated at each piece's corners in the core). Newton is not offered with a
+density on a surface (L-BFGS and Lloyd are). :func:`hcvt.surface.curvature_density`
+builds a per-vertex field from the surface's curvature.
+
 On :meth:`hcvt.Domain.sphere` (cells of dimension 2, so ``ρ = h^-4``) a callable is a
 function of position on the sphere of radius R, or a :class:`LonLatDensity` of longitude
 and latitude; it is sampled on each cell's spherical triangles by a triangle rule of
@@ -283,8 +292,51 @@ class LonLatDensity:
         return f"LonLatDensity({self.fn!r})"
 
 
-#: What ``density=`` accepts.
-DensityLike = Polynomial | SizingField | Callable[[NDArray[np.float64]], ArrayLike] | None
+#: What ``density=`` accepts (an array: a surface's per-vertex field).
+DensityLike = (
+    Polynomial | SizingField | Callable[[NDArray[np.float64]], ArrayLike] | NDArray[Any] | None
+)
+
+
+def per_vertex(values: Any) -> NDArray[np.float64]:
+    """A surface's per-vertex density as float64 (V,), checked finite and positive.
+
+    Raises InvalidDensityError naming the first bad vertex (the count against the
+    surface's vertices is the core's check).
+    """
+    array = np.ascontiguousarray(values, dtype=np.float64)
+    if array.ndim != 1:
+        raise InvalidDensityError(
+            f"a per-vertex density is one value per vertex of the surface, shape (V,); got "
+            f"shape {array.shape}"
+        )
+    bad = ~(np.isfinite(array) & (array > 0))
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InvalidDensityError(
+            f"the per-vertex density is {array[k]} at vertex {k} ({int(bad.sum())} bad "
+            "values): it must be finite and positive"
+        )
+    return array
+
+
+def triangle_values(
+    density: DensityLike, vertices: NDArray[np.float64], faces: NDArray[np.intp]
+) -> NDArray[np.float64]:
+    """ρ per triangle of a surface (F,), checked.
+
+    A per-vertex field's mean over each triangle's vertices, any other density at each
+    triangle's centroid.
+    """
+    if isinstance(density, np.ndarray):
+        values = per_vertex(density)
+        if len(values) != len(vertices):
+            raise InvalidDensityError(
+                f"a per-vertex density needs one value per vertex of the surface: "
+                f"{len(values)} values for {len(vertices)} vertices"
+            )
+        return values[faces].mean(axis=1)
+    return evaluate(density, vertices[faces].mean(axis=1))
 
 
 def core_arguments(
@@ -303,13 +355,17 @@ def core_arguments(
         )
     if isinstance(density, Polynomial):
         return {"polynomial": density.coefficients(dim)}
+    if isinstance(density, np.ndarray):
+        # A surface's per-vertex field: the core takes the array in place of a function.
+        return {"function": per_vertex(density)}
     if isinstance(density, SizingField):
         return {"function": density.density(dim), "quadrature_degree": int(quadrature_degree)}
     if callable(density):
         return {"function": density, "quadrature_degree": int(quadrature_degree)}
     raise TypeError(
-        "density must be a hcvt.density.Polynomial, a hcvt.density.SizingField or a "
-        f"vectorised callable rho(points), got {type(density).__name__}"
+        "density must be a hcvt.density.Polynomial, a hcvt.density.SizingField, a "
+        "vectorised callable rho(points) or (on a surface) a numpy array of values at its "
+        f"vertices, got {type(density).__name__}"
     )
 
 
@@ -365,4 +421,6 @@ __all__ = [
     "core_arguments",
     "evaluate",
     "grading_slope",
+    "per_vertex",
+    "triangle_values",
 ]

@@ -91,6 +91,8 @@ def fastest_method(
     exact_hessian = density is None or isinstance(density, Polynomial) or domain.is_sphere
     if domain.is_sphere_region:
         return "lbfgs"  # no Hessian summed on a region of the sphere yet
+    if domain.is_surface and density is not None:
+        return "lbfgs"  # the core does not weight a surface's Hessian by a density
     summed = not any(domain.periodic) and not domain.is_surface
     if not summed or not exact_hessian or partitioned:
         return "lbfgs"

@@ -1,6 +1,7 @@
 //! A density from Python (DESIGN §8): polynomial coefficients become the core's
 //! `Quadratic`; a callable becomes a `Field` that the core calls once per diagram, with
-//! the GIL taken for that call only.
+//! the GIL taken for that call only; a 1-D float array given as the function (a surface's
+//! per-vertex field) becomes `Density::PerVertex`.
 
 use std::sync::Mutex;
 
@@ -97,10 +98,13 @@ pub enum Given {
     Polynomial(Coefficients),
     /// A callable.
     Function(PyField, usize),
+    /// Values at a surface's vertices.
+    PerVertex(Vec<f64>),
 }
 
 impl Given {
-    /// From the binding's keyword arguments; both given is an error.
+    /// From the binding's keyword arguments; both given is an error. A `function` that is
+    /// a 1-D float64 array rather than a callable is a surface's per-vertex field.
     pub fn new(
         polynomial: Option<Coefficients>,
         function: Option<Py<PyAny>>,
@@ -109,7 +113,19 @@ impl Given {
         match (polynomial, function) {
             (None, None) => Ok(Self::None),
             (Some(p), None) => Ok(Self::Polynomial(p)),
-            (None, Some(f)) => Ok(Self::Function(PyField::new(f), degree)),
+            (None, Some(f)) => Python::attach(|py| {
+                let bound = f.bind(py);
+                if bound.is_callable() {
+                    return Ok(Self::Function(PyField::new(f), degree));
+                }
+                let values: PyReadonlyArray1<'_, f64> = bound.extract().map_err(|_| {
+                    InvalidDensityError::new_err(
+                        "a density must be a callable or a 1-D float64 array of values at \
+                         the surface's vertices",
+                    )
+                })?;
+                Ok(Self::PerVertex(values.as_array().to_vec()))
+            }),
             (Some(_), Some(_)) => Err(PyValueError::new_err(
                 "give a density as a polynomial or as a function, not both",
             )),
@@ -125,6 +141,7 @@ impl Given {
                 field,
                 degree: *degree,
             }),
+            Self::PerVertex(values) => Some(Density::PerVertex(values)),
         })
     }
 

@@ -11,9 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from numpy.typing import ArrayLike
 
-from hcvt.errors import InvalidDensityError
 from hcvt.geometry.frame import Frame
 
 
@@ -33,12 +33,15 @@ class SurfaceFrame(Frame):
         return 2
 
     def density_to_core(self, density: Any) -> Any:
-        """No density on a surface yet: None passes, anything else raises."""
-        if density is None:
-            return None
-        raise InvalidDensityError(
-            "densities on a surface are not implemented yet; pass density=None"
-        )
+        """``density`` in the frame, as a solid's frame has it; an array passes as it is.
+
+        A callable is evaluated at the points mapped back and a polynomial expanded
+        (:meth:`Frame.density_to_core`); a per-vertex field's values do not depend on the
+        frame.
+        """
+        if isinstance(density, np.ndarray):
+            return density
+        return super().density_to_core(density)
 
 
 __all__ = ["SurfaceFrame"]

@@ -39,13 +39,17 @@ def sample_by_area(
     faces: NDArray[np.intp],
     n: int,
     rng: np.random.Generator,
+    weights: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """``n`` points uniform by area on the triangles, and the triangle of each (n,).
 
-    A triangle is drawn with probability proportional to its area, then a point uniform
-    in it (the square-root map of two uniforms to barycentric coordinates).
+    A triangle is drawn with probability proportional to its area (times its entry of
+    ``weights`` (F,), if given), then a point uniform in it (the square-root map of two
+    uniforms to barycentric coordinates).
     """
     areas = triangle_areas(vertices, faces)
+    if weights is not None:
+        areas = areas * weights
     cumulative = np.cumsum(areas)
     which = np.searchsorted(cumulative, rng.random(n) * cumulative[-1], side="right")
     which = np.minimum(which, len(faces) - 1)

@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
-from hcvt.density import DensityLike, evaluate
+from hcvt.density import DensityLike, evaluate, triangle_values
 from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain, polygon_boundary
 from hcvt.geometry.surface_points import sample_by_area
@@ -285,13 +285,21 @@ def _on_surface(
     state: int | np.random.Generator | None,
     density: DensityLike,
 ) -> NDArray[np.float64]:
-    """``initialise`` on a surface: ``n`` points uniform by area on its triangles."""
+    """``initialise`` on a surface: ``n`` points random by area on its triangles.
+
+    With a density, a triangle is drawn in proportion to its area times ``ρ^(1/2)``
+    (Gersho's point density ``ρ^(d/(d+2))``, d = 2) at its centroid (a per-vertex field:
+    the mean of its vertices' values).
+    """
     if method != "random":
         raise ValueError(f"unknown method {method!r} on a surface; expected 'random'")
-    if density is not None:
-        raise InvalidDensityError("densities on a surface are not implemented yet")
     generator = np.random.default_rng(state)
-    points, _ = sample_by_area(domain.vertices, domain.faces, n, generator)
+    weights = (
+        None
+        if density is None
+        else np.sqrt(triangle_values(density, domain.vertices, domain.faces))
+    )
+    points, _ = sample_by_area(domain.vertices, domain.faces, n, generator, weights)
     return _distinct(domain, points)
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from hcvt.density import DensityLike
 from hcvt.geometry.domain import Domain
 from hcvt.lazy import load
 from hcvt.optimise import CVTResult, cvt
@@ -549,6 +550,7 @@ def constrained_cvt(
     *,
     tol: float,
     max_iter: int,
+    density: DensityLike = None,
 ) -> CVTResult:
     """A CVT of ``surface`` whose last ``fixed`` rows of ``sites`` (n, 3) do not move.
 
@@ -565,10 +567,22 @@ def constrained_cvt(
     mask = np.zeros(len(sites), dtype=bool)
     mask[len(sites) - fixed :] = True
     lloyd_steps = max_iter if method == "lloyd" else min(PRESMOOTH, max_iter)
-    runs = [cvt(surface, sites, "lloyd", tol=tol, max_iter=lloyd_steps, fixed=mask)]
+    runs = [
+        cvt(surface, sites, "lloyd", tol=tol, max_iter=lloyd_steps, fixed=mask, density=density)
+    ]
     if method == "lbfgs" and not runs[0].converged and runs[0].iterations < max_iter:
         rest = max_iter - runs[0].iterations
-        runs.append(cvt(surface, runs[0].sites, "lbfgs", tol=tol, max_iter=rest, fixed=mask))
+        runs.append(
+            cvt(
+                surface,
+                runs[0].sites,
+                "lbfgs",
+                tol=tol,
+                max_iter=rest,
+                fixed=mask,
+                density=density,
+            )
+        )
     last = runs[-1]
     # One history: the later run's first record is the earlier's last iterate (projected).
     history = {

@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hcvt import _core
+from hcvt.density import DensityLike
 from hcvt.geometry.domain import Domain
 from hcvt.optimise import CVTResult, cvt
 from hcvt.seeding.initialisation import initialise
@@ -177,6 +178,7 @@ def _cvt(
     method: str,
     tol: float | None,
     max_iter: int,
+    density: DensityLike = None,
 ) -> CVTResult:
     """The CVT of :func:`remesh`: :func:`hcvt.cvt`, or one holding the features' sites.
 
@@ -184,9 +186,12 @@ def _cvt(
     (:func:`hcvt.surface.features.constrained_cvt`).
     """
     if plan is None:
-        return cvt(surface, sites, method, tol=tol, max_iter=max_iter)
+        return cvt(surface, sites, method, tol=tol, max_iter=max_iter, density=density)
     tol = _core.check_settings(method, "gap", tol, max_iter, 7)
-    return constrained_cvt(surface, sites, len(plan.points), method, tol=tol, max_iter=max_iter)
+    held = len(plan.points)
+    return constrained_cvt(
+        surface, sites, held, method, tol=tol, max_iter=max_iter, density=density
+    )
 
 
 def remesh(
@@ -201,6 +206,7 @@ def remesh(
     features: float | None = None,
     tighten: bool = True,
     min_angle: float | None = None,
+    density: DensityLike = None,
 ) -> RemeshResult:
     """Remesh ``surface`` isotropically with exactly ``n`` vertices.
 
@@ -252,6 +258,13 @@ def remesh(
         The least angle (degrees, in [0, 60]) ``tighten`` may leave; None: the smaller of
         :data:`TIGHTEN_MIN_ANGLE` (30°) and the CVT mesh's own least angle (which then
         falls to 30° at most). Only with ``tighten``.
+    density : callable, Polynomial, array or None
+        A density ρ > 0 on the surface for the CVT (:mod:`hcvt.density`): a callable of
+        position, a :class:`hcvt.density.Polynomial`, or one value per vertex of the
+        surface (linear on each triangle), e.g. :func:`hcvt.surface.curvature_density`.
+        The spacing of the vertices follows ``ρ^(-1/4)`` (cells of dimension 2): for a
+        spacing ``h(x)`` give ``ρ = h^-4``. The initial sites are drawn by area times
+        ``ρ^(1/2)``. Still exactly ``n`` vertices. None: uniform.
 
     Returns
     -------
@@ -285,10 +298,10 @@ def remesh(
     input_topology = edge_topology(surface.faces, len(surface.vertices))
     plan = None if features is None else plan_feature_sites(surface, n, features)
     held = 0 if plan is None else len(plan.points)
-    sites = initialise(surface, n - held, method="random", seed=seed)
+    sites = initialise(surface, n - held, method="random", seed=seed, density=density)
     if plan is not None:  # the free sites first, then the fixed ones on the features
         sites = np.vstack([sites, plan.points])
-    run = _cvt(surface, sites, plan, method, tol, max_iter)
+    run = _cvt(surface, sites, plan, method, tol, max_iter, density)
     iterations = run.iterations
     # Rounds after the first run: at most TIGHTER_ROUNDS that tighten the tol or move
     # intruders, and those that free held sites (each frees at least one) besides.
@@ -321,7 +334,7 @@ def remesh(
             order = np.concatenate([np.arange(n - held), stuck, still])
             again, _ = move_to_gaps(run.sites, faces, n - held, stuck.tolist())
             held, freed = len(plan.points), freed + len(stuck)
-            run = _cvt(surface, again[order], plan, method, tol, max_iter - iterations)
+            run = _cvt(surface, again[order], plan, method, tol, max_iter - iterations, density)
             iterations += run.iterations
             continue
         # The only defect free sites cutting feature segments: move them, same tol.
@@ -333,7 +346,7 @@ def remesh(
             tol *= TIGHTER
         rounds += 1
         again = run.sites if moved is None else moved
-        run = _cvt(surface, again, plan, method, tol, max_iter - iterations)
+        run = _cvt(surface, again, plan, method, tol, max_iter - iterations, density)
         iterations += run.iterations
     reference = (surface.vertices, surface.faces)
     vertices, moves = run.sites, 0

@@ -11,7 +11,10 @@
 //!   round-off;
 //! - [`Field`]: any function, sampled by a rule of stated degree; the diagram gathers the
 //!   rule's points of every cell, asks the field for all of them in one call, and sums
-//!   each cell's nodes in order.
+//!   each cell's nodes in order;
+//! - [`Density::PerVertex`]: on a triangle surface, values at its vertices, linear on each
+//!   triangle: interpolated at the corners of each piece and integrated there by the
+//!   degree-4 triangle rule, exact.
 //!
 //! | file | owns |
 //! |------|------|
@@ -22,7 +25,10 @@
 pub(crate) mod quadrature;
 mod sums;
 
-pub use sums::{cone_node, polynomial_cone, polynomial_face_moments, sum_sampled, Cone};
+pub use sums::{
+    cone_node, face_node, linear_face_moments, polynomial_cone, polynomial_face_moments,
+    sum_sampled, sum_sampled_on_faces, Cone,
+};
 
 use crate::error::CoreError;
 use crate::geometry::{add, dot};
@@ -124,6 +130,10 @@ pub enum Density<'a, const D: usize> {
         /// Degree of exactness asked of the rule, `1..=5`.
         degree: usize,
     },
+    /// A field on a triangle surface given by its values at the surface's vertices (in
+    /// their order), linear on each triangle: moments exact to round-off (`ρ |y|²` has
+    /// degree 3 on each flat piece). Other domains refuse it.
+    PerVertex(&'a [f64]),
 }
 
 impl<const D: usize> std::fmt::Debug for Density<'_, D> {
@@ -131,6 +141,7 @@ impl<const D: usize> std::fmt::Debug for Density<'_, D> {
         match self {
             Self::Polynomial(q) => f.debug_tuple("Polynomial").field(q).finish(),
             Self::Sampled { degree, .. } => write!(f, "Sampled {{ degree: {degree} }}"),
+            Self::PerVertex(values) => write!(f, "PerVertex({} values)", values.len()),
         }
     }
 }
@@ -148,7 +159,7 @@ impl<const D: usize> Density<'_, D> {
     /// (the sphere) take triangle rules.
     pub fn rule_in(&self, dim: usize) -> Result<Rule, CoreError> {
         let degree = match self {
-            Self::Polynomial(_) => POLYNOMIAL_DEGREE,
+            Self::Polynomial(_) | Self::PerVertex(_) => POLYNOMIAL_DEGREE,
             Self::Sampled { degree, .. } => *degree,
         };
         quadrature::rule(dim, degree).ok_or_else(|| CoreError::InvalidDensity {

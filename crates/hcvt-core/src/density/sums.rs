@@ -38,7 +38,7 @@ pub fn polynomial_cone<const D: usize>(
     // Σ_q w_q of each homogeneous part, already divided by d + k.
     let (mut mass, mut first, mut second) = (0.0, [0.0; D], 0.0);
     for (lambda, w) in face_rule.nodes() {
-        let y = on_face(face, lambda);
+        let y = face_node(face, lambda);
         let linear = dot(local.linear, y);
         let quadratic = dot(std::array::from_fn(|r| dot(local.quadratic[r], y)), y);
         mass += w * (linear / (d + 1.0) + quadratic / (d + 2.0));
@@ -67,7 +67,7 @@ pub fn polynomial_face_moments<const D: usize>(
 ) -> FaceMoments<D> {
     let mut m = FaceMoments::zero();
     for (lambda, w) in face_rule.nodes() {
-        let y = on_face(simplex, lambda);
+        let y = face_node(simplex, lambda);
         let f = w * measure * local.value(y);
         m.measure += f;
         for r in 0..D {
@@ -83,7 +83,7 @@ pub fn polynomial_face_moments<const D: usize>(
 /// The point of `face` (the `D` vertices) with barycentric coordinates `lambda` on its
 /// vertices `1..D` (vertex 0 takes the rest).
 #[inline]
-fn on_face<const D: usize>(face: &[[f64; D]; D], lambda: &[f64]) -> [f64; D] {
+pub fn face_node<const D: usize>(face: &[[f64; D]; D], lambda: &[f64]) -> [f64; D] {
     let rest = 1.0 - lambda.iter().sum::<f64>();
     std::array::from_fn(|k| {
         rest * face[0][k] + (1..D).map(|v| lambda[v - 1] * face[v][k]).sum::<f64>()
@@ -101,11 +101,63 @@ pub fn cone_node<const D: usize>(face: &[[f64; D]; D], lambda: &[f64]) -> [f64; 
 /// and the field's `values` at their nodes (cone after cone, node after node), summed in
 /// that order.
 pub fn sum_sampled<const D: usize>(cones: &[Cone<D>], rule: &Rule, values: &[f64]) -> Moments<D> {
+    sum_nodes(cones, rule, values, cone_node)
+}
+
+/// As [`sum_sampled`] for a cell made of face simplices (a surface's cell, of dimension
+/// `D − 1`: each "cone" its `D` vertices and its measure, the `rule` on the
+/// `(D − 1)`-simplex, nodes by [`face_node`]).
+pub fn sum_sampled_on_faces<const D: usize>(
+    faces: &[Cone<D>],
+    rule: &Rule,
+    values: &[f64],
+) -> Moments<D> {
+    sum_nodes(faces, rule, values, face_node)
+}
+
+/// The weighted moments about the site of the face simplex `face` (relative to the site)
+/// of `measure` for the ρ linear on it with values `corners` at its vertices, by `rule`
+/// on the `(D − 1)`-simplex: exact when the rule has degree ≥ 3 (`ρ |y|²` is cubic).
+pub fn linear_face_moments<const D: usize>(
+    face: &[[f64; D]; D],
+    measure: f64,
+    corners: [f64; D],
+    rule: &Rule,
+) -> Moments<D> {
+    // ρ at the rule's nodes (at most 7 on a triangle, 3 on a segment).
+    let mut values = [0.0; 16];
+    for ((lambda, _), v) in rule.nodes().zip(values.iter_mut()) {
+        let rest = 1.0 - lambda.iter().sum::<f64>();
+        *v = rest * corners[0] + (1..D).map(|k| lambda[k - 1] * corners[k]).sum::<f64>();
+    }
+    let count = rule.weights.len().min(values.len());
+    sum_on_faces_one(face, measure, rule, &values[..count])
+}
+
+/// [`sum_sampled_on_faces`] of the one face `face`.
+fn sum_on_faces_one<const D: usize>(
+    face: &[[f64; D]; D],
+    measure: f64,
+    rule: &Rule,
+    values: &[f64],
+) -> Moments<D> {
+    sum_nodes(&[(*face, measure)], rule, values, face_node)
+}
+
+/// The weighted moments from `pieces`, `rule` and ρ's `values` at the nodes `node(piece,
+/// lambda)` (piece after piece, node after node), summed in that order.
+#[inline]
+fn sum_nodes<const D: usize>(
+    pieces: &[Cone<D>],
+    rule: &Rule,
+    values: &[f64],
+    node: impl Fn(&[[f64; D]; D], &[f64]) -> [f64; D],
+) -> Moments<D> {
     let mut m = Moments::zero();
     let mut value = values.iter();
-    for (face, measure) in cones {
+    for (face, measure) in pieces {
         for ((lambda, w), &rho) in rule.nodes().zip(&mut value) {
-            let y = cone_node(face, lambda);
+            let y = node(face, lambda);
             let f = measure * w * rho;
             m.mass += f;
             for (sum, &yk) in m.first.iter_mut().zip(&y) {

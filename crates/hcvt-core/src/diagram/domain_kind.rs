@@ -210,6 +210,18 @@ pub trait DomainKind<const D: usize>: Sync {
         sum_sampled(cones, rule, values)
     }
 
+    /// The number of values a per-vertex density takes ([`crate::Density::PerVertex`]): a
+    /// triangle surface's vertex count; `None` (the default): the kind takes none.
+    fn vertex_density_len(&self) -> Option<usize> {
+        None
+    }
+
+    /// Newton's Hessian is weighted by a density here (the default, where it is summed at
+    /// all): a triangle surface's is not, and Newton with a density is refused there.
+    fn sums_weighted_hessian(&self) -> bool {
+        self.sums_hessian()
+    }
+
     /// The point of the domain that stands for `x` after a step: `x` itself in a flat
     /// domain (no arithmetic, so no bit changes), `x / |x|` on the unit sphere (the
     /// retraction of DESIGN §13).

@@ -396,6 +396,9 @@ where
     Euclid: Space<D>,
 {
     let weights = checked_weights(domain, sites.len(), request)?;
+    if let Some(Density::PerVertex(values)) = request.density {
+        weighted::check_per_vertex(values, domain)?;
+    }
     if let Some(torus) = domain.periodic() {
         return periodic_box::clipped_diagram::<D, C>(torus, sites, weights, request).map(Some);
     }
@@ -798,6 +801,9 @@ where
     }
     let (windings, _) = checked_part(domain, sites, own, options)?;
     let own_sites: Vec<[f64; D]> = own.iter().map(|&i| sites[i as usize]).collect();
+    if let Some(Density::PerVertex(values)) = density {
+        weighted::check_per_vertex(values, domain)?;
+    }
     if let Some(Density::Polynomial(q)) = density {
         weighted::check_polynomial(q, domain, &own_sites)?;
         if q.is_constant() {

@@ -44,10 +44,14 @@
 //! 0.37-0.39 s of CPU against 0.27-0.28 s (armadillo, 5,000 CVT sites) and 1.19 s
 //! against 0.82-0.89 s (20,000), one thread under load ~3.5.
 
+mod density;
+
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
+use crate::density::quadrature::Rule;
+use crate::density::{face_node, sum_sampled_on_faces, Cone};
 use crate::domain::TriangleSet;
 use crate::error::CoreError;
 use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
@@ -888,6 +892,26 @@ impl DomainKind<3> for Noting<'_> {
     fn cell_dim(&self) -> usize {
         self.surface.cell_dim()
     }
+    fn sampled_node(&self, site: [f64; 3], cone: &Cone<3>, lambda: &[f64]) -> [f64; 3] {
+        self.surface.sampled_node(site, cone, lambda)
+    }
+    fn sampled_moments(
+        &self,
+        site: [f64; 3],
+        cones: &[Cone<3>],
+        rule: &Rule,
+        values: &[f64],
+        geometric: &Moments<3>,
+    ) -> Moments<3> {
+        self.surface
+            .sampled_moments(site, cones, rule, values, geometric)
+    }
+    fn vertex_density_len(&self) -> Option<usize> {
+        self.surface.vertex_density_len()
+    }
+    fn sums_weighted_hessian(&self) -> bool {
+        self.surface.sums_weighted_hessian()
+    }
 }
 
 impl Surface {
@@ -906,6 +930,9 @@ impl Surface {
         self.for_each_piece(cell, site, Triangles::LastMet, |t, polygon| {
             met(t);
             add_piece(self, t, polygon, &mut total, faces);
+            if faces.weighted.is_on() {
+                self.add_weighted_piece(t, site, polygon, &mut faces.weighted);
+            }
         });
         total
     }
@@ -991,8 +1018,8 @@ impl DomainKind<3> for Surface {
     }
 
     /// The moments of the cell's part of the surface about the site (mass the area), its
-    /// arcs on bisectors into the neighbours' measures. No face integrand (Newton) or
-    /// density yet: the binding refuses them on a surface.
+    /// arcs on bisectors into the neighbours' measures, and with a density its weighted
+    /// sums (`surface/density.rs`). No face integrand (Newton) yet.
     fn clip<C: ConvexCell<3>>(
         &self,
         cell: &C,
@@ -1006,6 +1033,34 @@ impl DomainKind<3> for Surface {
 
     fn cell_dim(&self) -> usize {
         2
+    }
+
+    /// The rule's point in the fan triangle `cone` (its three corners relative to the
+    /// site): the cells are pieces of flat triangles (`surface/density.rs`).
+    fn sampled_node(&self, _site: [f64; 3], cone: &Cone<3>, lambda: &[f64]) -> [f64; 3] {
+        face_node(&cone.0, lambda)
+    }
+
+    /// The triangle rule's sums over the fan triangles (`surface/density.rs`).
+    fn sampled_moments(
+        &self,
+        _site: [f64; 3],
+        cones: &[Cone<3>],
+        rule: &Rule,
+        values: &[f64],
+        _geometric: &Moments<3>,
+    ) -> Moments<3> {
+        sum_sampled_on_faces(cones, rule, values)
+    }
+
+    /// One value per vertex of the surface.
+    fn vertex_density_len(&self) -> Option<usize> {
+        Some(self.set.vertices().len())
+    }
+
+    /// Newton's Hessian is not weighted by a density on a surface.
+    fn sums_weighted_hessian(&self) -> bool {
+        false
     }
 }
 

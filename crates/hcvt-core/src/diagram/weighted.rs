@@ -231,6 +231,34 @@ pub(super) fn check_polynomial<const D: usize, K: DomainKind<D>>(
     Ok(())
 }
 
+/// A per-vertex density is given on a kind that takes one (a triangle surface), with one
+/// value per vertex, each finite and positive (else the vertex is named).
+pub(super) fn check_per_vertex<const D: usize, K: DomainKind<D>>(
+    values: &[f64],
+    domain: &K,
+) -> Result<(), CoreError> {
+    let Some(count) = domain.vertex_density_len() else {
+        return Err(CoreError::InvalidDensity {
+            reason: "a per-vertex density is taken on a triangle surface only".into(),
+        });
+    };
+    if values.len() != count {
+        return Err(CoreError::InvalidDensity {
+            reason: format!(
+                "a per-vertex density needs one value per vertex of the surface: {} values \
+                 for {count} vertices",
+                values.len()
+            ),
+        });
+    }
+    let vertices = domain.density_checkpoints();
+    for (k, &v) in values.iter().enumerate() {
+        let point = vertices.get(k).copied().unwrap_or([f64::NAN; D]);
+        check_value(point, v)?;
+    }
+    Ok(())
+}
+
 /// Every cell of positive volume has a positive, finite weighted mass: a density negative
 /// somewhere inside a cell shows here, named by the cell's centroid and its mean density.
 pub(super) fn check_masses<const D: usize>(

@@ -4,8 +4,11 @@
 //! evaluation over the whole diagram (`weighted.rs`).
 
 use crate::density::quadrature::{self, Rule};
+use std::sync::Arc;
+
 use crate::density::{
-    polynomial_cone, polynomial_face_moments, Cone, Density, Quadratic, POLYNOMIAL_DEGREE,
+    linear_face_moments, polynomial_cone, polynomial_face_moments, Cone, Density, Quadratic,
+    POLYNOMIAL_DEGREE,
 };
 use crate::error::CoreError;
 use crate::geometry::{add, scale};
@@ -64,7 +67,7 @@ fn add_face_scaled<const D: usize>(m: &mut FaceMoments<D>, term: &FaceMoments<D>
 }
 
 /// What is summed.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 enum Kind<const D: usize> {
     /// No density: nothing.
     Off,
@@ -77,6 +80,9 @@ enum Kind<const D: usize> {
     },
     /// A field: the cone simplices are kept for one evaluation of the whole diagram.
     Sampled,
+    /// A surface's per-vertex field (shared by the threads' copies), with the face rule:
+    /// each piece's moments at once.
+    PerVertex { values: Arc<[f64]>, face_rule: Rule },
 }
 
 /// The weighted moments of one cell about its site (a [`Quadratic`]), or the cone
@@ -123,6 +129,10 @@ impl<const D: usize> WeightedSums<D> {
                 d.rule()?;
                 Kind::Sampled
             }
+            Some(d @ Density::PerVertex(values)) => Kind::PerVertex {
+                values: Arc::from(*values),
+                face_rule: d.rule_in(D - 1)?,
+            },
         };
         Ok(Self {
             kind,
@@ -181,16 +191,51 @@ impl<const D: usize> WeightedSums<D> {
         self.faces.clear();
     }
 
+    /// Add the face simplex `face` (relative to the site) of `measure` as a piece of a
+    /// cell of dimension `D − 1` (a surface's): a polynomial's moments at once by the
+    /// face rule ([`polynomial_face_moments`], exact), a field's simplex kept for its
+    /// sampling, a per-vertex field's moments from its values `corners` at the face's
+    /// vertices, which `corners` reads from the field's values at the surface's vertices
+    /// ([`linear_face_moments`], exact; `corners` is called for this kind only).
+    pub fn add_face_piece(
+        &mut self,
+        face: &[[f64; D]; D],
+        measure: f64,
+        corners: impl FnOnce(&[f64]) -> [f64; D],
+    ) {
+        let m = match &self.kind {
+            Kind::Off => return,
+            Kind::Sampled => {
+                self.cones.push((*face, measure));
+                return;
+            }
+            Kind::Polynomial {
+                local, face_rule, ..
+            } => {
+                let f = polynomial_face_moments(local, face_rule, face, measure);
+                Moments {
+                    mass: f.measure,
+                    first: f.first,
+                    second: (0..D).map(|k| f.second[k][k]).sum(),
+                }
+            }
+            Kind::PerVertex { values, face_rule } => {
+                linear_face_moments(face, measure, corners(values), face_rule)
+            }
+        };
+        self.moments.add_scaled(&m, 1.0);
+    }
+
     /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex.
     pub fn add_piece<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) {
-        match self.kind {
-            Kind::Off => {}
+        match &self.kind {
+            Kind::Off | Kind::PerVertex { .. } => {}
             Kind::Polynomial {
                 local, face_rule, ..
             } => {
                 let m = &mut self.moments;
                 piece.for_each_cone(|face, measure| {
-                    let cone = polynomial_cone(&local, &face_rule, face, measure);
+                    let cone = polynomial_cone(local, face_rule, face, measure);
                     m.add_scaled(&cone, sign);
                 });
             }

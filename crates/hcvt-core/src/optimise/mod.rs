@@ -618,6 +618,16 @@ where
                 .into(),
         });
     }
+    if settings.density.is_some()
+        && settings.method == Method::Newton
+        && !domain.sums_weighted_hessian()
+    {
+        return Err(CoreError::InvalidDensity {
+            reason: "Newton's Hessian is not weighted by a density on a triangle surface: use \
+                     method 'lbfgs' or 'lloyd'"
+                .into(),
+        });
+    }
     // On the sphere every density is sampled, and its arcs too (`sphere.rs`).
     if matches!(settings.density, Some(Density::Sampled { .. }))
         && settings.method == Method::Newton
