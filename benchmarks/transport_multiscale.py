@@ -34,9 +34,9 @@ import argparse
 
 import numpy as np
 from scipy.spatial import cKDTree
-from transport import DOMAINS, random_sites
 
 import hcvt
+from transport import DOMAINS, random_sites
 
 
 def morton_order(z: np.ndarray, bits: int = 16) -> np.ndarray:

@@ -74,7 +74,7 @@ use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use std::borrow::Cow;
 
@@ -675,6 +675,7 @@ impl<const D: usize> Laplacian<'_, D> {
             a.fixed == fixed && a.col_ptr == pattern.col_ptr() && a.rows == pattern.row_idx()
         });
         if !same {
+            kept.tree = None;
             let symbolic = analyse(&matrix, &mut kept.ordering)?;
             kept.analysed = Some(Analysed {
                 fixed,
@@ -714,6 +715,12 @@ impl<const D: usize> Laplacian<'_, D> {
             return None;
         }
         kept.values = Some(values);
+        if kept.tree.is_none() {
+            kept.tree = match symbolic.raw() {
+                SymbolicCholeskyRaw::Simplicial(s) => TreeSolve::new(s.col_ptr(), s.row_idx()),
+                SymbolicCholeskyRaw::Supernodal(_) => None,
+            };
+        }
         Some((x, 0))
     }
 
@@ -815,6 +822,9 @@ struct Kept {
     analysed: Option<Analysed>,
     /// The numeric factor of `analysed` (its values), from the last factorisation.
     values: Option<Vec<f64>>,
+    /// The parallel schedule of `analysed`'s solves, when its factor is simplicial
+    /// ([`TreeSolve`]).
+    tree: Option<TreeSolve>,
 }
 
 /// Most iterations of [`Kept::preconditioned`] before the system is factorised afresh.
@@ -846,14 +856,32 @@ impl Kept {
         let par = Par::Seq;
         let mut memory =
             MemBuffer::try_new(analysed.symbolic.solve_in_place_scratch::<f64>(1, par)).ok()?;
-        let precondition = |r: &[f64], z: &mut [f64]| {
-            z.copy_from_slice(r);
-            factor.solve_in_place_with_conj(
-                Conj::No,
-                MatMut::from_column_major_slice_mut(z, n, 1),
-                par,
-                MemStack::new(&mut memory),
-            );
+        let perm = analysed.symbolic.perm().map(|p| p.arrays());
+        let mut permuted = vec![0.0; n];
+        let precondition = |r: &[f64], z: &mut [f64]| match (&self.tree, perm) {
+            (Some(tree), Some((forward, inverse))) => {
+                permuted
+                    .iter_mut()
+                    .zip(forward)
+                    .for_each(|(p, &f)| *p = r[f]);
+                tree.solve(values, &mut permuted);
+                z.iter_mut()
+                    .zip(inverse)
+                    .for_each(|(z, &i)| *z = permuted[i]);
+            }
+            (Some(tree), None) => {
+                z.copy_from_slice(r);
+                tree.solve(values, z);
+            }
+            (None, _) => {
+                z.copy_from_slice(r);
+                factor.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(z, n, 1),
+                    par,
+                    MemStack::new(&mut memory),
+                );
+            }
         };
         let done = |r: &[f64]| {
             r.iter().zip(targets).all(|(r, t)| r.abs() <= goal * t)
@@ -861,8 +889,9 @@ impl Kept {
         };
         let mut x = vec![0.0; n];
         let mut r = rhs.to_vec();
+        let rows = ByRows::new(matrix);
         let (iterations, reached) = conjugate_gradients(
-            |p, ap| symmetric_product(matrix, p, ap),
+            |p, ap| rows.product(p, ap),
             precondition,
             &mut x,
             &mut r,
@@ -922,7 +951,9 @@ fn conjugate_gradients(
     (max_iterations, false)
 }
 
-/// `out = A x` for the symmetric `A` of which `matrix` holds the lower triangle.
+/// `out = A x` for the symmetric `A` of which `matrix` holds the lower triangle, serially:
+/// the reference [`ByRows::product`] reproduces.
+#[cfg(test)]
 fn symmetric_product(matrix: &SparseColMat<usize, f64>, x: &[f64], out: &mut [f64]) {
     let (col_ptr, rows, values) = (
         matrix.symbolic().col_ptr(),
@@ -1030,5 +1061,415 @@ impl Components {
 
     fn connected(&mut self) -> bool {
         (0..self.parent.len()).all(|i| self.root(i) == 0)
+    }
+}
+
+/// Bins the elimination tree's subtrees are packed into, the parallel tasks of a
+/// [`TreeSolve`]: a fixed number, so the schedule (not that it could change a bit) does not
+/// follow the thread count.
+const TREE_BINS: usize = 8;
+
+/// The two triangular solves with a kept simplicial factor `L` (`L Lᵀ x = b`, faer's
+/// layout: column `j`'s rows with its diagonal first) over independent subtrees of the
+/// elimination tree in parallel, each entry computed by the float operations of faer's
+/// serial solves in their order, so the same bits on any number of threads and as faer's
+/// (`simplicial::SimplicialLltRef::solve_in_place_with_conj`, faer 0.24). Forward, faer
+/// scatters column `j` into the rows below it in increasing `j`; here row `i` gathers the
+/// same products in the same order (`x_i − l_ij x_j`, then `· (1/l_ii)`), and every `j`
+/// of row `i` lies in `i`'s subtree. Backward, column `j` sums `l_ij x_i` over its
+/// stored rows from the last, then `(x_j − sum) · (1/l_jj)`, reading only ancestors. The
+/// subtrees are split off the top of the tree until none holds more than a
+/// thirty-second of the cells, then packed into [`TREE_BINS`] bins; the nodes above them
+/// (`top`) are solved serially, after the bins forward and before them backward. Why: the
+/// solves were the largest serial part of the transport at 10,000 sites (10.6% of one
+/// thread's samples against the diagrams' ~60%, perf, square, equal masses:
+/// `docs/results/transport.txt` §13), the part a second thread could not share.
+struct TreeSolve {
+    /// The factor's pattern: column `j`'s rows `rows[col_ptr[j]..col_ptr[j + 1]]`.
+    col_ptr: Vec<usize>,
+    rows: Vec<usize>,
+    /// Row `i` of `L` below the diagonal: `(j, entry of l_ij)` in increasing `j`.
+    row_ptr: Vec<usize>,
+    row_entries: Vec<(usize, usize)>,
+    /// Each bin's nodes in increasing order.
+    bins: Vec<Vec<usize>>,
+    /// The nodes above the bins, in increasing order.
+    top: Vec<usize>,
+    /// Node `j`'s bin (`usize::MAX` for the top) and its place in the bin.
+    owner: Vec<usize>,
+    place: Vec<usize>,
+}
+
+impl TreeSolve {
+    /// The schedule of the factor with column pointers `col_ptr` and rows `rows`
+    /// (`SymbolicSimplicialCholesky`), or `None` when the top would hold more than half
+    /// of the nodes (then faer's serial solves run).
+    fn new(col_ptr: &[usize], rows: &[usize]) -> Option<Self> {
+        let n = col_ptr.len().checked_sub(1)?;
+        let mut parent = vec![usize::MAX; n];
+        let mut counts = vec![0usize; n + 1];
+        for j in 0..n {
+            let column = rows.get(col_ptr[j]..col_ptr[j + 1])?;
+            if column.first() != Some(&j) {
+                return None;
+            }
+            for &i in &column[1..] {
+                if i <= j || i >= n {
+                    return None;
+                }
+                parent[j] = parent[j].min(i);
+                counts[i + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            counts[i + 1] += counts[i];
+        }
+        let row_ptr = counts.clone();
+        let mut row_entries = vec![(0, 0); row_ptr[n]];
+        for j in 0..n {
+            for e in col_ptr[j] + 1..col_ptr[j + 1] {
+                let i = rows[e];
+                row_entries[counts[i]] = (j, e);
+                counts[i] += 1;
+            }
+        }
+        // Subtree sizes and children (a child is numbered below its parent).
+        let mut size = vec![1usize; n];
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
+        for j in 0..n {
+            if parent[j] != usize::MAX {
+                size[parent[j]] += size[j];
+                children[parent[j]].push(j);
+            }
+        }
+        let limit = (n / 32).max(1);
+        let mut top = Vec::new();
+        let mut in_top = vec![false; n];
+        let mut heap: std::collections::BinaryHeap<(usize, usize)> = (0..n)
+            .filter(|&j| parent[j] == usize::MAX)
+            .map(|j| (size[j], j))
+            .collect();
+        let mut roots = Vec::new();
+        while let Some((s, j)) = heap.pop() {
+            if s <= limit {
+                roots.push((s, j));
+                roots.extend(heap.drain());
+                break;
+            }
+            top.push(j);
+            in_top[j] = true;
+            heap.extend(children[j].iter().map(|&c| (size[c], c)));
+        }
+        if 2 * top.len() > n {
+            return None;
+        }
+        // Largest first into the lightest bin.
+        roots.sort_unstable_by(|a, b| b.cmp(a));
+        let mut load = [0usize; TREE_BINS];
+        let mut owner = vec![usize::MAX; n];
+        for &(s, r) in &roots {
+            let b = (0..TREE_BINS).fold(0, |best, b| if load[b] < load[best] { b } else { best });
+            load[b] += s;
+            owner[r] = b;
+        }
+        // Every node below a bin's root is in that bin: parents are numbered higher.
+        for j in (0..n).rev() {
+            if owner[j] == usize::MAX && parent[j] != usize::MAX && !in_top[j] {
+                owner[j] = owner[parent[j]];
+            }
+        }
+        let mut bins = vec![Vec::new(); TREE_BINS];
+        let mut place = vec![0; n];
+        for j in 0..n {
+            if owner[j] != usize::MAX {
+                place[j] = bins[owner[j]].len();
+                bins[owner[j]].push(j);
+            }
+        }
+        top.sort_unstable();
+        Some(Self {
+            col_ptr: col_ptr.to_vec(),
+            rows: rows.to_vec(),
+            row_ptr,
+            row_entries,
+            bins,
+            top,
+            owner,
+            place,
+        })
+    }
+
+    /// `x ← (L Lᵀ)⁻¹ x` with the factor's `values` (in the permuted numbering).
+    fn solve(&self, values: &[f64], x: &mut [f64]) {
+        let col_ptr = &self.col_ptr;
+        // Forward: the bins in parallel, then the top.
+        let solved: Vec<Vec<f64>> = self
+            .bins
+            .par_iter()
+            .enumerate()
+            .map(|(b, nodes)| {
+                let mut local = vec![0.0; nodes.len()];
+                for (k, &i) in nodes.iter().enumerate() {
+                    let mut acc = x[i];
+                    for &(j, e) in &self.row_entries[self.row_ptr[i]..self.row_ptr[i + 1]] {
+                        debug_assert_eq!(self.owner[j], b);
+                        acc -= values[e] * local[self.place[j]];
+                    }
+                    local[k] = acc * (1.0 / values[col_ptr[i]]);
+                }
+                local
+            })
+            .collect();
+        self.scatter(&solved, x);
+        for &i in &self.top {
+            let mut acc = x[i];
+            for &(j, e) in &self.row_entries[self.row_ptr[i]..self.row_ptr[i + 1]] {
+                acc -= values[e] * x[j];
+            }
+            x[i] = acc * (1.0 / values[col_ptr[i]]);
+        }
+        // Backward: the top, then the bins in parallel (each reading its ancestors).
+        for &j in self.top.iter().rev() {
+            x[j] = self.backward(values, j, x[j], |i| x[i]);
+        }
+        let shared: &[f64] = x;
+        let solved: Vec<Vec<f64>> = self
+            .bins
+            .par_iter()
+            .enumerate()
+            .map(|(b, nodes)| {
+                let mut local: Vec<f64> = nodes.iter().map(|&j| shared[j]).collect();
+                for (k, &j) in nodes.iter().enumerate().rev() {
+                    let read = |i: usize| {
+                        if self.owner[i] == b {
+                            local[self.place[i]]
+                        } else {
+                            shared[i]
+                        }
+                    };
+                    local[k] = self.backward(values, j, local[k], read);
+                }
+                local
+            })
+            .collect();
+        self.scatter(&solved, x);
+    }
+
+    /// Entry `j` of the backward solve from its forward value `y`, `read` giving the
+    /// solved entries of `j`'s ancestors: faer's sum over the column from its last row.
+    fn backward(&self, values: &[f64], j: usize, y: f64, read: impl Fn(usize) -> f64) -> f64 {
+        let (from, to) = (self.col_ptr[j], self.col_ptr[j + 1]);
+        let mut acc = 0.0;
+        for e in (from + 1..to).rev() {
+            acc += values[e] * read(self.rows[e]);
+        }
+        (y - acc) * (1.0 / values[from])
+    }
+
+    /// The bins' solved entries into `x`.
+    fn scatter(&self, solved: &[Vec<f64>], x: &mut [f64]) {
+        for (nodes, local) in self.bins.iter().zip(solved) {
+            for (&j, &v) in nodes.iter().zip(local) {
+                x[j] = v;
+            }
+        }
+    }
+}
+
+/// A symmetric matrix given by its lower triangle in compressed columns (the grounded
+/// Laplacian), multiplied by rows in parallel with the bits of the serial scatter
+/// [`symmetric_product`]: entry `i` of that product adds, in this order, the columns
+/// `j < i` holding row `i` (increasing `j`), then the diagonal, and then the sum of
+/// column `i` below it; here row `i` gathers the same terms in the same order.
+struct ByRows<'a> {
+    matrix: &'a SparseColMat<usize, f64>,
+    /// Row `i`'s entries left of the diagonal, `(j, entry)` in increasing `j`.
+    ptr: Vec<usize>,
+    entries: Vec<(usize, usize)>,
+}
+
+impl<'a> ByRows<'a> {
+    fn new(matrix: &'a SparseColMat<usize, f64>) -> Self {
+        let (col_ptr, rows) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
+        let n = matrix.ncols();
+        let mut ptr = vec![0usize; n + 1];
+        for (j, w) in col_ptr.windows(2).enumerate() {
+            for &i in &rows[w[0]..w[1]] {
+                if i > j {
+                    ptr[i + 1] += 1;
+                }
+            }
+        }
+        for i in 0..n {
+            ptr[i + 1] += ptr[i];
+        }
+        let mut next = ptr.clone();
+        let mut entries = vec![(0, 0); ptr[n]];
+        for (j, w) in col_ptr.windows(2).enumerate() {
+            for k in w[0]..w[1] {
+                let i = rows[k];
+                if i > j {
+                    entries[next[i]] = (j, k);
+                    next[i] += 1;
+                }
+            }
+        }
+        Self {
+            matrix,
+            ptr,
+            entries,
+        }
+    }
+
+    /// `out = A x`.
+    fn product(&self, x: &[f64], out: &mut [f64]) {
+        let (col_ptr, rows, values) = (
+            self.matrix.symbolic().col_ptr(),
+            self.matrix.symbolic().row_idx(),
+            self.matrix.val(),
+        );
+        out.par_chunks_mut(PRODUCT_ROWS)
+            .enumerate()
+            .for_each(|(c, chunk)| {
+                for (k, o) in chunk.iter_mut().enumerate() {
+                    let i = c * PRODUCT_ROWS + k;
+                    let mut acc = 0.0;
+                    for &(j, e) in &self.entries[self.ptr[i]..self.ptr[i + 1]] {
+                        acc += values[e] * x[j];
+                    }
+                    let mut sum = 0.0;
+                    for e in col_ptr[i]..col_ptr[i + 1] {
+                        let r = rows[e];
+                        if r == i {
+                            acc += values[e] * x[i];
+                        } else {
+                            sum += values[e] * x[r];
+                        }
+                    }
+                    *o = acc + sum;
+                }
+            });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The grounded Laplacian (lower triangle, diagonal first in each column) of a
+    /// `side × side` grid with couplings in (0.5, 1.5) and the diagonals one way, cell 0
+    /// held.
+    fn grid_laplacian(side: usize) -> SparseColMat<usize, f64> {
+        let n = side * side;
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut coupling = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            0.5 + (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut lower: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
+        let mut diagonal = vec![0.0; n];
+        for i in 0..n {
+            let (x, y) = (i % side, i / side);
+            let mut near = Vec::new();
+            if x + 1 < side {
+                near.push(i + 1);
+            }
+            if y + 1 < side {
+                near.push(i + side);
+                if x + 1 < side {
+                    near.push(i + side + 1);
+                }
+            }
+            for j in near {
+                let c = coupling();
+                diagonal[i] += c;
+                diagonal[j] += c;
+                lower[i].push((j, c));
+            }
+        }
+        let (mut col_ptr, mut rows, mut values) = (vec![0], Vec::new(), Vec::new());
+        for i in 0..n {
+            rows.push(i);
+            values.push(if i == 0 { 1.0 } else { diagonal[i] });
+            if i != 0 {
+                for &(j, c) in &lower[i] {
+                    rows.push(j);
+                    values.push(-c);
+                }
+            }
+            col_ptr.push(rows.len());
+        }
+        let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows);
+        SparseColMat::new(pattern, values)
+    }
+
+    /// The parallel solves and product give faer's and the serial scatter's bits, on one
+    /// thread and on three.
+    #[test]
+    fn tree_solves_and_row_products_have_the_serial_bits() {
+        let matrix = grid_laplacian(70);
+        let n = matrix.ncols();
+        let mut ordering = None;
+        let Some(symbolic) = analyse(&matrix, &mut ordering) else {
+            panic!("no symbolic factorisation");
+        };
+        let par = Par::Seq;
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
+        let Ok(mut memory) = MemBuffer::try_new(scratch) else {
+            panic!("no scratch");
+        };
+        let mut values = vec![0.0; symbolic.len_val()];
+        let Ok(factor) = symbolic.factorize_numeric_llt(
+            &mut values,
+            matrix.as_ref(),
+            Side::Lower,
+            LltRegularization::default(),
+            par,
+            MemStack::new(&mut memory),
+            Default::default(),
+        ) else {
+            panic!("not factorised");
+        };
+        let b: Vec<f64> = (0..n).map(|i| ((i * 7919) % 1000) as f64 / 500.0 - 1.0).collect();
+        let mut expected = b.clone();
+        factor.solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(&mut expected, n, 1),
+            par,
+            MemStack::new(&mut memory),
+        );
+        let SymbolicCholeskyRaw::Simplicial(s) = symbolic.raw() else {
+            panic!("the grid's factor is not simplicial");
+        };
+        let Some(tree) = TreeSolve::new(s.col_ptr(), s.row_idx()) else {
+            panic!("no schedule");
+        };
+        assert!(tree.bins.iter().filter(|b| !b.is_empty()).count() >= 2);
+        assert!(!tree.top.is_empty());
+        let Some((forward, inverse)) = symbolic.perm().map(|p| p.arrays()) else {
+            panic!("no permutation");
+        };
+        let mut serial = vec![0.0; n];
+        symmetric_product(&matrix, &b, &mut serial);
+        for threads in [1, 3] {
+            let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else {
+                panic!("no pool");
+            };
+            let (solved, product) = pool.install(|| {
+                let mut x: Vec<f64> = forward.iter().map(|&f| b[f]).collect();
+                tree.solve(&values, &mut x);
+                let solved: Vec<f64> = inverse.iter().map(|&i| x[i]).collect();
+                let mut product = vec![0.0; n];
+                ByRows::new(&matrix).product(&b, &mut product);
+                (solved, product)
+            });
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&solved), bits(&expected), "{threads} threads");
+            assert_eq!(bits(&product), bits(&serial), "{threads} threads");
+        }
     }
 }
