@@ -685,6 +685,7 @@ impl<const D: usize> Laplacian<'_, D> {
             });
         }
         kept.values = None;
+        kept.tree_factor = None;
         let symbolic = &kept.analysed.as_ref()?.symbolic;
         if symbolic.len_val() > MAX_FILL_PER_ROW * n {
             return None;
@@ -714,13 +715,18 @@ impl<const D: usize> Laplacian<'_, D> {
         if !x.iter().all(|x| x.is_finite()) {
             return None;
         }
-        kept.values = Some(values);
         if kept.tree.is_none() {
             kept.tree = match symbolic.raw() {
-                SymbolicCholeskyRaw::Simplicial(s) => TreeSolve::new(s.col_ptr(), s.row_idx()),
+                SymbolicCholeskyRaw::Simplicial(s) => TreeSolve::new(
+                    s.col_ptr(),
+                    s.row_idx(),
+                    symbolic.perm().map(|p| p.arrays()),
+                ),
                 SymbolicCholeskyRaw::Supernodal(_) => None,
             };
         }
+        kept.tree_factor = kept.tree.as_ref().map(|t| t.load(&values));
+        kept.values = Some(values);
         Some((x, 0))
     }
 
@@ -823,8 +829,9 @@ struct Kept {
     /// The numeric factor of `analysed` (its values), from the last factorisation.
     values: Option<Vec<f64>>,
     /// The parallel schedule of `analysed`'s solves, when its factor is simplicial
-    /// ([`TreeSolve`]).
+    /// ([`TreeSolve`]), and `values` in its order.
     tree: Option<TreeSolve>,
+    tree_factor: Option<TreeFactor>,
 }
 
 /// Most iterations of [`Kept::preconditioned`] before the system is factorised afresh.
@@ -856,24 +863,9 @@ impl Kept {
         let par = Par::Seq;
         let mut memory =
             MemBuffer::try_new(analysed.symbolic.solve_in_place_scratch::<f64>(1, par)).ok()?;
-        let perm = analysed.symbolic.perm().map(|p| p.arrays());
-        let mut permuted = vec![0.0; n];
-        let precondition = |r: &[f64], z: &mut [f64]| match (&self.tree, perm) {
-            (Some(tree), Some((forward, inverse))) => {
-                permuted
-                    .iter_mut()
-                    .zip(forward)
-                    .for_each(|(p, &f)| *p = r[f]);
-                tree.solve(values, &mut permuted);
-                z.iter_mut()
-                    .zip(inverse)
-                    .for_each(|(z, &i)| *z = permuted[i]);
-            }
-            (Some(tree), None) => {
-                z.copy_from_slice(r);
-                tree.solve(values, z);
-            }
-            (None, _) => {
+        let precondition = |r: &[f64], z: &mut [f64]| match (&self.tree, &self.tree_factor) {
+            (Some(tree), Some(factor)) => tree.solve(factor, r, z),
+            _ => {
                 z.copy_from_slice(r);
                 factor.solve_in_place_with_conj(
                     Conj::No,
@@ -1065,51 +1057,68 @@ impl Components {
 }
 
 /// Bins the elimination tree's subtrees are packed into, the parallel tasks of a
-/// [`TreeSolve`]: a fixed number, so the schedule (not that it could change a bit) does not
-/// follow the thread count.
+/// [`TreeSolve`]: a fixed number, so that the schedule does not follow the thread count
+/// (not that it could change a bit).
 const TREE_BINS: usize = 8;
 
-/// The two triangular solves with a kept simplicial factor `L` (`L Lᵀ x = b`, faer's
-/// layout: column `j`'s rows with its diagonal first) over independent subtrees of the
-/// elimination tree in parallel, each entry computed by the float operations of faer's
-/// serial solves in their order, so the same bits on any number of threads and as faer's
-/// (`simplicial::SimplicialLltRef::solve_in_place_with_conj`, faer 0.24). Forward, faer
-/// scatters column `j` into the rows below it in increasing `j`; here row `i` gathers the
-/// same products in the same order (`x_i − l_ij x_j`, then `· (1/l_ii)`), and every `j`
-/// of row `i` lies in `i`'s subtree. Backward, column `j` sums `l_ij x_i` over its
-/// stored rows from the last, then `(x_j − sum) · (1/l_jj)`, reading only ancestors. The
-/// subtrees are split off the top of the tree until none holds more than a
-/// thirty-second of the cells, then packed into [`TREE_BINS`] bins; the nodes above them
-/// (`top`) are solved serially, after the bins forward and before them backward. Why: the
+/// The two triangular solves with a kept simplicial factor `L` (`L Lᵀ x = b` with its
+/// fill-reducing permutation; faer's layout, column `j`'s rows with its diagonal first)
+/// over independent subtrees of the elimination tree in parallel, each entry computed by
+/// the float operations of faer's serial solves in their order: the same bits as faer's
+/// (`SimplicialLltRef::solve_in_place_with_conj`, faer 0.24) on any number of threads.
+/// Forward, faer scatters column `j` into the rows below it in increasing `j`; here row
+/// `i` gathers the same products in the same order (`x_i − l_ij x_j`, then `· (1/l_ii)`),
+/// every such `j` lying in `i`'s subtree. Backward, column `j` sums `l_ij x_i` over its
+/// stored rows from the last, then `(x_j − sum) · (1/l_jj)`, reading only ancestors.
+/// Subtrees are split off the top of the tree until none holds more than a thirty-second
+/// of the nodes, then packed into [`TREE_BINS`] bins; the nodes above them (the top) are
+/// solved serially, after the bins forward and before them backward. The entries are
+/// stored in the order they are read, each bin's and the top's contiguous. Why: faer's
 /// solves were the largest serial part of the transport at 10,000 sites (10.6% of one
 /// thread's samples against the diagrams' ~60%, perf, square, equal masses:
 /// `docs/results/transport.txt` §13), the part a second thread could not share.
 struct TreeSolve {
-    /// The factor's pattern: column `j`'s rows `rows[col_ptr[j]..col_ptr[j + 1]]`.
-    col_ptr: Vec<usize>,
-    rows: Vec<usize>,
-    /// Row `i` of `L` below the diagonal: `(j, entry of l_ij)` in increasing `j`.
+    /// `bounds[b]..bounds[b + 1]` are bin `b`'s places; the top's run from
+    /// `bounds[TREE_BINS]` to `n`.
+    bounds: Vec<usize>,
+    /// Place `p`'s entry of the right-hand side and of the solution (the permutation and
+    /// the schedule in one).
+    gather: Vec<usize>,
+    /// The place of entry `i` of the solution.
+    back: Vec<usize>,
+    /// Place `p`'s row left of the diagonal, increasing `j`: the entry of `l_ij` in the
+    /// factor's values and where `x_j` is (in its bin for a bin's place, else its place).
     row_ptr: Vec<usize>,
-    row_entries: Vec<(usize, usize)>,
-    /// Each bin's nodes in increasing order.
-    bins: Vec<Vec<usize>>,
-    /// The nodes above the bins, in increasing order.
-    top: Vec<usize>,
-    /// Node `j`'s bin (`usize::MAX` for the top) and its place in the bin.
-    owner: Vec<usize>,
-    place: Vec<usize>,
+    row_entry: Vec<usize>,
+    row_slot: Vec<usize>,
+    /// Place `p`'s column below the diagonal from its last stored row: the entry of
+    /// `l_ij` and where `x_i` is (a top's place: its place; a bin's: in its bin, or the
+    /// bin's length plus its place in the top).
+    col_ptr: Vec<usize>,
+    col_entry: Vec<usize>,
+    col_slot: Vec<usize>,
+    /// Place `p`'s diagonal entry.
+    diagonal: Vec<usize>,
+}
+
+/// A factor's values in a [`TreeSolve`]'s order of reading.
+struct TreeFactor {
+    row: Vec<f64>,
+    col: Vec<f64>,
+    /// `1 / l_jj` per place, as faer computes it.
+    inverse: Vec<f64>,
 }
 
 impl TreeSolve {
-    /// The schedule of the factor with column pointers `col_ptr` and rows `rows`
-    /// (`SymbolicSimplicialCholesky`), or `None` when the top would hold more than half
-    /// of the nodes (then faer's serial solves run).
-    fn new(col_ptr: &[usize], rows: &[usize]) -> Option<Self> {
+    /// The schedule of the factor of pattern `col_ptr`, `rows` (permuted numbering,
+    /// `SymbolicSimplicialCholesky`) with the permutation `perm` (`forward[k]` the entry
+    /// of the right-hand side in place `k`), or `None` when the top would hold more than
+    /// half of the nodes, or the pattern is not a factor's (then faer's solves run).
+    fn new(col_ptr: &[usize], rows: &[usize], perm: Option<(&[usize], &[usize])>) -> Option<Self> {
         let n = col_ptr.len().checked_sub(1)?;
         let mut parent = vec![usize::MAX; n];
-        let mut counts = vec![0usize; n + 1];
         for j in 0..n {
-            let column = rows.get(col_ptr[j]..col_ptr[j + 1])?;
+            let column = rows.get(*col_ptr.get(j)?..*col_ptr.get(j + 1)?)?;
             if column.first() != Some(&j) {
                 return None;
             }
@@ -1118,19 +1127,6 @@ impl TreeSolve {
                     return None;
                 }
                 parent[j] = parent[j].min(i);
-                counts[i + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            counts[i + 1] += counts[i];
-        }
-        let row_ptr = counts.clone();
-        let mut row_entries = vec![(0, 0); row_ptr[n]];
-        for j in 0..n {
-            for e in col_ptr[j] + 1..col_ptr[j + 1] {
-                let i = rows[e];
-                row_entries[counts[i]] = (j, e);
-                counts[i] += 1;
             }
         }
         // Subtree sizes and children (a child is numbered below its parent).
@@ -1143,154 +1139,213 @@ impl TreeSolve {
             }
         }
         let limit = (n / 32).max(1);
-        let mut top = Vec::new();
         let mut in_top = vec![false; n];
         let mut heap: std::collections::BinaryHeap<(usize, usize)> = (0..n)
             .filter(|&j| parent[j] == usize::MAX)
             .map(|j| (size[j], j))
             .collect();
         let mut roots = Vec::new();
+        let mut tops = 0;
         while let Some((s, j)) = heap.pop() {
             if s <= limit {
                 roots.push((s, j));
                 roots.extend(heap.drain());
                 break;
             }
-            top.push(j);
             in_top[j] = true;
+            tops += 1;
             heap.extend(children[j].iter().map(|&c| (size[c], c)));
         }
-        if 2 * top.len() > n {
+        if 2 * tops > n {
             return None;
         }
-        // Largest first into the lightest bin.
+        // The largest subtree first into the lightest bin; a node below a root in its
+        // root's bin (parents are numbered higher).
         roots.sort_unstable_by(|a, b| b.cmp(a));
         let mut load = [0usize; TREE_BINS];
-        let mut owner = vec![usize::MAX; n];
+        let mut owner = vec![TREE_BINS; n];
         for &(s, r) in &roots {
             let b = (0..TREE_BINS).fold(0, |best, b| if load[b] < load[best] { b } else { best });
             load[b] += s;
             owner[r] = b;
         }
-        // Every node below a bin's root is in that bin: parents are numbered higher.
         for j in (0..n).rev() {
-            if owner[j] == usize::MAX && parent[j] != usize::MAX && !in_top[j] {
+            if owner[j] == TREE_BINS && !in_top[j] && parent[j] != usize::MAX {
                 owner[j] = owner[parent[j]];
             }
         }
-        let mut bins = vec![Vec::new(); TREE_BINS];
+        // Places: the bins' nodes then the top's, each in increasing order.
+        let mut bounds = vec![0; TREE_BINS + 2];
+        for &b in &owner {
+            bounds[b + 1] += 1;
+        }
+        for b in 0..=TREE_BINS {
+            bounds[b + 1] += bounds[b];
+        }
+        let mut next = bounds.clone();
         let mut place = vec![0; n];
+        let mut node = vec![0; n];
         for j in 0..n {
-            if owner[j] != usize::MAX {
-                place[j] = bins[owner[j]].len();
-                bins[owner[j]].push(j);
+            place[j] = next[owner[j]];
+            node[place[j]] = j;
+            next[owner[j]] += 1;
+        }
+        let top = bounds[TREE_BINS];
+        bounds.truncate(TREE_BINS + 1);
+        // Where place `p`'s solve reads node `i`.
+        let slot = |p: usize, i: usize| {
+            let b = owner[node[p]];
+            if b == TREE_BINS {
+                place[i]
+            } else if owner[i] == b {
+                place[i] - bounds[b]
+            } else {
+                bounds[b + 1] - bounds[b] + place[i] - top
+            }
+        };
+        // Rows from the columns in increasing order.
+        let mut by_row: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+        for j in 0..n {
+            for e in col_ptr[j] + 1..col_ptr[j + 1] {
+                by_row[rows[e]].push((j, e));
             }
         }
-        top.sort_unstable();
+        let (mut row_ptr, mut row_entry, mut row_slot) = (vec![0], Vec::new(), Vec::new());
+        let (mut col_ptr_out, mut col_entry, mut col_slot) = (vec![0], Vec::new(), Vec::new());
+        let mut diagonal = Vec::with_capacity(n);
+        for (p, &j) in node.iter().enumerate() {
+            for &(k, e) in &by_row[j] {
+                row_entry.push(e);
+                row_slot.push(slot(p, k));
+            }
+            row_ptr.push(row_entry.len());
+            for e in (col_ptr[j] + 1..col_ptr[j + 1]).rev() {
+                col_entry.push(e);
+                col_slot.push(slot(p, rows[e]));
+            }
+            col_ptr_out.push(col_entry.len());
+            diagonal.push(col_ptr[j]);
+        }
+        let (gather, back) = match perm {
+            Some((forward, inverse)) => (
+                node.iter().map(|&j| forward[j]).collect(),
+                inverse.iter().map(|&k| place[k]).collect(),
+            ),
+            None => (node.clone(), place.clone()),
+        };
         Some(Self {
-            col_ptr: col_ptr.to_vec(),
-            rows: rows.to_vec(),
+            bounds,
+            gather,
+            back,
             row_ptr,
-            row_entries,
-            bins,
-            top,
-            owner,
-            place,
+            row_entry,
+            row_slot,
+            col_ptr: col_ptr_out,
+            col_entry,
+            col_slot,
+            diagonal,
         })
     }
 
-    /// `x ← (L Lᵀ)⁻¹ x` with the factor's `values` (in the permuted numbering).
-    fn solve(&self, values: &[f64], x: &mut [f64]) {
-        let col_ptr = &self.col_ptr;
+    /// The factor's `values` in the order the solves read them.
+    fn load(&self, values: &[f64]) -> TreeFactor {
+        TreeFactor {
+            row: self.row_entry.iter().map(|&e| values[e]).collect(),
+            col: self.col_entry.iter().map(|&e| values[e]).collect(),
+            inverse: self.diagonal.iter().map(|&e| 1.0 / values[e]).collect(),
+        }
+    }
+
+    /// The bins' runs of `places` (all places before the top's).
+    fn bins<'a>(&self, places: &'a mut [f64]) -> Vec<&'a mut [f64]> {
+        let mut rest = places;
+        let mut out = Vec::with_capacity(TREE_BINS);
+        for w in self.bounds.windows(2) {
+            let (bin, after) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
+            out.push(bin);
+            rest = after;
+        }
+        out
+    }
+
+    /// `z = (L Lᵀ)⁻¹ r` in the original numbering, `factor` from [`TreeSolve::load`].
+    fn solve(&self, factor: &TreeFactor, r: &[f64], z: &mut [f64]) {
+        let n = r.len();
+        let top = self.bounds[TREE_BINS];
+        let mut y: Vec<f64> = self.gather.iter().map(|&i| r[i]).collect();
         // Forward: the bins in parallel, then the top.
-        let solved: Vec<Vec<f64>> = self
-            .bins
-            .par_iter()
+        let (below, _) = y.split_at_mut(top);
+        self.bins(below)
+            .into_par_iter()
             .enumerate()
-            .map(|(b, nodes)| {
-                let mut local = vec![0.0; nodes.len()];
-                for (k, &i) in nodes.iter().enumerate() {
-                    let mut acc = x[i];
-                    for &(j, e) in &self.row_entries[self.row_ptr[i]..self.row_ptr[i + 1]] {
-                        debug_assert_eq!(self.owner[j], b);
-                        acc -= values[e] * local[self.place[j]];
+            .for_each(|(b, bin)| {
+                for k in 0..bin.len() {
+                    let p = self.bounds[b] + k;
+                    let mut acc = bin[k];
+                    for e in self.row_ptr[p]..self.row_ptr[p + 1] {
+                        acc -= factor.row[e] * bin[self.row_slot[e]];
                     }
-                    local[k] = acc * (1.0 / values[col_ptr[i]]);
+                    bin[k] = acc * factor.inverse[p];
                 }
-                local
-            })
-            .collect();
-        self.scatter(&solved, x);
-        for &i in &self.top {
-            let mut acc = x[i];
-            for &(j, e) in &self.row_entries[self.row_ptr[i]..self.row_ptr[i + 1]] {
-                acc -= values[e] * x[j];
+            });
+        for p in top..n {
+            let mut acc = y[p];
+            for e in self.row_ptr[p]..self.row_ptr[p + 1] {
+                acc -= factor.row[e] * y[self.row_slot[e]];
             }
-            x[i] = acc * (1.0 / values[col_ptr[i]]);
+            y[p] = acc * factor.inverse[p];
         }
-        // Backward: the top, then the bins in parallel (each reading its ancestors).
-        for &j in self.top.iter().rev() {
-            x[j] = self.backward(values, j, x[j], |i| x[i]);
+        // Backward: the top, then the bins in parallel (reading the top).
+        for p in (top..n).rev() {
+            let mut acc = 0.0;
+            for e in self.col_ptr[p]..self.col_ptr[p + 1] {
+                acc += factor.col[e] * y[self.col_slot[e]];
+            }
+            y[p] = (y[p] - acc) * factor.inverse[p];
         }
-        let shared: &[f64] = x;
-        let solved: Vec<Vec<f64>> = self
-            .bins
-            .par_iter()
+        let (below, above) = y.split_at_mut(top);
+        let above: &[f64] = above;
+        self.bins(below)
+            .into_par_iter()
             .enumerate()
-            .map(|(b, nodes)| {
-                let mut local: Vec<f64> = nodes.iter().map(|&j| shared[j]).collect();
-                for (k, &j) in nodes.iter().enumerate().rev() {
-                    let read = |i: usize| {
-                        if self.owner[i] == b {
-                            local[self.place[i]]
-                        } else {
-                            shared[i]
-                        }
-                    };
-                    local[k] = self.backward(values, j, local[k], read);
+            .for_each(|(b, bin)| {
+                let len = bin.len();
+                for k in (0..len).rev() {
+                    let p = self.bounds[b] + k;
+                    let mut acc = 0.0;
+                    for e in self.col_ptr[p]..self.col_ptr[p + 1] {
+                        let s = self.col_slot[e];
+                        let x = if s < len { bin[s] } else { above[s - len] };
+                        acc += factor.col[e] * x;
+                    }
+                    bin[k] = (bin[k] - acc) * factor.inverse[p];
                 }
-                local
-            })
-            .collect();
-        self.scatter(&solved, x);
-    }
-
-    /// Entry `j` of the backward solve from its forward value `y`, `read` giving the
-    /// solved entries of `j`'s ancestors: faer's sum over the column from its last row.
-    fn backward(&self, values: &[f64], j: usize, y: f64, read: impl Fn(usize) -> f64) -> f64 {
-        let (from, to) = (self.col_ptr[j], self.col_ptr[j + 1]);
-        let mut acc = 0.0;
-        for e in (from + 1..to).rev() {
-            acc += values[e] * read(self.rows[e]);
-        }
-        (y - acc) * (1.0 / values[from])
-    }
-
-    /// The bins' solved entries into `x`.
-    fn scatter(&self, solved: &[Vec<f64>], x: &mut [f64]) {
-        for (nodes, local) in self.bins.iter().zip(solved) {
-            for (&j, &v) in nodes.iter().zip(local) {
-                x[j] = v;
-            }
-        }
+            });
+        z.iter_mut()
+            .zip(&self.back)
+            .for_each(|(z, &p)| *z = y[p]);
     }
 }
 
 /// A symmetric matrix given by its lower triangle in compressed columns (the grounded
 /// Laplacian), multiplied by rows in parallel with the bits of the serial scatter
 /// [`symmetric_product`]: entry `i` of that product adds, in this order, the columns
-/// `j < i` holding row `i` (increasing `j`), then the diagonal, and then the sum of
-/// column `i` below it; here row `i` gathers the same terms in the same order.
+/// `j < i` holding row `i` (increasing `j`), then the diagonal, then the sum of column
+/// `i` below it; here row `i` gathers the same terms in the same order.
 struct ByRows<'a> {
     matrix: &'a SparseColMat<usize, f64>,
-    /// Row `i`'s entries left of the diagonal, `(j, entry)` in increasing `j`.
+    /// Row `i`'s entries left of the diagonal, `(j, a_ij)` in increasing `j`.
     ptr: Vec<usize>,
-    entries: Vec<(usize, usize)>,
+    entries: Vec<(usize, f64)>,
 }
 
 impl<'a> ByRows<'a> {
     fn new(matrix: &'a SparseColMat<usize, f64>) -> Self {
-        let (col_ptr, rows) = (matrix.symbolic().col_ptr(), matrix.symbolic().row_idx());
+        let (col_ptr, rows, values) = (
+            matrix.symbolic().col_ptr(),
+            matrix.symbolic().row_idx(),
+            matrix.val(),
+        );
         let n = matrix.ncols();
         let mut ptr = vec![0usize; n + 1];
         for (j, w) in col_ptr.windows(2).enumerate() {
@@ -1304,12 +1359,12 @@ impl<'a> ByRows<'a> {
             ptr[i + 1] += ptr[i];
         }
         let mut next = ptr.clone();
-        let mut entries = vec![(0, 0); ptr[n]];
+        let mut entries = vec![(0, 0.0); ptr[n]];
         for (j, w) in col_ptr.windows(2).enumerate() {
             for k in w[0]..w[1] {
                 let i = rows[k];
                 if i > j {
-                    entries[next[i]] = (j, k);
+                    entries[next[i]] = (j, values[k]);
                     next[i] += 1;
                 }
             }
@@ -1334,8 +1389,8 @@ impl<'a> ByRows<'a> {
                 for (k, o) in chunk.iter_mut().enumerate() {
                     let i = c * PRODUCT_ROWS + k;
                     let mut acc = 0.0;
-                    for &(j, e) in &self.entries[self.ptr[i]..self.ptr[i + 1]] {
-                        acc += values[e] * x[j];
+                    for &(j, a) in &self.entries[self.ptr[i]..self.ptr[i + 1]] {
+                        acc += a * x[j];
                     }
                     let mut sum = 0.0;
                     for e in col_ptr[i]..col_ptr[i + 1] {
@@ -1445,14 +1500,16 @@ mod tests {
         let SymbolicCholeskyRaw::Simplicial(s) = symbolic.raw() else {
             panic!("the grid's factor is not simplicial");
         };
-        let Some(tree) = TreeSolve::new(s.col_ptr(), s.row_idx()) else {
+        let Some(tree) =
+            TreeSolve::new(s.col_ptr(), s.row_idx(), symbolic.perm().map(|p| p.arrays()))
+        else {
             panic!("no schedule");
         };
-        assert!(tree.bins.iter().filter(|b| !b.is_empty()).count() >= 2);
-        assert!(!tree.top.is_empty());
-        let Some((forward, inverse)) = symbolic.perm().map(|p| p.arrays()) else {
-            panic!("no permutation");
-        };
+        // Work in at least two bins and in the top.
+        let top = tree.bounds[TREE_BINS];
+        assert!(tree.bounds.windows(2).filter(|w| w[1] > w[0]).count() >= 2);
+        assert!(top < n);
+        let factor = tree.load(&values);
         let mut serial = vec![0.0; n];
         symmetric_product(&matrix, &b, &mut serial);
         for threads in [1, 3] {
@@ -1460,9 +1517,8 @@ mod tests {
                 panic!("no pool");
             };
             let (solved, product) = pool.install(|| {
-                let mut x: Vec<f64> = forward.iter().map(|&f| b[f]).collect();
-                tree.solve(&values, &mut x);
-                let solved: Vec<f64> = inverse.iter().map(|&i| x[i]).collect();
+                let mut solved = vec![0.0; n];
+                tree.solve(&factor, &b, &mut solved);
                 let mut product = vec![0.0; n];
                 ByRows::new(&matrix).product(&b, &mut product);
                 (solved, product)
