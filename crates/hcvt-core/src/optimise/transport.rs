@@ -863,8 +863,9 @@ impl Kept {
         let par = Par::Seq;
         let mut memory =
             MemBuffer::try_new(analysed.symbolic.solve_in_place_scratch::<f64>(1, par)).ok()?;
+        let mut scratch = vec![0.0; n];
         let precondition = |r: &[f64], z: &mut [f64]| match (&self.tree, &self.tree_factor) {
-            (Some(tree), Some(factor)) => tree.solve(factor, r, z),
+            (Some(tree), Some(factor)) => tree.solve(factor, r, z, &mut scratch),
             _ => {
                 z.copy_from_slice(r);
                 factor.solve_in_place_with_conj(
@@ -1066,9 +1067,10 @@ const TREE_BINS: usize = 8;
 /// over independent subtrees of the elimination tree in parallel, each entry computed by
 /// the float operations of faer's serial solves in their order: the same bits as faer's
 /// (`SimplicialLltRef::solve_in_place_with_conj`, faer 0.24) on any number of threads.
-/// Forward, faer scatters column `j` into the rows below it in increasing `j`; here row
-/// `i` gathers the same products in the same order (`x_i − l_ij x_j`, then `· (1/l_ii)`),
-/// every such `j` lying in `i`'s subtree. Backward, column `j` sums `l_ij x_i` over its
+/// Forward, faer scatters column `j` into the rows below it in increasing `j`
+/// (`x_j · (1/l_jj)`, then `x_i − l_ij x_j`); each bin does the same into its own rows
+/// (every `j` of a row lies in the row's subtree), and each row of the top gathers the
+/// same products in the same order. Backward, column `j` sums `l_ij x_i` over its
 /// stored rows from the last, then `(x_j − sum) · (1/l_jj)`, reading only ancestors.
 /// Subtrees are split off the top of the tree until none holds more than a thirty-second
 /// of the nodes, then packed into [`TREE_BINS`] bins; the nodes above them (the top) are
@@ -1086,8 +1088,8 @@ struct TreeSolve {
     gather: Vec<usize>,
     /// The place of entry `i` of the solution.
     back: Vec<usize>,
-    /// Place `p`'s row left of the diagonal, increasing `j`: the entry of `l_ij` in the
-    /// factor's values and where `x_j` is (in its bin for a bin's place, else its place).
+    /// A top place `p`'s row left of the diagonal, increasing `j`: the entry of `l_ij` in
+    /// the factor's values and the place of `x_j` (empty for a bin's place).
     row_ptr: Vec<usize>,
     row_entry: Vec<usize>,
     row_slot: Vec<usize>,
@@ -1203,11 +1205,13 @@ impl TreeSolve {
                 bounds[b + 1] - bounds[b] + place[i] - top
             }
         };
-        // Rows from the columns in increasing order.
+        // The top's rows from the columns in increasing order.
         let mut by_row: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
         for j in 0..n {
             for e in col_ptr[j] + 1..col_ptr[j + 1] {
-                by_row[rows[e]].push((j, e));
+                if in_top[rows[e]] {
+                    by_row[rows[e]].push((j, e));
+                }
             }
         }
         let (mut row_ptr, mut row_entry, mut row_slot) = (vec![0], Vec::new(), Vec::new());
@@ -1268,24 +1272,32 @@ impl TreeSolve {
         out
     }
 
-    /// `z = (L Lᵀ)⁻¹ r` in the original numbering, `factor` from [`TreeSolve::load`].
-    fn solve(&self, factor: &TreeFactor, r: &[f64], z: &mut [f64]) {
+    /// `z = (L Lᵀ)⁻¹ r` in the original numbering, `factor` from [`TreeSolve::load`];
+    /// `y` scratch of `r`'s length.
+    fn solve(&self, factor: &TreeFactor, r: &[f64], z: &mut [f64], y: &mut [f64]) {
         let n = r.len();
         let top = self.bounds[TREE_BINS];
-        let mut y: Vec<f64> = self.gather.iter().map(|&i| r[i]).collect();
-        // Forward: the bins in parallel, then the top.
+        y.iter_mut()
+            .zip(&self.gather)
+            .for_each(|(y, &i)| *y = r[i]);
+        // Forward: the bins in parallel, each scattering its columns into its rows as
+        // faer does (rows in the top gather them below), then the top.
         let (below, _) = y.split_at_mut(top);
         self.bins(below)
             .into_par_iter()
             .enumerate()
             .for_each(|(b, bin)| {
-                for k in 0..bin.len() {
+                let len = bin.len();
+                for k in 0..len {
                     let p = self.bounds[b] + k;
-                    let mut acc = bin[k];
-                    for e in self.row_ptr[p]..self.row_ptr[p + 1] {
-                        acc -= factor.row[e] * bin[self.row_slot[e]];
+                    let xj = bin[k] * factor.inverse[p];
+                    bin[k] = xj;
+                    for e in self.col_ptr[p]..self.col_ptr[p + 1] {
+                        let s = self.col_slot[e];
+                        if s < len {
+                            bin[s] -= factor.col[e] * xj;
+                        }
                     }
-                    bin[k] = acc * factor.inverse[p];
                 }
             });
         for p in top..n {
@@ -1518,7 +1530,7 @@ mod tests {
             };
             let (solved, product) = pool.install(|| {
                 let mut solved = vec![0.0; n];
-                tree.solve(&factor, &b, &mut solved);
+                tree.solve(&factor, &b, &mut solved, &mut vec![0.0; n]);
                 let mut product = vec![0.0; n];
                 ByRows::new(&matrix).product(&b, &mut product);
                 (solved, product)
