@@ -74,7 +74,7 @@ use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymbolicCholeskyRaw, SymmetricOrdering,
+    SymmetricOrdering,
 };
 use std::borrow::Cow;
 
@@ -675,7 +675,6 @@ impl<const D: usize> Laplacian<'_, D> {
             a.fixed == fixed && a.col_ptr == pattern.col_ptr() && a.rows == pattern.row_idx()
         });
         if !same {
-            kept.tree = None;
             let symbolic = analyse(&matrix, &mut kept.ordering)?;
             kept.analysed = Some(Analysed {
                 fixed,
@@ -685,7 +684,6 @@ impl<const D: usize> Laplacian<'_, D> {
             });
         }
         kept.values = None;
-        kept.tree_factor = None;
         let symbolic = &kept.analysed.as_ref()?.symbolic;
         if symbolic.len_val() > MAX_FILL_PER_ROW * n {
             return None;
@@ -715,17 +713,6 @@ impl<const D: usize> Laplacian<'_, D> {
         if !x.iter().all(|x| x.is_finite()) {
             return None;
         }
-        if kept.tree.is_none() {
-            kept.tree = match symbolic.raw() {
-                SymbolicCholeskyRaw::Simplicial(s) => TreeSolve::new(
-                    s.col_ptr(),
-                    s.row_idx(),
-                    symbolic.perm().map(|p| p.arrays()),
-                ),
-                SymbolicCholeskyRaw::Supernodal(_) => None,
-            };
-        }
-        kept.tree_factor = kept.tree.as_ref().map(|t| t.load(&values));
         kept.values = Some(values);
         Some((x, 0))
     }
@@ -828,10 +815,6 @@ struct Kept {
     analysed: Option<Analysed>,
     /// The numeric factor of `analysed` (its values), from the last factorisation.
     values: Option<Vec<f64>>,
-    /// The parallel schedule of `analysed`'s solves, when its factor is simplicial
-    /// ([`TreeSolve`]), and `values` in its order.
-    tree: Option<TreeSolve>,
-    tree_factor: Option<TreeFactor>,
 }
 
 /// Most iterations of [`Kept::preconditioned`] before the system is factorised afresh.
@@ -863,18 +846,14 @@ impl Kept {
         let par = Par::Seq;
         let mut memory =
             MemBuffer::try_new(analysed.symbolic.solve_in_place_scratch::<f64>(1, par)).ok()?;
-        let mut scratch = vec![0.0; n];
-        let precondition = |r: &[f64], z: &mut [f64]| match (&self.tree, &self.tree_factor) {
-            (Some(tree), Some(factor)) => tree.solve(factor, r, z, &mut scratch),
-            _ => {
-                z.copy_from_slice(r);
-                factor.solve_in_place_with_conj(
-                    Conj::No,
-                    MatMut::from_column_major_slice_mut(z, n, 1),
-                    par,
-                    MemStack::new(&mut memory),
-                );
-            }
+        let precondition = |r: &[f64], z: &mut [f64]| {
+            z.copy_from_slice(r);
+            factor.solve_in_place_with_conj(
+                Conj::No,
+                MatMut::from_column_major_slice_mut(z, n, 1),
+                par,
+                MemStack::new(&mut memory),
+            );
         };
         let done = |r: &[f64]| {
             r.iter().zip(targets).all(|(r, t)| r.abs() <= goal * t)
@@ -882,9 +861,8 @@ impl Kept {
         };
         let mut x = vec![0.0; n];
         let mut r = rhs.to_vec();
-        let rows = ByRows::new(matrix);
         let (iterations, reached) = conjugate_gradients(
-            |p, ap| rows.product(p, ap),
+            |p, ap| symmetric_product(matrix, p, ap),
             precondition,
             &mut x,
             &mut r,
@@ -944,9 +922,7 @@ fn conjugate_gradients(
     (max_iterations, false)
 }
 
-/// `out = A x` for the symmetric `A` of which `matrix` holds the lower triangle, serially:
-/// the reference [`ByRows::product`] reproduces.
-#[cfg(test)]
+/// `out = A x` for the symmetric `A` of which `matrix` holds the lower triangle.
 fn symmetric_product(matrix: &SparseColMat<usize, f64>, x: &[f64], out: &mut [f64]) {
     let (col_ptr, rows, values) = (
         matrix.symbolic().col_ptr(),
@@ -1054,490 +1030,5 @@ impl Components {
 
     fn connected(&mut self) -> bool {
         (0..self.parent.len()).all(|i| self.root(i) == 0)
-    }
-}
-
-/// Bins the elimination tree's subtrees are packed into, the parallel tasks of a
-/// [`TreeSolve`]: a fixed number, so that the schedule does not follow the thread count
-/// (not that it could change a bit).
-const TREE_BINS: usize = 8;
-
-/// The two triangular solves with a kept simplicial factor `L` (`L Lᵀ x = b` with its
-/// fill-reducing permutation; faer's layout, column `j`'s rows with its diagonal first)
-/// over independent subtrees of the elimination tree in parallel, each entry computed by
-/// the float operations of faer's serial solves in their order: the same bits as faer's
-/// (`SimplicialLltRef::solve_in_place_with_conj`, faer 0.24) on any number of threads.
-/// Forward, faer scatters column `j` into the rows below it in increasing `j`
-/// (`x_j · (1/l_jj)`, then `x_i − l_ij x_j`); each bin does the same into its own rows
-/// (every `j` of a row lies in the row's subtree), and each row of the top gathers the
-/// same products in the same order. Backward, column `j` sums `l_ij x_i` over its
-/// stored rows from the last, then `(x_j − sum) · (1/l_jj)`, reading only ancestors.
-/// Subtrees are split off the top of the tree until none holds more than a thirty-second
-/// of the nodes, then packed into [`TREE_BINS`] bins; the nodes above them (the top) are
-/// solved serially, after the bins forward and before them backward. The entries are
-/// stored in the order they are read, each bin's and the top's contiguous. Why: faer's
-/// solves were the largest serial part of the transport at 10,000 sites (10.6% of one
-/// thread's samples against the diagrams' ~60%, perf, square, equal masses:
-/// `docs/results/transport.txt` §13), the part a second thread could not share.
-struct TreeSolve {
-    /// `bounds[b]..bounds[b + 1]` are bin `b`'s places; the top's run from
-    /// `bounds[TREE_BINS]` to `n`.
-    bounds: Vec<usize>,
-    /// Place `p`'s entry of the right-hand side and of the solution (the permutation and
-    /// the schedule in one).
-    gather: Vec<usize>,
-    /// The place of entry `i` of the solution.
-    back: Vec<usize>,
-    /// A top place `p`'s row left of the diagonal, increasing `j`: the entry of `l_ij` in
-    /// the factor's values and the place of `x_j` (empty for a bin's place).
-    row_ptr: Vec<usize>,
-    row_entry: Vec<usize>,
-    row_slot: Vec<usize>,
-    /// Place `p`'s column below the diagonal from its last stored row: the entry of
-    /// `l_ij` and where `x_i` is (a top's place: its place; a bin's: in its bin, or the
-    /// bin's length plus its place in the top).
-    col_ptr: Vec<usize>,
-    col_entry: Vec<usize>,
-    col_slot: Vec<usize>,
-    /// Place `p`'s diagonal entry.
-    diagonal: Vec<usize>,
-}
-
-/// A factor's values in a [`TreeSolve`]'s order of reading.
-struct TreeFactor {
-    row: Vec<f64>,
-    col: Vec<f64>,
-    /// `1 / l_jj` per place, as faer computes it.
-    inverse: Vec<f64>,
-}
-
-impl TreeSolve {
-    /// The schedule of the factor of pattern `col_ptr`, `rows` (permuted numbering,
-    /// `SymbolicSimplicialCholesky`) with the permutation `perm` (`forward[k]` the entry
-    /// of the right-hand side in place `k`), or `None` when the top would hold more than
-    /// half of the nodes, or the pattern is not a factor's (then faer's solves run).
-    fn new(col_ptr: &[usize], rows: &[usize], perm: Option<(&[usize], &[usize])>) -> Option<Self> {
-        let n = col_ptr.len().checked_sub(1)?;
-        let mut parent = vec![usize::MAX; n];
-        for j in 0..n {
-            let column = rows.get(*col_ptr.get(j)?..*col_ptr.get(j + 1)?)?;
-            if column.first() != Some(&j) {
-                return None;
-            }
-            for &i in &column[1..] {
-                if i <= j || i >= n {
-                    return None;
-                }
-                parent[j] = parent[j].min(i);
-            }
-        }
-        // Subtree sizes and children (a child is numbered below its parent).
-        let mut size = vec![1usize; n];
-        let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
-        for j in 0..n {
-            if parent[j] != usize::MAX {
-                size[parent[j]] += size[j];
-                children[parent[j]].push(j);
-            }
-        }
-        let limit = (n / 32).max(1);
-        let mut in_top = vec![false; n];
-        let mut heap: std::collections::BinaryHeap<(usize, usize)> = (0..n)
-            .filter(|&j| parent[j] == usize::MAX)
-            .map(|j| (size[j], j))
-            .collect();
-        let mut roots = Vec::new();
-        let mut tops = 0;
-        while let Some((s, j)) = heap.pop() {
-            if s <= limit {
-                roots.push((s, j));
-                roots.extend(heap.drain());
-                break;
-            }
-            in_top[j] = true;
-            tops += 1;
-            heap.extend(children[j].iter().map(|&c| (size[c], c)));
-        }
-        if 2 * tops > n {
-            return None;
-        }
-        // The largest subtree first into the lightest bin; a node below a root in its
-        // root's bin (parents are numbered higher).
-        roots.sort_unstable_by(|a, b| b.cmp(a));
-        let mut load = [0usize; TREE_BINS];
-        let mut owner = vec![TREE_BINS; n];
-        for &(s, r) in &roots {
-            let b = (0..TREE_BINS).fold(0, |best, b| if load[b] < load[best] { b } else { best });
-            load[b] += s;
-            owner[r] = b;
-        }
-        for j in (0..n).rev() {
-            if owner[j] == TREE_BINS && !in_top[j] && parent[j] != usize::MAX {
-                owner[j] = owner[parent[j]];
-            }
-        }
-        // Places: the bins' nodes then the top's, each in increasing order.
-        let mut bounds = vec![0; TREE_BINS + 2];
-        for &b in &owner {
-            bounds[b + 1] += 1;
-        }
-        for b in 0..=TREE_BINS {
-            bounds[b + 1] += bounds[b];
-        }
-        let mut next = bounds.clone();
-        let mut place = vec![0; n];
-        let mut node = vec![0; n];
-        for j in 0..n {
-            place[j] = next[owner[j]];
-            node[place[j]] = j;
-            next[owner[j]] += 1;
-        }
-        let top = bounds[TREE_BINS];
-        bounds.truncate(TREE_BINS + 1);
-        // Where place `p`'s solve reads node `i`.
-        let slot = |p: usize, i: usize| {
-            let b = owner[node[p]];
-            if b == TREE_BINS {
-                place[i]
-            } else if owner[i] == b {
-                place[i] - bounds[b]
-            } else {
-                bounds[b + 1] - bounds[b] + place[i] - top
-            }
-        };
-        // The top's rows from the columns in increasing order.
-        let mut by_row: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
-        for j in 0..n {
-            for e in col_ptr[j] + 1..col_ptr[j + 1] {
-                if in_top[rows[e]] {
-                    by_row[rows[e]].push((j, e));
-                }
-            }
-        }
-        let (mut row_ptr, mut row_entry, mut row_slot) = (vec![0], Vec::new(), Vec::new());
-        let (mut col_ptr_out, mut col_entry, mut col_slot) = (vec![0], Vec::new(), Vec::new());
-        let mut diagonal = Vec::with_capacity(n);
-        for (p, &j) in node.iter().enumerate() {
-            for &(k, e) in &by_row[j] {
-                row_entry.push(e);
-                row_slot.push(slot(p, k));
-            }
-            row_ptr.push(row_entry.len());
-            for e in (col_ptr[j] + 1..col_ptr[j + 1]).rev() {
-                col_entry.push(e);
-                col_slot.push(slot(p, rows[e]));
-            }
-            col_ptr_out.push(col_entry.len());
-            diagonal.push(col_ptr[j]);
-        }
-        let (gather, back) = match perm {
-            Some((forward, inverse)) => (
-                node.iter().map(|&j| forward[j]).collect(),
-                inverse.iter().map(|&k| place[k]).collect(),
-            ),
-            None => (node.clone(), place.clone()),
-        };
-        Some(Self {
-            bounds,
-            gather,
-            back,
-            row_ptr,
-            row_entry,
-            row_slot,
-            col_ptr: col_ptr_out,
-            col_entry,
-            col_slot,
-            diagonal,
-        })
-    }
-
-    /// The factor's `values` in the order the solves read them.
-    fn load(&self, values: &[f64]) -> TreeFactor {
-        TreeFactor {
-            row: self.row_entry.iter().map(|&e| values[e]).collect(),
-            col: self.col_entry.iter().map(|&e| values[e]).collect(),
-            inverse: self.diagonal.iter().map(|&e| 1.0 / values[e]).collect(),
-        }
-    }
-
-    /// The bins' runs of `places` (all places before the top's).
-    fn bins<'a>(&self, places: &'a mut [f64]) -> Vec<&'a mut [f64]> {
-        let mut rest = places;
-        let mut out = Vec::with_capacity(TREE_BINS);
-        for w in self.bounds.windows(2) {
-            let (bin, after) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
-            out.push(bin);
-            rest = after;
-        }
-        out
-    }
-
-    /// `z = (L Lᵀ)⁻¹ r` in the original numbering, `factor` from [`TreeSolve::load`];
-    /// `y` scratch of `r`'s length.
-    fn solve(&self, factor: &TreeFactor, r: &[f64], z: &mut [f64], y: &mut [f64]) {
-        let n = r.len();
-        let top = self.bounds[TREE_BINS];
-        y.iter_mut()
-            .zip(&self.gather)
-            .for_each(|(y, &i)| *y = r[i]);
-        // Forward: the bins in parallel, each scattering its columns into its rows as
-        // faer does (rows in the top gather them below), then the top.
-        let (below, _) = y.split_at_mut(top);
-        self.bins(below)
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(b, bin)| {
-                let len = bin.len();
-                for k in 0..len {
-                    let p = self.bounds[b] + k;
-                    let xj = bin[k] * factor.inverse[p];
-                    bin[k] = xj;
-                    for e in self.col_ptr[p]..self.col_ptr[p + 1] {
-                        let s = self.col_slot[e];
-                        if s < len {
-                            bin[s] -= factor.col[e] * xj;
-                        }
-                    }
-                }
-            });
-        for p in top..n {
-            let mut acc = y[p];
-            for e in self.row_ptr[p]..self.row_ptr[p + 1] {
-                acc -= factor.row[e] * y[self.row_slot[e]];
-            }
-            y[p] = acc * factor.inverse[p];
-        }
-        // Backward: the top, then the bins in parallel (reading the top).
-        for p in (top..n).rev() {
-            let mut acc = 0.0;
-            for e in self.col_ptr[p]..self.col_ptr[p + 1] {
-                acc += factor.col[e] * y[self.col_slot[e]];
-            }
-            y[p] = (y[p] - acc) * factor.inverse[p];
-        }
-        let (below, above) = y.split_at_mut(top);
-        let above: &[f64] = above;
-        self.bins(below)
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(b, bin)| {
-                let len = bin.len();
-                for k in (0..len).rev() {
-                    let p = self.bounds[b] + k;
-                    let mut acc = 0.0;
-                    for e in self.col_ptr[p]..self.col_ptr[p + 1] {
-                        let s = self.col_slot[e];
-                        let x = if s < len { bin[s] } else { above[s - len] };
-                        acc += factor.col[e] * x;
-                    }
-                    bin[k] = (bin[k] - acc) * factor.inverse[p];
-                }
-            });
-        z.iter_mut()
-            .zip(&self.back)
-            .for_each(|(z, &p)| *z = y[p]);
-    }
-}
-
-/// A symmetric matrix given by its lower triangle in compressed columns (the grounded
-/// Laplacian), multiplied by rows in parallel with the bits of the serial scatter
-/// [`symmetric_product`]: entry `i` of that product adds, in this order, the columns
-/// `j < i` holding row `i` (increasing `j`), then the diagonal, then the sum of column
-/// `i` below it; here row `i` gathers the same terms in the same order.
-struct ByRows<'a> {
-    matrix: &'a SparseColMat<usize, f64>,
-    /// Row `i`'s entries left of the diagonal, `(j, a_ij)` in increasing `j`.
-    ptr: Vec<usize>,
-    entries: Vec<(usize, f64)>,
-}
-
-impl<'a> ByRows<'a> {
-    fn new(matrix: &'a SparseColMat<usize, f64>) -> Self {
-        let (col_ptr, rows, values) = (
-            matrix.symbolic().col_ptr(),
-            matrix.symbolic().row_idx(),
-            matrix.val(),
-        );
-        let n = matrix.ncols();
-        let mut ptr = vec![0usize; n + 1];
-        for (j, w) in col_ptr.windows(2).enumerate() {
-            for &i in &rows[w[0]..w[1]] {
-                if i > j {
-                    ptr[i + 1] += 1;
-                }
-            }
-        }
-        for i in 0..n {
-            ptr[i + 1] += ptr[i];
-        }
-        let mut next = ptr.clone();
-        let mut entries = vec![(0, 0.0); ptr[n]];
-        for (j, w) in col_ptr.windows(2).enumerate() {
-            for k in w[0]..w[1] {
-                let i = rows[k];
-                if i > j {
-                    entries[next[i]] = (j, values[k]);
-                    next[i] += 1;
-                }
-            }
-        }
-        Self {
-            matrix,
-            ptr,
-            entries,
-        }
-    }
-
-    /// `out = A x`.
-    fn product(&self, x: &[f64], out: &mut [f64]) {
-        let (col_ptr, rows, values) = (
-            self.matrix.symbolic().col_ptr(),
-            self.matrix.symbolic().row_idx(),
-            self.matrix.val(),
-        );
-        out.par_chunks_mut(PRODUCT_ROWS)
-            .enumerate()
-            .for_each(|(c, chunk)| {
-                for (k, o) in chunk.iter_mut().enumerate() {
-                    let i = c * PRODUCT_ROWS + k;
-                    let mut acc = 0.0;
-                    for &(j, a) in &self.entries[self.ptr[i]..self.ptr[i + 1]] {
-                        acc += a * x[j];
-                    }
-                    let mut sum = 0.0;
-                    for e in col_ptr[i]..col_ptr[i + 1] {
-                        let r = rows[e];
-                        if r == i {
-                            acc += values[e] * x[i];
-                        } else {
-                            sum += values[e] * x[r];
-                        }
-                    }
-                    *o = acc + sum;
-                }
-            });
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The grounded Laplacian (lower triangle, diagonal first in each column) of a
-    /// `side × side` grid with couplings in (0.5, 1.5) and the diagonals one way, cell 0
-    /// held.
-    fn grid_laplacian(side: usize) -> SparseColMat<usize, f64> {
-        let n = side * side;
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut coupling = || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            0.5 + (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut lower: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n];
-        let mut diagonal = vec![0.0; n];
-        for i in 0..n {
-            let (x, y) = (i % side, i / side);
-            let mut near = Vec::new();
-            if x + 1 < side {
-                near.push(i + 1);
-            }
-            if y + 1 < side {
-                near.push(i + side);
-                if x + 1 < side {
-                    near.push(i + side + 1);
-                }
-            }
-            for j in near {
-                let c = coupling();
-                diagonal[i] += c;
-                diagonal[j] += c;
-                lower[i].push((j, c));
-            }
-        }
-        let (mut col_ptr, mut rows, mut values) = (vec![0], Vec::new(), Vec::new());
-        for i in 0..n {
-            rows.push(i);
-            values.push(if i == 0 { 1.0 } else { diagonal[i] });
-            if i != 0 {
-                for &(j, c) in &lower[i] {
-                    rows.push(j);
-                    values.push(-c);
-                }
-            }
-            col_ptr.push(rows.len());
-        }
-        let pattern = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, rows);
-        SparseColMat::new(pattern, values)
-    }
-
-    /// The parallel solves and product give faer's and the serial scatter's bits, on one
-    /// thread and on three.
-    #[test]
-    fn tree_solves_and_row_products_have_the_serial_bits() {
-        let matrix = grid_laplacian(70);
-        let n = matrix.ncols();
-        let mut ordering = None;
-        let Some(symbolic) = analyse(&matrix, &mut ordering) else {
-            panic!("no symbolic factorisation");
-        };
-        let par = Par::Seq;
-        let scratch = symbolic
-            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-            .or(symbolic.solve_in_place_scratch::<f64>(1, par));
-        let Ok(mut memory) = MemBuffer::try_new(scratch) else {
-            panic!("no scratch");
-        };
-        let mut values = vec![0.0; symbolic.len_val()];
-        let Ok(factor) = symbolic.factorize_numeric_llt(
-            &mut values,
-            matrix.as_ref(),
-            Side::Lower,
-            LltRegularization::default(),
-            par,
-            MemStack::new(&mut memory),
-            Default::default(),
-        ) else {
-            panic!("not factorised");
-        };
-        let b: Vec<f64> = (0..n).map(|i| ((i * 7919) % 1000) as f64 / 500.0 - 1.0).collect();
-        let mut expected = b.clone();
-        factor.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut expected, n, 1),
-            par,
-            MemStack::new(&mut memory),
-        );
-        let SymbolicCholeskyRaw::Simplicial(s) = symbolic.raw() else {
-            panic!("the grid's factor is not simplicial");
-        };
-        let Some(tree) =
-            TreeSolve::new(s.col_ptr(), s.row_idx(), symbolic.perm().map(|p| p.arrays()))
-        else {
-            panic!("no schedule");
-        };
-        // Work in at least two bins and in the top.
-        let top = tree.bounds[TREE_BINS];
-        assert!(tree.bounds.windows(2).filter(|w| w[1] > w[0]).count() >= 2);
-        assert!(top < n);
-        let factor = tree.load(&values);
-        let mut serial = vec![0.0; n];
-        symmetric_product(&matrix, &b, &mut serial);
-        for threads in [1, 3] {
-            let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else {
-                panic!("no pool");
-            };
-            let (solved, product) = pool.install(|| {
-                let mut solved = vec![0.0; n];
-                tree.solve(&factor, &b, &mut solved, &mut vec![0.0; n]);
-                let mut product = vec![0.0; n];
-                ByRows::new(&matrix).product(&b, &mut product);
-                (solved, product)
-            });
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&solved), bits(&expected), "{threads} threads");
-            assert_eq!(bits(&product), bits(&serial), "{threads} threads");
-        }
     }
 }
