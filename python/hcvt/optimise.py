@@ -88,10 +88,12 @@ def fastest_method(
         ``"newton"`` or ``"lbfgs"``.
     """
     # On the sphere every density is sampled, its arcs too, and Newton measured faster.
-    exact_hessian = density is None or isinstance(density, Polynomial) or domain.is_sphere
+    # On a surface the arcs' terms are not weighted by a density (none there yet).
+    polynomial = isinstance(density, Polynomial) and not domain.is_surface
+    exact_hessian = density is None or polynomial or domain.is_sphere
     if domain.is_sphere_region:
         return "lbfgs"  # no Hessian summed on a region of the sphere yet
-    summed = not any(domain.periodic) and not domain.is_surface
+    summed = not any(domain.periodic)
     if not summed or not exact_hessian or partitioned:
         return "lbfgs"
     return "newton"
