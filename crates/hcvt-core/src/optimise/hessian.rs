@@ -213,7 +213,7 @@ mod tests {
 
     /// `bunny.off` of the shared data (`$HCVT_DATA/3d`, else `../shared/data/3d` beside
     /// the repository), or `None` where it is absent.
-    fn bunny() -> Option<(Vec<[f64; 3]>, Vec<[u32; 3]>)> {
+    fn bunny() -> Option<Surface> {
         let dir = std::env::var("HCVT_DATA").map_or_else(
             |_| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
             std::path::PathBuf::from,
@@ -232,7 +232,7 @@ mod tests {
                 [0; 3].map(|_| next().parse().unwrap())
             })
             .collect();
-        Some((vertices, faces))
+        Some(Surface::new(vertices, faces).unwrap())
     }
 
     /// `n` sites near `surface`: points of random triangles off the surface along its
@@ -301,9 +301,10 @@ mod tests {
     /// the surface; the flat weight `2/|q|` on the arcs misses by far more; `H_ij = H_jiᵀ`.
     #[test]
     fn surface_hessian_matches_central_differences_of_the_gradient() {
-        let Some((vertices, faces)) = bunny() else {
+        let Some(closed) = bunny() else {
             return; // no shared data here
         };
+        let (vertices, faces) = (closed.vertices().to_vec(), closed.triangles().to_vec());
         let top = vertices.iter().map(|v| v[1]).fold(f64::MIN, f64::max);
         let open: Vec<[u32; 3]> = (faces.iter().copied())
             .filter(|t| t.iter().all(|&v| vertices[v as usize][1] < top - 0.05))
