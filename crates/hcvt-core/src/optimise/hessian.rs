@@ -298,7 +298,8 @@ mod tests {
 
     /// On the bunny (closed) and on the bunny cut open (its triangles above a plane
     /// removed): the Hessian against central differences of the gradient, 300 sites near
-    /// the surface; the flat weight `2/|q|` on the arcs misses by far more; `H_ij = H_jiᵀ`.
+    /// the surface; the flat weight `2/|q|` on the arcs misses by far more; `H_ij = H_jiᵀ`;
+    /// the same Hessian on 1 and 3 threads.
     #[test]
     fn surface_hessian_matches_central_differences_of_the_gradient() {
         let Some(closed) = bunny() else {
@@ -318,9 +319,23 @@ mod tests {
             println!("{what}: relative error {exact:.1e}, with the flat weight {flat:.1e}");
             assert!(exact < 1e-6, "{what}: {exact:e}");
             assert!(flat > 1e3 * exact && flat > 1e-4, "{what}: {flat:e}");
-            let point = evaluate::<3, PolyhedronCell, _>(&surface, sites, &WITH_HESSIAN).unwrap();
-            let skew = asymmetry(&point);
+            // Symmetric to round-off, and the same bit for bit on 1 and 3 threads.
+            let hessian = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    evaluate::<3, PolyhedronCell, _>(&surface, sites.clone(), &WITH_HESSIAN)
+                        .unwrap()
+                })
+            };
+            let (one, three) = (hessian(1), hessian(3));
+            let skew = asymmetry(&one);
             assert!(skew < 1e-12, "{what}: {skew:e}");
+            let (a, b) = (one.hessian.unwrap(), three.hessian.unwrap());
+            assert_eq!(a.diagonal, b.diagonal, "{what}");
+            assert_eq!(a.off_diagonal, b.off_diagonal, "{what}");
         }
     }
 
