@@ -261,7 +261,7 @@ def test_initialise_gives_exactly_n_points_on_the_surface() -> None:
 
 
 @needs_data
-@pytest.mark.parametrize("method", ["lloyd", "lbfgs"])
+@pytest.mark.parametrize("method", ["lloyd", "lbfgs", "newton"])
 def test_restricted_cvts_converge(method: str) -> None:
     domain = surface("sphere.ply")
     start = hcvt.initialise(domain, 300, seed=7)

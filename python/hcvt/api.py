@@ -170,9 +170,11 @@ def cvt(
         search, preconditioned so that its first step is a Lloyd step; the paper's method)
         or Lloyd's ``x_i <- c_i``. Default: the fastest the domain takes
         (:func:`hcvt.optimise.fastest_method`): Newton on polygons, solids and plain
-        boxes without a density or with a polynomial one, and on the sphere with any
-        density, in one process; L-BFGS elsewhere (periodic boxes, a sampled density in a
-        flat domain, ``client=``) and with ``volumes``.
+        boxes without a density or with a polynomial one, on the sphere with any
+        density, and on triangle surfaces (the arcs' Hessian terms weighted by the
+        bisectors' slopes against the triangles), in one process; L-BFGS elsewhere
+        (periodic boxes, a sampled density in a flat domain, ``client=``) and with
+        ``volumes``.
     rule : {"gap", "paper"}
         Stop when the RMS over the sites of ``|x_i - c_i| / V_i^(1/d)`` is below ``tol``
         (``"gap"``, scale-free), or when ``‖g‖/‖X‖ < tol`` in the input coordinates

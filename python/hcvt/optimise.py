@@ -65,9 +65,11 @@ def fastest_method(
     """The optimiser :func:`hcvt.cvt` runs when given none: the fastest the core has here.
 
     Newton (the exact Hessian, truncated CG in a trust region) wherever the core sums its
-    Hessian: polygons, solids, plain boxes and the sphere (its Riemannian Hessian), without
-    a density or with a :class:`~hcvt.density.Polynomial` (on the sphere: with any density,
-    its arcs weighted by ρ at Gauss–Legendre nodes), in one process. It needs 3-5x fewer
+    Hessian: polygons, solids, plain boxes, the sphere (its Riemannian Hessian) and
+    triangle surfaces (its arcs weighted by the bisectors' slopes against the triangles),
+    without a density or with a :class:`~hcvt.density.Polynomial` (on the sphere: with any
+    density, its arcs weighted by ρ at Gauss–Legendre nodes; on a surface: none), in one
+    process. It needs 3-5x fewer
     diagrams than L-BFGS from random sites and was 2.6-3.7x faster to the paper's rule in
     every row of ``docs/results/bench_cvt.txt`` (square 1k, 5k; star 2k, 10k; ball 1k, 5k;
     medians of 3 seeds) and 2.6-3.4x to the default rule in the four rows where L-BFGS
@@ -77,9 +79,15 @@ def fastest_method(
     band density (2,584 sites, R = 6371 km, graded random start, seed 0, under load) Newton
     took 146 diagrams / 22 s to the default rule where L-BFGS had not reached it after 500 /
     49 s, and 97 / 14 s to the paper's against L-BFGS's 200-300 / 20-30 s
-    (``benchmarks/sphere_density_newton.py`` runs the 3 seeds and 10,000 sites).
-    Elsewhere L-BFGS: a periodic box or a triangle surface (no Hessian summed there yet), a
-    sampled density in a flat domain (its Hessian is not exact), a partitioned run
+    (``benchmarks/sphere_density_newton.py`` runs the 3 seeds and 10,000 sites). On the
+    bunny, kitten and fandisk at 2,000 and 5,000 sites (random by area, medians of 3 seeds,
+    CPU seconds, one thread, under load) Newton reached the default rule in 87-147
+    diagrams against L-BFGS's 310-606 (two rows stopped at 600 iterations short of it),
+    2.4-4.4x faster in every row; to remesh's RMS gap 1e-2 L-BFGS was faster (11-13
+    diagrams against 15-18, Newton 1.3-1.5x its seconds), so :func:`hcvt.remesh` keeps
+    L-BFGS (``docs/results/surface_newton.txt``, ``benchmarks/surface_newton.py``).
+    Elsewhere L-BFGS: a periodic box, a region of the sphere (no Hessian summed there
+    yet), a sampled density in a flat domain (its Hessian is not exact), a partitioned run
     (``client=``: L-BFGS and Lloyd only).
 
     Returns
@@ -88,12 +96,12 @@ def fastest_method(
         ``"newton"`` or ``"lbfgs"``.
     """
     # On the sphere every density is sampled, its arcs too, and Newton measured faster.
-    exact_hessian = density is None or isinstance(density, Polynomial) or domain.is_sphere
+    # On a surface the arcs' terms are not weighted by a density (the core refuses it).
+    polynomial = isinstance(density, Polynomial) and not domain.is_surface
+    exact_hessian = density is None or polynomial or domain.is_sphere
     if domain.is_sphere_region:
         return "lbfgs"  # no Hessian summed on a region of the sphere yet
-    if domain.is_surface and density is not None:
-        return "lbfgs"  # the core does not weight a surface's Hessian by a density
-    summed = not any(domain.periodic) and not domain.is_surface
+    summed = not any(domain.periodic)
     if not summed or not exact_hessian or partitioned:
         return "lbfgs"
     return "newton"

@@ -86,6 +86,9 @@ pub struct Surface {
     border: Vec<[bool; 3]>,
     area: f64,
     first: [f64; 3],
+    /// Newton's Hessian with the flat weight on its arcs ([`HessianArcs`]), for a test.
+    #[cfg(test)]
+    flat_arcs: bool,
 }
 
 /// `count` offenders and the first, as an error.
@@ -187,7 +190,17 @@ impl Surface {
             border,
             area,
             first,
+            #[cfg(test)]
+            flat_arcs: false,
         })
+    }
+
+    /// The surface whose Hessian weighs its arcs as if flat (`2/|q|`, [`HessianArcs`]):
+    /// what the tests show the finite differences reject.
+    #[cfg(test)]
+    pub(crate) fn with_flat_arcs(mut self) -> Self {
+        self.flat_arcs = true;
+        self
     }
 
     /// The vertices, as given.
@@ -579,11 +592,13 @@ thread_local! {
 
 /// Add the piece `polygon` (of triangle `t`, relative to the site) to `total`: the fan
 /// triangles from its first node, each in closed form; its edges on bisectors to the
-/// neighbours' measures and on the border to the boundary measure.
+/// neighbours' measures (with `arcs`, and their Hessian terms) and on the border to the
+/// boundary measure.
 fn add_piece(
     surface: &Surface,
     t: u32,
     polygon: &[Node],
+    arcs: Option<&HessianArcs<'_>>,
     total: &mut Moments<3>,
     faces: &mut FaceSums<3>,
 ) {
@@ -600,14 +615,116 @@ fn add_piece(
     for k in 0..n {
         let length = norm2(sub(polygon[(k + 1) % n].x, polygon[k].x)).sqrt();
         match polygon[k].out {
-            Edge::Plane(face @ Face::Neighbor(_)) => {
-                faces.add(face, length);
-            }
+            Edge::Plane(face @ Face::Neighbor(j)) => match arcs {
+                Some(arcs) => {
+                    let ends = [polygon[k].x, polygon[(k + 1) % n].x];
+                    arcs.add(surface, t, j, ends, length, faces);
+                }
+                None => {
+                    faces.add(face, length);
+                }
+            },
             Edge::Triangle(e) if surface.is_border(t, e as usize) => {
                 faces.add(Face::Boundary(t), length);
             }
             _ => {}
         }
+    }
+}
+
+/// The least sine of the angle between a bisector and a triangle that [`HessianArcs`]
+/// weighs an arc by: a bisector more nearly parallel to the triangle has its arc there
+/// weighted as if at this angle (1,000 times the flat weight at most).
+const MIN_ARC_SINE: f64 = 1e-3;
+
+/// Newton's Hessian on a surface (issue 33): the face moments its [`FaceRow`] sums over a
+/// cell's arcs, each segment weighted by the slope of its bisector against its triangle.
+///
+/// The energy is `E(X) = Σ_i ∫_{Ω_i ∩ S} |x − x_i|² dA`, sites free in space (Yan et al.
+/// 2009). The arc between cells `i` and `j` is a polyline: one segment `s` per triangle
+/// `T` it crosses, the bisector plane `2 x·q = |x_j|² − |x_i|²` (`q = x_j − x_i`) cut by
+/// `T`'s plane. When `x_j` moves by `δ` the segment moves *in `T`'s plane*, along its
+/// unit normal there `u_s = P_T q / |P_T q|` (`P_T` the projection onto the plane), at
+/// the speed that keeps the bisector's equation: `−(x − x_j)·δ / |P_T q|`, not the
+/// flat `−(x − x_j)·δ / |q|` of a cell of full dimension (the border of an open surface
+/// does not move, and a segment's ends sliding along `T`'s edges sweep no area to first
+/// order). So `H_ij = Σ_s (2/|P_T q|) ∫_s (x − x_i)(x − x_j)ᵀ ds` and
+/// `H_ii = 2 m_i I − Σ_j Σ_s (2/|P_T q|) ∫_s (x − x_i)(x − x_i)ᵀ ds`: the flat Hessian's
+/// face terms (`optimise::hessian::HessianTerms`, weight `2/|q|`) serve unchanged when
+/// each segment's moments come scaled by `|q| / |P_T q| = 1 / sin θ`, `θ` the angle
+/// between the bisector's normal and `T`'s (the neighbours' measures stay the lengths).
+///
+/// Where the bisector is nearly parallel to `T` (`sin θ → 0`: two sites on either side of
+/// a thin sheet, or a cell wrapping a sharp crease) the true weight grows without bound;
+/// it is taken at `sin θ = MIN_ARC_SINE` there (a Hessian finite and inexact on that
+/// segment alone, a model the trust region checks against the energy like any other).
+/// At `sin θ = 0` exactly the triangle lies in the bisector and has no arc.
+struct HessianArcs<'a> {
+    row: FaceRow<'a, 3>,
+    /// The normal of each of the cell's bisectors (along `q`), by neighbour.
+    bisectors: Vec<(u32, [f64; 3])>,
+    /// The flat weight `2/|q|` instead (a test shows the finite differences tell).
+    #[cfg(test)]
+    flat: bool,
+}
+
+impl<'a> HessianArcs<'a> {
+    fn new<C: ConvexCell<3>>(_surface: &Surface, cell: &C, row: FaceRow<'a, 3>) -> Self {
+        let mut bisectors = Vec::new();
+        cell.for_each_plane(|face, h| {
+            if let Face::Neighbor(j) = face {
+                bisectors.push((j, h.normal));
+            }
+        });
+        Self {
+            row,
+            bisectors,
+            #[cfg(test)]
+            flat: _surface.flat_arcs,
+        }
+    }
+
+    /// `1 / max(sin θ, MIN_ARC_SINE)` for the bisector with `j` in triangle `t`.
+    fn weight(&self, surface: &Surface, t: u32, j: u32) -> f64 {
+        #[cfg(test)]
+        if self.flat {
+            return 1.0;
+        }
+        let Some(&(_, normal)) = self.bisectors.iter().find(|(k, _)| *k == j) else {
+            return 1.0; // not reached: the arc lies on one of the cell's bisectors
+        };
+        let [a, b, c] = surface.corners(t);
+        let across = cross(sub(b, a), sub(c, a));
+        let along = norm2(normal).sqrt();
+        // |P_T n| = |n × t̂| = |n| sin θ.
+        let tilt = norm2(cross(normal, across)).sqrt() / norm2(across).sqrt();
+        along / tilt.max(MIN_ARC_SINE * along)
+    }
+
+    /// Add the arc segment `ends` (relative to the site, `length` long) on the bisector
+    /// with `j` in triangle `t`: its length to the neighbour's measure, its moments
+    /// weighted by [`HessianArcs::weight`] to the row's integrand.
+    fn add(
+        &self,
+        surface: &Surface,
+        t: u32,
+        j: u32,
+        ends: [[f64; 3]; 2],
+        length: f64,
+        faces: &mut FaceSums<3>,
+    ) {
+        let [a, b] = ends;
+        let s = add(a, b);
+        let w = self.weight(surface, t, j) * length;
+        // ∫ y ds = L (a + b)/2 and ∫ y yᵀ ds = L (a aᵀ + b bᵀ + s sᵀ)/6 over the segment.
+        let m = FaceMoments {
+            measure: w,
+            first: scale(s, 0.5 * w),
+            second: std::array::from_fn(|r| {
+                std::array::from_fn(|c| w / 6.0 * (a[r] * a[c] + b[r] * b[c] + s[r] * s[c]))
+            }),
+        };
+        faces.add_weighted_moments(Face::Neighbor(j), 1.0, length, &m, self.row);
     }
 }
 
@@ -877,11 +994,13 @@ impl DomainKind<3> for Noting<'_> {
         cell: &C,
         site: [f64; 3],
         _: Option<i32>,
-        _: Option<FaceRow<'_, 3>>,
+        row: Option<FaceRow<'_, 3>>,
         scratch: &mut MeasureScratch<3, C>,
     ) -> Moments<3> {
         let mut met = Vec::new();
-        let total = self.surface.measure(cell, site, scratch, |t| met.push(t));
+        let total = self
+            .surface
+            .measure(cell, site, row, scratch, |t| met.push(t));
         let mut noted = self.met.lock().unwrap_or_else(|e| e.into_inner());
         noted
             .entry(site.map(f64::to_bits))
@@ -912,24 +1031,29 @@ impl DomainKind<3> for Noting<'_> {
     fn sums_weighted_hessian(&self) -> bool {
         self.surface.sums_weighted_hessian()
     }
+    fn sums_hessian(&self) -> bool {
+        self.surface.sums_hessian()
+    }
 }
 
 impl Surface {
     /// [`DomainKind::clip`]: the moments of the cell's pieces, each piece's triangle
-    /// told to `met` in order.
+    /// told to `met` in order; with a `row`, the Hessian's terms of its arcs.
     fn measure<C: ConvexCell<3>>(
         &self,
         cell: &C,
         site: [f64; 3],
+        row: Option<FaceRow<'_, 3>>,
         scratch: &mut MeasureScratch<3, C>,
         mut met: impl FnMut(u32),
     ) -> Moments<3> {
         let faces = &mut scratch.faces;
         faces.clear();
+        let arcs = row.map(|row| HessianArcs::new(self, cell, row));
         let mut total = Moments::zero();
         self.for_each_piece(cell, site, Triangles::LastMet, |t, polygon| {
             met(t);
-            add_piece(self, t, polygon, &mut total, faces);
+            add_piece(self, t, polygon, arcs.as_ref(), &mut total, faces);
             if faces.weighted.is_on() {
                 self.add_weighted_piece(t, site, polygon, &mut faces.weighted);
             }
@@ -1018,17 +1142,18 @@ impl DomainKind<3> for Surface {
     }
 
     /// The moments of the cell's part of the surface about the site (mass the area), its
-    /// arcs on bisectors into the neighbours' measures, and with a density its weighted
-    /// sums (`surface/density.rs`). No face integrand (Newton) yet.
+    /// arcs on bisectors into the neighbours' measures, with a `row` (Newton's Hessian)
+    /// their face moments weighted by the slope of the bisector against each triangle
+    /// ([`HessianArcs`]), and with a density its weighted sums (`surface/density.rs`).
     fn clip<C: ConvexCell<3>>(
         &self,
         cell: &C,
         site: [f64; 3],
         _: Option<i32>,
-        _: Option<FaceRow<'_, 3>>,
+        row: Option<FaceRow<'_, 3>>,
         scratch: &mut MeasureScratch<3, C>,
     ) -> Moments<3> {
-        self.measure(cell, site, scratch, |_| {})
+        self.measure(cell, site, row, scratch, |_| {})
     }
 
     fn cell_dim(&self) -> usize {
@@ -1061,6 +1186,12 @@ impl DomainKind<3> for Surface {
     /// Newton's Hessian is not weighted by a density on a surface.
     fn sums_weighted_hessian(&self) -> bool {
         false
+    }
+
+    /// Newton's Hessian: the flat one's face terms over the arcs, each segment weighted
+    /// by the slope of its bisector against its triangle ([`HessianArcs`]).
+    fn sums_hessian(&self) -> bool {
+        true
     }
 }
 

@@ -194,3 +194,193 @@ fn mat_vec<const D: usize>(m: &Matrix<D>, v: [f64; D]) -> [f64; D] {
 /// work each. With 1,024 the product of a 1,000-site problem was one task, and the CG
 /// iterations (10-13% of a Newton run) kept one of two threads idle.
 const PRODUCT_ROWS: usize = 256;
+
+#[cfg(test)]
+mod tests {
+    //! Newton's Hessian on a triangle surface (issue 33): the arcs weighted by the slope of
+    //! their bisectors (`diagram/surface.rs`, `HessianArcs`).
+    use super::*;
+    use crate::diagram::{PolyhedronCell, Surface};
+    use crate::geometry::{cross, scale};
+    use crate::optimise::central_difference::central_difference_error;
+    use crate::optimise::{evaluate, Point, PointRequest};
+    use crate::sample::Lcg;
+
+    const WITH_HESSIAN: PointRequest<'static, 3> = PointRequest {
+        hessian: true,
+        density: None,
+    };
+
+    /// `bunny.off` of the shared data (`$HCVT_DATA/3d`, else `../shared/data/3d` beside
+    /// the repository), or `None` where it is absent.
+    fn bunny() -> Option<Surface> {
+        let dir = std::env::var("HCVT_DATA").map_or_else(
+            |_| std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+            std::path::PathBuf::from,
+        );
+        let text = std::fs::read_to_string(dir.join("3d/bunny.off")).ok()?;
+        let mut tokens = text.strip_prefix("OFF")?.split_whitespace();
+        let mut next = || tokens.next().unwrap();
+        let (nv, nf): (usize, usize) = (next().parse().unwrap(), next().parse().unwrap());
+        next();
+        let vertices = (0..nv)
+            .map(|_| [0; 3].map(|_| next().parse().unwrap()))
+            .collect();
+        let faces = (0..nf)
+            .map(|_| {
+                assert_eq!(next(), "3");
+                [0; 3].map(|_| next().parse().unwrap())
+            })
+            .collect();
+        Some(Surface::new(vertices, faces).unwrap())
+    }
+
+    /// `n` sites near `surface`: points of random triangles off the surface along its
+    /// normal by up to a tenth of the mean spacing either way (as a CVT's sites lie).
+    fn sites_near(surface: &Surface, n: usize, seed: u64) -> Vec<[f64; 3]> {
+        let mut rng = Lcg::new(seed);
+        let h = (surface.area() / n as f64).sqrt();
+        let count = surface.triangles().len();
+        (0..n)
+            .map(|_| {
+                let t = surface.triangles()[((rng.unit() * count as f64) as usize).min(count - 1)];
+                let [a, b, c] = t.map(|v| surface.vertices()[v as usize]);
+                let (mut u, mut w) = (rng.unit(), rng.unit());
+                if u + w > 1.0 {
+                    (u, w) = (1.0 - u, 1.0 - w);
+                }
+                let across = cross(sub(b, a), sub(c, a));
+                let off = (2.0 * rng.unit() - 1.0) * 0.1 * h / norm2(across).sqrt();
+                let on = add(a, add(scale(sub(b, a), u), scale(sub(c, a), w)));
+                add(on, scale(across, off))
+            })
+            .collect()
+    }
+
+    /// The relative error of the Hessian product against central differences of the
+    /// gradient along a direction of 1e-6 mean spacings in every coordinate.
+    fn fd_error(surface: &Surface, sites: &[[f64; 3]]) -> f64 {
+        let point =
+            evaluate::<3, PolyhedronCell, _>(surface, sites.to_vec(), &WITH_HESSIAN).unwrap();
+        let h = (surface.area() / sites.len() as f64).sqrt();
+        let v: Vec<[f64; 3]> = (sites.iter())
+            .map(|s| s.map(|x| (x * 1e4).sin() * 1e-6 * h))
+            .collect();
+        let exact = point.hessian_product(&v).unwrap();
+        central_difference_error(sites, &v, &exact, |moved| {
+            evaluate::<3, PolyhedronCell, _>(surface, moved, &PointRequest::default())
+                .unwrap()
+                .gradient
+        })
+    }
+
+    /// The largest `|H_ij − H_jiᵀ|` over the neighbour pairs, relative to the largest entry.
+    fn asymmetry(point: &Point<3>) -> f64 {
+        let (d, h) = (&point.diagram, point.hessian.as_ref().unwrap());
+        let (mut worst, mut size) = (0.0f64, 0.0f64);
+        for i in 0..d.len() {
+            for e in d.neighbor_offsets[i]..d.neighbor_offsets[i + 1] {
+                let j = d.neighbor_sites[e] as usize;
+                let back = (d.neighbor_offsets[j]..d.neighbor_offsets[j + 1])
+                    .find(|&b| d.neighbor_sites[b] as usize == i)
+                    .expect("neighbours both ways");
+                for r in 0..3 {
+                    for c in 0..3 {
+                        let x = h.off_diagonal[e][r][c];
+                        worst = worst.max((x - h.off_diagonal[back][c][r]).abs());
+                        size = size.max(x.abs());
+                    }
+                }
+            }
+        }
+        worst / size
+    }
+
+    /// On the bunny (closed) and on the bunny cut open (its triangles above a plane
+    /// removed): the Hessian against central differences of the gradient, 300 sites near
+    /// the surface; the flat weight `2/|q|` on the arcs misses by far more; `H_ij = H_jiᵀ`;
+    /// the same Hessian on 1 and 3 threads.
+    #[test]
+    fn surface_hessian_matches_central_differences_of_the_gradient() {
+        let Some(closed) = bunny() else {
+            return; // no shared data here
+        };
+        let (vertices, faces) = (closed.vertices().to_vec(), closed.triangles().to_vec());
+        let top = vertices.iter().map(|v| v[1]).fold(f64::MIN, f64::max);
+        let open: Vec<[u32; 3]> = (faces.iter().copied())
+            .filter(|t| t.iter().all(|&v| vertices[v as usize][1] < top - 0.05))
+            .collect();
+        assert!(open.len() < faces.len() - 100);
+        for (what, faces) in [("closed", faces), ("open", open)] {
+            let surface = Surface::new(vertices.clone(), faces).unwrap();
+            let sites = sites_near(&surface, 300, 7);
+            let exact = fd_error(&surface, &sites);
+            let flat = fd_error(&surface.clone().with_flat_arcs(), &sites);
+            println!("{what}: relative error {exact:.1e}, with the flat weight {flat:.1e}");
+            assert!(exact < 1e-6, "{what}: {exact:e}");
+            assert!(flat > 1e3 * exact && flat > 1e-4, "{what}: {flat:e}");
+            // Symmetric to round-off, and the same bit for bit on 1 and 3 threads.
+            let hessian = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| {
+                    evaluate::<3, PolyhedronCell, _>(&surface, sites.clone(), &WITH_HESSIAN)
+                        .unwrap()
+                })
+            };
+            let (one, three) = (hessian(1), hessian(3));
+            let skew = asymmetry(&one);
+            assert!(skew < 1e-12, "{what}: {skew:e}");
+            let (a, b) = (one.hessian.unwrap(), three.hessian.unwrap());
+            assert_eq!(a.diagonal, b.diagonal, "{what}");
+            assert_eq!(a.off_diagonal, b.off_diagonal, "{what}");
+        }
+    }
+
+    /// The unit square (two triangles, `z = 0`) and two sites across it,
+    /// `(½ ± δ, ½, ∓1)`: their bisector `δ (x − ½) = z` meets the square on the line
+    /// `x = ½` at the angle `θ`, `sin θ = δ / √(1 + δ²)`. `H_12` is
+    /// `(2 / (|q| max(sin θ, MIN_ARC_SINE))) ∫ (x − x_1)(x − x_2)ᵀ` over the line (Simpson,
+    /// exact for the quadratic): at `δ = 0.2` exactly, and the finite differences agree
+    /// (and reject the flat weight, 5x too small); at `δ = 1e-7` (the true weight 1e7
+    /// times the flat one) floored at 1,000 times.
+    #[test]
+    fn an_arc_nearly_parallel_to_its_triangle_is_weighted_by_its_slope_floored() {
+        let square = || {
+            let v = vec![[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]];
+            Surface::new(v, vec![[0, 1, 2], [0, 2, 3]]).unwrap()
+        };
+        for delta in [0.2, 1e-7] {
+            let sites = vec![[0.5 + delta, 0.5, 1.0], [0.5 - delta, 0.5, -1.0]];
+            let point =
+                evaluate::<3, PolyhedronCell, _>(&square(), sites.clone(), &WITH_HESSIAN).unwrap();
+            let q = sub(sites[1], sites[0]);
+            let sine = delta / (1.0 + delta * delta).sqrt();
+            let w = 2.0 / (norm2(q).sqrt() * sine.max(1e-3));
+            let integrand = |y: f64| -> Matrix<3> {
+                let x = [0.5, y, 0.0];
+                let (a, b) = (sub(x, sites[0]), sub(x, sites[1]));
+                a.map(|ar| b.map(|bc| ar * bc))
+            };
+            let [s0, s1, s2] = [0.0, 0.5, 1.0].map(integrand);
+            let hessian = point.hessian.as_ref().unwrap();
+            assert_eq!(point.diagram.neighbor_sites, vec![1, 0]);
+            for r in 0..3 {
+                for c in 0..3 {
+                    let want = w * (s0[r][c] + 4.0 * s1[r][c] + s2[r][c]) / 6.0;
+                    let got = hessian.off_diagonal[0][r][c];
+                    // The line's position rounds to some 1e-16/δ (its plane's normal).
+                    let tol = 1e-15 / sine * w;
+                    assert!((got - want).abs() <= tol, "δ {delta} {r}{c}: {got} {want}");
+                }
+            }
+            if delta > 0.1 {
+                let exact = fd_error(&square(), &sites);
+                let flat = fd_error(&square().with_flat_arcs(), &sites);
+                assert!(exact < 1e-7 && flat > 0.1, "{exact:e} {flat:e}");
+            }
+        }
+    }
+}

@@ -613,8 +613,8 @@ where
 {
     if settings.method == Method::Newton && !domain.sums_hessian() {
         return Err(CoreError::InvalidSettings {
-            reason: "Newton's Hessian is not summed on a triangle surface yet: use method \
-                     'lbfgs' or 'lloyd'"
+            reason: "Newton's Hessian is not summed on a region of the sphere yet: use \
+                     method 'lbfgs' or 'lloyd'"
                 .into(),
         });
     }
