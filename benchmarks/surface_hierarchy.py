@@ -43,14 +43,16 @@ remesh_module = importlib.import_module("hcvt.surface.remesh")
 DATA = Path(os.environ.get("HCVT_DATA", Path(__file__).parents[2] / "shared" / "data")) / "3d"
 
 
-def cvt_rows(surface: hcvt.Domain, n: int, tol: float | None, seed: int) -> list[dict[str, Any]]:
+def cvt_rows(
+    surface: hcvt.Domain, n: int, tol: float | None, seed: int, paper: bool = True
+) -> list[dict[str, Any]]:
     """The standard and hierarchical CVTs of ``surface`` at ``n`` and ``tol``."""
     rows = []
     t = time.process_time()
     std = hcvt.cvt(surface, hcvt.initialise(surface, n, seed=seed), "lbfgs", tol=tol)
     rows.append(row("standard", std.evaluations, time.process_time() - t, std.diagram))
     variants: dict[str, dict[str, Any]] = {"hierarchical": {}}
-    if tol is None or tol < 1e-2:
+    if paper and (tol is None or tol < 1e-2):
         variants["hier-paper"] = {"level_tol": GAP_TOL if tol is None else tol}
     for label, extra in variants.items():
         t = time.process_time()
@@ -118,6 +120,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--remesh", action="store_true")
     parser.add_argument("--no-cvt", action="store_true", help="only the --remesh rows")
+    parser.add_argument("--no-paper", action="store_true", help="no hier-paper rows")
     args = parser.parse_args()
     hcvt.set_num_threads(1)
     print(f"load: {os.getloadavg()[0]:.2f}", flush=True)
@@ -126,7 +129,7 @@ def main() -> None:
         for n in args.n:
             for tol_text in [] if args.no_cvt else args.tols:
                 tol = None if tol_text == "default" else float(tol_text)
-                for r in cvt_rows(surface, n, tol, args.seed):
+                for r in cvt_rows(surface, n, tol, args.seed, not args.no_paper):
                     print(
                         f"{name:11s} n={n:6d} tol={tol_text:8s} {r['method']:13s} "
                         f"diagrams {r['diagrams']:5d}  cpu {r['cpu']:7.1f} s  "

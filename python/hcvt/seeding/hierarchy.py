@@ -412,6 +412,9 @@ def hierarchical_cvt(
     Parameters
     ----------
     domain : Domain
+        A polygon, solid, box, the sphere or a triangle surface. On the sphere and on a
+        surface the cells have dimension 2 (four sites per site per subdivision) and the
+        midpoints and top-up sites are moved onto it (:func:`onto_domain`).
     n : int
         Final number of sites.
     subdivisions : int, optional
