@@ -462,11 +462,10 @@ def hierarchical_cvt(
         2,584-cell 4:1 band, levels of 10-161 sites ran 100 iterations and ~1,700 diagrams
         each to RMS gap 3-5e-3; to 1e-2 they take 22-49 diagrams). On a surface with
         the gap rule the coarse levels stop at ``SURFACE_LEVEL_TOL`` (1e-2, or ``tol``
-        if looser): a restricted diagram costs about as much for 4 sites as for 5,000
-        (every input triangle is clipped), so that the paper's coarse levels to 1e-7
-        cost more than the last (bunny, n = 5,000: 1,515 diagrams and 68 CPU s against
-        578 and 50 s from random sites; to 1e-2, 507 and 41 s, energy 0.06% lower than
-        from random sites; docs/results/surface_hierarchy.txt).
+        if looser): converged to 1e-7 they cost 827 diagrams and the last level then
+        needed more (bunny, n = 5,000: 688 diagrams, 68 CPU s in all, against 467 and 41
+        s, and 578 and 50 s from random sites; energy 0.06% lower than from random sites;
+        docs/results/surface_hierarchy.txt).
 
     Returns
     -------
