@@ -465,8 +465,8 @@ def hierarchical_cvt(
         if looser): converged to 1e-7 they cost 827 diagrams and the last level then
         needed more (bunny, n = 5,000: 688 diagrams, 68 CPU s in all, against 467 and 41
         s, and 578 and 50 s from random sites; energy 0.06% lower than from random sites;
-        at n = 20,000 the hierarchy took 507 CPU s against 286 from random sites,
-        docs/results/surface_hierarchy.txt).
+        at n = 20,000 the hierarchy took 507 CPU s against 286 from random sites (kitten
+        574 against 522), docs/results/surface_hierarchy.txt).
 
     Returns
     -------
