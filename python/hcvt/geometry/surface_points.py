@@ -44,16 +44,34 @@ def sample_by_area(
     """``n`` points uniform by area on the triangles, and the triangle of each (n,).
 
     A triangle is drawn with probability proportional to its area (times its entry of
-    ``weights`` (F,), if given), then a point uniform in it (the square-root map of two
-    uniforms to barycentric coordinates).
+    ``weights`` (F,), if given), then a point uniform in it (:func:`points_by_area` of
+    three uniform streams).
+    """
+    u = rng.random(n)
+    u = np.column_stack([u, rng.random(n), rng.random(n)])
+    return points_by_area(vertices, faces, u, weights)
+
+
+def points_by_area(
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.intp],
+    u: NDArray[np.float64],
+    weights: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Points of the triangles from ``u`` (m, 3) in the unit cube, and the triangle of each.
+
+    ``u[:, 0]`` picks a triangle by the inverse of the cumulative area (times ``weights``
+    (F,), if given), ``u[:, 1:]`` the point in it (the square-root map to barycentric
+    coordinates): uniform points give points uniform by area, low-discrepancy ones
+    (Halton) spread by area.
     """
     areas = triangle_areas(vertices, faces)
     if weights is not None:
         areas = areas * weights
     cumulative = np.cumsum(areas)
-    which = np.searchsorted(cumulative, rng.random(n) * cumulative[-1], side="right")
+    which = np.searchsorted(cumulative, u[:, 0] * cumulative[-1], side="right")
     which = np.minimum(which, len(faces) - 1)
-    r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
+    r1, r2 = np.sqrt(u[:, 1]), u[:, 2]
     a, b, c = (vertices[faces[which, k]] for k in range(3))
     points = (1.0 - r1)[:, None] * a + (r1 * (1.0 - r2))[:, None] * b + (r1 * r2)[:, None] * c
     return np.ascontiguousarray(points), which
@@ -119,6 +137,7 @@ __all__ = [
     "closest_points",
     "cross_rows",
     "point_triangle_distances",
+    "points_by_area",
     "sample_by_area",
     "triangle_areas",
 ]

@@ -33,7 +33,7 @@ from scipy.stats import qmc
 from hcvt.density import DensityLike, evaluate, triangle_values
 from hcvt.errors import InvalidDensityError, InvalidDomainError, InvalidSitesError
 from hcvt.geometry.domain import Domain, polygon_boundary
-from hcvt.geometry.surface_points import sample_by_area
+from hcvt.geometry.surface_points import points_by_area, sample_by_area
 from hcvt.seeding.cover import Cover, cover
 from hcvt.seeding.sphere import (
     SPHERE_METHODS,
@@ -44,6 +44,8 @@ from hcvt.seeding.sphere import (
 )
 
 METHODS = ("random", "halton", "hammersley", "lattice")
+#: ``initialise``'s methods on a triangle surface.
+SURFACE_METHODS = ("random", "halton")
 # Memory of one site with its diagram, measured order of magnitude (bytes).
 BYTES_PER_SITE = {2: 500, 3: 1000}
 # Box points drawn per batch by the rejection samplers: bounds the memory for any n.
@@ -125,8 +127,10 @@ def initialise(
         (normalised normal vectors), ``fibonacci`` the golden-spiral lattice,
         ``icosahedral`` the subdivided icosahedron (``n = 10·4^k + 2`` only), each scaled
         to the radius (:mod:`hcvt.seeding.sphere`).
-        On a surface (:meth:`hcvt.Domain.from_surface`, ``random`` only): points uniform
-        by area on its triangles (a triangle drawn by area, then a point uniform in it).
+        On a surface (:meth:`hcvt.Domain.from_surface`): ``random`` points uniform by area
+        on its triangles (a triangle drawn by area, then a point uniform in it), ``halton``
+        the same map of scrambled 3D Halton points (more even); the box and lattice methods
+        have no meaning there and raise ValueError.
 
     Returns
     -------
@@ -285,21 +289,39 @@ def _on_surface(
     state: int | np.random.Generator | None,
     density: DensityLike,
 ) -> NDArray[np.float64]:
-    """``initialise`` on a surface: ``n`` points random by area on its triangles.
+    """``initialise`` on a surface: ``n`` points spread by area on its triangles.
 
-    With a density, a triangle is drawn in proportion to its area times ``ρ^(1/2)``
-    (Gersho's point density ``ρ^(d/(d+2))``, d = 2) at its centroid (a per-vertex field:
-    the mean of its vertices' values).
+    ``random``: uniform by area. ``halton``: a scrambled 3D Halton sequence mapped as the
+    uniform draws are (:func:`~hcvt.geometry.surface_points.points_by_area`: its first
+    coordinate picks the triangle, the others the point in it), so that the points spread
+    more evenly than random ones. The other methods need a box or a lattice of the plane
+    or space: they have no meaning on a curved surface. With a density, a triangle is
+    drawn in proportion to its area times ``ρ^(1/2)`` (Gersho's point density
+    ``ρ^(d/(d+2))``, d = 2) at its centroid (a per-vertex field: the mean of its
+    vertices' values).
     """
-    if method != "random":
-        raise ValueError(f"unknown method {method!r} on a surface; expected 'random'")
-    generator = np.random.default_rng(state)
+    if method not in SURFACE_METHODS:
+        known = "the sphere" if method in SPHERE_METHODS else "planar domains and solids"
+        if method not in METHODS and method not in SPHERE_METHODS:
+            raise ValueError(
+                f"unknown method {method!r} on a surface; expected one of "
+                f"{', '.join(SURFACE_METHODS)}"
+            )
+        raise ValueError(
+            f"method {method!r} is for {known}: it has no meaning on a surface; "
+            f"expected one of {', '.join(SURFACE_METHODS)}"
+        )
     weights = (
         None
         if density is None
         else np.sqrt(triangle_values(density, domain.vertices, domain.faces))
     )
-    points, _ = sample_by_area(domain.vertices, domain.faces, n, generator, weights)
+    if method == "random":
+        generator = np.random.default_rng(state)
+        points, _ = sample_by_area(domain.vertices, domain.faces, n, generator, weights)
+    else:
+        u = qmc.Halton(3, scramble=True, rng=state).random(n)
+        points, _ = points_by_area(domain.vertices, domain.faces, u, weights)
     return _distinct(domain, points)
 
 
