@@ -310,14 +310,25 @@ def per_vertex(values: Any) -> NDArray[np.float64]:
             f"a per-vertex density is one value per vertex of the surface, shape (V,); got "
             f"shape {array.shape}"
         )
-    bad = ~(np.isfinite(array) & (array > 0))
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
+    bad = _first_not_positive(array)
+    if bad is not None:
+        k, count = bad
         raise InvalidDensityError(
-            f"the per-vertex density is {array[k]} at vertex {k} ({int(bad.sum())} bad "
-            "values): it must be finite and positive"
+            f"the per-vertex density is {array[k]} at vertex {k} ({count} bad values): it "
+            "must be finite and positive"
         )
     return array
+
+
+def _first_not_positive(values: NDArray[np.float64]) -> tuple[int, int] | None:
+    """The first index of ``values`` (m,) not finite and positive, and how many are not.
+
+    None when every value is finite and positive.
+    """
+    bad = ~(np.isfinite(values) & (values > 0))
+    if not bad.any():
+        return None
+    return int(np.flatnonzero(bad)[0]), int(bad.sum())
 
 
 def triangle_values(
@@ -382,9 +393,9 @@ def evaluate(density: DensityLike, points: NDArray[np.float64]) -> NDArray[np.fl
         raise InvalidDensityError(
             f"the density must return shape ({len(points)},), got {values.shape}"
         )
-    bad = ~(np.isfinite(values) & (values > 0))
-    if bad.any():
-        k = int(np.flatnonzero(bad)[0])
+    bad = _first_not_positive(values)
+    if bad is not None:
+        k = bad[0]
         raise InvalidDensityError(
             f"the density is {values[k]} at {points[k].tolist()}: it must be finite and "
             "positive on the domain"

@@ -124,7 +124,8 @@ pub enum CoreError {
     /// The density is zero, negative or not finite at a point where it is evaluated.
     #[error(
         "the density is {value} at {point:?}: it must be finite and positive on the domain \
-         (a function is sampled at points of the domain's bounding box)"
+         (a function is sampled at points of the domain's bounding box, on a surface at \
+         points of the surface)"
     )]
     DensityValue {
         /// Where, in absolute coordinates.
