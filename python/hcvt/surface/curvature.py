@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.surface_points import cross_rows
+from hcvt.surface.quality import edge_counts
 
 
 def vertex_curvature(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> NDArray[np.float64]:
@@ -34,9 +35,8 @@ def vertex_curvature(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> 
     f = np.asarray(faces, dtype=np.intp)
     n = len(v)
     corners = [v[f[:, k]] for k in range(3)]
-    double_area = np.linalg.norm(
-        cross_rows(corners[1] - corners[0], corners[2] - corners[0]), axis=1
-    )
+    face_normal = cross_rows(corners[1] - corners[0], corners[2] - corners[0])  # 2 × area
+    double_area = np.linalg.norm(face_normal, axis=1)
     area = np.bincount(f.ravel(), np.repeat(double_area / 6.0, 3), minlength=n)
     laplace = np.zeros((n, 3))
     angle_sum = np.zeros(n)
@@ -54,14 +54,12 @@ def vertex_curvature(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> 
             laplace[:, axis] += np.bincount(j, edge[:, axis], minlength=n)
             laplace[:, axis] -= np.bincount(m, edge[:, axis], minlength=n)
     # A border vertex's angles sum to π on a flat sheet, an inner one's to 2π.
-    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    pairs, counts = np.unique(edges, axis=0, return_counts=True)
+    pairs, counts = edge_counts(f)
     border = np.zeros(n, dtype=bool)
     border[pairs[counts == 1].ravel()] = True
     # The Laplacian's part along the vertex normal (at a border vertex it has an in-plane
     # part, the border's own curvature, even on a flat sheet).
     normal = np.zeros((n, 3))
-    face_normal = cross_rows(corners[1] - corners[0], corners[2] - corners[0])
     for k in range(3):
         for axis in range(3):
             normal[:, axis] += np.bincount(f[:, k], face_normal[:, axis], minlength=n)

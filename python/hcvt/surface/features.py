@@ -46,6 +46,7 @@ from hcvt.density import DensityLike
 from hcvt.geometry.domain import Domain
 from hcvt.lazy import load
 from hcvt.optimise import CVTResult, cvt
+from hcvt.surface.quality import edge_counts
 
 #: Spacing of the sites along a feature curve, in units of the surface's site spacing h.
 #: Closer than h so that no free cell reaches a curve between two of its sites (which
@@ -145,8 +146,7 @@ def detect_features(
     trimesh = load("trimesh")
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     sharp = np.degrees(mesh.face_adjacency_angles) > angle
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    pairs, counts = np.unique(edges, axis=0, return_counts=True)
+    pairs, counts = edge_counts(faces)
     border = pairs[counts == 1]
     edges = np.unique(
         np.sort(np.concatenate([mesh.face_adjacency_edges[sharp], border]), axis=1), axis=0

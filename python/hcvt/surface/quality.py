@@ -133,6 +133,17 @@ def triangle_angles(vertices: NDArray[np.float64], faces: NDArray[np.intp]) -> N
     return out
 
 
+def edge_counts(faces: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The undirected edges of ``faces`` (E, 2), once each, and the triangles on each (E,).
+
+    Each edge sorted (smaller vertex first), the rows sorted; a count is 1 on a border, 3
+    or more where the mesh is not manifold.
+    """
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    pairs, counts = np.unique(edges, axis=0, return_counts=True)
+    return pairs, counts
+
+
 def edge_topology(faces: NDArray[np.intp], n_vertices: int) -> dict[str, Any]:
     """Edge counts, orientation, components, border loops, Euler characteristic and genus."""
     directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])

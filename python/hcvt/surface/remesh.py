@@ -43,6 +43,7 @@ from hcvt.surface.features import (
 )
 from hcvt.surface.quality import (
     SurfaceQuality,
+    edge_counts,
     edge_topology,
     surface_quality,
     triangle_angles,
@@ -136,8 +137,7 @@ def _defects(
     topology = edge_topology(faces, n)
     if topology["nonmanifold_edges"] or topology["border_edges"]:
         # The edges' counts, to name the first offender (only when there is one).
-        edges = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-        pairs, counts = np.unique(np.sort(edges, axis=1), axis=0, return_counts=True)
+        pairs, counts = edge_counts(faces)
     if topology["nonmanifold_edges"]:
         first = pairs[counts >= 3][0].tolist()
         out.append(
@@ -165,8 +165,7 @@ def _stuck_held(
 
     Also those at an end of an edge of ``faces`` in three or more triangles.
     """
-    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
-    pairs, counts = np.unique(edges, axis=0, return_counts=True)
+    pairs, counts = edge_counts(faces)
     sites = np.union1d(np.asarray(repeated, dtype=np.intp).ravel(), pairs[counts >= 3].ravel())
     return sites[sites >= n - held].astype(np.intp)
 

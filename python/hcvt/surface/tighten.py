@@ -36,7 +36,7 @@ from scipy.spatial import cKDTree
 from hcvt import _core
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.surface_points import cross_rows, sample_by_area
-from hcvt.surface.quality import triangle_angles, triangle_quality
+from hcvt.surface.quality import edge_counts, triangle_angles, triangle_quality
 
 #: Steps of the barycentric grid of points checked on each mesh triangle. Bunny, n =
 #: 20,000 (floor 30°, 200,000 samples, then the input's edges below): Hausdorff 0.160% of
@@ -368,8 +368,7 @@ def tighten(
     movable = np.ones(len(mesh.v), dtype=bool)
     if fixed is not None:
         movable &= ~np.asarray(fixed, dtype=bool)
-    edges = np.sort(np.concatenate([mesh.f[:, [0, 1]], mesh.f[:, [1, 2]], mesh.f[:, [2, 0]]]), 1)
-    pairs, counts = np.unique(edges, axis=0, return_counts=True)
+    pairs, counts = edge_counts(mesh.f)
     movable[pairs[counts == 1].ravel()] = False  # border vertices stay on the border
     least = float(triangle_angles(mesh.v, mesh.f).min())
     floors = (
