@@ -265,6 +265,34 @@ def test_cells_meshes_and_cvt_match_the_unit_problem(kind, offset, size, units):
     )
 
 
+@pytest.mark.parametrize("size", SIZES)
+@pytest.mark.parametrize("offset", OFFSETS)
+def test_a_surface_density_matches_the_unit_problem(offset, size):
+    """A per-vertex field and a callable of position on the placed cube surface give the
+    unit problem's masses (ρ · L²) and ρ-centroids, as the cells above do."""
+    k = KINDS["surface"]
+    unit_domain, domain = k.build(k.vertices), k.build(place(k.vertices, offset, size))
+    sites = place(k.sites, offset, size)
+    delta = ULP * (1.0 + offset) + ULP
+    h = float(np.min(hcvt.voronoi(unit_domain, k.sites).volume)) ** 0.5
+    rel = C * delta / h + CORE_REL
+    per_vertex = 1.0 + np.arange(len(k.vertices)) % 3  # 1, 2, 3, 1, ...
+
+    def quadratic(p: np.ndarray) -> np.ndarray:  # of the unit problem's coordinates
+        return 1.0 + p[:, 0] ** 2 + 0.5 * p[:, 1] * p[:, 2]
+
+    cases = (
+        (per_vertex, per_vertex),
+        (quadratic, lambda x: quadratic(back(x, offset, size))),
+    )
+    for unit_density, placed_density in cases:
+        unit = hcvt.voronoi(unit_domain, k.sites, density=unit_density)
+        diagram = hcvt.voronoi(domain, sites, density=placed_density)
+        assert np.ptp(unit.mass / unit.volume) > 0.1  # the density weighs the cells
+        compare_or_refused(lambda d=diagram: d.mass, unit.mass, 2, size, rel)
+        assert np.max(np.abs(back(diagram.centroid, offset, size) - unit.centroid)) <= C * delta
+
+
 def _same_periodic_pairs(mesh: hcvt.PolyMesh, unit_mesh: hcvt.PolyMesh) -> None:
     """The same faces between the same cells, periodic faces paired alike (or neither)."""
     for name in ("owner", "neighbour", "face_offsets", "periodic_partner", "periodic_image"):
