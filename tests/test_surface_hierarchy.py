@@ -103,6 +103,21 @@ def test_hierarchical_cvt_on_a_surface_is_deterministic() -> None:
 
 
 @needs_data
+def test_hierarchical_cvt_on_a_surface_starts_from_halton_sites() -> None:
+    # Level 0 from scrambled Halton sites on the surface (as hcvt.initialise draws them):
+    # the same band of mean G as the random start's case above, every level on the surface.
+    domain = surface("bunny.off")
+    hier = hcvt.hierarchical_cvt(domain, 300, seed=0, tol=1e-2, method="lbfgs", init="halton")
+    for level in hier.levels:
+        assert_on_surface_and_distinct(domain, level.sites, level.n)
+    assert 0.0760 < hier.diagram.mean_G < 0.0775
+    random = hcvt.hierarchical_cvt(domain, 300, seed=0, tol=1e-2, method="lbfgs")
+    assert not np.array_equal(hier.levels[0].sites, random.levels[0].sites)
+    with pytest.raises(ValueError, match="init must be one of .*'halton'"):
+        hcvt.hierarchical_cvt(domain, 300, init="grid")
+
+
+@needs_data
 @pytest.mark.parametrize("method", SURFACE_METHODS)
 def test_initialise_on_a_surface_spreads_n_sites_by_area(method: str) -> None:
     domain = surface("kitten.obj")

@@ -420,8 +420,10 @@ def hierarchical_cvt(
     subdivisions : int, optional
         ``s``; default :func:`max_subdivisions` (``⌊log_a n⌋ - 1``); capped at
         ``⌊log_a n⌋``.
-    init : {"random", "lattice"}
-        Level 0: random sites + L-BFGS, or an exact-count hexagonal/BCC lattice + L-BFGS.
+    init : {"random", "halton", "lattice"}
+        Level 0's sites (:func:`hcvt.initialise`'s method): random, scrambled Halton
+        (low discrepancy, on a surface too), or an exact-count hexagonal/BCC lattice;
+        then the level's CVT.
     seed : int
         Seeds the initialisation and every top-up.
     rng : int, numpy.random.Generator or None, optional
@@ -444,9 +446,10 @@ def hierarchical_cvt(
         ends the run after that level (the result then holds the levels made).
     density : Polynomial, SizingField or callable, optional
         A density ρ (:mod:`hcvt.density`) for every level's CVT. Level 0 starts from
-        sites distributed ∝ ``ρ^(d/(d+2))`` (``init="random"``; a lattice start is uniform
-        and the level's CVT grades it); subdividing the restricted Delaunay edges keeps
-        the grading, and the top-up fills the boundary cells of most ρ-weighted energy.
+        sites distributed ∝ ``ρ^(d/(d+2))`` (``init="random"`` or ``"halton"``; a
+        lattice start is uniform and the level's CVT grades it); subdividing the
+        restricted Delaunay edges keeps the grading, and the top-up fills the boundary
+        cells of most ρ-weighted energy.
         Every level still has exactly its scheduled count.
     quadrature_degree : int, default 4
         Degree of the simplex rule that samples a callable density.
@@ -478,8 +481,8 @@ def hierarchical_cvt(
             "hierarchical_cvt on a region of the sphere is not implemented yet: use hcvt.cvt"
         )
     check_rule(rule)
-    if init not in ("random", "lattice"):
-        raise ValueError(f"init must be 'random' or 'lattice', got {init!r}")
+    if init not in HIERARCHY_INITS:
+        raise ValueError(f"init must be one of {HIERARCHY_INITS}, got {init!r}")
     if edges not in EDGE_KINDS:
         raise ValueError(f"edges must be one of {EDGE_KINDS}, got {edges!r}")
     if subdivisions is None:
@@ -491,7 +494,7 @@ def hierarchical_cvt(
     start = time.perf_counter()
     # An int seeds the initialisation and the top-ups apart (as ``seed`` always has); a
     # Generator serves both, in that order.
-    graded = density if init == "random" else None
+    graded = density if init in ("random", "halton") else None
     sites = initialise(domain, plan.k0, method=init, rng=random_state(seed, rng), density=graded)
     optimise = partial(
         cvt,
@@ -530,6 +533,8 @@ def hierarchical_cvt(
     return result
 
 
+#: Level 0's initialisations (:func:`hcvt.initialise` methods) that :func:`hierarchical_cvt` offers.
+HIERARCHY_INITS = ("random", "halton", "lattice")
 # The coarse levels' tolerance and iteration cap with a density on the sphere.
 SPHERE_DENSITY_LEVELS = (1e-2, 100)
 # The coarse levels' tolerance on a surface (gap rule), unless the last level's is looser.
