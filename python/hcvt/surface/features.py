@@ -18,10 +18,9 @@ diagram of their own"):
 3. **The constrained CVT** (:func:`constrained_cvt`). The feature sites are held fixed;
    the others move freely in space (Yan et al. 2009) to minimise the same energy
    ``F = Σ ∫_{Ω_i} |x - z_i|² dA`` of the whole diagram, by the core's L-BFGS with those
-   sites held (:func:`hcvt.cvt`'s ``fixed=``), from free sites spread by
-   :func:`hcvt.remesh` (a sampled Lloyd's, which evens out the random start's cell sizes),
-   until the RMS gap of the free sites falls below ``tol`` (the ``"gap"`` rule of
-   :func:`hcvt.cvt`).
+   sites held (:func:`hcvt.cvt`'s ``fixed=``), from a start :func:`hcvt.remesh` spread
+   (a sampled Lloyd's; after a later round's moves, ``PRESMOOTH`` Lloyd steps), until the
+   RMS gap of the free sites falls below ``tol`` (the ``"gap"`` rule of :func:`hcvt.cvt`).
 
 The restricted Delaunay triangulation then joins consecutive sites of a curve: their
 cells meet on the curve, no other cell reaches it between them (checked:
@@ -36,7 +35,8 @@ geogram's and CGAL's remeshers, like this module, hold vertices on the feature c
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -72,6 +72,17 @@ WELD = 0.4
 #: keeps both (welding its sites there doubled the Hausdorff distance at n = 5,000,
 #: 0.150% -> 0.285%, for a least angle of 27.1° instead of 17.5°).
 WELD_DEGREES = 15.0
+#: Lloyd steps of the free sites before L-BFGS: a random start's cells differ in size by
+#: an order of magnitude, which scipy's unpreconditioned L-BFGS (used here before the core
+#: held sites) did not undo well (fandisk, n = 5,000: Q min 0.21 without, 0.45 with 3). The
+#: core's L-BFGS is preconditioned; at n = 1,500 (40°, seed 1) it did as well without them
+#: (Hausdorff 0.417% against 0.458%, same Q min 0.474 and θmin 19.9°). :func:`hcvt.remesh`
+#: runs none before its first CVT, whose start it spreads by a sampled Lloyd's instead
+#: (cheaper: fandisk, n = 5,000, 30°, one thread: the three exact steps and their
+#: projected diagram took 0.69 s of CPU), and these before each later round (sites moved
+#: to gaps or freed: the bunny at n = 600, 30°, was left with cells that are not discs
+#: without them).
+PRESMOOTH = 3
 
 
 @dataclass(frozen=True)
@@ -544,25 +555,55 @@ def constrained_cvt(
     tol: float,
     max_iter: int,
     density: DensityLike = None,
+    presmooth: int = PRESMOOTH,
 ) -> CVTResult:
     """A CVT of ``surface`` whose last ``fixed`` rows of ``sites`` (n, 3) do not move.
 
     The core's optimiser with those sites held (:func:`hcvt.cvt`'s ``fixed=``): L-BFGS
-    (``method="lbfgs"``) or Lloyd steps (``"lloyd"``), the free sites moving in space until
-    the RMS of their gaps (the ``"gap"`` rule over the free sites) is below ``tol`` or
-    ``max_iter`` iterations; then the free ones are projected onto the surface (the fixed
-    ones lie on it already and keep their bits).
-
-    Three exact Lloyd steps ran before L-BFGS here until 2026-12-04, evening out a random
-    start's cell sizes; :func:`hcvt.remesh` now starts from sites spread by a sampled
-    Lloyd's (fandisk, n = 5,000, 30°, one thread: 3.7 s of CPU for the CVT's runs and
-    their diagrams before, 1.6 s after, 15 / 12 iterations, one round fewer).
+    (``method="lbfgs"``) after ``presmooth`` Lloyd steps (:data:`PRESMOOTH`; none: one
+    run of L-BFGS), or Lloyd steps (``"lloyd"``),
+    the free sites moving in space until the RMS of their gaps (the ``"gap"`` rule over the
+    free sites) is below ``tol`` or ``max_iter`` iterations; then the free ones are
+    projected onto the surface (the fixed ones lie on it already and keep their bits).
+    The history is the runs' one after the other.
     """
     if method not in ("lbfgs", "lloyd"):
         raise ValueError(f"remesh with features= runs lbfgs or lloyd, not {method!r}")
+    start = time.perf_counter()
     mask = np.zeros(len(sites), dtype=bool)
     mask[len(sites) - fixed :] = True
-    return cvt(surface, sites, method, tol=tol, max_iter=max_iter, fixed=mask, density=density)
+    lloyd_steps = max_iter if method == "lloyd" else min(presmooth, max_iter)
+    if lloyd_steps == 0:
+        return cvt(surface, sites, "lbfgs", tol=tol, max_iter=max_iter, fixed=mask, density=density)
+    runs = [
+        cvt(surface, sites, "lloyd", tol=tol, max_iter=lloyd_steps, fixed=mask, density=density)
+    ]
+    if method == "lbfgs" and not runs[0].converged and runs[0].iterations < max_iter:
+        rest = max_iter - runs[0].iterations
+        runs.append(
+            cvt(
+                surface,
+                runs[0].sites,
+                "lbfgs",
+                tol=tol,
+                max_iter=rest,
+                fixed=mask,
+                density=density,
+            )
+        )
+    last = runs[-1]
+    # One history: the later run's first record is the earlier's last iterate (projected).
+    history = {
+        key: np.concatenate([r.history[key][1 if k else 0 :] for k, r in enumerate(runs)])
+        for key in last.history
+    }
+    return replace(
+        last,
+        history=history,
+        iterations=sum(r.iterations for r in runs),
+        evaluations=sum(r.evaluations for r in runs),
+        seconds=time.perf_counter() - start,
+    )
 
 
 __all__ = [

@@ -37,6 +37,7 @@ from hcvt.geometry.surface_points import sample_by_area
 from hcvt.optimise import CVTResult, cvt
 from hcvt.seeding.initialisation import initialise
 from hcvt.surface.features import (
+    PRESMOOTH,
     FeatureSites,
     constrained_cvt,
     intruding_sites,
@@ -251,6 +252,7 @@ def _spread(
     rng = np.random.default_rng([seed, 1])
     points, _ = sample_by_area(surface.vertices, surface.faces, START_SAMPLES * n, rng, weights)
     spacing = site_spacing(surface.volume, n)
+    frame = surface.frame
     out = np.array(sites, dtype=np.float64)
     for _ in range(START_STEPS):
         gap, owner = cKDTree(out).query(points)
@@ -267,6 +269,10 @@ def _spread(
         )
         some = count > 0
         out[:free][some] = sums[some] / count[some, None]
+        # Onto the surface: a mean of points on both sides of a thin part (the bunny's ears
+        # at n = 600) lies between them, where the CVT would keep one cell round both.
+        nearest, _ = surface._core.closest(frame.to_core(np.ascontiguousarray(out[:free])))
+        out[:free] = frame.points_to_input(np.asarray(nearest))
     return out
 
 
@@ -295,18 +301,28 @@ def _cvt(
     tol: float | None,
     max_iter: int,
     density: DensityLike = None,
+    spread: bool = False,
 ) -> CVTResult:
     """The CVT of :func:`remesh`: :func:`hcvt.cvt`, or one holding the features' sites.
 
     With ``plan``, the last ``len(plan.points)`` sites do not move
-    (:func:`hcvt.surface.features.constrained_cvt`).
+    (:func:`hcvt.surface.features.constrained_cvt`; after its Lloyd steps unless ``spread``:
+    the sites come from :func:`_spread`).
     """
     if plan is None:
         return cvt(surface, sites, method, tol=tol, max_iter=max_iter, density=density)
     tol = _core.check_settings(method, "gap", tol, max_iter, 7)
     held = len(plan.points)
+    presmooth = 0 if spread else PRESMOOTH
     return constrained_cvt(
-        surface, sites, held, method, tol=tol, max_iter=max_iter, density=density
+        surface,
+        sites,
+        held,
+        method,
+        tol=tol,
+        max_iter=max_iter,
+        density=density,
+        presmooth=presmooth,
     )
 
 
@@ -419,8 +435,9 @@ def remesh(
     sites = initialise(surface, n - held, method="random", seed=seed, density=density)
     if plan is not None:  # the free sites first, then the fixed ones on the features
         sites = np.vstack([sites, plan.points])
-    sites = _spread(surface, sites, held, seed, density)
-    run = _cvt(surface, sites, plan, method, tol, max_iter, density)
+    if plan is None:
+        sites = _spread(surface, sites, held, seed, density)
+    run = _cvt(surface, sites, plan, method, tol, max_iter, density, spread=plan is None)
     iterations = run.iterations
     # Rounds after the first run: at most TIGHTER_ROUNDS that tighten the tol or move
     # intruders, and those that free held sites (each frees at least one) besides.
