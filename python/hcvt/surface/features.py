@@ -18,9 +18,9 @@ diagram of their own"):
 3. **The constrained CVT** (:func:`constrained_cvt`). The feature sites are held fixed;
    the others move freely in space (Yan et al. 2009) to minimise the same energy
    ``F = Σ ∫_{Ω_i} |x - z_i|² dA`` of the whole diagram, by the core's L-BFGS with those
-   sites held (:func:`hcvt.cvt`'s ``fixed=``), from a start :func:`hcvt.remesh` spread
-   (a sampled Lloyd's; after a later round's moves, ``PRESMOOTH`` Lloyd steps), until the
-   RMS gap of the free sites falls below ``tol`` (the ``"gap"`` rule of :func:`hcvt.cvt`).
+   sites held (:func:`hcvt.cvt`'s ``fixed=``), after ``PRESMOOTH`` Lloyd steps that even
+   out the random start's cell sizes, until the RMS gap of the free sites falls below
+   ``tol`` (the ``"gap"`` rule of :func:`hcvt.cvt`).
 
 The restricted Delaunay triangulation then joins consecutive sites of a curve: their
 cells meet on the curve, no other cell reaches it between them (checked:
@@ -76,12 +76,8 @@ WELD_DEGREES = 15.0
 #: an order of magnitude, which scipy's unpreconditioned L-BFGS (used here before the core
 #: held sites) did not undo well (fandisk, n = 5,000: Q min 0.21 without, 0.45 with 3). The
 #: core's L-BFGS is preconditioned; at n = 1,500 (40°, seed 1) it did as well without them
-#: (Hausdorff 0.417% against 0.458%, same Q min 0.474 and θmin 19.9°). :func:`hcvt.remesh`
-#: runs none before its first CVT, whose start it spreads by a sampled Lloyd's instead
-#: (cheaper: fandisk, n = 5,000, 30°, one thread: the three exact steps and their
-#: projected diagram took 0.69 s of CPU), and these before each later round (sites moved
-#: to gaps or freed: the bunny at n = 600, 30°, was left with cells that are not discs
-#: without them).
+#: (Hausdorff 0.417% against 0.458%, same Q min 0.474 and θmin 19.9°): not re-measured at
+#: 5,000, so they stay.
 PRESMOOTH = 3
 
 
@@ -555,13 +551,11 @@ def constrained_cvt(
     tol: float,
     max_iter: int,
     density: DensityLike = None,
-    presmooth: int = PRESMOOTH,
 ) -> CVTResult:
     """A CVT of ``surface`` whose last ``fixed`` rows of ``sites`` (n, 3) do not move.
 
     The core's optimiser with those sites held (:func:`hcvt.cvt`'s ``fixed=``): L-BFGS
-    (``method="lbfgs"``) after ``presmooth`` Lloyd steps (:data:`PRESMOOTH`; none: one
-    run of L-BFGS), or Lloyd steps (``"lloyd"``),
+    (``method="lbfgs"``) after :data:`PRESMOOTH` Lloyd steps, or Lloyd steps (``"lloyd"``),
     the free sites moving in space until the RMS of their gaps (the ``"gap"`` rule over the
     free sites) is below ``tol`` or ``max_iter`` iterations; then the free ones are
     projected onto the surface (the fixed ones lie on it already and keep their bits).
@@ -572,9 +566,7 @@ def constrained_cvt(
     start = time.perf_counter()
     mask = np.zeros(len(sites), dtype=bool)
     mask[len(sites) - fixed :] = True
-    lloyd_steps = max_iter if method == "lloyd" else min(presmooth, max_iter)
-    if lloyd_steps == 0:
-        return cvt(surface, sites, "lbfgs", tol=tol, max_iter=max_iter, fixed=mask, density=density)
+    lloyd_steps = max_iter if method == "lloyd" else min(PRESMOOTH, max_iter)
     runs = [
         cvt(surface, sites, "lloyd", tol=tol, max_iter=lloyd_steps, fixed=mask, density=density)
     ]

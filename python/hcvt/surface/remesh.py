@@ -37,7 +37,6 @@ from hcvt.geometry.surface_points import sample_by_area
 from hcvt.optimise import CVTResult, cvt
 from hcvt.seeding.initialisation import initialise
 from hcvt.surface.features import (
-    PRESMOOTH,
     FeatureSites,
     constrained_cvt,
     intruding_sites,
@@ -47,7 +46,6 @@ from hcvt.surface.features import (
     release_sites,
     restore_segments,
     segment_defects,
-    site_spacing,
 )
 from hcvt.surface.quality import (
     SurfaceQuality,
@@ -166,17 +164,17 @@ TIGHTEN_MIN_ANGLE = 30.0
 TIGHTEN_SAMPLES_PER_VERTEX = 10
 #: The CVT's start (:func:`_spread`): this many Lloyd steps of the random sites over
 #: ``START_SAMPLES`` points per site drawn on the surface. Random sites' cells differ in
-#: size by an order of magnitude, which the exact CVT spent its first iterations (with
-#: features: three exact Lloyd steps) evening out; each sampled step costs a k-d tree
-#: query, about a fifth of an exact diagram. One thread, n = 5,000, L-BFGS iterations
-#: from random sites / spread ones: 11 / 9 on the fandisk, bunny, kitten and armadillo
-#: (10-12 / 9 at 20,000); 8 samples and 8 steps or 16 and 4 gave 9 too.
+#: size by an order of magnitude, which the exact CVT spent its first iterations evening
+#: out; the four sampled steps cost about one exact diagram (fandisk, n = 5,000, one
+#: thread: 0.12-0.13 s of CPU against 0.135 s, the k-d tree queries most of it). L-BFGS
+#: iterations from random sites / spread ones, seed 0, one thread, tighten=False: fandisk
+#: 5,000 11 / 9, bunny 11 / 9; 4 points per site or 2 steps gave 9-10.
+#: Not with ``features``, whose constrained CVT keeps its exact Lloyd steps
+#: (:data:`hcvt.surface.features.PRESMOOTH`): from spread sites, with or without them, the
+#: bunny at n = 600, 30°, kept cells that are not discs near its ears on seeds 0, 1 and 2
+#: (from random ones on seed 1 only); and L-BFGS from spread sites a few hundredths of a
+#: spacing from held ones (bunny, n = 5,000, 30°) took 59 evaluations for 16 iterations.
 START_SAMPLES, START_STEPS = 8, 4
-#: ... and free sites closer than this many site spacings to a held one (features) are
-#: moved to the widest gaps first: the sampled steps leave some a few hundredths of a
-#: spacing from one (bunny, n = 5,000, 30°: 30 within 0.2), and L-BFGS from there took
-#: 59 evaluations for 16 iterations, a site thrown far off (38,000 spacings) on the way.
-START_CLEARANCE = 0.3
 
 
 def _defects(
@@ -229,68 +227,33 @@ def _stuck_held(
 
 
 def _spread(
-    surface: Domain,
-    sites: NDArray[np.float64],
-    held: int,
-    seed: int,
-    density: DensityLike = None,
+    surface: Domain, sites: NDArray[np.float64], seed: int, density: DensityLike = None
 ) -> NDArray[np.float64]:
-    """``sites`` (n, 3) with the free ones (all but the last ``held``) spread evenly.
+    """``sites`` (n, 3) spread evenly over ``surface``: a cheap, sampled CVT.
 
     :data:`START_STEPS` steps of Lloyd's method on ``START_SAMPLES * n`` points drawn by
     area (times the density) on the surface: each point goes to its nearest site, each
-    free site to the mean of its points (in space, as the CVT's sites; a site with no
-    point stays). A cheap, sampled CVT, so that the exact one starts from cells of about
-    the size it will give them. Before each step, free sites closer than
-    :data:`START_CLEARANCE` site spacings to a held one go to the points farthest from
-    every site (the widest gaps, a spacing apart).
+    site to the mean of its points (a site with no point stays), then onto the surface.
+    The exact CVT then starts from cells of about the size it will give them.
     """
     n = len(sites)
-    free = n - held
     weights = None if density is None else triangle_values(density, surface.vertices, surface.faces)
     # A stream apart from the random sites' (``initialise`` draws from ``seed``).
     rng = np.random.default_rng([seed, 1])
     points, _ = sample_by_area(surface.vertices, surface.faces, START_SAMPLES * n, rng, weights)
-    spacing = site_spacing(surface.volume, n)
     frame = surface.frame
     out = np.array(sites, dtype=np.float64)
     for _ in range(START_STEPS):
-        gap, owner = cKDTree(out).query(points)
-        if held and free:
-            near, _ = cKDTree(out[free:]).query(out[:free])
-            close = np.flatnonzero(near < START_CLEARANCE * spacing)
-            if len(close):
-                to = _widest_gaps(points, gap, len(close), spacing)
-                out[close[: len(to)]] = to
-                gap, owner = cKDTree(out).query(points)
-        count = np.bincount(owner, minlength=n)[:free]
-        sums = np.column_stack(
-            [np.bincount(owner, points[:, k], minlength=n)[:free] for k in range(3)]
-        )
+        _, owner = cKDTree(out).query(points)
+        count = np.bincount(owner, minlength=n)
+        sums = np.column_stack([np.bincount(owner, points[:, k], minlength=n) for k in range(3)])
         some = count > 0
-        out[:free][some] = sums[some] / count[some, None]
-        # Onto the surface: a mean of points on both sides of a thin part (the bunny's ears
-        # at n = 600) lies between them, where the CVT would keep one cell round both.
-        nearest, _ = surface._core.closest(frame.to_core(np.ascontiguousarray(out[:free])))
-        out[:free] = frame.points_to_input(np.asarray(nearest))
+        out[some] = sums[some] / count[some, None]
+        # Onto the surface: a mean of points on both sides of a thin part lies between
+        # them, where the CVT could keep one cell round both.
+        nearest, _ = surface._core.closest(frame.to_core(np.ascontiguousarray(out)))
+        out = frame.points_to_input(np.asarray(nearest))
     return out
-
-
-def _widest_gaps(
-    points: NDArray[np.float64], gap: NDArray[np.float64], count: int, spacing: float
-) -> NDArray[np.float64]:
-    """Up to ``count`` of ``points`` (m, 3), farthest first from their nearest sites.
-
-    ``gap`` (m,) holds those distances; each point taken lies at least ``spacing`` from
-    those taken before (fewer than ``count`` if the points run out).
-    """
-    taken: list[int] = []
-    for p in np.argsort(-gap, kind="stable").tolist():
-        if len(taken) == count:
-            break
-        if not taken or np.min(np.linalg.norm(points[taken] - points[p], axis=1)) > spacing:
-            taken.append(p)
-    return points[taken]
 
 
 def _cvt(
@@ -301,28 +264,18 @@ def _cvt(
     tol: float | None,
     max_iter: int,
     density: DensityLike = None,
-    spread: bool = False,
 ) -> CVTResult:
     """The CVT of :func:`remesh`: :func:`hcvt.cvt`, or one holding the features' sites.
 
     With ``plan``, the last ``len(plan.points)`` sites do not move
-    (:func:`hcvt.surface.features.constrained_cvt`; after its Lloyd steps unless ``spread``:
-    the sites come from :func:`_spread`).
+    (:func:`hcvt.surface.features.constrained_cvt`).
     """
     if plan is None:
         return cvt(surface, sites, method, tol=tol, max_iter=max_iter, density=density)
     tol = _core.check_settings(method, "gap", tol, max_iter, 7)
     held = len(plan.points)
-    presmooth = 0 if spread else PRESMOOTH
     return constrained_cvt(
-        surface,
-        sites,
-        held,
-        method,
-        tol=tol,
-        max_iter=max_iter,
-        density=density,
-        presmooth=presmooth,
+        surface, sites, held, method, tol=tol, max_iter=max_iter, density=density
     )
 
 
@@ -435,9 +388,9 @@ def remesh(
     sites = initialise(surface, n - held, method="random", seed=seed, density=density)
     if plan is not None:  # the free sites first, then the fixed ones on the features
         sites = np.vstack([sites, plan.points])
-    if plan is None:
-        sites = _spread(surface, sites, held, seed, density)
-    run = _cvt(surface, sites, plan, method, tol, max_iter, density, spread=plan is None)
+    if plan is None:  # (with features: their constrained CVT's exact Lloyd steps)
+        sites = _spread(surface, sites, seed, density)
+    run = _cvt(surface, sites, plan, method, tol, max_iter, density)
     iterations = run.iterations
     # Rounds after the first run: at most TIGHTER_ROUNDS that tighten the tol or move
     # intruders, and those that free held sites (each frees at least one) besides.
