@@ -498,8 +498,10 @@ def _remesh(
     features: float | None = None,
     cells_path: str | None = None,
 ) -> None:
-    """``run --surface``: :func:`hcvt.remesh` of the mesh file INPUT, its quality printed;
-    ``--cells`` (.vtu, .ply) writes the final diagram's restricted Voronoi cells."""
+    """``run --surface``: :func:`hcvt.remesh` of the mesh file INPUT, its quality printed.
+
+    ``--cells`` (.vtu, .ply) writes the final diagram's restricted Voronoi cells.
+    """
     ctx = click.get_current_context()
     given = sorted(
         f"--{name.replace('_', '-')}"

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 import shapely
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from hcvt.geometry.crs import geojson_crs_member
 from hcvt.io.geo import Diagram, write_geopackage
@@ -52,7 +52,7 @@ def write_cells(diagram: Diagram, path: str | Path) -> Path:
         _write_geojson(path, diagram)
         return path
     if suffix == ".vtu" and diagram.domain.is_surface:
-        data = {"G": diagram.G, "area": diagram.volume}
+        data: dict[str, ArrayLike] = {"G": diagram.G, "area": diagram.volume}
         return write_pieces_vtu(diagram.surface_pieces(), path, cell_data=data)
     if suffix == ".vtu":
         return write_vtu(diagram.mesh(), path, cell_data={"G": diagram.G, "volume": diagram.volume})

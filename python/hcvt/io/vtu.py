@@ -155,9 +155,11 @@ def _write(
     cell_data: dict[str, ArrayLike] | None,
     more: tuple[str, ...] = (),
 ) -> Path:
-    """The UnstructuredGrid of ``points`` and the ``cells`` arrays (connectivity, offsets,
-    types, ...) with cell data ``site``, ``more`` and ``cell_data`` (one value per site of
-    ``n_cells``, written on each VTK cell of the site), to ``path``."""
+    """Write the UnstructuredGrid of ``points`` and ``cells`` (:func:`_cells`) to ``path``.
+
+    Cell data ``site``, ``more`` and ``cell_data`` (one value per site of ``n_cells``,
+    written on each VTK cell of the site).
+    """
     arrays = [_data_array("site", site.astype(np.int64), "Int64"), *more]
     for name, values in (cell_data or {}).items():
         column = np.asarray(values, dtype=np.float64)

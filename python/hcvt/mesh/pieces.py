@@ -44,11 +44,14 @@ class SurfacePieces:
 
     @property
     def n_pieces(self) -> int:
+        """Number of pieces."""
         return len(self.piece_cell)
 
     def fan(self) -> NDArray[np.intp]:
-        """Every piece as triangles fanned from its first vertex: (t, 3) rows of ``points``,
-        piece by piece (``k - 2`` triangles for a piece of ``k`` vertices)."""
+        """Every piece as triangles fanned from its first vertex: (t, 3) rows of ``points``.
+
+        Piece by piece, ``k - 2`` triangles for a piece of ``k`` vertices.
+        """
         sizes = np.diff(self.piece_offsets) - 2
         piece = np.repeat(np.arange(self.n_pieces), sizes)
         first = self.piece_offsets[:-1][piece]
@@ -56,9 +59,11 @@ class SurfacePieces:
         return np.column_stack([first, first + step, first + step + 1]).astype(np.intp)
 
     def cell_triangles(self) -> list[tuple[NDArray[np.float64], NDArray[np.intp]]]:
-        """Per cell ``(vertices (k, 3), faces (f, 3))``: its pieces' vertices and their
-        fan triangles (local rows, counter-clockwise about the surface's normal); both
-        empty for an empty cell."""
+        """Per cell ``(vertices (k, 3), faces (f, 3))``: its pieces' vertices, fanned.
+
+        The faces are local rows, counter-clockwise about the surface's normal; both
+        arrays are empty for an empty cell.
+        """
         triangles = self.fan()
         counts = np.bincount(self.piece_cell, minlength=self.n_cells)
         first_piece = np.concatenate([[0], np.cumsum(counts)])
