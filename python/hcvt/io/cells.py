@@ -52,7 +52,7 @@ def write_cells(diagram: Diagram, path: str | Path) -> Path:
         _write_geojson(path, diagram)
         return path
     if suffix == ".vtu" and diagram.domain.is_surface:
-        data: dict[str, ArrayLike] = {"G": diagram.G, "area": diagram.volume}
+        data: dict[str, ArrayLike] = {"area": diagram.volume, "G": diagram.G}
         return write_pieces_vtu(diagram.surface_pieces(), path, cell_data=data)
     if suffix == ".vtu":
         return write_vtu(diagram.mesh(), path, cell_data={"G": diagram.G, "volume": diagram.volume})
