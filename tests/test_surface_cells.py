@@ -44,8 +44,8 @@ def test_pieces_are_the_triangles_clipped_in_their_planes(name: str, n: int) -> 
     pieces = hcvt.voronoi(domain, sites).surface_pieces()
     areas, centroids = piece_measures(pieces)
     h = np.sqrt(domain.volume / n)
-    rng = np.random.default_rng(0)
-    for i in rng.choice(n, 10, replace=False):
+    rng = np.random.default_rng(1)  # not test_surface's cells (seed 0)
+    for i in rng.choice(n, 4, replace=False):  # the oracle takes ~0.25 s a cell
         mine = np.flatnonzero(pieces.piece_cell == i)
         got = dict(zip(pieces.piece_face[mine].tolist(), mine.tolist(), strict=True))
         expected = {}
