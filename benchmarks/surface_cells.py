@@ -28,9 +28,10 @@ from hcvt import _core
 DATA = Path(os.environ.get("HCVT_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 
-def cpu(call) -> float:
+def cpu(call, *args) -> float:
+    """CPU seconds of ``call(*args)``."""
     start = time.process_time()
-    call()
+    call(*args)
     return time.process_time() - start
 
 
@@ -49,8 +50,8 @@ def main() -> None:
             sites = surface.frame.to_core(hcvt.initialise(surface, n, seed=0))
             plain, pieces = [], []
             for _ in range(args.repeats):
-                plain.append(cpu(lambda: _core.voronoi(surface._core, sites)))
-                pieces.append(cpu(lambda: _core.surface_pieces(surface._core, sites)))
+                plain.append(cpu(_core.voronoi, surface._core, sites))
+                pieces.append(cpu(_core.surface_pieces, surface._core, sites))
             a, b = statistics.median(plain), statistics.median(pieces)
             print(f"{name:<16}{n:>8}{a:>10.3f}{b:>10.3f}{n / b:>12.0f}{b / a:>8.2f}")
     print(f"load {os.getloadavg()[0]:.1f}")
