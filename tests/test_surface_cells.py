@@ -9,11 +9,13 @@ back by VTK and meshio.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 import hcvt
-from test_surface import CLOSED, OPEN, clipped_pieces, needs_data, sites_near, surface
+from test_surface import CLOSED, DATA_3D, OPEN, clipped_pieces, needs_data, sites_near, surface
 
 meshio = pytest.importorskip("meshio")
 pv = pytest.importorskip("pyvista")
@@ -188,3 +190,25 @@ def test_surface_cells_refuse_what_they_are_not() -> None:
     solid = hcvt.voronoi(hcvt.Domain.from_mesh(cube, faces), [[0.5, 0.5, 0.5], [0.2, 0.2, 0.2]])
     with pytest.raises(ValueError, match="triangle surface"):
         solid.surface_pieces()
+
+
+@needs_data
+def test_command_line_writes_the_remeshed_surfaces_cells(tmp_path) -> None:
+    from click.testing import CliRunner
+
+    from hcvt.cli import main
+
+    cells, summary = tmp_path / "cells.vtu", tmp_path / "s.json"
+    args = ["run", str(DATA_3D / "bunny.off"), "--surface", "-n", "200", "--max-iter", "5"]
+    result = CliRunner().invoke(
+        main, [*args, "--cells", str(cells), "--summary", str(summary)], catch_exceptions=False
+    )
+    assert result.exit_code == 0, result.output
+    assert json.loads(summary.read_text())["cells"] == str(cells)
+    # VTK's areas of the pieces add up to the surface's, each cell's to its diagram's.
+    grid = pv.read(cells)
+    area = np.bincount(grid.cell_data["site"], grid.compute_cell_sizes()["Area"], 200)
+    assert area.sum() == pytest.approx(surface("bunny.off").volume, rel=1e-12)
+    written = np.zeros(200)
+    written[grid.cell_data["site"]] = grid.cell_data["area"]
+    np.testing.assert_allclose(area, written, rtol=1e-12)
