@@ -200,6 +200,8 @@ def test_surface_cells_refuse_what_they_are_not() -> None:
     d = hcvt.voronoi(domain, hcvt.initialise(domain, 40, seed=1))
     with pytest.raises(NotImplementedError, match=r"no PolyMesh.*surface_pieces\(\)"):
         d.mesh()
+    # In a notebook the cells are drawn from their pieces, the whole surface.
+    assert d._repr_png_().startswith(b"\x89PNG")
     with pytest.raises(NotImplementedError, match="no PolyMesh"):
         hcvt.write_mesh(d, "cells.geojson")
     solid = hcvt.voronoi(hcvt.Domain.from_mesh(cube, faces), [[0.5, 0.5, 0.5], [0.2, 0.2, 0.2]])
