@@ -189,9 +189,7 @@ def closest_points(
 def restricted_delaunay(
     surface: SurfaceDomain, sites: _Float2, with_diagram: bool = False
 ) -> RestrictedDelaunayArrays: ...
-def surface_pieces(
-    surface: SurfaceDomain, sites: _Float2, weights: NDArray[np.float64] | None = None
-) -> SurfacePiecesArrays: ...
+def surface_pieces(surface: SurfaceDomain, sites: _Float2) -> SurfacePiecesArrays: ...
 
 # A density is either `polynomial=(constant, linear (d,), quadratic (d, d))` or
 # `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`,

@@ -391,13 +391,8 @@ class Diagram(Shows):
             raise ValueError("surface_pieces() is for diagrams on a triangle surface; use mesh()")
         if self._pieces is None:
             frame = self.domain.frame
-            core_weights = None
-            if self.weights is not None and np.any(self.weights):
-                core_weights = frame.quantity_to_core("weights", self.weights)
             with frame.input_errors():
-                arrays = _core.surface_pieces(
-                    self.domain._core, self._core_sites, weights=core_weights
-                )
+                arrays = _core.surface_pieces(self.domain._core, self._core_sites)
             self._pieces = SurfacePieces(
                 points=frame.to_input("points", arrays["points"]),
                 piece_offsets=arrays["piece_offsets"],

@@ -461,20 +461,17 @@ pub fn restricted_delaunay<'py>(
 /// (p, 3) every piece's nodes, absolute, counter-clockwise about its triangle's normal,
 /// `piece_offsets` (m + 1,) intp (piece k's nodes are rows `piece_offsets[k]:[k + 1]`),
 /// `piece_cell` (m,) intp its site (non-decreasing) and `piece_face` (m,) intp its input
-/// triangle. With `weights` (n,), the power diagram's cells.
+/// triangle.
 #[pyfunction]
-#[pyo3(signature = (surface, sites, weights = None))]
 pub fn surface_pieces<'py>(
     py: Python<'py>,
     surface: PyRef<'py, crate::domain::SurfaceDomain>,
     sites: PyReadonlyArray2<'py, f64>,
-    weights: Option<PyReadonlyArray1<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let points = rows::<f64, 3>(&sites, "sites")?;
-    let weights = weights.map(|w| w.as_array().to_vec());
     let kind = &surface.0;
     let pieces = py
-        .detach(|| crate::threads::run(|| kind.pieces(&points, weights.as_deref())))
+        .detach(|| crate::threads::run(|| kind.pieces(&points)))
         .map_err(crate::errors::to_py_err)?;
     let out = PyDict::new(py);
     out.set_item("points", to_array2(py, &pieces.points)?)?;

@@ -37,6 +37,9 @@
 //! other triangles are tested against every plane once ([`Clipper::triangle`]) and
 //! clipped only by the planes that cut them.
 //!
+//! **The cells' pieces.** [`Surface::pieces`] hands over the pieces themselves: its
+//! diagram notes each piece's nodes as the measure sums its moments ([`Noting`]).
+//!
 //! **The triangulation.** [`Surface::restricted_delaunay`] reads the meeting points of
 //! three cells from each cell's pieces. Its diagram notes, per site, the triangles its
 //! measure met ([`Noting`]), and the meeting points clip those again instead of walking
@@ -844,18 +847,11 @@ impl Surface {
     /// The restricted Voronoi cells of `sites` on the surface as their pieces
     /// ([`SurfacePieces`]): the convex polygons the diagram's measure clipped from the
     /// input triangles and summed the moments of, noted as it measured them (no second
-    /// clip). With `weights`, the power diagram's (as [`super::Request::weights`]).
+    /// clip).
     ///
     /// Errors are [`super::clipped_diagram`]'s.
-    pub fn pieces(
-        &self,
-        sites: &[[f64; 3]],
-        weights: Option<&[f64]>,
-    ) -> Result<SurfacePieces, CoreError> {
-        let request = super::Request {
-            weights,
-            ..Default::default()
-        };
+    pub fn pieces(&self, sites: &[[f64; 3]]) -> Result<SurfacePieces, CoreError> {
+        let request = super::Request::default();
         let noting = Noting::new(self, true, sites.len());
         let clipped =
             super::clipped_diagram::<3, super::PolyhedronCell, _>(&noting, sites, &request)?;
@@ -1006,7 +1002,8 @@ struct ArcEnd {
 /// cell's pieces as the measure meets them ([`DomainKind::clip`], the cell's last
 /// look): [`Surface::restricted_delaunay`] then clips those again for the meeting
 /// points instead of walking the BVH a second time. Sites sharing bits note `None`
-/// (their cells walk). Everything else is the surface's.
+/// (their cells walk). Asked for `pieces`, it notes the pieces' nodes too
+/// ([`Surface::pieces`]). Everything else is the surface's.
 struct Noting<'a> {
     surface: &'a Surface,
     /// Note each piece's nodes as well ([`Surface::pieces`]), not only its triangle.
@@ -1364,7 +1361,7 @@ mod tests {
         let s = roof(8, 0.6);
         let sites = sites(300, 5);
         let plain = clipped_diagram::<3, PolyhedronCell, _>(&s, &sites, &Request::default());
-        let p = s.pieces(&sites, None).unwrap();
+        let p = s.pieces(&sites).unwrap();
         assert_eq!(plain.unwrap().diagram.moments, p.diagram.moments);
         let m = p.cells.len();
         assert!(m > 300 && p.offsets.len() == m + 1 && p.triangles.len() == m);
@@ -1411,7 +1408,7 @@ mod tests {
         let mut twice = sites.clone();
         twice[7] = twice[3];
         assert!(matches!(
-            s.pieces(&twice, None),
+            s.pieces(&twice),
             Err(CoreError::DuplicateSites { .. })
         ));
     }
