@@ -247,6 +247,13 @@ def test_cells_meshes_and_cvt_match_the_unit_problem(kind, offset, size, units):
         assert np.max(np.abs(back(mesh.points, offset, size) - unit_mesh.points)) <= C * delta
         np.testing.assert_array_equal(mesh.face_vertices, unit_mesh.face_vertices)
         _same_periodic_pairs(mesh, unit_mesh)
+    if domain.is_surface:
+        # the cells' pieces of the surface: the same pieces, their vertices mapped back
+        pieces, unit_pieces = diagram.surface_pieces(), unit.surface_pieces()
+        np.testing.assert_array_equal(pieces.piece_offsets, unit_pieces.piece_offsets)
+        np.testing.assert_array_equal(pieces.piece_face, unit_pieces.piece_face)
+        gap = np.max(np.abs(back(pieces.points, offset, size) - unit_pieces.points))
+        assert gap <= C * delta, f"pieces differ by {gap:.3g}"
     if k.meshes and representable(unit.volume, d, size):
         # measured from the points in L: the points carry the round-off δ of their position
         from_mesh = mesh.cell_geometry.volume / size**d

@@ -21,6 +21,7 @@ from hcvt.core_results import (
     MeshQualityArrays,
     PartCellsArrays,
     RestrictedDelaunayArrays,
+    SurfacePiecesArrays,
     TransportArrays,
 )
 
@@ -50,6 +51,7 @@ __all__ = [
     "restricted_delaunay",
     "set_num_threads",
     "step_fields",
+    "surface_pieces",
     "voronoi",
 ]
 
@@ -187,6 +189,7 @@ def closest_points(
 def restricted_delaunay(
     surface: SurfaceDomain, sites: _Float2, with_diagram: bool = False
 ) -> RestrictedDelaunayArrays: ...
+def surface_pieces(surface: SurfaceDomain, sites: _Float2) -> SurfacePiecesArrays: ...
 
 # A density is either `polynomial=(constant, linear (d,), quadratic (d, d))` or
 # `function=f` with f(points (m, d)) -> (m,), sampled by a rule of `quadrature_degree`,

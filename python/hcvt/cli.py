@@ -224,7 +224,8 @@ def _load(
     "--cells",
     "cells_path",
     type=click.Path(dir_okay=False),
-    help="Cells file: .vtu (polyhedra / polygons), .geojson (2D), .ply (3D triangles); "
+    help="Cells file: .vtu (polyhedra / polygons; with --surface the restricted Voronoi cells' "
+    "pieces), .geojson (2D), .ply (3D triangles); "
     "with --scheduler, .pvtu: one .vtu piece per part written by its worker, in the "
     "directory named like the file.",
 )
@@ -315,7 +316,7 @@ def run(
 ) -> None:
     """CVT of N sites in INPUT: a built-in shape (square, star, sphere, ...) or a file."""
     if surface:
-        _remesh(input_, n, method, seed, tol, max_iter, out, summary, features)
+        _remesh(input_, n, method, seed, tol, max_iter, out, summary, features, cells_path)
         return
     if features is not None:
         raise click.UsageError("--features keeps sharp edges in remeshing: it needs --surface")
@@ -480,7 +481,7 @@ def run(
 #: ``run --surface``: the options it reads (the others are refused), the optimisers it takes.
 SURFACE_OPTIONS = {
     *("input_", "n", "method", "seed", "tol", "max_iter", "surface", "out", "summary"),
-    "features",
+    *("features", "cells_path"),
 }
 SURFACE_METHODS = ("lbfgs", "lloyd")
 
@@ -495,8 +496,12 @@ def _remesh(
     out: str | None,
     summary: str | None,
     features: float | None = None,
+    cells_path: str | None = None,
 ) -> None:
-    """``run --surface``: :func:`hcvt.remesh` of the mesh file INPUT, its quality printed."""
+    """``run --surface``: :func:`hcvt.remesh` of the mesh file INPUT, its quality printed.
+
+    ``--cells`` (.vtu, .ply) writes the final diagram's restricted Voronoi cells.
+    """
     ctx = click.get_current_context()
     given = sorted(
         f"--{name.replace('_', '-')}"
@@ -548,6 +553,9 @@ def _remesh(
     if out:
         SURFACE_WRITERS[Path(out).suffix.lower()](Path(out), result.vertices, result.faces)
         info["mesh"] = str(out)
+    if cells_path:
+        hcvt.io.write_cells(result.cvt.diagram, cells_path)
+        info["cells"] = str(cells_path)
     if summary:
         Path(summary).write_text(json.dumps(info, indent=2, default=str))
 

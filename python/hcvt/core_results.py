@@ -28,6 +28,7 @@ __all__ = [
     "MeshQualityArrays",
     "PartCellsArrays",
     "RestrictedDelaunayArrays",
+    "SurfacePiecesArrays",
 ]
 
 Floats = NDArray[np.float64]
@@ -194,3 +195,12 @@ class RestrictedDelaunayArrays(TypedDict):
     faces: Indices  # (m,) the surface triangle of each meeting point
     repeated: Indices  # (r, 3) triples of cells meeting at more than one point
     diagram: NotRequired[DiagramArrays]  # with_diagram=True: the sites' voronoi dict
+
+
+class SurfacePiecesArrays(TypedDict):
+    """Restricted Voronoi cells as convex planar pieces (``_core.surface_pieces``)."""
+
+    points: Floats  # (p, 3) every piece's nodes, counter-clockwise about its triangle's normal
+    piece_offsets: Indices  # (m + 1,) piece k's nodes are points[piece_offsets[k]:[k + 1]]
+    piece_cell: Indices  # (m,) the site of each piece, non-decreasing
+    piece_face: Indices  # (m,) the input triangle of each piece

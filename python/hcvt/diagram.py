@@ -20,6 +20,7 @@ from hcvt.io.geo import to_geodataframe
 from hcvt.io.writers import to_pyvista
 from hcvt.mesh.cells import polygons, triangulated
 from hcvt.mesh.periodic import bounded, periodic_mesh
+from hcvt.mesh.pieces import SurfacePieces
 from hcvt.mesh.polymesh import PolyMesh
 from hcvt.mesh.sphere import SphereMesh, spherical_mesh
 
@@ -132,6 +133,7 @@ class Diagram(Shows):
         self._allow_outside = allow_outside
         self._mesh: PolyMesh | None = None
         self._sphere_mesh: SphereMesh | None = None
+        self._pieces: SurfacePieces | None = None
 
     @property
     def neighbor_images(self) -> NDArray[np.int8] | None:
@@ -311,8 +313,9 @@ class Diagram(Shows):
             )
         if self.domain.is_surface:
             raise NotImplementedError(
-                "cell geometry of restricted Voronoi cells on a surface: a later slice "
-                "(hcvt.remesh gives their restricted Delaunay triangulation)"
+                "restricted Voronoi cells on a surface have no PolyMesh (they are pieces of "
+                "the surface, not solids): use Diagram.surface_pieces(), Diagram.cells(), "
+                "Diagram.to_pyvista() or hcvt.io.write_cells(diagram, 'cells.vtu')"
             )
         if self._mesh is None and any(self.domain.periodic):
             self._mesh = periodic_mesh(self)
@@ -370,6 +373,35 @@ class Diagram(Shows):
             self._sphere_mesh = spherical_mesh(self._core_sites, self.neighbors, self.domain.radius)
         return self._sphere_mesh
 
+    def surface_pieces(self) -> SurfacePieces:
+        """The cells on a triangle surface as convex planar pieces, made on first call and kept.
+
+        Each piece is the part of one input triangle in one cell, its vertices (L)
+        counter-clockwise about the triangle's normal: the very polygons whose moments
+        give ``volume`` and ``centroid`` (the core notes them as it measures the cells;
+        the diagram is computed once more for them, without a density, which changes
+        no cell). See :class:`hcvt.mesh.pieces.SurfacePieces`.
+
+        Raises
+        ------
+        ValueError
+            The domain is not :meth:`hcvt.Domain.from_surface`.
+        """
+        if not self.domain.is_surface:
+            raise ValueError("surface_pieces() is for diagrams on a triangle surface; use mesh()")
+        if self._pieces is None:
+            frame = self.domain.frame
+            with frame.input_errors():
+                arrays = _core.surface_pieces(self.domain._core, self._core_sites)
+            self._pieces = SurfacePieces(
+                points=frame.to_input("points", arrays["points"]),
+                piece_offsets=arrays["piece_offsets"],
+                piece_cell=arrays["piece_cell"],
+                piece_face=arrays["piece_face"],
+                n_cells=self.n,
+            )
+        return self._pieces
+
     def cells(self) -> list[Any]:
         """Geometry of every clipped cell, read off :meth:`mesh`.
 
@@ -382,9 +414,16 @@ class Diagram(Shows):
         3D: a list of ``(vertices (k, 3), faces (f, 3))`` pairs, the closed, outward
         triangulation of each clipped cell's boundary (its mesh faces fanned from their
         first vertex; both arrays empty for an empty cell).
+
+        On a triangle surface: the same pairs, each cell's pieces of the surface
+        (:meth:`surface_pieces`) fanned into triangles counter-clockwise about the
+        surface's normal (an open surface, not closed; the pieces' vertices are not
+        merged); both arrays empty for an empty cell.
         """
         if self.domain.is_sphere:
             return list(self.spherical_mesh().cell_polygons())
+        if self.domain.is_surface:
+            return self.surface_pieces().cell_triangles()
         mesh = self.mesh()
         return triangulated(mesh) if self.domain.dim == 3 else polygons(mesh)
 
@@ -395,7 +434,10 @@ class Diagram(Shows):
         ``volume``, ``G``. Needs pyvista, an optional extra (``pip install 'hcvt[viz]'``),
         and ``Diagram.mesh()``. See :func:`hcvt.io.to_pyvista`. On the sphere a
         ``pyvista.PolyData`` of the cells as polygons through their vertices (flat between
-        them), cell data ``site``, ``area`` and ``G``.
+        them), cell data ``site``, ``area`` and ``G``. On a triangle surface a
+        ``pyvista.PolyData`` of the cells' pieces (:meth:`surface_pieces`) as polygons,
+        cell data ``site``, ``area`` (the cell's), ``G`` and ``face`` (the input
+        triangle).
         """
         return to_pyvista(self)
 

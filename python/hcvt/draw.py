@@ -151,7 +151,7 @@ def draw_cut(
 
 
 def png(diagram: Drawable, *, title: str | None = None, dpi: int = 80) -> bytes | None:
-    """A PNG of the cells coloured by G (2D) or a cut view (3D); None when too large.
+    """A PNG of the cells coloured by G: 2D, a cut view (3D), a surface whole; None when too large.
 
     Drawn on a bare ``Figure`` (no pyplot). ``None`` above :data:`INLINE_LIMIT` cells,
     which is what IPython expects of a ``_repr_png_`` with nothing to show.
@@ -160,11 +160,13 @@ def png(diagram: Drawable, *, title: str | None = None, dpi: int = 80) -> bytes 
     if diagram.n > INLINE_LIMIT[dim]:
         return None
     figure = load("matplotlib.figure").Figure(figsize=(5.5, 5), layout="constrained")
-    clim = g_colour_range(diagram.G, dim)
+    clim = g_colour_range(diagram.G, diagram.domain.cell_dim)
     if dim == 2:
         ax = draw_cells(diagram, diagram.G, figure.add_subplot(), clim, CMAP, "G")
     else:
-        ax = draw_cut(diagram, figure.add_subplot(projection="3d"), clim)
+        # A triangle surface's cells are drawn whole (pieces of the surface), a solid's cut.
+        whole = -np.inf if diagram.domain.is_surface else None
+        ax = draw_cut(diagram, figure.add_subplot(projection="3d"), clim, at=whole)
     ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}", fontsize=10)
     out = io.BytesIO()
     figure.savefig(out, format="png", dpi=dpi)

@@ -43,7 +43,7 @@ pub use diagram::{
     morton_order, BoxDomain, Clipped, ConvexCell, Diagram, DomainKind, Face, FaceIntegrals,
     FaceIntegrand, Matrix, MeshDomain, MeshPart, Options, PartCells, PeriodicBox, PolyMesh,
     PolygonCell, PolyhedronCell, PowerWhole, Request, RestrictedDelaunay, SiteIndex, Sphere,
-    SphereRegion, Surface, Torus, WarmStart, MAX_REACH_DEGREES, ON_SPHERE_TOL,
+    SphereRegion, Surface, SurfacePieces, Torus, WarmStart, MAX_REACH_DEGREES, ON_SPHERE_TOL,
 };
 pub use domain::{generalized_winding_number, Boundary, Polygon, Solid, TriangleSet};
 pub use error::CoreError;

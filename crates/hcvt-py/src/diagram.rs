@@ -455,3 +455,28 @@ pub fn restricted_delaunay<'py>(
     }
     Ok(out)
 }
+
+/// The restricted Voronoi cells of `sites` (n, 3) on `surface` as convex planar pieces,
+/// those the diagram's measure clips from the input triangles: a dict with `points`
+/// (p, 3) every piece's nodes, absolute, counter-clockwise about its triangle's normal,
+/// `piece_offsets` (m + 1,) intp (piece k's nodes are rows `piece_offsets[k]:[k + 1]`),
+/// `piece_cell` (m,) intp its site (non-decreasing) and `piece_face` (m,) intp its input
+/// triangle.
+#[pyfunction]
+pub fn surface_pieces<'py>(
+    py: Python<'py>,
+    surface: PyRef<'py, crate::domain::SurfaceDomain>,
+    sites: PyReadonlyArray2<'py, f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let points = rows::<f64, 3>(&sites, "sites")?;
+    let kind = &surface.0;
+    let pieces = py
+        .detach(|| crate::threads::run(|| kind.pieces(&points)))
+        .map_err(crate::errors::to_py_err)?;
+    let out = PyDict::new(py);
+    out.set_item("points", to_array2(py, &pieces.points)?)?;
+    out.set_item("piece_offsets", to_intp(py, &pieces.offsets)?)?;
+    out.set_item("piece_cell", to_intp(py, &pieces.cells)?)?;
+    out.set_item("piece_face", to_intp(py, &pieces.triangles)?)?;
+    Ok(out)
+}

@@ -39,6 +39,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mesh::mesh, m)?)?;
     m.add_function(wrap_pyfunction!(domain::closest_points, m)?)?;
     m.add_function(wrap_pyfunction!(diagram::restricted_delaunay, m)?)?;
+    m.add_function(wrap_pyfunction!(diagram::surface_pieces, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::mesh_part, m)?)?;
     m.add_function(wrap_pyfunction!(partition::partition_cells, m)?)?;
     m.add_function(wrap_pyfunction!(quality::mesh_quality, m)?)?;

@@ -14,11 +14,11 @@ from typing import Any
 
 import numpy as np
 import shapely
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from hcvt.geometry.crs import geojson_crs_member
 from hcvt.io.geo import Diagram, write_geopackage
-from hcvt.io.vtu import write_vtu
+from hcvt.io.vtu import write_pieces_vtu, write_vtu
 
 
 def write_cells(diagram: Diagram, path: str | Path) -> Path:
@@ -33,6 +33,9 @@ def write_cells(diagram: Diagram, path: str | Path) -> Path:
     cell, its faces those of the conforming mesh (``Diagram.mesh()``), and cell data
     ``site`` (the site's row), ``G`` and ``volume``; or ``.ply``, binary PLY of every
     cell's boundary triangles with the face property ``cell`` (the site's row).
+    On a triangle surface: ``.vtu``, one VTK polygon per piece of a cell
+    (:func:`hcvt.io.vtu.write_pieces_vtu`, cell data ``site``, ``face``, ``G`` and
+    ``area``); ``.ply``, the pieces' fan triangles (:meth:`hcvt.Diagram.cells`).
 
     Returns
     -------
@@ -48,6 +51,9 @@ def write_cells(diagram: Diagram, path: str | Path) -> Path:
             raise ValueError(f"2D cells are written as .geojson or .gpkg, got {path.name}")
         _write_geojson(path, diagram)
         return path
+    if suffix == ".vtu" and diagram.domain.is_surface:
+        data: dict[str, ArrayLike] = {"area": diagram.volume, "G": diagram.G}
+        return write_pieces_vtu(diagram.surface_pieces(), path, cell_data=data)
     if suffix == ".vtu":
         return write_vtu(diagram.mesh(), path, cell_data={"G": diagram.G, "volume": diagram.volume})
     if suffix != ".ply":

@@ -22,6 +22,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry.domain import Domain
 from hcvt.lazy import load
+from hcvt.mesh.pieces import SurfacePieces
 from hcvt.mesh.polymesh import PolyMesh
 
 
@@ -64,6 +65,8 @@ class Diagram(Protocol):
     def cells(self) -> list[Any]: ...  # noqa: D102
 
     def mesh(self) -> PolyMesh: ...  # noqa: D102
+
+    def surface_pieces(self) -> SurfacePieces: ...  # noqa: D102
 
 
 def is_geo_object(source: Any) -> bool:

@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hcvt.errors import InvalidMeshError
 from hcvt.mesh.cells import non_convex_faces, planar_triangles
+from hcvt.mesh.pieces import SurfacePieces
 from hcvt.mesh.polymesh import PolyMesh
 
 VTK_POLYGON = 7
@@ -102,23 +103,74 @@ def write_vtu(
         points = np.column_stack([mesh.points, np.zeros(len(mesh.points))])
         site, connectivity, offsets = _polygons(mesh)
         types = np.full(len(site), VTK_POLYGON, dtype=np.uint8)
-    arrays = [_data_array("site", site.astype(np.int64), "Int64")]
-    for name, values in (cell_data or {}).items():
-        column = np.asarray(values, dtype=np.float64)
-        if column.shape != (mesh.n_cells,):
-            raise ValueError(f"cell_data[{name!r}] must have shape ({mesh.n_cells},)")
-        arrays.append(_data_array(name, column[site], "Float64"))
-    cells = [
+    cells = _cells(connectivity, offsets, types, *polyhedra)
+    return _write(path, points, cells, site, mesh.n_cells, cell_data)
+
+
+def write_pieces_vtu(
+    pieces: SurfacePieces, path: str | Path, *, cell_data: dict[str, ArrayLike] | None = None
+) -> Path:
+    """Write the pieces of restricted Voronoi cells on a surface as VTK polygons in 3D.
+
+    One VTK_POLYGON (type 7) per piece (:class:`hcvt.mesh.pieces.SurfacePieces`, convex
+    and planar), counter-clockwise about its input triangle's normal; cell data ``site``
+    (the cell of each piece), ``face`` (its input triangle) and ``cell_data`` (one value
+    per cell, written on each of its pieces). Pieces are written by increasing vertex
+    count (stable): meshio (5.3) reads polygons into blocks by vertex count and pairs them
+    with the cell data in that order.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    offsets = pieces.piece_offsets
+    order = np.argsort(np.diff(offsets), kind="stable")
+    connectivity, ends = _permute(np.arange(len(pieces.points)), offsets[1:], order)
+    cells = _cells(connectivity, ends, np.full(pieces.n_pieces, VTK_POLYGON, dtype=np.uint8))
+    face = _data_array("face", pieces.piece_face[order].astype(np.int64), "Int64")
+    site = pieces.piece_cell[order]
+    return _write(path, pieces.points, cells, site, pieces.n_cells, cell_data, (face,))
+
+
+def _cells(
+    connectivity: NDArray[np.intp], offsets: NDArray[np.intp], types: NDArray[np.uint8], *more: str
+) -> list[str]:
+    """VTK's cell arrays: ``connectivity``, the ``offsets`` of each cell's end, ``types``."""
+    return [
         _data_array("connectivity", connectivity.astype(np.int64), "Int64"),
         _data_array("offsets", offsets.astype(np.int64), "Int64"),
         _data_array("types", types, "UInt8"),
-        *polyhedra,
+        *more,
     ]
+
+
+def _write(
+    path: Path,
+    points: NDArray[np.float64],
+    cells: list[str],
+    site: NDArray[np.intp],
+    n_cells: int,
+    cell_data: dict[str, ArrayLike] | None,
+    more: tuple[str, ...] = (),
+) -> Path:
+    """Write the UnstructuredGrid of ``points`` and ``cells`` (:func:`_cells`) to ``path``.
+
+    Cell data ``site``, ``more`` and ``cell_data`` (one value per site of ``n_cells``,
+    written on each VTK cell of the site).
+    """
+    arrays = [_data_array("site", site.astype(np.int64), "Int64"), *more]
+    for name, values in (cell_data or {}).items():
+        column = np.asarray(values, dtype=np.float64)
+        if column.shape != (n_cells,):
+            raise ValueError(f"cell_data[{name!r}] must have shape ({n_cells},)")
+        arrays.append(_data_array(name, column[site], "Float64"))
     body = "".join(
         [
             '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="1.0" ',
             'byte_order="LittleEndian" header_type="UInt64"><UnstructuredGrid>',
-            f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{len(types)}">',
+            f'<Piece NumberOfPoints="{len(points)}" NumberOfCells="{len(site)}">',
             "<Points>",
             _data_array("Points", np.ascontiguousarray(points, dtype=np.float64), "Float64", 3),
             "</Points><Cells>",

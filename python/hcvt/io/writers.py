@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike
 
 from hcvt.io.geojson import write_geojson
 from hcvt.io.openfoam import write_openfoam
-from hcvt.io.vtu import write_vtu
+from hcvt.io.vtu import write_pieces_vtu, write_vtu
 from hcvt.lazy import load
 from hcvt.mesh.polymesh import PolyMesh
 
@@ -62,7 +62,10 @@ def write_mesh(
     ----------
     source : Diagram or PolyMesh
         A diagram's cells are its ``mesh()``; its domain names the patches and its
-        ``volume`` and ``G`` are written as cell data.
+        ``volume`` and ``G`` are written as cell data. A diagram on a triangle surface
+        has no ``mesh()``: as ``.vtu`` its cells' pieces are written as polygons
+        (:func:`hcvt.io.vtu.write_pieces_vtu`, cell data ``site``, ``face``, ``area``,
+        ``G`` and ``cell_data``).
     path : str or Path
         ``*.vtu``: VTK polyhedra (3D) or polygons (2D), see :func:`write_vtu`.
         ``*.geojson`` (2D): one Feature per cell on shared vertices, see
@@ -101,10 +104,13 @@ def write_mesh(
         An unknown suffix; a GeoJSON of a 3D mesh; ``boundary_faces`` other than
         ``"exact"``, or ``site``, for a file that is not an OpenFOAM case.
     """
-    mesh, own_domain, data = as_polymesh(source)
-    data = {**data, **(cell_data or {})}
     path = Path(path)
     suffix = path.suffix.lower()
+    if suffix == ".vtu" and _on_surface(source):
+        data = _surface_data(source, cell_data)
+        return write_pieces_vtu(source.surface_pieces(), path, cell_data=data)
+    mesh, own_domain, data = as_polymesh(source)
+    data = {**data, **(cell_data or {})}
     if suffix and (boundary_faces not in (None, "exact") or site is not None):
         raise ValueError("boundary_faces and site are for OpenFOAM cases only")
     if suffix == ".vtu":
@@ -140,7 +146,9 @@ def to_pyvista(source: Any) -> Any:
 
     On the sphere (a diagram of :meth:`hcvt.Domain.sphere`): a ``pyvista.PolyData`` of
     the cells as polygons through their vertices (:meth:`hcvt.Diagram.spherical_mesh`),
-    cell data ``site``, ``area`` and ``G``.
+    cell data ``site``, ``area`` and ``G``. On a triangle surface: a ``pyvista.PolyData``
+    of the cells' pieces as polygons (:meth:`hcvt.Diagram.surface_pieces`), cell data
+    ``site``, ``area`` and ``G`` (the cell's) and ``face`` (the input triangle).
 
     Raises
     ------
@@ -151,6 +159,8 @@ def to_pyvista(source: Any) -> Any:
     domain = getattr(source, "domain", None)
     if domain is not None and domain.is_sphere:
         return _sphere_polydata(pyvista, source)
+    if _on_surface(source):
+        return _pieces_polydata(pyvista, source)
     mesh, _, data = as_polymesh(source)
     with tempfile.TemporaryDirectory() as tmp:
         file = write_vtu(mesh, Path(tmp) / "mesh.vtu", cell_data=data)
@@ -174,4 +184,29 @@ def _sphere_polydata(pyvista: Any, diagram: Any) -> Any:
     poly.cell_data["site"] = np.arange(mesh.n_cells)
     poly.cell_data["area"] = diagram.volume
     poly.cell_data["G"] = diagram.G
+    return poly
+
+
+def _on_surface(source: Any) -> bool:
+    """Whether ``source`` is a diagram on a triangle surface."""
+    domain = getattr(source, "domain", None)
+    return domain is not None and domain.is_surface
+
+
+def _surface_data(diagram: Any, extra: dict[str, ArrayLike] | None = None) -> dict[str, ArrayLike]:
+    """A surface diagram's per-cell data to write with its pieces: ``area``, ``G``, ``extra``."""
+    return {"area": diagram.volume, "G": diagram.G, **(extra or {})}
+
+
+def _pieces_polydata(pyvista: Any, diagram: Any) -> Any:
+    """The pieces of the cells on a surface as a PolyData of polygons."""
+    pieces = diagram.surface_pieces()
+    counts = np.diff(pieces.piece_offsets)
+    # VTK's legacy cell array: each polygon's vertex count, then its vertices.
+    faces = np.insert(np.arange(len(pieces.points)), pieces.piece_offsets[:-1], counts)
+    poly = pyvista.PolyData(pieces.points, faces=faces.astype(np.int64))
+    poly.cell_data["site"] = pieces.piece_cell
+    for name, values in _surface_data(diagram).items():
+        poly.cell_data[name] = np.asarray(values)[pieces.piece_cell]
+    poly.cell_data["face"] = pieces.piece_face
     return poly

@@ -84,7 +84,7 @@ use power::Power;
 pub use power::PowerWhole;
 pub use sphere::{Sphere, ON_SPHERE_TOL};
 pub use sphere_region::{SphereRegion, MAX_REACH_DEGREES};
-pub use surface::{RestrictedDelaunay, Surface};
+pub use surface::{RestrictedDelaunay, Surface, SurfacePieces};
 pub use torus::Torus;
 use voronoi_cell::{voronoi_cell, CellScratch};
 use warm::Moved;

@@ -37,6 +37,9 @@
 //! other triangles are tested against every plane once ([`Clipper::triangle`]) and
 //! clipped only by the planes that cut them.
 //!
+//! **The cells' pieces.** [`Surface::pieces`] hands over the pieces themselves: its
+//! diagram notes each piece's nodes as the measure sums its moments ([`Noting`]).
+//!
 //! **The triangulation.** [`Surface::restricted_delaunay`] reads the meeting points of
 //! three cells from each cell's pieces. Its diagram notes, per site, the triangles its
 //! measure met ([`Noting`]), and the meeting points clip those again instead of walking
@@ -755,6 +758,24 @@ pub struct RestrictedDelaunay {
     pub diagram: super::Diagram<3>,
 }
 
+/// The restricted Voronoi cells of sites on a surface as convex planar pieces
+/// ([`Surface::pieces`]): each the part of one input triangle in one cell, its nodes
+/// counter-clockwise about the triangle's normal (as the triangle's corners run), in flat
+/// arrays; the pieces by cell, within a cell in the measure's order (the BVH's, fixed).
+#[derive(Debug, Clone, Default)]
+pub struct SurfacePieces {
+    /// Every piece's nodes, absolute, `L`.
+    pub points: Vec<[f64; 3]>,
+    /// Piece `p`'s nodes are `points[offsets[p]..offsets[p + 1]]` (at least three).
+    pub offsets: Vec<usize>,
+    /// The cell (site) of each piece, non-decreasing.
+    pub cells: Vec<u32>,
+    /// The input triangle of each piece.
+    pub triangles: Vec<u32>,
+    /// The diagram the pieces were noted by, bit for bit [`super::clipped_diagram`]'s.
+    pub diagram: super::Diagram<3>,
+}
+
 impl Surface {
     /// The restricted Delaunay triangulation of `sites` (DESIGN §12): a triangle `(i, j, k)`
     /// for each point of the surface where the cells of `i`, `j` and `k` meet (a vertex of a
@@ -769,13 +790,10 @@ impl Surface {
             keep_cells: true,
             ..Default::default()
         };
-        let noting = Noting {
-            surface: self,
-            met: Mutex::new(HashMap::with_capacity(sites.len())),
-        };
+        let noting = Noting::new(self, false, sites.len());
         let clipped =
             super::clipped_diagram::<3, super::PolyhedronCell, _>(&noting, sites, &request)?;
-        let met = noting.met.into_inner().unwrap_or_else(|e| e.into_inner());
+        let met = noting.into_notes();
         let same = SAME_POINT * self.set.bvh().bounds().diagonal();
         let found: Vec<Vec<Meeting>> = clipped
             .cells
@@ -784,7 +802,8 @@ impl Surface {
             .map(|(i, cell)| {
                 let noted = met
                     .get(&sites[i].map(f64::to_bits))
-                    .and_then(Option::as_deref);
+                    .and_then(Option::as_ref)
+                    .map(|noted| noted.triangles.as_slice());
                 self.meeting_points(i as u32, cell, sites[i], same, noted)
             })
             .collect();
@@ -821,6 +840,40 @@ impl Surface {
             out.faces.push(face);
         }
         out.repeated.sort_unstable();
+        out.diagram = clipped.diagram;
+        Ok(out)
+    }
+
+    /// The restricted Voronoi cells of `sites` on the surface as their pieces
+    /// ([`SurfacePieces`]): the convex polygons the diagram's measure clipped from the
+    /// input triangles and summed the moments of, noted as it measured them (no second
+    /// clip).
+    ///
+    /// Errors are [`super::clipped_diagram`]'s.
+    pub fn pieces(&self, sites: &[[f64; 3]]) -> Result<SurfacePieces, CoreError> {
+        let request = super::Request::default();
+        let noting = Noting::new(self, true, sites.len());
+        let clipped =
+            super::clipped_diagram::<3, super::PolyhedronCell, _>(&noting, sites, &request)?;
+        let mut met = noting.into_notes();
+        let mut out = SurfacePieces {
+            offsets: vec![0],
+            ..Default::default()
+        };
+        for (i, site) in sites.iter().enumerate() {
+            // A cell the driver did not measure has no pieces.
+            let Some(noted) = met.remove(&site.map(f64::to_bits)) else {
+                continue;
+            };
+            let noted = noted.ok_or_else(|| CoreError::InvalidSettings {
+                reason: format!("site {i} shares its coordinates with another site"),
+            })?;
+            let start = out.points.len();
+            out.points.extend_from_slice(&noted.nodes);
+            out.offsets.extend(noted.ends.iter().map(|end| start + end));
+            out.cells.extend(noted.triangles.iter().map(|_| i as u32));
+            out.triangles.extend_from_slice(&noted.triangles);
+        }
         out.diagram = clipped.diagram;
         Ok(out)
     }
@@ -949,10 +1002,37 @@ struct ArcEnd {
 /// cell's pieces as the measure meets them ([`DomainKind::clip`], the cell's last
 /// look): [`Surface::restricted_delaunay`] then clips those again for the meeting
 /// points instead of walking the BVH a second time. Sites sharing bits note `None`
-/// (their cells walk). Everything else is the surface's.
+/// (their cells walk). Asked for `pieces`, it notes the pieces' nodes too
+/// ([`Surface::pieces`]). Everything else is the surface's.
 struct Noting<'a> {
     surface: &'a Surface,
-    met: Mutex<HashMap<[u64; 3], Option<Vec<u32>>>>,
+    /// Note each piece's nodes as well ([`Surface::pieces`]), not only its triangle.
+    pieces: bool,
+    met: Mutex<HashMap<[u64; 3], Option<Noted>>>,
+}
+
+/// What [`Noting`] noted of one cell: the triangles of its pieces in the measure's order
+/// and, when asked, the pieces' nodes (absolute) and the end of each piece's in `nodes`.
+#[derive(Debug, Default)]
+struct Noted {
+    triangles: Vec<u32>,
+    ends: Vec<usize>,
+    nodes: Vec<[f64; 3]>,
+}
+
+impl<'a> Noting<'a> {
+    fn new(surface: &'a Surface, pieces: bool, n: usize) -> Self {
+        Self {
+            surface,
+            pieces,
+            met: Mutex::new(HashMap::with_capacity(n)),
+        }
+    }
+
+    /// The notes, by the sites' bits.
+    fn into_notes(self) -> HashMap<[u64; 3], Option<Noted>> {
+        self.met.into_inner().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 impl DomainKind<3> for Noting<'_> {
@@ -997,10 +1077,17 @@ impl DomainKind<3> for Noting<'_> {
         row: Option<FaceRow<'_, 3>>,
         scratch: &mut MeasureScratch<3, C>,
     ) -> Moments<3> {
-        let mut met = Vec::new();
+        let mut met = Noted::default();
         let total = self
             .surface
-            .measure(cell, site, row, scratch, |t| met.push(t));
+            .measure(cell, site, row, scratch, |t, polygon| {
+                met.triangles.push(t);
+                if self.pieces {
+                    met.nodes
+                        .extend(polygon.iter().map(|node| add(site, node.x)));
+                    met.ends.push(met.nodes.len());
+                }
+            });
         let mut noted = self.met.lock().unwrap_or_else(|e| e.into_inner());
         noted
             .entry(site.map(f64::to_bits))
@@ -1037,22 +1124,23 @@ impl DomainKind<3> for Noting<'_> {
 }
 
 impl Surface {
-    /// [`DomainKind::clip`]: the moments of the cell's pieces, each piece's triangle
-    /// told to `met` in order; with a `row`, the Hessian's terms of its arcs.
+    /// [`DomainKind::clip`]: the moments of the cell's pieces, each piece (its triangle
+    /// and nodes, relative to the site) told to `met` in order; with a `row`, the
+    /// Hessian's terms of its arcs.
     fn measure<C: ConvexCell<3>>(
         &self,
         cell: &C,
         site: [f64; 3],
         row: Option<FaceRow<'_, 3>>,
         scratch: &mut MeasureScratch<3, C>,
-        mut met: impl FnMut(u32),
+        mut met: impl FnMut(u32, &[Node]),
     ) -> Moments<3> {
         let faces = &mut scratch.faces;
         faces.clear();
         let arcs = row.map(|row| HessianArcs::new(self, cell, row));
         let mut total = Moments::zero();
         self.for_each_piece(cell, site, Triangles::LastMet, |t, polygon| {
-            met(t);
+            met(t, polygon);
             add_piece(self, t, polygon, arcs.as_ref(), &mut total, faces);
             if faces.weighted.is_on() {
                 self.add_weighted_piece(t, site, polygon, &mut faces.weighted);
@@ -1153,7 +1241,7 @@ impl DomainKind<3> for Surface {
         row: Option<FaceRow<'_, 3>>,
         scratch: &mut MeasureScratch<3, C>,
     ) -> Moments<3> {
-        self.measure(cell, site, row, scratch, |_| {})
+        self.measure(cell, site, row, scratch, |_, _| {})
     }
 
     fn cell_dim(&self) -> usize {
@@ -1264,6 +1352,67 @@ mod tests {
         }
     }
 
+    /// The pieces are the measure's: the diagram is the plain one bit for bit, each
+    /// cell's pieces sum (fanned) to its area and first moment, every piece lies in its
+    /// triangle's plane and runs counter-clockwise about its normal, and the pieces of
+    /// all cells cover each triangle's area; a site given twice is refused, not a panic.
+    #[test]
+    fn pieces_are_the_measures_and_tile_the_triangles() {
+        let s = roof(8, 0.6);
+        let sites = sites(300, 5);
+        let plain = clipped_diagram::<3, PolyhedronCell, _>(&s, &sites, &Request::default());
+        let p = s.pieces(&sites).unwrap();
+        assert_eq!(plain.unwrap().diagram.moments, p.diagram.moments);
+        let m = p.cells.len();
+        assert!(m > 300 && p.offsets.len() == m + 1 && p.triangles.len() == m);
+        assert!(p.cells.windows(2).all(|w| w[0] <= w[1]));
+        let mut area = vec![0.0; sites.len()];
+        let mut first = vec![[0.0; 3]; sites.len()];
+        let mut covered = vec![0.0; s.triangles().len()];
+        for k in 0..m {
+            let nodes = &p.points[p.offsets[k]..p.offsets[k + 1]];
+            let [a, b, c] = s.corners(p.triangles[k]);
+            let normal = cross(sub(b, a), sub(c, a));
+            let unit = scale(normal, 1.0 / norm2(normal).sqrt());
+            assert!(nodes.len() >= 3);
+            for x in nodes {
+                assert!(
+                    dot(unit, sub(*x, a)).abs() < 1e-14,
+                    "piece {k} off its plane"
+                );
+            }
+            for j in 1..nodes.len() - 1 {
+                let twice = cross(sub(nodes[j], nodes[0]), sub(nodes[j + 1], nodes[0]));
+                assert!(dot(twice, unit) >= -1e-15, "piece {k} turns clockwise");
+                let (i, da) = (p.cells[k] as usize, 0.5 * dot(twice, unit));
+                area[i] += da;
+                covered[p.triangles[k] as usize] += da;
+                let mid = scale(add(add(nodes[0], nodes[j]), nodes[j + 1]), da / 3.0);
+                first[i] = add(first[i], mid);
+            }
+        }
+        for (i, moments) in p.diagram.moments.iter().enumerate() {
+            assert!((area[i] - moments.mass).abs() <= 1e-14, "cell {i}");
+            // The moments are about the site.
+            let about = sub(first[i], scale(sites[i], area[i]));
+            assert!(norm2(sub(about, moments.first)) <= 1e-28, "cell {i}");
+        }
+        for (t, got) in covered.iter().enumerate() {
+            let [a, b, c] = s.corners(t as u32);
+            let whole = 0.5 * norm2(cross(sub(b, a), sub(c, a))).sqrt();
+            assert!(
+                (got - whole).abs() <= 1e-14,
+                "triangle {t}: {got} of {whole}"
+            );
+        }
+        let mut twice = sites.clone();
+        twice[7] = twice[3];
+        assert!(matches!(
+            s.pieces(&twice),
+            Err(CoreError::DuplicateSites { .. })
+        ));
+    }
+
     /// [`Noting`] is the surface as a domain, plus the triangles each cell's measure met:
     /// its diagram equals the surface's bit for bit (every method `Surface` overrides is
     /// forwarded: one left out would show here), and the meeting points from the noted
@@ -1277,10 +1426,7 @@ mod tests {
             ..Default::default()
         };
         let plain = clipped_diagram::<3, PolyhedronCell, _>(&s, &sites, &request).unwrap();
-        let noting = Noting {
-            surface: &s,
-            met: Mutex::new(HashMap::new()),
-        };
+        let noting = Noting::new(&s, false, sites.len());
         let noted = clipped_diagram::<3, PolyhedronCell, _>(&noting, &sites, &request).unwrap();
         let (a, b) = (&plain.diagram, &noted.diagram);
         assert_eq!(a.moments, b.moments);
@@ -1288,12 +1434,13 @@ mod tests {
         assert_eq!(a.neighbor_sites, b.neighbor_sites);
         assert_eq!(a.neighbor_measures, b.neighbor_measures);
         assert_eq!(a.boundary_measure, b.boundary_measure);
-        let met = noting.met.into_inner().unwrap();
+        let met = noting.into_notes();
         let same = SAME_POINT * s.set.bvh().bounds().diagonal();
         let mut replays = 0;
         for (i, cell) in noted.cells.iter().enumerate() {
             // Some sites off the roof have cells that miss it: nothing noted, nothing met.
-            let triangles = met[&sites[i].map(f64::to_bits)].as_deref();
+            let noted = met[&sites[i].map(f64::to_bits)].as_ref();
+            let triangles = noted.map(|n| n.triangles.as_slice());
             assert!(triangles.is_some(), "cell {i} not noted");
             replays += usize::from(triangles.is_some_and(|t| !t.is_empty()));
             let walked = s.meeting_points(i as u32, cell, sites[i], same, None);
