@@ -68,6 +68,18 @@ def test_3d_png_is_a_cut_view() -> None:
     assert len(np.unique(np.round(rgb * 255).astype(int), axis=0)) > 50
 
 
+def test_a_spherical_diagram_shows_its_cells_whole() -> None:
+    # The sphere's cells() are polygons (k, 3), not (vertices, faces) pairs: drawn fanned
+    # (raised "too many values to unpack" before).
+    sphere = hcvt.Domain.sphere()
+    diagram = hcvt.voronoi(sphere, hcvt.initialise(sphere, 200, method="fibonacci"))
+    data = diagram._repr_png_()
+    assert data is not None
+    rgb = pixels(data)[..., :3].reshape(-1, 3)
+    assert len(np.unique(np.round(rgb * 255).astype(int), axis=0)) > 50
+    assert "<img" in diagram._repr_html_()
+
+
 def test_html_has_summary_and_picture(result) -> None:
     text = result._repr_html_()
     assert "&lt;hcvt.CVTResult n=150" in text  # the repr, escaped

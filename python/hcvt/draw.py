@@ -124,7 +124,7 @@ def draw_cut(
     triangles, values = [], []
     cells = diagram.cells()
     for i in keep:
-        vertices, faces = cells[i]
+        vertices, faces = _fanned(cells[i])
         if len(faces):
             triangles.append(vertices[faces])
             values.append(np.full(len(faces), diagram.G[i]))
@@ -150,6 +150,19 @@ def draw_cut(
     return ax
 
 
+def _fanned(cell: Any) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """A cell of ``cells()`` as ``(vertices, triangles)``, fanned if needed.
+
+    A solid's or a surface's pair as it is; a spherical cell's polygon (k, 3) fanned from
+    its first vertex.
+    """
+    if isinstance(cell, tuple):
+        return cell
+    k = len(cell)
+    fan = np.column_stack([np.zeros(max(k - 2, 0)), np.arange(1, k - 1), np.arange(2, k)])
+    return np.asarray(cell, dtype=np.float64), fan.astype(np.intp)
+
+
 def png(diagram: Drawable, *, title: str | None = None, dpi: int = 80) -> bytes | None:
     """A PNG of the cells coloured by G: 2D, a cut view (3D), a surface whole; None when too large.
 
@@ -164,8 +177,8 @@ def png(diagram: Drawable, *, title: str | None = None, dpi: int = 80) -> bytes 
     if dim == 2:
         ax = draw_cells(diagram, diagram.G, figure.add_subplot(), clim, CMAP, "G")
     else:
-        # A triangle surface's cells are drawn whole (pieces of the surface), a solid's cut.
-        whole = -np.inf if diagram.domain.is_surface else None
+        # A triangle surface's or the sphere's cells are drawn whole, a solid's cut.
+        whole = -np.inf if diagram.domain.cell_dim == 2 else None
         ax = draw_cut(diagram, figure.add_subplot(projection="3d"), clim, at=whole)
     ax.set_title(title or f"n = {diagram.n}, mean G = {diagram.mean_G:.5f}", fontsize=10)
     out = io.BytesIO()
