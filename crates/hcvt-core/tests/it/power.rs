@@ -152,13 +152,6 @@ fn weights_do_not_depend_on_the_thread_count_nor_the_stored_margins() {
         let (one, three, without) = (run(1, true), run(3, true), run(1, false));
         let certified =
             |out: &Transport<2>| -> usize { out.history.iter().map(|r| r.margin_cells).sum() };
-        eprintln!(
-            "margin cells {:?}",
-            one.history
-                .iter()
-                .map(|r| r.margin_cells)
-                .collect::<Vec<_>>()
-        );
         // The margins certified cells (most of the last diagrams'), and only when on.
         assert!(certified(&one) > n / 2, "{} cells", certified(&one));
         assert_eq!(certified(&without), 0);
