@@ -403,8 +403,9 @@ pub(super) struct MarginScratch<const D: usize> {
     pub own: f64,
     pub vertices: Vec<[f64; D]>,
     pub faces: Vec<u32>,
-    /// The listed sites, as indices into the grid's members.
-    list: Vec<u32>,
+    /// The listed sites, as indices into the grid's members, each with a lower bound of
+    /// its `f_j` over the cell (`−∞` if none was computed).
+    list: Vec<(u32, f64)>,
 }
 
 /// Stored margins of some cells of a power diagram, in index order, for the trials of
@@ -867,11 +868,11 @@ impl<'a, const D: usize> Power<'a, D> {
                 if d2 >= wide2 {
                     return ControlFlow::Continue(());
                 }
-                if recording {
-                    listed.push(k as u32);
-                }
                 // (b) for the site's own weight, at most the block's.
                 if d2 >= block2 {
+                    if recording {
+                        listed.push((k as u32, f64::NEG_INFINITY));
+                    }
                     return ControlFlow::Continue(());
                 }
                 let j = grid.members[k];
@@ -881,6 +882,11 @@ impl<'a, const D: usize> Power<'a, D> {
                 let ball = 2.0 * *rho * q2.sqrt();
                 // (a), with a margin for the rounding of every term.
                 let margin = HINT_ROUNDING * (q2 + 2.0 * qc.abs() + delta.abs() + ball);
+                if recording {
+                    // A lower bound of f_j over the ball holding the cell, hence over its
+                    // final vertices: `take_margin` evaluates those only below it.
+                    listed.push((k as u32, low - ball - margin));
+                }
                 if low - ball >= margin || j as usize == i || neighbours.contains(&j) {
                     return ControlFlow::Continue(());
                 }
@@ -928,22 +934,32 @@ impl<'a, const D: usize> Power<'a, D> {
         r.vertices.clear();
         r.vertices.extend_from_slice(cell.vertices());
         let (mut least, mut q2max) = (f64::INFINITY, 0.0_f64);
-        for &k in &r.list {
-            let k = k as usize;
-            let j = grid.members[k];
-            if j as usize == i || r.faces.contains(&j) {
-                continue;
+        // The sites without a positive bound first, then the others whose bound is below
+        // the least value so far (the rest cannot lower it).
+        for bounded in [false, true] {
+            for &(k, lower) in &r.list {
+                if (lower > 0.0) != bounded {
+                    continue;
+                }
+                let k = k as usize;
+                let j = grid.members[k];
+                if j as usize == i || r.faces.contains(&j) {
+                    continue;
+                }
+                let q = sub(grid.member_sites[k], site);
+                let q2 = norm2(q);
+                q2max = q2max.max(q2);
+                if q2 == 0.0 {
+                    least = f64::NEG_INFINITY; // a coinciding site: never skip the scan
+                }
+                if lower >= least {
+                    continue;
+                }
+                let delta = grid.member_weights[k] - own;
+                for v in cell.vertices() {
+                    least = least.min(q2 - 2.0 * dot(q, *v) - delta);
+                }
             }
-            let q = sub(grid.member_sites[k], site);
-            let q2 = norm2(q);
-            if q2 == 0.0 {
-                least = f64::NEG_INFINITY; // a coinciding site: never skip the scan
-            }
-            let delta = grid.member_weights[k] - own;
-            for v in cell.vertices() {
-                least = least.min(q2 - 2.0 * dot(q, *v) - delta);
-            }
-            q2max = q2max.max(q2);
         }
         r.s = least;
         r.q = q2max.sqrt() * (1.0 + MARGIN_ROUNDING);
