@@ -382,7 +382,7 @@ pub(crate) fn trial_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     request: &Request<'_, D>,
     floor: f64,
     margins: Option<&MarginRequest<'_, D>>,
-) -> Result<Option<(Clipped<D, C>, Option<Margins<D>>)>, CoreError>
+) -> Result<Option<Trial<D, C>>, CoreError>
 where
     Euclid: Space<D>,
 {
@@ -395,6 +395,9 @@ where
     let out = clipped_diagram_above::<D, C, K>(domain, sites, request, floor, margins, &mut taken)?;
     Ok(out.map(|clipped| (clipped, taken)))
 }
+
+/// A trial diagram and the margins it took ([`trial_diagram`]).
+pub(crate) type Trial<const D: usize, C> = (Clipped<D, C>, Option<Margins<D>>);
 
 /// The stored margins a trial diagram reads and takes ([`trial_diagram`]).
 #[derive(Debug, Clone, Copy)]

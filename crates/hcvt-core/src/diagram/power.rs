@@ -37,6 +37,10 @@
 //! near the mean of its vertices ([`Power::hinted_cell`], the proof there): no stream from
 //! the site, which at convergence lies outside 76% of the cells (10,000 sites, equal
 //! masses).
+//!
+//! **Stored margins.** A cell certified by the scan can keep a margin ([`Margins`]) that
+//! lets the trials of later Newton steps skip the scan when their weights moved little
+//! ([`Power::hinted_cell`], the proof there): the same cells bit for bit.
 
 use std::ops::ControlFlow;
 
@@ -982,7 +986,7 @@ impl<'a, const D: usize> Power<'a, D> {
         let side = self.grid.side;
         let d_i = self.weights[i] - m.own;
         let b = m.dmax - d_i + MARGIN_ROUNDING * (m.dmax.abs() + d_i.abs());
-        if !(b <= MARGIN_WEIGHT * side * side) {
+        if b.is_nan() || b > MARGIN_WEIGHT * side * side {
             return false;
         }
         let e2 = cell.vertices().iter().fold(0.0_f64, |e2, &v| {
@@ -990,7 +994,7 @@ impl<'a, const D: usize> Power<'a, D> {
             e2.max(near2)
         });
         let e = e2.sqrt() * (1.0 + MARGIN_ROUNDING);
-        if !(e <= MARGIN_REACH * side) {
+        if e.is_nan() || e > MARGIN_REACH * side {
             return false;
         }
         let spread = 2.0 * m.q * e;
