@@ -69,18 +69,19 @@
 //! the L-shape at 100,000, two rejected trials of ten diagrams; the same weights bit for
 //! bit; `docs/results/transport.txt` §8-9).
 //!
-//! **Stored margins.** Once the largest relative error is below [`MARGINS_BELOW`] (and its
-//! square above `tol`: not in a step likely to end the run), a trial's cells certified by
-//! their scan also keep a margin: their vertices, the sites of their faces, and the least
-//! value over those vertices of the half-spaces' functions of the other sites near them
+//! **Stored margins.** In a Newton step whose iterate is expected close to the solution
+//! ([`MARGINS_BELOW`], [`expected_error`]), a trial's cells certified by their scan also
+//! keep a margin: their vertices, the sites of their faces, and the least value over those
+//! vertices of the half-spaces' functions of the other sites near them
 //! (`Power::hinted_cell`, ot5's proof in `docs/results/transport.txt` §11). A later
 //! trial's cell whose hint-clipped polygon lies within a small distance of the margin's
 //! vertices, with the weights moved by little since, is then the exact cell without the
 //! scan: the same cell bit for bit (every clip of the scan would have found every vertex
 //! inside), so the same weights ([`set_stored_margins`] turns it off for the test that
-//! says so). Why: the scan was ~40% of the extension's samples at 10,000 sites, and in the
-//! last two trials 99.6% of the cells pass (5,000 sites in the square); CPU time of the
-//! transport at 10,000 sites 4-9% lower, no change measured at 100,000 (§14).
+//! says so). Why: the scan was ~40% of the extension's samples at 10,000 sites; 97.5-99.7%
+//! of the cells of the last two or three trials pass (10,000 and 100,000 sites, square and
+//! L-shape); CPU time of the transport on one thread 0-5% lower in the square at 10,000
+//! sites, 13-14% in the L-shape, 4.5% in the square at 100,000 (§14).
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
