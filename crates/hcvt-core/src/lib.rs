@@ -49,6 +49,8 @@ pub use domain::{generalized_winding_number, Boundary, Polygon, Solid, TriangleS
 pub use error::CoreError;
 pub use geometry::{Aabb, Euclid, Space};
 pub use moments::{tetra_moments, triangle_moments, FaceMoments, Moments};
+#[doc(hidden)]
+pub use optimise::set_stored_margins;
 pub use optimise::{
     capacity_cvt, cvt, evaluate, evaluate_warm, lbfgs, lloyd, optimal_transport,
     optimal_transport_from, Capacity, CapacityRecord, CapacitySettings, Frame, Measures, Method,

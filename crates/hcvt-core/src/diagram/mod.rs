@@ -80,8 +80,9 @@ pub use order::morton_order;
 pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
-use power::Power;
+pub(crate) use power::Margins;
 pub use power::PowerWhole;
+use power::{MarginRows, MarginScratch, Power};
 pub use sphere::{Sphere, ON_SPHERE_TOL};
 pub use sphere_region::{SphereRegion, MAX_REACH_DEGREES};
 pub use surface::{RestrictedDelaunay, Surface, SurfacePieces};
@@ -158,6 +159,8 @@ struct Batch<const D: usize, C> {
     near_complete2: Vec<f64>,
     /// Cells whose nearest sites came from the warm start alone.
     warm_cells: usize,
+    /// The stored margins the power cells took ([`MarginRequest::record`]).
+    margins: MarginRows<D>,
     /// The error of the batch's first offending site in index order.
     error: Option<(usize, CoreError)>,
 }
@@ -189,6 +192,7 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             near: Vec::new(),
             near_complete2: Vec::new(),
             warm_cells: 0,
+            margins: MarginRows::default(),
             error: None,
         }
     }
@@ -346,11 +350,11 @@ pub fn clipped_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
-    clipped_diagram_above::<D, C, K>(domain, sites, request, None)?.ok_or_else(|| {
-        CoreError::InvalidSettings {
+    clipped_diagram_above::<D, C, K>(domain, sites, request, None, None, &mut None)?.ok_or_else(
+        || CoreError::InvalidSettings {
             reason: "a diagram without a mass floor stopped below one".into(),
-        }
-    })
+        },
+    )
 }
 
 /// A floor on the cells' masses below which a diagram is of no use to its caller
@@ -368,12 +372,17 @@ struct MassFloor {
 /// density the floor is not applied (the cells' masses are weighed after the clip). The
 /// answer does not depend on the thread count: `None` exactly when some cell of the
 /// whole diagram is below the floor.
+///
+/// With `margins` (power cells started from [`Request::power_start`]): cells certified
+/// by stored margins instead of their scan, and the margins this diagram's scans took
+/// (`Power::hinted_cell`, the same cells bit for bit), returned with it.
 pub(crate) fn trial_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: &[[f64; D]],
     request: &Request<'_, D>,
     floor: f64,
-) -> Result<Option<Clipped<D, C>>, CoreError>
+    margins: Option<&MarginRequest<'_, D>>,
+) -> Result<Option<Trial<D, C>>, CoreError>
 where
     Euclid: Space<D>,
 {
@@ -382,15 +391,34 @@ where
         below: AtomicBool::new(false),
     };
     let floor = request.density.is_none().then_some(&floor);
-    clipped_diagram_above::<D, C, K>(domain, sites, request, floor)
+    let mut taken = None;
+    let out = clipped_diagram_above::<D, C, K>(domain, sites, request, floor, margins, &mut taken)?;
+    Ok(out.map(|clipped| (clipped, taken)))
 }
 
-/// [`clipped_diagram`], or `None` when a cell is below `floor` ([`trial_diagram`]).
+/// A trial diagram and the margins it took ([`trial_diagram`]).
+pub(crate) type Trial<const D: usize, C> = (Clipped<D, C>, Option<Margins<D>>);
+
+/// The stored margins a trial diagram reads and takes ([`trial_diagram`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MarginRequest<'a, const D: usize> {
+    /// Margins taken by earlier diagrams of the same sites.
+    pub stored: Option<&'a Margins<D>>,
+    /// Per iterate `k` of `stored`, `max_j (w_j − w_k,j)` of this diagram's weights `w`.
+    pub dmax: &'a [f64],
+    /// Take the margins of the cells certified by their scan, numbered this iterate.
+    pub record: Option<u32>,
+}
+
+/// [`clipped_diagram`], or `None` when a cell is below `floor` ([`trial_diagram`]); the
+/// margins `margins` asks to take in `taken`.
 fn clipped_diagram_above<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: &[[f64; D]],
     request: &Request<'_, D>,
     floor: Option<&MassFloor>,
+    margins: Option<&MarginRequest<'_, D>>,
+    taken: &mut Option<Margins<D>>,
 ) -> Result<Option<Clipped<D, C>>, CoreError>
 where
     Euclid: Space<D>,
@@ -435,17 +463,23 @@ where
     let integrand = request.integrand;
     // The winding numbers and the index are dropped before the batches are assembled,
     // when every batch and the whole diagram are alive at once (issue 32: memory).
+    let power_start = request
+        .power_start
+        .filter(|d| weights.is_some() && d.len() == sites.len());
     let batches = {
         let windings = checked_windings(domain, sites, request.options)?;
         let index = SiteIndex::new(sites)?;
-        let power_start = request
-            .power_start
-            .filter(|d| weights.is_some() && d.len() == sites.len());
         let visit = Visit {
             sites,
             index: &index,
             windings: &windings,
-            power: weights.map(|w| Power::new(w, sites)),
+            power: weights.map(|w| {
+                let power = Power::new(w, sites);
+                match (margins, power_start) {
+                    (Some(m), Some(_)) => power.with_margins(m.stored, m.dmax, m.record),
+                    _ => power,
+                }
+            }),
             power_start,
             total_sites: sites.len(),
             // A power start replaces the warm lists (its cells stream no sites).
@@ -473,6 +507,13 @@ where
     let mut batches = without_errors(batches)?;
     if floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
         return Ok(None);
+    }
+    if let Some(m) = margins.filter(|_| power_start.is_some()) {
+        *taken = Some(Margins::gather(
+            sites.len(),
+            m.record.unwrap_or(u32::MAX),
+            batches.iter().map(|b| &b.margins),
+        ));
     }
     if let Some(d @ Density::Sampled { field, .. }) = density {
         let rule = d.rule_in(domain.cell_dim())?;
@@ -604,19 +645,34 @@ where
 {
     /// Power cell `i` from [`Visit::power_start`]'s neighbours (`Power::hinted_cell`), in
     /// `buffer`; `None` without a start, or for a cell left to the stream.
+    /// With stored margins, the cell's is tried first; a margin taken is left in `record`
+    /// (`Power::hinted_cell`).
     fn started_cell<'c, C: ConvexCell<D>, K: DomainKind<D>>(
         &self,
         domain: &K,
         i: usize,
         buffer: &'c mut Option<C>,
+        record: &mut MarginScratch<D>,
     ) -> Option<&'c C> {
+        record.recorded = false;
+        record.skipped = false;
         let (power, start) = (self.power.as_ref()?, self.power_start?);
         let neighbours =
             &start.neighbor_sites[start.neighbor_offsets[i]..start.neighbor_offsets[i + 1]];
         let bounds = domain.start(self.sites[i]);
         let cell = buffer.get_or_insert_with(|| C::from_box(&bounds));
+        let margin = power.margin(i);
         power
-            .hinted_cell(cell, &bounds, self.sites, i, neighbours)
+            .hinted_cell(
+                cell,
+                &bounds,
+                self.sites,
+                i,
+                neighbours,
+                margin.as_ref(),
+                record,
+                power.records(),
+            )
             .then_some(&*cell)
     }
 
@@ -637,9 +693,14 @@ where
                 || {
                     let mut measuring = MeasureScratch::default();
                     measuring.faces.weighted = weighted.clone();
-                    (CellScratch::default(), measuring, None)
+                    (
+                        CellScratch::default(),
+                        measuring,
+                        None,
+                        MarginScratch::default(),
+                    )
                 },
-                |(scratch, measuring, hinted), chunk| {
+                |(scratch, measuring, hinted, margin), chunk| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
                     for &i in chunk {
                         if self.floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
@@ -651,7 +712,7 @@ where
                         // boundary near the cell assumes it does (`cut_by_boundary`).
                         let convex_inside = convex && winding == Some(1) && self.power.is_none();
                         let warm = self.warm.and_then(|(w, moved)| w.certified(i, moved));
-                        let started = self.started_cell(domain, i, hinted);
+                        let started = self.started_cell(domain, i, hinted, margin);
                         let (cell, inside) = match started.map_or_else(
                             || {
                                 voronoi_cell::<D, C, K>(
@@ -695,6 +756,7 @@ where
                             f.below.store(true, Ordering::Relaxed);
                         }
                         batch.push(i, moments, &mut measuring.faces, integrand.is_some());
+                        batch.margins.push(i, margin);
                         if keep_cells {
                             batch.cells.push(cell.clone());
                         }

@@ -37,6 +37,10 @@
 //! near the mean of its vertices ([`Power::hinted_cell`], the proof there): no stream from
 //! the site, which at convergence lies outside 76% of the cells (10,000 sites, equal
 //! masses).
+//!
+//! **Stored margins.** A cell certified by the scan can keep a margin ([`Margins`]) that
+//! lets the trials of later Newton steps skip the scan when their weights moved little
+//! ([`Power::hinted_cell`], the proof there): the same cells bit for bit.
 
 use std::ops::ControlFlow;
 
@@ -52,6 +56,12 @@ pub(super) struct Power<'a, const D: usize> {
     /// `max_j w_j`.
     max: f64,
     grid: MaxGrid<D>,
+    /// Stored margins of earlier diagrams of the same sites and, per iterate they were
+    /// taken at, `max_j (w_j − w_k,j)` ([`Power::hinted_cell`]).
+    margins: Option<&'a Margins<D>>,
+    margin_dmax: &'a [f64],
+    /// Take the margins of the cells certified by their scan.
+    record: bool,
 }
 
 /// Sites per block of [`MaxGrid`], about.
@@ -270,17 +280,18 @@ impl<const D: usize> MaxGrid<D> {
 
     /// The two-level scan of both passes ([`Power::clip_heavier`], [`Power::hinted_cell`])
     /// over the blocks `from..=to`: each coarse block in order, its blocks in order if
-    /// `reach2(state, W, first, last)` (its largest weight `W`, its blocks `first..=last`
-    /// within the cube) is `Some`, then each member `k` of a block, in index order, with
-    /// `member(state, k, block2)` if that block's `reach2` is `Some(block2)`; `reach2` sees
-    /// the state as `member` left it. Stops at the first `Break`.
-    fn scan<S, B>(
+    /// `reach2(state, W, first, last, None)` (its largest weight `W`, its blocks
+    /// `first..=last` within the cube) is `Some(coarse2)`, then each member `k` of a block,
+    /// in index order, with `member(state, k, block2)` if that block's
+    /// `reach2(state, W_b, at, at, Some(coarse2))` is `Some(block2)`; `reach2` sees the
+    /// state as `member` left it. Stops at the first `Break`.
+    fn scan<S, B, T: Copy>(
         &self,
         from: [usize; D],
         to: [usize; D],
         state: &mut S,
-        reach2: impl Fn(&S, f64, [usize; D], [usize; D]) -> Option<f64>,
-        mut member: impl FnMut(&mut S, usize, f64) -> ControlFlow<B>,
+        reach2: impl Fn(&S, f64, [usize; D], [usize; D], Option<T>) -> Option<T>,
+        mut member: impl FnMut(&mut S, usize, T) -> ControlFlow<B>,
     ) -> ControlFlow<B> {
         let (coarse_from, coarse_to) = (from.map(|x| x / COARSE), to.map(|x| x / COARSE));
         let mut coarse = coarse_from;
@@ -288,11 +299,11 @@ impl<const D: usize> MaxGrid<D> {
             let first = std::array::from_fn(|k| (coarse[k] * COARSE).max(from[k]));
             let last = std::array::from_fn(|k| (coarse[k] * COARSE + COARSE - 1).min(to[k]));
             let coarse_max = self.coarse_max[self.coarse_flat(coarse)];
-            if reach2(state, coarse_max, first, last).is_some() {
+            if let Some(coarse2) = reach2(state, coarse_max, first, last, None) {
                 let mut at = first;
                 loop {
                     let b = self.flat(at);
-                    if let Some(block2) = reach2(state, self.max[b], at, at) {
+                    if let Some(block2) = reach2(state, self.max[b], at, at, Some(coarse2)) {
                         for k in self.starts[b] as usize..self.starts[b + 1] as usize {
                             member(state, k, block2)?;
                         }
@@ -354,6 +365,213 @@ const HINT_SPAN: f64 = 2.0;
 /// magnitudes: generous for their rounding (a few ulps each).
 const HINT_ROUNDING: f64 = 1e-9;
 
+/// How far a later trial's cell may lie from the cell a margin was taken on
+/// ([`Power::hinted_cell`]), in blocks of [`MaxGrid`]: `E`. The scan that takes a margin
+/// reads the sites within the reach of a cell grown by this much.
+const MARGIN_REACH: f64 = 0.01;
+
+/// How much a later trial may raise a weight against the cell's own, relative to the
+/// margin's weights, in squared blocks of [`MaxGrid`]: `B` (about 0.08 mean cell areas).
+const MARGIN_WEIGHT: f64 = 0.01;
+
+/// Relative margin of the stored-margin test for the rounding of its terms.
+const MARGIN_ROUNDING: f64 = 1e-9;
+
+/// One cell's stored margin as a trial reads it ([`Power::hinted_cell`]): taken at the
+/// weights `w_a`, with `dmax = max_j (w'_j − w_a,j)` of the trial's weights `w'`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct StoredMargin<'m, const D: usize> {
+    /// The least `f_j` over the cell's vertices and its listed non-face sites, `L²`.
+    pub s: f64,
+    /// The largest distance of those sites from the cell's, `L`.
+    pub q: f64,
+    /// The cell's own weight `w_a,i`, `L²`.
+    pub own: f64,
+    /// `max_j (w'_j − w_a,j)`, `L²`.
+    pub dmax: f64,
+    /// The cell's vertices, relative to its site.
+    pub vertices: &'m [[f64; D]],
+    /// The sites of its faces.
+    pub faces: &'m [u32],
+}
+
+/// A cell's margin being taken ([`Power::hinted_cell`] with `record`), and its buffers.
+#[derive(Debug, Clone, Default)]
+pub(super) struct MarginScratch<const D: usize> {
+    /// A record was taken for the last cell.
+    pub recorded: bool,
+    /// The last cell was certified by its stored margin.
+    pub skipped: bool,
+    pub s: f64,
+    pub q: f64,
+    pub own: f64,
+    pub vertices: Vec<[f64; D]>,
+    pub faces: Vec<u32>,
+    /// The listed sites, as indices into the grid's members, each with a lower bound of
+    /// its `f_j` over the cell (`−∞` if none was computed).
+    list: Vec<(u32, f64)>,
+}
+
+/// Stored margins of some cells of a power diagram, in index order, for the trials of
+/// later Newton steps of optimal transport (`Power::hinted_cell`, `optimise::transport`).
+#[derive(Debug, Clone, Default)]
+pub struct Margins<const D: usize> {
+    /// Cells of the diagram that took these margins certified by a stored one instead.
+    skipped: usize,
+    /// Per cell, the iterate its margin was taken at (its caller's numbering), or
+    /// `u32::MAX` for none.
+    iterate: Vec<u32>,
+    own: Vec<f64>,
+    s: Vec<f64>,
+    q: Vec<f64>,
+    vertex_offsets: Vec<usize>,
+    vertices: Vec<[f64; D]>,
+    face_offsets: Vec<usize>,
+    faces: Vec<u32>,
+}
+
+/// The margins one batch of cells took, in its visiting order.
+#[derive(Debug, Clone, Default)]
+pub(super) struct MarginRows<const D: usize> {
+    /// Cells certified by their stored margin.
+    skipped: usize,
+    sites: Vec<u32>,
+    values: Vec<[f64; 3]>,
+    vertex_counts: Vec<u32>,
+    vertices: Vec<[f64; D]>,
+    face_counts: Vec<u32>,
+    faces: Vec<u32>,
+}
+
+impl<const D: usize> MarginRows<D> {
+    /// Append cell `i`'s record from `r`, if it took one.
+    pub(super) fn push(&mut self, i: usize, r: &MarginScratch<D>) {
+        self.skipped += usize::from(r.skipped);
+        if !r.recorded {
+            return;
+        }
+        self.sites.push(i as u32);
+        self.values.push([r.s, r.q, r.own]);
+        self.vertex_counts.push(r.vertices.len() as u32);
+        self.vertices.extend_from_slice(&r.vertices);
+        self.face_counts.push(r.faces.len() as u32);
+        self.faces.extend_from_slice(&r.faces);
+    }
+}
+
+impl<const D: usize> Margins<D> {
+    /// No margins for `n` cells.
+    pub fn none(n: usize) -> Self {
+        Self {
+            skipped: 0,
+            iterate: vec![u32::MAX; n],
+            own: vec![0.0; n],
+            s: vec![0.0; n],
+            q: vec![0.0; n],
+            vertex_offsets: vec![0; n + 1],
+            vertices: Vec::new(),
+            face_offsets: vec![0; n + 1],
+            faces: Vec::new(),
+        }
+    }
+
+    /// The cells' number.
+    pub fn len(&self) -> usize {
+        self.iterate.len()
+    }
+
+    /// Cell `i`'s margin, taken at iterate `iterate[i]`, when it has one.
+    pub fn iterate(&self, i: usize) -> Option<u32> {
+        self.iterate.get(i).copied().filter(|&k| k != u32::MAX)
+    }
+
+    /// Cells of the diagram that took these margins certified by a stored one instead of
+    /// their scan.
+    pub fn skipped(&self) -> usize {
+        self.skipped
+    }
+
+    /// The records of `rows` (one diagram's batches) for `n` cells, taken at `iterate`
+    /// (`u32::MAX`: none were taken, the cells certified by margins are counted).
+    pub(super) fn gather<'r>(
+        n: usize,
+        iterate: u32,
+        rows: impl Iterator<Item = &'r MarginRows<D>> + Clone,
+    ) -> Self {
+        let mut m = Self::none(n);
+        for r in rows.clone() {
+            m.skipped += r.skipped;
+            for (k, &i) in r.sites.iter().enumerate() {
+                let i = i as usize;
+                m.iterate[i] = iterate;
+                [m.s[i], m.q[i], m.own[i]] = r.values[k];
+                m.vertex_offsets[i + 1] = r.vertex_counts[k] as usize;
+                m.face_offsets[i + 1] = r.face_counts[k] as usize;
+            }
+        }
+        for i in 0..n {
+            m.vertex_offsets[i + 1] += m.vertex_offsets[i];
+            m.face_offsets[i + 1] += m.face_offsets[i];
+        }
+        m.vertices = vec![[0.0; D]; m.vertex_offsets[n]];
+        m.faces = vec![0; m.face_offsets[n]];
+        for r in rows {
+            let (mut at_v, mut at_f) = (0, 0);
+            for (k, &i) in r.sites.iter().enumerate() {
+                let i = i as usize;
+                let (v, f) = (r.vertex_counts[k] as usize, r.face_counts[k] as usize);
+                let (to_v, to_f) = (m.vertex_offsets[i], m.face_offsets[i]);
+                m.vertices[to_v..to_v + v].copy_from_slice(&r.vertices[at_v..at_v + v]);
+                m.faces[to_f..to_f + f].copy_from_slice(&r.faces[at_f..at_f + f]);
+                at_v += v;
+                at_f += f;
+            }
+        }
+        m
+    }
+
+    /// Each cell's margin from `fresh` where it has one, else from `self`.
+    pub fn merged(&self, fresh: &Self) -> Self {
+        let n = fresh.len();
+        let pick = |i: usize| {
+            if fresh.iterate(i).is_some() || self.len() != n {
+                fresh
+            } else {
+                self
+            }
+        };
+        let mut m = Self::none(n);
+        for i in 0..n {
+            let from = pick(i);
+            m.iterate[i] = from.iterate[i];
+            m.s[i] = from.s[i];
+            m.q[i] = from.q[i];
+            m.own[i] = from.own[i];
+            let v = from.vertex_offsets[i]..from.vertex_offsets[i + 1];
+            m.vertices.extend_from_slice(&from.vertices[v]);
+            m.vertex_offsets[i + 1] = m.vertices.len();
+            let f = from.face_offsets[i]..from.face_offsets[i + 1];
+            m.faces.extend_from_slice(&from.faces[f]);
+            m.face_offsets[i + 1] = m.faces.len();
+        }
+        m
+    }
+
+    /// Cell `i`'s margin for a trial whose weights exceed iterate `k`'s by at most
+    /// `dmax[k]` (`max_j (w'_j − w_k,j)`).
+    pub(super) fn get(&self, i: usize, dmax: &[f64]) -> Option<StoredMargin<'_, D>> {
+        let k = self.iterate(i)? as usize;
+        Some(StoredMargin {
+            s: self.s[i],
+            q: self.q[i],
+            own: self.own[i],
+            dmax: *dmax.get(k)?,
+            vertices: &self.vertices[self.vertex_offsets[i]..self.vertex_offsets[i + 1]],
+            faces: &self.faces[self.face_offsets[i]..self.face_offsets[i + 1]],
+        })
+    }
+}
+
 impl<'a, const D: usize> Power<'a, D> {
     /// Weights indexed like `sites` (all finite, checked by the caller).
     pub(super) fn new(weights: &'a [f64], sites: &[[f64; D]]) -> Self {
@@ -362,6 +580,9 @@ impl<'a, const D: usize> Power<'a, D> {
             weights,
             max,
             grid: MaxGrid::new(sites, weights),
+            margins: None,
+            margin_dmax: &[],
+            record: false,
         }
     }
 
@@ -372,7 +593,36 @@ impl<'a, const D: usize> Power<'a, D> {
             weights,
             max: whole.max_weight,
             grid: MaxGrid::of_whole(sites, weights, whole, true),
+            margins: None,
+            margin_dmax: &[],
+            record: false,
         }
+    }
+
+    /// These weights with the stored margins `margins` (`dmax` per iterate, see
+    /// [`Margins::get`]) and, with `record`, taking margins ([`Power::hinted_cell`]).
+    pub(super) fn with_margins(
+        self,
+        margins: Option<&'a Margins<D>>,
+        dmax: &'a [f64],
+        record: Option<u32>,
+    ) -> Self {
+        Self {
+            margins,
+            margin_dmax: dmax,
+            record: record.is_some(),
+            ..self
+        }
+    }
+
+    /// Cell `i`'s stored margin, when it has one.
+    pub(super) fn margin(&self, i: usize) -> Option<StoredMargin<'a, D>> {
+        self.margins?.get(i, self.margin_dmax)
+    }
+
+    /// Whether the cells take margins.
+    pub(super) fn records(&self) -> bool {
+        self.record
     }
 
     /// The half-space of cell `i` against site `j` at `q = z_j − z_i`, relative to `z_i`:
@@ -440,7 +690,7 @@ impl<'a, const D: usize> Power<'a, D> {
         // The squared distance (with the rounding margin) within which a site of weight at
         // most `w` in the blocks `first..=last` can cut the cell, when that reaches beyond
         // the streamed distance and the blocks lie within it; `None` when no such site can.
-        let reach2_of = |&(r, radius2): &(f64, f64), w: f64, first, last| {
+        let reach2_of = |&(r, radius2): &(f64, f64), w: f64, first, last, _: Option<f64>| {
             let reach = cut_reach(r, radius2, w - own)?;
             let reach2 = reach * reach * (1.0 + ROUNDING);
             (reach2 > covered2 && grid.near2(first, last, site) < reach2).then_some(reach2)
@@ -505,6 +755,25 @@ impl<'a, const D: usize> Power<'a, D> {
     /// exact power cell, whatever the hint (a wrong or empty hint costs time only). An
     /// empty `K` is the empty cell. The planes are clipped in another order than the
     /// stream's, so the cell equals the streamed one to round-off, not bit for bit.
+    ///
+    /// **Stored margins** (`docs/results/transport.txt` §11, §14). With `record`, a cell
+    /// certified by the whole scan is also described for later trials ([`MarginScratch`]):
+    /// the scan reads every site within the reach for a cell grown by `E` and weights
+    /// raised by `B` ([`MARGIN_REACH`], [`MARGIN_WEIGHT`]) into its list, and the record
+    /// holds the final vertices `V_a`, the sites of the cell's faces `F_a`, the least
+    /// `s = min f_j(v)` over `v ∈ V_a` and the listed sites `j ∉ F_a ∪ {i}`, and their
+    /// largest `Q = |q_j|` (the clips are those of the scan without `record`: the same cell
+    /// bit for bit). With `margin`, such a record taken at weights `w_a`, a later cell
+    /// `K'` of weights `w' = w_a + d` (the hint's clips, as above) skips the scan when `F_a`
+    /// is in the hint, every vertex of `K'` lies within `e ≤ E` of a vertex of `V_a`,
+    /// `b = max_j d_j − d_i ≤ B` and `s − 2Qe − b` exceeds a rounding margin. Why it is the
+    /// exact cell and the scan would clip nothing: for a vertex `v'` of `K'` and its nearest
+    /// `v ∈ V_a`, a listed `j` outside the hint has `f'_j(v') = f_j(v) − 2q_j·(v' − v) −
+    /// (d_j − d_i) ≥ s − 2Qe − b > 0`; an unlisted `j` lies beyond `ρ_a + E +
+    /// √((R_a + E)² + W − w_a,i + B)` of `c` (`W` its block's largest `w_a`), while `|v' − c|
+    /// ≤ ρ_a + e` and `|v'| ≤ R_a + e`, so `f'_j(v') > 0` as in (b). Every clip of the scan
+    /// would thus find every vertex inside and return `false` without touching the cell.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn hinted_cell<C: ConvexCell<D>>(
         &self,
         cell: &mut C,
@@ -512,7 +781,13 @@ impl<'a, const D: usize> Power<'a, D> {
         sites: &[[f64; D]],
         i: usize,
         neighbours: &[u32],
+        margin: Option<&StoredMargin<'_, D>>,
+        record: &mut MarginScratch<D>,
+        take: bool,
     ) -> bool {
+        record.recorded = false;
+        record.skipped = false;
+        record.list.clear();
         cell.reset_to_box(start);
         let site = sites[i];
         for &j in neighbours {
@@ -539,30 +814,69 @@ impl<'a, const D: usize> Power<'a, D> {
         if rho2 > (HINT_SPAN * grid.side).powi(2) {
             return false;
         }
+        if margin.is_some_and(|m| self.margin_holds(cell, i, neighbours, m)) {
+            record.skipped = true;
+            return true;
+        }
         let (rho, radius2) = (rho2.sqrt(), cell.max_dist2());
-        let Some(outer) = cut_reach(rho, radius2, self.slack(i)) else {
+        let Some(mut outer) = cut_reach(rho, radius2, self.slack(i)) else {
             return true; // no site can cut (cannot happen for a cell holding a point)
         };
+        let recording = take;
+        let (grow, raise) = (
+            MARGIN_REACH * grid.side,
+            MARGIN_WEIGHT * grid.side * grid.side,
+        );
+        // The reach of a cell grown by `grow`, its weights raised by `raise`.
+        let wide = |rho: f64, radius2: f64, excess: f64| {
+            let r = radius2.sqrt() + grow;
+            cut_reach(rho + grow, r * r, excess + raise)
+        };
+        if recording {
+            outer = outer.max(wide(rho, radius2, self.slack(i)).unwrap_or(0.0));
+        }
         let at = add(site, centre);
         let (from, to) = grid.cube(at, outer);
-        // Within this squared distance of `c` a site of weight at most `w` in the blocks
-        // `first..=last` may cut; `None` when the blocks lie beyond it.
-        let reach2_of = |&(rho, radius2): &(f64, f64), w: f64, first, last| {
-            let reach = cut_reach(rho, radius2, w - own)?;
-            let reach2 = reach * reach * (1.0 + ROUNDING);
-            (grid.near2(first, last, at) < reach2).then_some(reach2)
-        };
+        // Within the first squared distance of `c` a site of weight at most `w` in the
+        // blocks `first..=last` may cut (−∞ when the blocks lie beyond it, or their coarse
+        // block did); within the second it is listed (the first without `record`). `None`
+        // when the blocks lie beyond both.
+        let reach2_of =
+            |&(rho, radius2): &(f64, f64), w: f64, first, last, coarse: Option<(f64, f64)>| {
+                let near2 = grid.near2(first, last, at);
+                let cut2 = if coarse.is_some_and(|(c, _)| c == f64::NEG_INFINITY) {
+                    None
+                } else {
+                    cut_reach(rho, radius2, w - own).map(|r| r * r * (1.0 + ROUNDING))
+                };
+                let cut2 = cut2.filter(|&r2| near2 < r2).unwrap_or(f64::NEG_INFINITY);
+                if !recording {
+                    return (cut2 > f64::NEG_INFINITY).then_some((cut2, cut2));
+                }
+                let wide2 = wide(rho, radius2, w - own)
+                    .map_or(f64::NEG_INFINITY, |r| r * r * (1.0 + ROUNDING))
+                    .max(cut2);
+                (near2 < wide2).then_some((cut2, wide2))
+            };
+        let listed = &mut record.list;
         let mut state = (rho, radius2);
         let scanned = grid.scan(
             from,
             to,
             &mut state,
             reach2_of,
-            |(rho, radius2), k, block2| {
+            |(rho, radius2), k, (block2, wide2)| {
                 let q = sub(grid.member_sites[k], site);
                 let from_centre = sub(q, centre);
+                let d2 = norm2(from_centre);
+                if d2 >= wide2 {
+                    return ControlFlow::Continue(());
+                }
                 // (b) for the site's own weight, at most the block's.
-                if norm2(from_centre) >= block2 {
+                if d2 >= block2 {
+                    if recording {
+                        listed.push((k as u32, f64::NEG_INFINITY));
+                    }
                     return ControlFlow::Continue(());
                 }
                 let j = grid.members[k];
@@ -572,6 +886,11 @@ impl<'a, const D: usize> Power<'a, D> {
                 let ball = 2.0 * *rho * q2.sqrt();
                 // (a), with a margin for the rounding of every term.
                 let margin = HINT_ROUNDING * (q2 + 2.0 * qc.abs() + delta.abs() + ball);
+                if recording {
+                    // A lower bound of f_j over the ball holding the cell, hence over its
+                    // final vertices: `take_margin` evaluates those only below it.
+                    listed.push((k as u32, low - ball - margin));
+                }
                 if low - ball >= margin || j as usize == i || neighbours.contains(&j) {
                     return ControlFlow::Continue(());
                 }
@@ -590,8 +909,98 @@ impl<'a, const D: usize> Power<'a, D> {
         );
         match scanned {
             ControlFlow::Break(done) => done,
-            ControlFlow::Continue(()) => true,
+            ControlFlow::Continue(()) => {
+                if take {
+                    self.take_margin(cell, site, i, record);
+                }
+                true
+            }
         }
+    }
+
+    /// The record of cell `i` (its final `cell`, site at `site`) from the sites its scan
+    /// listed in `r.list` ([`Power::hinted_cell`]).
+    fn take_margin<C: ConvexCell<D>>(
+        &self,
+        cell: &C,
+        site: [f64; D],
+        i: usize,
+        r: &mut MarginScratch<D>,
+    ) {
+        let grid = &self.grid;
+        let own = self.weights[i];
+        r.faces.clear();
+        cell.for_each_plane(|face, _| {
+            if let Face::Neighbor(j) = face {
+                r.faces.push(j);
+            }
+        });
+        r.vertices.clear();
+        r.vertices.extend_from_slice(cell.vertices());
+        let (mut least, mut q2max) = (f64::INFINITY, 0.0_f64);
+        // The sites without a positive bound first, then the others whose bound is below
+        // the least value so far (the rest cannot lower it).
+        for bounded in [false, true] {
+            for &(k, lower) in &r.list {
+                if (lower > 0.0) != bounded {
+                    continue;
+                }
+                let k = k as usize;
+                let j = grid.members[k];
+                if j as usize == i || r.faces.contains(&j) {
+                    continue;
+                }
+                let q = sub(grid.member_sites[k], site);
+                let q2 = norm2(q);
+                q2max = q2max.max(q2);
+                if q2 == 0.0 {
+                    least = f64::NEG_INFINITY; // a coinciding site: never skip the scan
+                }
+                if lower >= least {
+                    continue;
+                }
+                let delta = grid.member_weights[k] - own;
+                for v in cell.vertices() {
+                    least = least.min(q2 - 2.0 * dot(q, *v) - delta);
+                }
+            }
+        }
+        r.s = least;
+        r.q = q2max.sqrt() * (1.0 + MARGIN_ROUNDING);
+        r.own = own;
+        r.recorded = true;
+    }
+
+    /// Whether the record `m` proves the hint-clipped `cell` of site `i` the exact cell
+    /// ([`Power::hinted_cell`]).
+    fn margin_holds<C: ConvexCell<D>>(
+        &self,
+        cell: &C,
+        i: usize,
+        neighbours: &[u32],
+        m: &StoredMargin<'_, D>,
+    ) -> bool {
+        if m.vertices.is_empty() || !m.faces.iter().all(|j| neighbours.contains(j)) {
+            return false;
+        }
+        let side = self.grid.side;
+        let d_i = self.weights[i] - m.own;
+        let b = m.dmax - d_i + MARGIN_ROUNDING * (m.dmax.abs() + d_i.abs());
+        if b.is_nan() || b > MARGIN_WEIGHT * side * side {
+            return false;
+        }
+        let e2 = cell.vertices().iter().fold(0.0_f64, |e2, &v| {
+            let near2 = (m.vertices.iter()).fold(f64::INFINITY, |n, &a| n.min(norm2(sub(v, a))));
+            e2.max(near2)
+        });
+        let e = e2.sqrt() * (1.0 + MARGIN_ROUNDING);
+        if e.is_nan() || e > MARGIN_REACH * side {
+            return false;
+        }
+        let spread = 2.0 * m.q * e;
+        let r = cell.max_dist2().sqrt();
+        let scale = m.s.abs() + spread + b.abs() + m.q * (m.q + 2.0 * (r + e));
+        m.s - spread - b > MARGIN_ROUNDING * scale
     }
 
     /// The squared distance from the vertex `point` of cell `i` (at squared distance

@@ -68,7 +68,8 @@ use newton::TrustRegion;
 pub use stopping::{Frame, Measures, Rule};
 use stopping::{Stall, Stalled};
 pub use transport::{
-    optimal_transport, optimal_transport_from, Transport, TransportRecord, TransportSettings,
+    optimal_transport, optimal_transport_from, set_stored_margins, Transport, TransportRecord,
+    TransportSettings,
 };
 
 /// Energy tolerance of the line search relative to `|E|`: 40 times the round-off of the

@@ -117,27 +117,82 @@ fn masses_in_a_periodic_box_and_a_3d_box_are_met() {
     check::<3, PolyhedronCell, _>(&cube, &sites, &out, None);
 }
 
+/// The weights do not depend on the thread count, nor on the stored margins of the trial
+/// diagrams (`Power::hinted_cell`: cells certified by a margin taken at an earlier iterate
+/// instead of their scan): bit for bit on 1 and 3 threads with margins, 1 without, in a
+/// square and an L-shape (whose notch's cells meet sites outside the domain), and a cube.
 #[test]
-fn weights_do_not_depend_on_the_thread_count() {
-    let square = BoxDomain::new([0.0, 0.0], [1.0, 1.0]).unwrap();
-    let sites = interior_sites(&square, 5000, 11);
-    let masses = random_masses(sites.len(), 1.0, 12);
-    let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
+fn weights_do_not_depend_on_the_thread_count_nor_the_stored_margins() {
+    let square = Polygon::from_rings(&[&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]]).unwrap();
+    let l_shape = Polygon::from_rings(&[&[
+        [0.0, 0.0],
+        [2.0, 0.0],
+        [2.0, 1.0],
+        [1.0, 1.0],
+        [1.0, 2.0],
+        [0.0, 2.0],
+    ]])
+    .unwrap();
+    for (domain, n, area, masses_seed) in [(&square, 5000, 1.0, 12), (&l_shape, 3000, 3.0, 14)] {
+        let sites = interior_sites(domain, n, 11);
+        let masses = random_masses(sites.len(), area, masses_seed);
+        same_bits_with_and_without_margins::<2, PolygonCell, _>(domain, &sites, &masses);
+    }
+    let cube = BoxDomain::new([0.0; 3], [1.0; 3]).unwrap();
+    let sites = interior_sites(&cube, 1000, 9);
+    let masses = random_masses(sites.len(), 1.0, 10);
+    same_bits_with_and_without_margins::<3, PolyhedronCell, _>(&cube, &sites, &masses);
+}
+
+/// The transport on 1 and 3 threads with stored margins and on 1 without: the weights and
+/// the history bit for bit, and the margins certified more than half a diagram's cells.
+fn same_bits_with_and_without_margins<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    masses: &[f64],
+) where
+    Euclid: Space<D>,
+{
+    let run = |threads: usize, margins: bool| {
+        hcvt_core::set_stored_margins(margins);
+        let out = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| {
-                optimal_transport::<2, PolygonCell, _>(&square, &sites, &masses, &settings())
-                    .unwrap()
-            })
+            .install(|| optimal_transport::<D, C, K>(domain, sites, masses, &settings()).unwrap());
+        hcvt_core::set_stored_margins(true);
+        out
     };
-    let (one, three) = (run(1), run(3));
-    assert!(one
-        .weights
-        .iter()
-        .map(|w| w.to_bits())
-        .eq(three.weights.iter().map(|w| w.to_bits())));
+    let (one, three, without) = (run(1, true), run(3, true), run(1, false));
+    let certified =
+        |out: &Transport<D>| -> usize { out.history.iter().map(|r| r.margin_cells).sum() };
+    // The margins certified cells (most of the last diagrams'), and only when on.
+    assert!(
+        certified(&one) > sites.len() / 2,
+        "{} cells",
+        certified(&one)
+    );
+    assert_eq!(certified(&without), 0);
+    let steps = |out: &Transport<D>| -> Vec<_> {
+        (out.history.iter())
+            .map(|r| {
+                (
+                    r.max_error.to_bits(),
+                    r.step.to_bits(),
+                    r.cg_iterations,
+                    r.diagrams,
+                )
+            })
+            .collect()
+    };
+    for other in [&three, &without] {
+        assert!(one
+            .weights
+            .iter()
+            .map(|w| w.to_bits())
+            .eq(other.weights.iter().map(|w| w.to_bits())));
+        assert_eq!(steps(&one), steps(other));
+    }
     assert_eq!(one.history, three.history);
 }
 
