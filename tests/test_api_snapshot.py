@@ -12,6 +12,9 @@ laplacianFoam diverge); the default of ``boundary_faces`` is ``"merged"`` (``wri
 None, meaning merged for OpenFOAM cases). Issue 33: ``surface_quality``'s ``samples`` and
 ``seed`` replaced by ``rtol`` (the Hausdorff distance to a tolerance, not sampled: 200,000
 samples missed a kitten's largest distance by 11%), and ``remesh``'s ``samples`` removed.
+Re-recorded for issue 33 (squal): ``SurfaceQuality.hausdorff_bound`` and
+``hausdorff_certified`` added (the recording also took in additions made since:
+``surface_pieces``, ``RemeshResult.freed``).
 """
 
 from __future__ import annotations

@@ -22,6 +22,7 @@ import hcvt
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry.surface_points import closest_points
 from hcvt.surface.quality import (
+    HausdorffWarning,
     SurfaceQuality,
     edge_topology,
     hausdorff_one_sided,
@@ -428,6 +429,55 @@ def test_hausdorff_distance_inside_a_triangle_to_its_tolerance(monkeypatch) -> N
     # A mesh on its reference: zero both ways (round-off).
     q = hcvt.surface_quality(*reference, reference=reference)
     assert q.hausdorff == pytest.approx(0.0, abs=1e-14)
+
+
+def test_hausdorff_distance_certified_or_flagged_never_silently_low(monkeypatch) -> None:
+    # Issue 33: the search stopped at its budget of nearest points and returned the largest
+    # distance found, a lower bound, as the distance (bunny 20k: 0.181% for 0.205%). Here a
+    # square (two triangles) to a finely triangulated wavy sheet 0.1 above it: the largest
+    # distance lies inside a triangle, and needs ~8,000 nearest points to 1e-3.
+    n = 60
+    x, y = (g.ravel() for g in np.meshgrid(np.linspace(0, 1, n + 1), np.linspace(0, 1, n + 1)))
+    z = 0.1 + 0.002 * np.sin(2 * np.pi * 2.3 * y + 0.4) * np.sin(2 * np.pi * 1.7 * x + 0.3)
+    i = (np.arange(n)[:, None] * (n + 1) + np.arange(n)).ravel()
+    sheet = (
+        np.stack([x, y, z], axis=1),
+        np.concatenate(
+            [np.stack([i, i + n + 1, i + n + 2], 1), np.stack([i, i + n + 2, i + 1], 1)]
+        ),
+    )
+    square = (
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float),
+        np.array([[0, 1, 2], [0, 2, 3]]),
+    )
+    # An independent lower bound: the largest distance of 100,000 random points of the
+    # square.
+    u = np.random.default_rng(0).random((50_000, 2))
+    u = np.where(u.sum(axis=1, keepdims=True) > 1, 1 - u, u)
+    a, b, c = (square[0][square[1][:, k]] for k in range(3))
+    points = np.concatenate(
+        [a[t] + u[:, :1] * (b[t] - a[t]) + u[:, 1:] * (c[t] - a[t]) for t in (0, 1)]
+    )
+    nearest, _ = closest_points(*sheet, points)
+    sampled = float(np.linalg.norm(nearest - points, axis=1).max())
+    rtol = 1e-3
+    distance, point, bound = hausdorff_one_sided(square, sheet, rtol)
+    assert sampled <= bound <= (1 + rtol) * distance
+    assert np.linalg.norm(closest_points(*sheet, point[None])[0][0] - point) == distance
+    # The old budget's case: stopped early, the distance is below the sampled one, and the
+    # bound above it tells.
+    distance, _, bound = hausdorff_one_sided(square, sheet, rtol, max_queries=4000)
+    assert distance < sampled <= bound and bound > (1 + rtol) * distance
+    # surface_quality: certified, or a warning and the flag.
+    per_cent = 100 / np.linalg.norm(np.ptp(sheet[0], axis=0))
+    q = hcvt.surface_quality(*square, reference=sheet)
+    assert q.hausdorff_certified and q.hausdorff_bound <= (1 + rtol) * q.hausdorff * (1 + 1e-12)
+    assert sampled * per_cent <= q.hausdorff_bound
+    monkeypatch.setattr("hcvt.surface.quality._HAUSDORFF_QUERIES", (0, 1000))
+    with pytest.warns(HausdorffWarning, match="only known to lie between"):
+        low = hcvt.surface_quality(*square, reference=sheet)
+    assert not low.hausdorff_certified
+    assert low.hausdorff_to_reference < sampled * per_cent <= low.hausdorff_bound
 
 
 # ---------------------------------------------------------------------------- command line

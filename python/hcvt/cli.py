@@ -21,6 +21,7 @@ import json
 import os
 import sys
 import time
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -40,6 +41,7 @@ from hcvt.lazy import load
 from hcvt.mesh import merged_boundary, mesh_quality
 from hcvt.optimise import RULES, capacity_method, default_tol, fastest_method
 from hcvt.seeding.sphere import icosahedral_level
+from hcvt.surface.quality import HausdorffWarning
 
 METHODS = ("hierarchical", "regular", "lbfgs", "newton", "lloyd", "monte-carlo", "voronoi")
 OPTIMISERS = ("lbfgs", "newton", "lloyd")
@@ -525,14 +527,21 @@ def _remesh(
     result = hcvt.remesh(
         domain, n, seed=seed, method=method or "lbfgs", features=features, **limits
     )
-    q = result.quality
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", HausdorffWarning)  # printed as a range instead
+        q = result.quality
+    hausdorff = (
+        f"{q.hausdorff:.3f}"
+        if q.hausdorff_certified
+        else f"between {q.hausdorff:.3f} and {q.hausdorff_bound:.3f} (not certified)"
+    )
     click.echo(
         f"n = {q.vertices}  triangles = {q.faces}  iterations = {result.iterations} "
         f"({result.cvt.stop_reason})  seconds = {result.seconds:.2f}"
     )
     click.echo(
         f"Q min {q.q_min:.3f} mean {q.q_mean:.3f}  angle min {q.angle_min:.1f} deg  "
-        f"{q.below_30:.2f}% of angles < 30 deg  Hausdorff {q.hausdorff:.3f}% of the diagonal  "
+        f"{q.below_30:.2f}% of angles < 30 deg  Hausdorff {hausdorff}% of the diagonal  "
         f"{'closed' if q.closed else 'manifold' if q.manifold else 'NOT manifold'}, "
         f"genus {q.genus}, {q.components} component(s)"
     )
