@@ -6,7 +6,9 @@ successors tabulate): ``Q = 6/√3 · A / (p · h)``, ``A`` the area, ``p`` the 
 degrees. The Hausdorff distance, both ways, as a percentage of the reference's
 bounding-box diagonal, is computed to a relative tolerance (not sampled): a branch and
 bound over each mesh's triangles (:func:`hausdorff_one_sided`), the nearest points on the
-other from the core's BVH. Topology from edge counts alone: an edge in one
+other from the core's BVH; where its budget of nearest points runs out first, the result
+says so (``hausdorff_certified`` False, the bound beside it, a :class:`HausdorffWarning`),
+never a lower bound passed off as the distance. Topology from edge counts alone: an edge in one
 triangle is a border edge, in three or more a non-manifold one; ``χ = V − E + F`` over the
 vertices used, and the genus of a connected, orientable mesh with ``b`` border loops is
 ``(2 − χ − b) / 2`` (summed as ``(2c − χ − b) / 2`` over ``c`` components).
