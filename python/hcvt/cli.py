@@ -531,9 +531,10 @@ def _remesh(
         warnings.simplefilter("ignore", HausdorffWarning)  # printed as a range instead
         q = result.quality
     hausdorff = (
-        f"{q.hausdorff:.3f}"
+        f"{q.hausdorff:.3f}% of the diagonal"
         if q.hausdorff_certified
-        else f"between {q.hausdorff:.3f} and {q.hausdorff_bound:.3f} (not certified)"
+        else f"between {q.hausdorff:.3f}% and {q.hausdorff_bound:.3f}% of the diagonal (not "
+        "certified: the search ran out of nearest points)"
     )
     click.echo(
         f"n = {q.vertices}  triangles = {q.faces}  iterations = {result.iterations} "
@@ -541,7 +542,7 @@ def _remesh(
     )
     click.echo(
         f"Q min {q.q_min:.3f} mean {q.q_mean:.3f}  angle min {q.angle_min:.1f} deg  "
-        f"{q.below_30:.2f}% of angles < 30 deg  Hausdorff {hausdorff}% of the diagonal  "
+        f"{q.below_30:.2f}% of angles < 30 deg  Hausdorff {hausdorff}  "
         f"{'closed' if q.closed else 'manifold' if q.manifold else 'NOT manifold'}, "
         f"genus {q.genus}, {q.components} component(s)"
     )
