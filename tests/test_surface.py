@@ -426,6 +426,8 @@ def test_hausdorff_distance_inside_a_triangle_to_its_tolerance(monkeypatch) -> N
     assert distance <= 0.4 <= bound < 0.41 and bound > distance * (1 + 1e-6)
     with pytest.raises(ValueError, match="rtol"):
         hausdorff_one_sided(reference, reference, 0.0)
+    with pytest.raises(ValueError, match="max_queries"):
+        hausdorff_one_sided(reference, reference, max_queries=-1)
     # A mesh on its reference: zero both ways (round-off).
     q = hcvt.surface_quality(*reference, reference=reference)
     assert q.hausdorff == pytest.approx(0.0, abs=1e-14)

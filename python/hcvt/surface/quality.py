@@ -306,6 +306,10 @@ def hausdorff_one_sided(
     """
     if not (isinstance(rtol, (int, float, np.floating)) and 0.0 < rtol < 1.0):
         raise ValueError(f"rtol must be a number in (0, 1), got {rtol!r}")
+    if max_queries is not None and not (
+        isinstance(max_queries, (int, np.integer)) and max_queries >= 0
+    ):
+        raise ValueError(f"max_queries must be a count (int >= 0), got {max_queries!r}")
     vs, fs = source
     vt, ft = target
     corners_t = tuple(vt[ft[:, k]] for k in range(3))
