@@ -30,6 +30,7 @@ from hcvt.density import DensityLike
 from hcvt.geometry.domain import Domain
 from hcvt.optimise import CVTResult, cvt
 from hcvt.seeding.initialisation import initialise
+from hcvt.surface.curvature import curvature_density
 from hcvt.surface.features import (
     FeatureSites,
     constrained_cvt,
@@ -121,6 +122,26 @@ TIGHTEN_MIN_ANGLE = 30.0
 TIGHTEN_SAMPLES_PER_VERTEX = 10
 
 
+#: The power of :func:`hcvt.surface.curvature_density` for ``density="curvature"``, the
+#: default of :func:`remesh`: the spacing ``∝ (1 + κ/κ̄)^(-1/4)``. n = 20,000, seeds 0-3,
+#: the Hausdorff distance (% of the diagonal, :func:`hcvt.surface_quality` with a budget
+#: large enough to be exact) after ``tighten``: bunny 0.114-0.138 against 0.150-0.174
+#: uniform (MeshLab 0.148), kitten 0.089-0.116 against 0.128-0.172 (MeshLab 0.141).
+REMESH_DENSITY_POWER = 1.0
+
+
+def _density(surface: Domain, density: DensityLike | str) -> DensityLike:
+    """:func:`remesh`'s ``density``, "curvature" made a field on the surface's vertices."""
+    if isinstance(density, str):
+        if density != "curvature":
+            raise ValueError(
+                f'density must be "curvature", a density (hcvt.density) or None, '
+                f"not {density!r}"
+            )
+        return curvature_density(surface, REMESH_DENSITY_POWER)
+    return density
+
+
 def _defects(
     faces: NDArray[np.intp], n: int, repeated: NDArray[np.intp], input_topology: dict[str, int]
 ) -> list[str]:
@@ -205,7 +226,7 @@ def remesh(
     features: float | None = None,
     tighten: bool = True,
     min_angle: float | None = None,
-    density: DensityLike = None,
+    density: DensityLike | str = "curvature",
 ) -> RemeshResult:
     """Remesh ``surface`` isotropically with exactly ``n`` vertices.
 
@@ -257,10 +278,13 @@ def remesh(
         The least angle (degrees, in [0, 60]) ``tighten`` may leave; None: the smaller of
         :data:`TIGHTEN_MIN_ANGLE` (30°) and the CVT mesh's own least angle (which then
         falls to 30° at most). Only with ``tighten``.
-    density : callable, Polynomial, array or None
+    density : "curvature", callable, Polynomial, array or None
         A density ρ > 0 on the surface for the CVT (:mod:`hcvt.density`): a callable of
         position, a :class:`hcvt.density.Polynomial`, or one value per vertex of the
         surface (linear on each triangle), e.g. :func:`hcvt.surface.curvature_density`.
+        The default, "curvature", is that function's mild grading
+        (:data:`REMESH_DENSITY_POWER`): the spacing shrinks where the surface bends, where
+        the chords leave it farthest.
         The spacing of the vertices follows ``ρ^(-1/4)`` (cells of dimension 2): for a
         spacing ``h(x)`` give ``ρ = h^-4``. The initial sites are drawn by area times
         ``ρ^(1/2)``. Still exactly ``n`` vertices. None: uniform.
@@ -294,6 +318,7 @@ def remesh(
             "min_angle is the least angle of tighten's moves; it was given with tighten=False"
         )
     start = time.perf_counter()
+    density = _density(surface, density)
     input_topology = edge_topology(surface.faces, len(surface.vertices))
     plan = None if features is None else plan_feature_sites(surface, n, features)
     held = 0 if plan is None else len(plan.points)

@@ -110,6 +110,12 @@ _GAIN = 1e-3
 _NEGLIGIBLE = 1e-9
 
 
+def _longest_edge(v: NDArray[np.float64], f: NDArray[np.intp]) -> float:
+    """The longest edge of the triangles ``f`` of ``v``."""
+    corners = v[f]
+    return float(np.linalg.norm(corners - corners[:, [1, 2, 0]], axis=2).max())
+
+
 def _on_input(surface: Domain, points: NDArray[np.float64]) -> NDArray[np.float64]:
     """The nearest points (m, 3) of ``surface`` to ``points`` (m, 3), in the input's frame.
 
@@ -194,6 +200,10 @@ class _Mesh:
         # The checked points of every triangle (the grid, and one more, its centroid until
         # :meth:`refine` finds a farther one) and their distances to the input.
         self.extra = np.full((len(self.f), 3), 1.0 / 3.0)
+        # For :meth:`refine`: the input's triangles by their centres, the longest edges.
+        self.input_centres = cKDTree(rv[rf].mean(axis=1))
+        self.input_reach = _longest_edge(rv, rf)
+        self.reach = _longest_edge(self.v, self.f)
         self.dt = self.to_input(self.triangle_points(np.arange(len(self.f)), self.v))
 
     def triangle_points(
@@ -255,8 +265,13 @@ class _Mesh:
             g = np.argmax(d, axis=1)
             top = d[np.arange(len(hot)), g]
             self.extra[hot], self.dt[hot, -1] = _FINE[g], top
-            # And the farthest point of them all, exactly (a peak between the grid's points).
-            d, point, _ = hausdorff_one_sided((self.v, self.f[hot]), (rv, rf))
+            # And the farthest point of them all, exactly (a peak between the grid's points),
+            # from the input's triangles within reach of them.
+            reach = self.reach + self.input_reach + 2.0 * worst
+            near = self.input_centres.query_ball_point(self.v[np.unique(self.f[hot])], reach)
+            local = rf[np.unique(np.concatenate(near)).astype(np.intp)]
+            _, point, _ = hausdorff_one_sided((self.v, self.f[hot]), (rv, local))
+            d = float(self.to_input(point[None])[0])
             _, which = _core.closest_points(
                 self.v, self.f[hot].astype(np.uint32), np.ascontiguousarray(point[None])
             )
@@ -278,8 +293,13 @@ class _Mesh:
             d, which = _to_triangles(points.reshape(-1, 3), self.v[self.f])
             g = np.argmax(d.reshape(len(faces), -1), axis=1)
             pick = np.arange(len(faces)) * len(_FINE) + g
-            # And the farthest point of them all, exactly.
-            _, peak, _ = hausdorff_one_sided((rv, rf[faces]), (self.v, self.f))
+            # And the farthest point of them all, exactly, from the mesh's triangles within
+            # reach of them.
+            tree = cKDTree(self.v)
+            reach = self.reach + self.input_reach + 2.0 * worst
+            near = tree.query_ball_point(rv[np.unique(rf[faces])], reach)
+            local = self.around(np.unique(np.concatenate(near)).astype(np.intp))
+            _, peak, _ = hausdorff_one_sided((rv, rf[faces]), (self.v, self.f[local]))
             new = np.vstack([points.reshape(-1, 3)[pick], peak])
             d, which = _to_triangles(new, self.v[self.f])
             self.s = np.concatenate([self.s, new])
