@@ -135,8 +135,7 @@ def _density(surface: Domain, density: DensityLike | str) -> DensityLike:
     if isinstance(density, str):
         if density != "curvature":
             raise ValueError(
-                f'density must be "curvature", a density (hcvt.density) or None, '
-                f"not {density!r}"
+                f'density must be "curvature", a density (hcvt.density) or None, not {density!r}'
             )
         return curvature_density(surface, REMESH_DENSITY_POWER)
     return density

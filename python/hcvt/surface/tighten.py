@@ -9,19 +9,29 @@ the vertex nearest such a place, one at a time, the worst place first:
 - a point ``P`` of the input far from the mesh: a vertex of the mesh's triangle nearest
   ``P`` moves to ``P`` (onto the input, as every vertex is);
 - a point ``Q`` of a mesh triangle far from the input (``Q*`` its nearest point there): a
-  vertex of that triangle moves by ``Q* − Q`` (or half of it), projected onto the input.
+  vertex of that triangle moves by ``Q* − Q`` (or a fraction of it), projected onto the
+  input, and toward ``Q*`` along the input (a vertex into the hollow the triangle spans: ``Q* −
+  Q`` is nearly normal to the surface, and projected back it moves the vertex little).
 
 A move is kept only if every triangle around the vertex keeps its least angle and its
 quality Q at or above the mesh's least ones (``min_angle`` may set the angle's floor),
 turns its normal by less than 60°, and the distances around it all fall below the worst
-one; the connectivity is not touched (the same faces, so the same manifold and genus). It
-stops when the worst place cannot be improved (or after ``max_moves``). The distances are the core's
-nearest points (its BVHs, :meth:`hcvt._core.SurfaceDomain.closest` for the input,
-``_core.closest_points`` for the mesh): from points of the input (its vertices and samples
-by area, and 3 points along each of its creases) to the mesh, and from 12 points of each mesh
-triangle (a barycentric grid of step 1/4) to the input; around a moved vertex they are
-updated over its two-ring (upper bounds, made exact again, all at once, before the largest
-is used).
+one; the connectivity is not touched (the same faces, so the same manifold and genus).
+Where no vertex can move alone (its triangles, already near the floors, would fall below
+them), it moves with its neighbours following by half its shift, the distortion spread
+over the next ring. Where nothing passes, the triangles near the worst distance are
+searched finer (:data:`_REFINE_SHARE`), and the farther places found are checked from then
+on; it stops when the worst place cannot be improved and no farther one is found (or
+after ``max_moves``). Bunny, n = 20,000, seed 0, uniform: where the checked points'
+worst was 0.141% of the diagonal, the true largest distance was 0.158%; 0.148% after
+the search on a finer grid, to which the exact search of each round's farthest point was
+added since. The distances are the core's nearest points (its BVHs,
+:meth:`hcvt._core.SurfaceDomain.closest` for the input, ``_core.closest_points`` for the
+mesh): from points of the input (its vertices and samples by area, and 3 points along
+each of its creases) to the mesh, and from 13 points of each mesh triangle (a barycentric
+grid of step 1/4 and one more) to the input; around a moved vertex they are updated over
+the triangles around its ring (upper bounds, made exact again, all at once, before the
+largest is used).
 """
 
 from __future__ import annotations
