@@ -88,7 +88,7 @@ _GRID = _barycentric_grid(_GRID_STEPS)
 #: join its points; then the moves go on, up to :data:`_REFINE_ROUNDS` times.
 _REFINE_SHARE = 0.7
 _REFINE_STEPS = 12
-_REFINE_ROUNDS = 4
+_REFINE_ROUNDS = 2
 _FINE = _barycentric_grid(_REFINE_STEPS)
 #: Where the input's edges are checked (fractions along each): a crease of the input is
 #: where the mesh is farthest from it, and samples by area rarely fall on it.
@@ -281,23 +281,25 @@ class _Mesh:
             near = self.input_centres.query_ball_point(self.v[np.unique(self.f[hot])], reach)
             local = rf[np.unique(np.concatenate(near)).astype(np.intp)]
             _, point, _ = hausdorff_one_sided((self.v, self.f[hot]), (rv, local))
-            d = float(self.to_input(point[None])[0])
+            far = float(self.to_input(point[None])[0])
             _, which = _core.closest_points(
                 self.v, self.f[hot].astype(np.uint32), np.ascontiguousarray(point[None])
             )
             face = int(hot[int(which[0])])
-            if d > self.dt[face, -1]:
+            if far > self.dt[face, -1]:
                 corners = self.v[self.f[face]]
                 weights = np.linalg.lstsq(corners.T, point, rcond=None)[0]
-                self.extra[face], self.dt[face, -1] = weights / weights.sum(), d
-            found = float(max(top.max(), d))
+                self.extra[face], self.dt[face, -1] = weights / weights.sum(), far
+            found = max(float(top.max()), far)
         # The input's triangles with a point near the worst distance (a sample in it, or
         # a corner): their farthest points join the input's points.
         n_samples = len(self.sample_faces)
-        far = self.ds >= bar
+        hot_points = self.ds >= bar
         corner = np.zeros(len(rv), dtype=bool)
-        corner[self.input_vertices] = far[n_samples : n_samples + len(self.input_vertices)]
-        faces = np.union1d(self.sample_faces[far[:n_samples]], np.flatnonzero(corner[rf].any(1)))
+        corner[self.input_vertices] = hot_points[n_samples : n_samples + len(self.input_vertices)]
+        faces = np.union1d(
+            self.sample_faces[hot_points[:n_samples]], np.flatnonzero(corner[rf].any(1))
+        )
         if len(faces):
             points = np.einsum("gk,fkd->fgd", _FINE, rv[rf[faces]])
             d, which = _to_triangles(points.reshape(-1, 3), self.v[self.f])
