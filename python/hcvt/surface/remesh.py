@@ -134,14 +134,18 @@ TIGHTEN_SAMPLES_PER_VERTEX = 5
 REMESH_DENSITY_POWER = 1.0
 
 
-def _density(surface: Domain, density: DensityLike | str) -> DensityLike:
-    """:func:`remesh`'s ``density``, "curvature" made a field on the surface's vertices."""
+def _density(surface: Domain, density: DensityLike | str, features: float | None) -> DensityLike:
+    """:func:`remesh`'s ``density``, "curvature" made a field on the surface's vertices.
+
+    Uniform (None) with ``features``: the held sites are spaced for a uniform density
+    (bunny, n = 600, creases above 30°, graded: cells that are not discs).
+    """
     if isinstance(density, str):
         if density != "curvature":
             raise ValueError(
                 f'density must be "curvature", a density (hcvt.density) or None, not {density!r}'
             )
-        return curvature_density(surface, REMESH_DENSITY_POWER)
+        return None if features is not None else curvature_density(surface, REMESH_DENSITY_POWER)
     return density
 
 
@@ -287,7 +291,8 @@ def remesh(
         surface (linear on each triangle), e.g. :func:`hcvt.surface.curvature_density`.
         The default, "curvature", is that function's mild grading
         (:data:`REMESH_DENSITY_POWER`): the spacing shrinks where the surface bends, where
-        the chords leave it farthest.
+        the chords leave it farthest; uniform with ``features`` (the held sites are
+        spaced evenly).
         The spacing of the vertices follows ``ρ^(-1/4)`` (cells of dimension 2): for a
         spacing ``h(x)`` give ``ρ = h^-4``. The initial sites are drawn by area times
         ``ρ^(1/2)``. Still exactly ``n`` vertices. None: uniform.
@@ -321,7 +326,7 @@ def remesh(
             "min_angle is the least angle of tighten's moves; it was given with tighten=False"
         )
     start = time.perf_counter()
-    density = _density(surface, density)
+    density = _density(surface, density, features)
     input_topology = edge_topology(surface.faces, len(surface.vertices))
     plan = None if features is None else plan_feature_sites(surface, n, features)
     held = 0 if plan is None else len(plan.points)
