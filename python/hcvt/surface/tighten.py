@@ -120,6 +120,18 @@ _GAIN = 1e-3
 _NEGLIGIBLE = 1e-9
 
 
+def _within(
+    points: NDArray[np.float64], queries: NDArray[np.float64], reach: float
+) -> NDArray[np.intp]:
+    """The indices (sorted) of ``points`` (m, 3) within ``reach`` of any of ``queries`` (k, 3).
+
+    One k-d tree of the queries, asked for each point's nearest within reach (the balls
+    around each query, then their union, cost several times more in Python lists).
+    """
+    distance, _ = cKDTree(queries).query(points, distance_upper_bound=reach)
+    return np.flatnonzero(distance <= reach)
+
+
 def _longest_edge(v: NDArray[np.float64], f: NDArray[np.intp]) -> float:
     """The longest edge of the triangles ``f`` of ``v``."""
     corners = v[f]
@@ -211,7 +223,7 @@ class _Mesh:
         # :meth:`refine` finds a farther one) and their distances to the input.
         self.extra = np.full((len(self.f), 3), 1.0 / 3.0)
         # For :meth:`refine`: the input's triangles by their centres, the longest edges.
-        self.input_centres = cKDTree(rv[rf].mean(axis=1))
+        self.input_centres = rv[rf].mean(axis=1)
         self.input_reach = _longest_edge(rv, rf)
         self.reach = _longest_edge(self.v, self.f)
         self.dt = self.to_input(self.triangle_points(np.arange(len(self.f)), self.v))
@@ -278,8 +290,7 @@ class _Mesh:
             # And the farthest point of them all, exactly (a peak between the grid's points),
             # from the input's triangles within reach of them.
             reach = self.reach + self.input_reach + 2.0 * worst
-            near = self.input_centres.query_ball_point(self.v[np.unique(self.f[hot])], reach)
-            local = rf[np.unique(np.concatenate(near)).astype(np.intp)]
+            local = rf[_within(self.input_centres, self.v[np.unique(self.f[hot])], reach)]
             _, point, _ = hausdorff_one_sided((self.v, self.f[hot]), (rv, local))
             far = float(self.to_input(point[None])[0])
             _, which = _core.closest_points(
@@ -307,10 +318,10 @@ class _Mesh:
             pick = np.arange(len(faces)) * len(_FINE) + g
             # And the farthest point of them all, exactly, from the mesh's triangles within
             # reach of them.
-            tree = cKDTree(self.v)
             reach = self.reach + self.input_reach + 2.0 * worst
-            near = tree.query_ball_point(rv[np.unique(rf[faces])], reach)
-            local = self.around(np.unique(np.concatenate(near)).astype(np.intp))
+            near = np.zeros(len(self.v), dtype=bool)
+            near[_within(self.v, rv[np.unique(rf[faces])], reach)] = True
+            local = np.flatnonzero(near[self.f].any(axis=1))  # the triangles around them
             _, peak, _ = hausdorff_one_sided((rv, rf[faces]), (self.v, self.f[local]))
             new = np.vstack([points.reshape(-1, 3)[pick], peak])
             d, which = _to_triangles(new, self.v[self.f])
