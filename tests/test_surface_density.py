@@ -232,3 +232,16 @@ def test_curvature_density_is_positive_and_grades_a_remesh() -> None:
         [(0, 1, 2), (0, 2, 3), (0, 3, 4), (0, 4, 1)],
     )
     np.testing.assert_allclose(hcvt.surface.curvature_density(disc, 2.0), 1.0, atol=1e-12)
+
+
+@needs_data
+def test_remesh_grades_by_curvature_by_default() -> None:
+    from hcvt.surface.remesh import REMESH_DENSITY_POWER
+
+    domain = surface("bunny.off")
+    graded = hcvt.remesh(domain, 100, seed=0, tighten=False)
+    rho = hcvt.surface.curvature_density(domain, REMESH_DENSITY_POWER)
+    explicit = hcvt.remesh(domain, 100, seed=0, tighten=False, density=rho)
+    np.testing.assert_array_equal(graded.vertices, explicit.vertices)
+    with pytest.raises(ValueError, match='"curvature", a density'):
+        hcvt.remesh(domain, 100, density="curved")

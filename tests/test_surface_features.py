@@ -85,7 +85,7 @@ def test_features_bring_the_fandisk_closer() -> None:
     domain = fandisk()
     n = 1500
     # The features' own effect: without the tightening moves on either side.
-    plain = hcvt.remesh(domain, n, seed=1, tighten=False)
+    plain = hcvt.remesh(domain, n, seed=1, tighten=False, density=None)  # uniform, as sharp
     sharp = hcvt.remesh(domain, n, seed=1, features=40.0, tighten=False)
     assert sharp.vertices.shape == (n, 3) and sharp.defects == []
     topology = edge_topology(sharp.faces, n)

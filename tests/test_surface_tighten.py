@@ -27,7 +27,7 @@ needs_data = pytest.mark.skipif(not DATA_3D.is_dir(), reason="../shared/data/3d 
 @cache
 def kitten_remeshed() -> tuple[hcvt.Domain, hcvt.RemeshResult]:
     domain = hcvt.load_domain(DATA_3D / "kitten.obj", surface=True)
-    return domain, hcvt.remesh(domain, 1000, seed=0, tighten=False)
+    return domain, hcvt.remesh(domain, 1000, seed=0, tighten=False, density=None)
 
 
 @needs_data
@@ -35,34 +35,36 @@ def test_tighten_lowers_the_hausdorff_distance_of_the_kitten() -> None:
     domain, out = kitten_remeshed()
     reference = (domain.vertices, domain.faces)
     before = hcvt.surface_quality(out.vertices, out.faces, reference)
-    for min_angle in (None, 30.0):
-        moved = tighten(out.vertices, out.faces, domain, min_angle=min_angle)
-        after = hcvt.surface_quality(moved.vertices, out.faces, reference)
-        assert moved.moves > 0 and moved.after < moved.before
-        # Measured so: 0.949% -> 0.750% (14 moves), 0.666% with 30° (52 moves).
-        assert after.hausdorff < 0.9 * before.hausdorff
-        floor = before.angle_min if min_angle is None else min_angle
-        assert after.angle_min >= floor - 1e-9
-        assert after.q_min >= before.q_min - 1e-12
-        # The vertices stay on the input, the triangles face the same way.
-        on, _ = closest_points(domain.vertices, domain.faces, moved.vertices)
-        assert np.abs(on - moved.vertices).max() < 1e-12
-        f = out.faces
-        n0 = np.cross(
-            out.vertices[f[:, 1]] - out.vertices[f[:, 0]],
-            out.vertices[f[:, 2]] - out.vertices[f[:, 0]],
-        )
-        n1 = np.cross(
-            moved.vertices[f[:, 1]] - moved.vertices[f[:, 0]],
-            moved.vertices[f[:, 2]] - moved.vertices[f[:, 0]],
-        )
-        assert np.all(np.einsum("ij,ij->i", n0, n1) > 0)
+    moved = tighten(out.vertices, out.faces, domain, min_angle=30.0)
+    after = hcvt.surface_quality(moved.vertices, out.faces, reference)
+    assert moved.moves > 0 and moved.after < moved.before
+    # Measured so: 0.949% -> 0.619% with 30° (67 moves). Moving single vertices toward
+    # the sampled worst places only, and stopping where none could move, left 0.708%
+    # (46 moves): the neighbours that follow a vertex, the mesh's vertices moved into
+    # the hollows its triangles span and the finer search near the worst distance
+    # (tighten's module docs) take it below 0.66%.
+    assert after.hausdorff < 0.66
+    assert after.angle_min >= 30.0 - 1e-9
+    assert after.q_min >= before.q_min - 1e-12
+    # The vertices stay on the input, the triangles face the same way.
+    on, _ = closest_points(domain.vertices, domain.faces, moved.vertices)
+    assert np.abs(on - moved.vertices).max() < 1e-12
+    f = out.faces
+    n0 = np.cross(
+        out.vertices[f[:, 1]] - out.vertices[f[:, 0]],
+        out.vertices[f[:, 2]] - out.vertices[f[:, 0]],
+    )
+    n1 = np.cross(
+        moved.vertices[f[:, 1]] - moved.vertices[f[:, 0]],
+        moved.vertices[f[:, 2]] - moved.vertices[f[:, 0]],
+    )
+    assert np.all(np.einsum("ij,ij->i", n0, n1) > 0)
 
 
 @needs_data
 def test_remesh_tightens_by_default_and_keeps_its_quality() -> None:
     domain, plain = kitten_remeshed()
-    out = hcvt.remesh(domain, 1000, seed=0)
+    out = hcvt.remesh(domain, 1000, seed=0, density=None)
     np.testing.assert_array_equal(out.faces, plain.faces)  # the connectivity is the CVT's
     assert out.moves > 0 and out.defects == []
     assert out.quality.hausdorff < plain.quality.hausdorff
