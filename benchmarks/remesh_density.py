@@ -2,8 +2,8 @@
 
 For each model, the uniform remesh (``density=None``) and one per ``--powers`` value
 ``p`` of ``hcvt.remesh(density=hcvt.surface.curvature_density(surface, p))``
-(``ρ = (floor + κ/κ̄)^p``, spacing ``∝ ρ^(-1/4)``; ``hcvt.remesh``'s default,
-``density="curvature"``, is the ``curv^1`` row at floor 1, smooth 5). Every output is measured by
+(``ρ = (floor + κ/κ̄)^p``, spacing ``∝ ρ^(-1/4)``; ``hcvt.remesh``'s option
+``density="curvature"`` is the ``curv^1`` row at floor 1, smooth 5). Every output is measured by
 :func:`hcvt.surface_quality` against the input: Q min/mean, θmin, % of angles < 30°,
 Hausdorff distance both ways as % of the diagonal, manifold, genus; with the
 remeshing's seconds and CVT iterations (``--plain``: without ``tighten``, the CVT's own

@@ -235,13 +235,15 @@ def test_curvature_density_is_positive_and_grades_a_remesh() -> None:
 
 
 @needs_data
-def test_remesh_grades_by_curvature_by_default() -> None:
+def test_remesh_grades_by_curvature_when_asked() -> None:
     from hcvt.surface.remesh import REMESH_DENSITY_POWER
 
     domain = surface("bunny.off")
-    graded = hcvt.remesh(domain, 100, seed=0, tighten=False)
+    graded = hcvt.remesh(domain, 100, seed=0, tighten=False, density="curvature")
     rho = hcvt.surface.curvature_density(domain, REMESH_DENSITY_POWER)
     explicit = hcvt.remesh(domain, 100, seed=0, tighten=False, density=rho)
     np.testing.assert_array_equal(graded.vertices, explicit.vertices)
+    uniform = hcvt.remesh(domain, 100, seed=0, tighten=False)
+    assert not np.array_equal(graded.vertices, uniform.vertices)
     with pytest.raises(ValueError, match='"curvature", a density'):
         hcvt.remesh(domain, 100, density="curved")

@@ -183,13 +183,14 @@ TIGHTEN_SAMPLES_PER_VERTEX = 5
 START_SAMPLES, START_STEPS = 8, 4
 
 
-#: The power of :func:`hcvt.surface.curvature_density` for ``density="curvature"``, the
-#: default of :func:`remesh`: the spacing ``∝ (1 + κ/κ̄)^(-1/4)``. n = 20,000, seeds 0-3,
-#: the Hausdorff distance (% of the diagonal, :func:`hcvt.surface.quality.hausdorff_one_sided`
-#: with a budget large enough to be exact) after ``tighten``: bunny 0.120-0.142 against
-#: 0.154-0.164 uniform (MeshLab 0.148), kitten 0.097-0.110 against 0.128-0.150 (MeshLab
-#: 0.141); the CVT's seconds 10-25% more (the density's integrals), and the armadillo at
-#: 5,000 needed 34 iterations against 12.
+#: The power of :func:`hcvt.surface.curvature_density` for ``density="curvature"`` (an
+#: option; the default is uniform): the spacing ``∝ (1 + κ/κ̄)^(-1/4)``. n = 20,000, seeds
+#: 0-3, spread start, the exact Hausdorff distance (% of the diagonal) after ``tighten``,
+#: graded against uniform: bunny 0.144, 0.171, 0.121, 0.140 against 0.158, 0.215, 0.187,
+#: 0.159 (MeshLab 0.148); kitten 0.094, 0.096, 0.095, 0.091 against 0.126, 0.143, 0.165,
+#: 0.142 (MeshLab 0.141); but 16-66% more CPU on the 8 benchmark cases (tighten works
+#: longer on the graded mesh; the density's integrals 4-18% of the CVT), and the bunny's
+#: seed 1 still above MeshLab's: not the default (docs/results/remesh.txt, shaus2).
 REMESH_DENSITY_POWER = 1.0
 
 
@@ -322,7 +323,7 @@ def remesh(
     features: float | None = None,
     tighten: bool = True,
     min_angle: float | None = None,
-    density: DensityLike | str = "curvature",
+    density: DensityLike | str = None,
 ) -> RemeshResult:
     """Remesh ``surface`` isotropically with exactly ``n`` vertices.
 
@@ -380,10 +381,10 @@ def remesh(
         A density ρ > 0 on the surface for the CVT (:mod:`hcvt.density`): a callable of
         position, a :class:`hcvt.density.Polynomial`, or one value per vertex of the
         surface (linear on each triangle), e.g. :func:`hcvt.surface.curvature_density`.
-        The default, "curvature", is that function's mild grading
-        (:data:`REMESH_DENSITY_POWER`): the spacing shrinks where the surface bends, where
-        the chords leave it farthest; uniform with ``features`` (the held sites are
-        spaced evenly).
+        ``"curvature"``: that function's mild grading (:data:`REMESH_DENSITY_POWER`), the
+        spacing smaller where the surface bends, where the chords leave it farthest (a
+        lower Hausdorff distance for more time); uniform with ``features`` (the held
+        sites are spaced evenly).
         The spacing of the vertices follows ``ρ^(-1/4)`` (cells of dimension 2): for a
         spacing ``h(x)`` give ``ρ = h^-4``. The initial sites are drawn by area times
         ``ρ^(1/2)``. Still exactly ``n`` vertices. None: uniform.
