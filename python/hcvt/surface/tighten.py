@@ -85,10 +85,13 @@ _GRID = _barycentric_grid(_GRID_STEPS)
 #: = 20,000: the largest distance 0.176% of the diagonal on a mesh edge, between grid
 #: points at 0.142% and 0.081%). The mesh's farthest point found is checked from then on
 #: (one per triangle, at the same barycentric coordinates as it moves), the input's ones
-#: join its points; then the moves go on, up to :data:`_REFINE_ROUNDS` times.
+#: join its points; then the moves go on, up to :data:`_REFINE_ROUNDS` times. One round
+#: (uniform remesh, seed 0, 2 threads, quiet): armadillo 5,000 2.46 s against 2.84 s with
+#: two, Hausdorff 0.387% both; bunny 20,000 3.84 / 4.29 s, 0.159 / 0.158%; kitten 20,000
+#: 3.59 / 3.91 s, 0.129 / 0.126%; fandisk 5,000 1.22 / 1.43 s, 0.429 / 0.424%.
 _REFINE_SHARE = 0.7
 _REFINE_STEPS = 12
-_REFINE_ROUNDS = 2
+_REFINE_ROUNDS = 1
 _FINE = _barycentric_grid(_REFINE_STEPS)
 #: Where the input's edges are checked (fractions along each): a crease of the input is
 #: where the mesh is farthest from it, and samples by area rarely fall on it.
