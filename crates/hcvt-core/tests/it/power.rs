@@ -20,6 +20,19 @@ fn settings<const D: usize>() -> TransportSettings<'static, D> {
     }
 }
 
+/// The L-shape of area 3: [0, 2]² without [1, 2]².
+fn l_shape() -> Polygon {
+    Polygon::from_rings(&[&[
+        [0.0, 0.0],
+        [2.0, 0.0],
+        [2.0, 1.0],
+        [1.0, 1.0],
+        [1.0, 2.0],
+        [0.0, 2.0],
+    ]])
+    .unwrap()
+}
+
 /// Masses between 0.5 and 1.5 times the mean, summing to `total`.
 fn random_masses(n: usize, total: f64, seed: u64) -> Vec<f64> {
     let mut rng = Lcg::new(seed);
@@ -59,15 +72,7 @@ fn check<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 
 #[test]
 fn masses_in_an_l_shape_are_met() {
-    let l_shape = Polygon::from_rings(&[&[
-        [0.0, 0.0],
-        [2.0, 0.0],
-        [2.0, 1.0],
-        [1.0, 1.0],
-        [1.0, 2.0],
-        [0.0, 2.0],
-    ]])
-    .unwrap();
+    let l_shape = l_shape();
     let sites = interior_sites(&l_shape, 2000, 3);
     let masses = random_masses(sites.len(), 3.0, 4);
     let out =
@@ -124,15 +129,7 @@ fn masses_in_a_periodic_box_and_a_3d_box_are_met() {
 #[test]
 fn weights_do_not_depend_on_the_thread_count_nor_the_stored_margins() {
     let square = Polygon::from_rings(&[&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]]).unwrap();
-    let l_shape = Polygon::from_rings(&[&[
-        [0.0, 0.0],
-        [2.0, 0.0],
-        [2.0, 1.0],
-        [1.0, 1.0],
-        [1.0, 2.0],
-        [0.0, 2.0],
-    ]])
-    .unwrap();
+    let l_shape = l_shape();
     for (domain, n, area, masses_seed) in [(&square, 5000, 1.0, 12), (&l_shape, 3000, 3.0, 14)] {
         let sites = interior_sites(domain, n, 11);
         let masses = random_masses(sites.len(), area, masses_seed);
@@ -313,15 +310,7 @@ fn started_matches_cold<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 /// (2D in the L-shape, whose cells at the notch fall back to the stream, and 3D).
 #[test]
 fn a_power_start_gives_the_cold_cells_whatever_it_was() {
-    let l_shape = Polygon::from_rings(&[&[
-        [0.0, 0.0],
-        [2.0, 0.0],
-        [2.0, 1.0],
-        [1.0, 1.0],
-        [1.0, 2.0],
-        [0.0, 2.0],
-    ]])
-    .unwrap();
+    let l_shape = l_shape();
     let sites = interior_sites(&l_shape, 600, 13);
     let masses = random_masses(sites.len(), 3.0, 14);
     let out =
