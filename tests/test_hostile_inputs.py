@@ -653,9 +653,19 @@ SPECIFIC: dict[str, list[Row]] = {
             Raises(ValueError, "not supported on the sphere or a triangle surface"),
         ),
         (
-            "surface: cell geometry is refused with a message",
+            "surface: a conforming mesh() is refused with a message (cells() gives the pieces)",
             lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0.0), (0.2, 0.2, 0.0)]).mesh(),
             Raises(NotImplementedError, "restricted Voronoi cells on a surface"),
+        ),
+        (
+            "surface: a far site's cell has no pieces: empty arrays, not an error",
+            lambda: hcvt.voronoi(cube_surface(), [(0.5, 0.5, 0.0), (100.0, 100.0, 100.0)]).cells(),
+            Gives("no vertices, no triangles", lambda r: len(r[1][0]) == len(r[1][1]) == 0),
+        ),
+        (
+            "surface: remesh with an unknown density name",
+            lambda: hcvt.remesh(cube_surface(), 20, density="curved"),
+            Raises(ValueError, '"curvature", a density'),
         ),
         (
             "surface: remesh with n = 0",
