@@ -123,7 +123,9 @@ impl<const D: usize> Bvh<D> {
     /// them: a walk that stops at a node and takes its leaves sees its elements in the
     /// order of one that descended.
     pub fn for_each_leaf_under(&self, i: usize, mut leaf: impl FnMut(usize)) {
-        if i < self.nodes.len() {
+        if self.nodes.get(i).is_some_and(|node| node.count > 0) {
+            leaf(i); // a leaf itself: no walk
+        } else if i < self.nodes.len() {
             self.walk_from(i, |at, is_leaf| {
                 if is_leaf {
                     leaf(at);
