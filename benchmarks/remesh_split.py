@@ -1,10 +1,11 @@
 """Where the time of ``hcvt.remesh`` goes: its phases one by one, CPU and wall seconds.
 
 The phases of :func:`hcvt.remesh` without features, called as it calls them: the input's
-edge topology, the initial sites (random by area), the CVT (L-BFGS at ``REMESH_TOL``, its
-final restricted Delaunay triangulation of the projected sites included), the defects,
-and ``tighten`` (its set-up, the points checked and their distances, timed apart). One
-thread, as ``benchmarks/remesh.py`` runs hcvt; the quality is measured after, untimed.
+edge topology, the initial sites (random by area), their spread (remesh's sampled Lloyd
+steps, ``_spread``), the CVT (L-BFGS at ``REMESH_TOL``, its final restricted Delaunay
+triangulation of the projected sites included), the defects, and ``tighten`` (its
+set-up, the points checked and their distances, timed apart). One thread, as
+``benchmarks/remesh.py --cores 1`` runs hcvt; the quality is measured after, untimed.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh_split.py fandisk 5000 [--repeat 3]
 """
@@ -76,6 +77,8 @@ def main() -> None:
         clock.tick("edge_topology (input)")
         sites = initialise(surface, n, method="random", seed=0)
         clock.tick("initialise")
+        sites = REMESH._spread(surface, sites, 0)
+        clock.tick("spread (the start's sampled Lloyd steps)")
         run = hcvt.cvt(surface, sites, "lbfgs", tol=REMESH.REMESH_TOL, max_iter=200)
         clock.tick(f"cvt ({run.evaluations} diagrams + the final triangulation)")
         rdt = run._triangulation
