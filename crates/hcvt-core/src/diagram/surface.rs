@@ -551,7 +551,9 @@ fn box_side(
 /// value over the box is a sum of terms `<= 0`): with the site in its own cell the box is
 /// walked into untested: its leaves are the same, in the same order (an inner box inside
 /// every plane, whose leaves the walk would have taken whole, has them inside every plane
-/// too). The boxes near the root hold the site.
+/// too). The boxes near the root hold the site: fandisk, 5,000 sites, two CVT iterates'
+/// diagrams and a triangulation tested 0.81 M boxes instead of 1.04 M (callgrind: 5%
+/// fewer instructions in the diagrams).
 fn holds_site(b: &Aabb<3>, site: [f64; 3]) -> bool {
     let (lo, hi) = (sub(b.lo, site), sub(b.hi, site));
     (0..3).all(|k| lo[k] <= 0.0 && hi[k] >= 0.0)
