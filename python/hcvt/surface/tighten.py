@@ -36,14 +36,16 @@ largest is used).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from hcvt import _core
+from hcvt.errors import InvalidDomainError
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.surface_points import cross_rows, sample_by_area
 from hcvt.surface.quality import (
@@ -93,6 +95,27 @@ _REFINE_SHARE = 0.7
 _REFINE_STEPS = 12
 _REFINE_ROUNDS = 1
 _FINE = _barycentric_grid(_REFINE_STEPS)
+
+
+def _fine_points(
+    corners: NDArray[np.float64], spacing: float
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Points (m, 3) of a grid on each triangle (k, 3, 3), and the triangle of each (m,).
+
+    The grid's step is at most ``spacing`` (the longest edge over the steps), between 2
+    and :data:`_REFINE_STEPS` steps.
+    """
+    longest = np.linalg.norm(corners - corners[:, [1, 2, 0]], axis=2).max(axis=1)
+    steps = np.clip(np.ceil(longest / spacing), 2, _REFINE_STEPS).astype(np.intp)
+    points, owner = [], []
+    for step in np.unique(steps):
+        these = np.flatnonzero(steps == step)
+        grid = _barycentric_grid(int(step))
+        points.append(np.einsum("gk,fkd->fgd", grid, corners[these]).reshape(-1, 3))
+        owner.append(np.repeat(these, len(grid)))
+    return np.concatenate(points), np.concatenate(owner)
+
+
 #: Where the input's edges are checked (fractions along each): a crease of the input is
 #: where the mesh is farthest from it, and samples by area rarely fall on it.
 _EDGE_POINTS = (0.25, 0.5, 0.75)
@@ -123,32 +146,43 @@ _GAIN = 1e-3
 _NEGLIGIBLE = 1e-9
 
 
-def _within(
-    points: NDArray[np.float64], queries: NDArray[np.float64], reach: float
-) -> NDArray[np.intp]:
-    """The indices (sorted) of ``points`` (m, 3) within ``reach`` of any of ``queries`` (k, 3).
-
-    One k-d tree of the queries, asked for each point's nearest within reach (the balls
-    around each query, then their union, cost several times more in Python lists).
-    """
-    distance, _ = cKDTree(queries).query(points, distance_upper_bound=reach)
-    return np.flatnonzero(distance <= reach)
-
-
-def _longest_edge(v: NDArray[np.float64], f: NDArray[np.intp]) -> float:
-    """The longest edge of the triangles ``f`` of ``v``."""
+def _mean_edge(v: NDArray[np.float64], f: NDArray[np.intp]) -> float:
+    """The mean length of the edges of the triangles ``f`` of ``v`` (inner ones twice)."""
     corners = v[f]
-    return float(np.linalg.norm(corners - corners[:, [1, 2, 0]], axis=2).max())
+    return float(np.linalg.norm(corners - corners[:, [1, 2, 0]], axis=2).mean())
+
+
+def _nearest_on_input(
+    surface: Domain, points: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """The nearest points (m, 3) of ``surface`` to ``points`` (m, 3), and their triangles (m,).
+
+    In the input's frame, by the surface's own BVH, built once with it
+    (:meth:`hcvt._core.SurfaceDomain.closest`).
+    """
+    frame = surface.frame
+    nearest, which = surface._core.closest(frame.to_core(np.ascontiguousarray(points)))
+    return frame.points_to_input(np.asarray(nearest)), np.asarray(which)
 
 
 def _on_input(surface: Domain, points: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The nearest points (m, 3) of ``surface`` to ``points`` (m, 3), in the input's frame.
+    """The nearest points (m, 3) of ``surface`` to ``points`` (m, 3), in the input's frame."""
+    return _nearest_on_input(surface, points)[0]
 
-    The surface's own BVH, built once with it (:meth:`hcvt._core.SurfaceDomain.closest`).
+
+def _mesh_nearest(
+    v: NDArray[np.float64], f: NDArray[np.intp]
+) -> Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.intp]]]:
+    """Nearest points (m, 3) of the mesh ``(v, f)`` and their triangles (m,), one BVH for all calls.
+
+    The core's surface when it takes the mesh (a manifold, consistently oriented, no
+    degenerate triangle), else :func:`hcvt._core.closest_points` (a BVH each call).
     """
-    frame = surface.frame
-    nearest, _ = surface._core.closest(frame.to_core(np.ascontiguousarray(points)))
-    return frame.points_to_input(np.asarray(nearest))
+    faces = f.astype(np.uint32)
+    try:
+        return _core.SurfaceDomain(v, faces).closest
+    except InvalidDomainError:
+        return partial(_core.closest_points, v, faces)
 
 
 def _to_triangles(
@@ -225,10 +259,8 @@ class _Mesh:
         # The checked points of every triangle (the grid, and one more, its centroid until
         # :meth:`refine` finds a farther one) and their distances to the input.
         self.extra = np.full((len(self.f), 3), 1.0 / 3.0)
-        # For :meth:`refine`: the input's triangles by their centres, the longest edges.
-        self.input_centres = rv[rf].mean(axis=1)
-        self.input_reach = _longest_edge(rv, rf)
-        self.reach = _longest_edge(self.v, self.f)
+        # For :meth:`refine`: the step of its grid on the input's triangles.
+        self.spacing = _mean_edge(self.v, self.f) / _REFINE_STEPS
         self.dt = self.to_input(self.triangle_points(np.arange(len(self.f)), self.v))
 
     def triangle_points(
@@ -292,9 +324,9 @@ class _Mesh:
             self.extra[hot], self.dt[hot, -1] = _FINE[g], top
             # And the farthest point of them all, exactly (a peak between the grid's points),
             # from the input's triangles within reach of them.
-            reach = self.reach + self.input_reach + 2.0 * worst
-            local = rf[_within(self.input_centres, self.v[np.unique(self.f[hot])], reach)]
-            _, point, _ = hausdorff_one_sided((self.v, self.f[hot]), (rv, local))
+            _, point, _ = hausdorff_one_sided(
+                (self.v, self.f[hot]), (rv, rf), nearest=partial(_nearest_on_input, self.surface)
+            )
             far = float(self.to_input(point[None])[0])
             _, which = _core.closest_points(
                 self.v, self.f[hot].astype(np.uint32), np.ascontiguousarray(point[None])
@@ -315,23 +347,23 @@ class _Mesh:
             self.sample_faces[hot_points[:n_samples]], np.flatnonzero(corner[rf].any(1))
         )
         if len(faces):
-            points = np.einsum("gk,fkd->fgd", _FINE, rv[rf[faces]])
-            d, which = _to_triangles(points.reshape(-1, 3), self.v[self.f])
-            g = np.argmax(d.reshape(len(faces), -1), axis=1)
-            pick = np.arange(len(faces)) * len(_FINE) + g
-            # And the farthest point of them all, exactly, from the mesh's triangles within
-            # reach of them.
-            reach = self.reach + self.input_reach + 2.0 * worst
-            near = np.zeros(len(self.v), dtype=bool)
-            near[_within(self.v, rv[np.unique(rf[faces])], reach)] = True
-            local = np.flatnonzero(near[self.f].any(axis=1))  # the triangles around them
-            _, peak, _ = hausdorff_one_sided((rv, rf[faces]), (self.v, self.f[local]))
-            new = np.vstack([points.reshape(-1, 3)[pick], peak])
-            d, which = _to_triangles(new, self.v[self.f])
+            # On a grid as fine as the mesh's (:func:`_fine_points`), through one BVH of the
+            # mesh (the exact search asks it many times).
+            on_mesh_of = _mesh_nearest(self.v, self.f)
+            points, owner = _fine_points(rv[rf[faces]], self.spacing)
+            on_mesh, _ = on_mesh_of(points)
+            d = np.linalg.norm(np.asarray(on_mesh) - points, axis=1)
+            order = np.lexsort((-d, owner))
+            first = order[np.flatnonzero(np.diff(owner[order], prepend=-1))]
+            # And the farthest point of them all, exactly.
+            _, peak, _ = hausdorff_one_sided((rv, rf[faces]), (self.v, self.f), nearest=on_mesh_of)
+            new = np.vstack([points[first], peak])
+            on_mesh, which = on_mesh_of(new)
+            d = np.linalg.norm(np.asarray(on_mesh) - new, axis=1)
             self.s = np.concatenate([self.s, new])
             self.s_tree = cKDTree(self.s)
             self.ds = np.concatenate([self.ds, d])
-            self.s_face = np.concatenate([self.s_face, which])
+            self.s_face = np.concatenate([self.s_face, np.asarray(which)])
             self.ds_exact = np.concatenate([self.ds_exact, np.ones(len(new), dtype=bool)])
             found = max(found, float(d.max()))
         return found
