@@ -129,11 +129,13 @@ _CREASE_DEGREES = 20.0
 def _creases(rv: NDArray[np.float64], rf: NDArray[np.intp]) -> NDArray[np.intp]:
     """The input's edges (k, 2) whose two triangles' normals differ by > _CREASE_DEGREES."""
     normals = _normals(rv, rf)
-    edges = np.sort(np.concatenate([rf[:, [0, 1]], rf[:, [1, 2]], rf[:, [2, 0]]]), 1)
+    start, end = rf.T.ravel(), rf[:, [1, 2, 0]].T.ravel()  # edges 01 of all, then 12, 20
+    edges = np.stack([np.minimum(start, end), np.maximum(start, end)], axis=1)
     faces = np.tile(np.arange(len(rf)), 3)
-    order = np.lexsort((edges[:, 1], edges[:, 0]))
-    edges, faces = edges[order], faces[order]
-    pair = np.flatnonzero(np.all(edges[1:] == edges[:-1], axis=1))  # interior edges
+    key = edges[:, 0].astype(np.int64) * len(rv) + edges[:, 1]  # one sort key: faster
+    order = np.argsort(key, kind="stable")
+    key, edges, faces = key[order], edges[order], faces[order]
+    pair = np.flatnonzero(key[1:] == key[:-1])  # interior edges
     cosine = np.einsum("ij,ij->i", normals[faces[pair]], normals[faces[pair + 1]])
     return edges[pair[cosine < np.cos(np.radians(_CREASE_DEGREES))]]
 
@@ -445,14 +447,21 @@ def _try(
         near = np.asarray(mesh.s_tree.query_ball_point(centre, radius + worst), dtype=np.intp)
         if len(near) == 0:
             return ring, dt, near, np.zeros(0), np.zeros(0, dtype=np.intp)
-        local = mesh.around(np.unique(tri))
-        d, which = _to_triangles(mesh.s[near], v[mesh.f[local]])
-        faces = local[which]
-        was_on_ring = np.isin(mesh.s_face[near], ring)
-        # Off the ring before: the old bound still holds; keep the smaller.
-        keep_old = ~was_on_ring & (mesh.ds[near] <= d)
-        d = np.where(keep_old, mesh.ds[near], d)
-        faces = np.where(keep_old, mesh.s_face[near], faces)
+        # Bounds first: a point nearest a triangle off the ring keeps its bound; one nearest
+        # a ring triangle is at most the vertices' largest shift farther (every point of
+        # the triangle moves by at most that). Only those whose bound reaches the ring's
+        # own largest distance can raise the move's peak or fail it: they are asked.
+        faces = mesh.s_face[near]
+        shift = float(np.linalg.norm(x - old, axis=1).max())
+        d = np.where(np.isin(faces, ring), mesh.ds[near] + shift, mesh.ds[near])
+        ask = np.flatnonzero(d >= dt.max())
+        if len(ask):
+            local = mesh.around(np.unique(tri))
+            exact, which = _to_triangles(mesh.s[near[ask]], v[mesh.f[local]])
+            # Off the ring before: the old bound still holds; keep the smaller.
+            smaller = exact < d[ask]
+            d[ask[smaller]] = exact[smaller]
+            faces[ask[smaller]] = local[which[smaller]]
         if d.max(initial=0.0) >= limit:
             return None
         return ring, dt, near, d, faces
