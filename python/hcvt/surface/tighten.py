@@ -393,14 +393,14 @@ _STEPS = (1.0, 0.75, 0.5, 0.25, 0.125)
 
 def _candidates(
     mesh: _Mesh, side: str, index: int, movable: NDArray[np.bool_]
-) -> Iterator[tuple[int, int, NDArray[np.float64]]]:
+) -> Iterator[tuple[int, NDArray[np.float64]]]:
     """Moves that may lower the distance at the worst point.
 
-    (kind, vertex, new position before projection), each kind's longest move of a vertex
-    first. A point ``P`` of the input: its nearest triangle's vertices toward ``P`` (kind
-    0). A point ``Q`` of the mesh: its triangle's vertices by ``Q* − Q`` (kind 1, nearly
-    along the normal: it moves little once projected) and toward ``Q*`` (kind 0, along the
-    surface: a vertex into the hollow the triangle spans).
+    (vertex, new positions (len(_STEPS), 3) before projection, the longest move first),
+    one kind of move of one vertex each. A point ``P`` of the input: its nearest
+    triangle's vertices toward ``P``. A point ``Q`` of the mesh: its triangle's vertices
+    by ``Q* − Q`` (nearly along the normal: it moves little once projected), then toward
+    ``Q*`` (along the surface: a vertex into the hollow the triangle spans).
     """
     if side == "input":
         target = mesh.s[index]
@@ -410,13 +410,12 @@ def _candidates(
         point = mesh.triangle_points(np.array([face]), mesh.v)[0, g]
         target = mesh.project(point)
         corners = mesh.f[face]
+    steps = np.array(_STEPS)[:, None]
     for a in corners:
         if movable[a]:
             if side == "mesh":
-                for step in _STEPS:
-                    yield 1, int(a), mesh.v[a] + step * (target - point)
-            for step in _STEPS:
-                yield 0, int(a), mesh.v[a] + step * (target - mesh.v[a])
+                yield int(a), mesh.v[a] + steps * (target - point)
+            yield int(a), mesh.v[a] + steps * (target - mesh.v[a])
 
 
 #: What a passing move changes: (ring faces, their points' distances to the input, input
@@ -426,30 +425,46 @@ _Update = tuple[
 ]
 
 
+def _shapes_pass(
+    mesh: _Mesh, moved: NDArray[np.intp], xs: NDArray[np.float64], floors: tuple[float, float]
+) -> NDArray[np.bool_]:
+    """Which of the moves of vertices ``moved`` (k,) to ``xs`` (s, k, 3) keep the shapes (s,).
+
+    Every triangle around them keeps its least angle and Q at ``floors`` (degrees, Q) or
+    above and turns its normal by less than 60°; the ``s`` moves at once.
+    """
+    tri = mesh.f[mesh.around(moved)]
+    corners, local = np.unique(tri, return_inverse=True)
+    count, size = len(xs), len(corners)
+    positions = np.repeat(mesh.v[corners][None], count, axis=0)
+    positions[:, np.searchsorted(corners, moved)] = xs
+    flat = positions.reshape(-1, 3)
+    faces = (local.reshape(-1, 3)[None] + size * np.arange(count)[:, None, None]).reshape(-1, 3)
+    angle = triangle_angles(flat, faces).reshape(count, -1).min(axis=1)
+    quality = triangle_quality(flat, faces).reshape(count, -1).min(axis=1)
+    after = _normals(flat, faces).reshape(count, -1, 3)
+    cosine = np.einsum("stj,tj->st", after, _normals(mesh.v, tri)).min(axis=1)
+    return (angle >= floors[0]) & (quality >= floors[1]) & (cosine >= _MIN_NORMAL_COSINE)
+
+
 def _try(
     mesh: _Mesh,
     moved: NDArray[np.intp],
     x: NDArray[np.float64],
-    floors: tuple[float, float],
     worst: float,
     limit: float,
 ) -> _Update | None:
-    """The move of vertices ``moved`` (k,) to ``x`` (k, 3) if it passes (module docs), else None.
+    """The move of vertices ``moved`` (k,) to ``x`` (k, 3) if its distances pass, else None.
 
-    ``floors``: the least angle (degrees) and Q allowed; ``worst``: the worst distance
-    now; ``limit``: what every distance around the move must fall below.
+    Its shapes passed (:func:`_shapes_pass`); ``worst``: the worst distance now;
+    ``limit``: what every distance around the move must fall below.
     """
     ring = mesh.around(moved)
     v = mesh.v  # moved in place below, put back in `finally`
     old = v[moved].copy()
     tri = mesh.f[ring]
-    old_normals = _normals(v, tri)
     v[moved] = x
     try:
-        if triangle_angles(v, tri).min() < floors[0] or triangle_quality(v, tri).min() < floors[1]:
-            return None
-        if np.min(np.einsum("ij,ij->i", _normals(v, tri), old_normals)) < _MIN_NORMAL_COSINE:
-            return None
         dt = mesh.to_input(mesh.triangle_points(ring, v))
         if dt.max() >= limit:
             return None
@@ -500,25 +515,26 @@ def _best_move(
     """
     limit = worst * (1.0 - _GAIN)
     best = None
-    passed: set[tuple[int, int]] = set()
-    for kind, a, toward in _candidates(mesh, side, index, movable):
-        if (kind, a) in passed:
-            continue  # a longer move of this kind passed: its shorter ones are not tried
+    for a, toward in _candidates(mesh, side, index, movable):
         moved = np.array([a], dtype=np.intp)
+        towards = toward[:, None]  # (steps, moved, 3)
         if drag > 0.0:
             around = mesh.neighbours(a)
             if not movable[around].all():
                 continue
             moved = np.concatenate([moved, around])
-            toward = np.vstack([toward, mesh.v[around] + drag * (toward - mesh.v[a])])
-        x = _on_input(mesh.surface, np.atleast_2d(toward))
-        found = _try(mesh, moved, x, floors, worst, limit)
-        if found is None:
-            continue
-        passed.add((kind, a))
-        peak = max(float(found[1].max()), float(found[3].max(initial=0.0)))
-        if best is None or peak < best[0]:
-            best = (peak, moved, x, found)
+            follow = mesh.v[around][None] + drag * (toward - mesh.v[a])[:, None]
+            towards = np.concatenate([towards, follow], axis=1)
+        xs = _on_input(mesh.surface, towards.reshape(-1, 3)).reshape(towards.shape)
+        # The longest move that passes; its shorter ones are not tried.
+        for step in np.flatnonzero(_shapes_pass(mesh, moved, xs, floors)):
+            found = _try(mesh, moved, xs[step], worst, limit)
+            if found is None:
+                continue
+            peak = max(float(found[1].max()), float(found[3].max(initial=0.0)))
+            if best is None or peak < best[0]:
+                best = (peak, moved, xs[step], found)
+            break
     return None if best is None else best[1:]
 
 
