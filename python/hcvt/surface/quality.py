@@ -160,7 +160,11 @@ def edge_counts(faces: NDArray[np.intp]) -> tuple[NDArray[np.intp], NDArray[np.i
     or more where the mesh is not manifold.
     """
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
-    pairs, counts = np.unique(edges, axis=0, return_counts=True)
+    # Each edge as one integer a·m + b (m above every index): the rows' lexicographic order,
+    # and np.unique of a 1D array is several times faster than of rows (:func:`edge_topology`).
+    m = np.int64(int(faces.max()) + 1 if len(faces) else 1)
+    keys, counts = np.unique(edges[:, 0].astype(np.int64) * m + edges[:, 1], return_counts=True)
+    pairs = np.stack([keys // m, keys % m], axis=1).astype(edges.dtype)
     return pairs, counts
 
 

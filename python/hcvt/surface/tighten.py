@@ -149,7 +149,9 @@ def _creases(rv: NDArray[np.float64], rf: NDArray[np.intp]) -> NDArray[np.intp]:
     edges = np.stack([np.minimum(start, end), np.maximum(start, end)], axis=1)
     faces = np.tile(np.arange(len(rf)), 3)
     key = edges[:, 0].astype(np.int64) * len(rv) + edges[:, 1]  # one sort key: faster
-    order = np.argsort(key, kind="stable")
+    # Not a stable sort (5 times faster): an edge's two triangles, in either order, give
+    # the same cosine and the same edge.
+    order = np.argsort(key)
     key, edges, faces = key[order], edges[order], faces[order]
     pair = np.flatnonzero(key[1:] == key[:-1])  # interior edges
     cosine = np.einsum("ij,ij->i", normals[faces[pair]], normals[faces[pair + 1]])
@@ -195,6 +197,16 @@ def _nearest_on_input(
 def _on_input(surface: Domain, points: NDArray[np.float64]) -> NDArray[np.float64]:
     """The nearest points (m, 3) of ``surface`` to ``points`` (m, 3), in the input's frame."""
     return _nearest_on_input(surface, points)[0]
+
+
+def _tree(points: NDArray[np.float64]) -> cKDTree:
+    """A k-d tree of ``points`` (m, 3) for :meth:`cKDTree.query_ball_point`.
+
+    Split at the middle of each box, not the median, and the boxes not shrunk to their
+    points: built twice as fast (armadillo, 90,556 points: 27 -> 13 ms), the same points
+    found (the moves use them as a set).
+    """
+    return cKDTree(points, balanced_tree=False, compact_nodes=False)
 
 
 def _mesh_nearest(
@@ -278,9 +290,9 @@ class _Mesh:
         points, self.sample_faces = sample_by_area(rv, rf, samples, rng)
         edges = _creases(rv, rf)
         along = _along_creases(rv[edges], _CREASE_STEP * _mean_edge(self.v, self.f))
-        self.input_vertices = np.unique(rf)
+        self.input_vertices = np.flatnonzero(np.bincount(rf.ravel(), minlength=len(rv)))
         self.s = np.concatenate([points, rv[self.input_vertices], along])
-        self.s_tree = cKDTree(self.s)
+        self.s_tree = _tree(self.s)
         self.ds, self.s_face = _to_triangles(self.s, self.v[self.f])
         self.ds_exact = np.ones(len(self.s), dtype=bool)
         # The checked points of every triangle (the grid, and one more, its centroid until
@@ -288,7 +300,34 @@ class _Mesh:
         self.extra = np.full((len(self.f), 3), 1.0 / 3.0)
         # For :meth:`refine`: the step of its grid on the input's triangles.
         self.spacing = _mean_edge(self.v, self.f) / _REFINE_STEPS
-        self.dt = self.to_input(self.triangle_points(np.arange(len(self.f)), self.v))
+        self.dt = self.initial_distances()
+
+    def initial_distances(self) -> NDArray[np.float64]:
+        """Distances (f, 13) of every triangle's checked points to the input, in one call.
+
+        A point on an edge is the same for the edge's two triangles: asked once (13 points a
+        triangle, 8.5 of them distinct on a closed mesh; armadillo, n = 5,000: 85,000
+        points instead of 130,000).
+        """
+        grid = np.vstack([_GRID, self.extra[:1]])  # the extra point: the centroid here
+        corners = self.v[self.f]
+        out = np.empty((len(self.f), len(grid)))
+        inner = np.flatnonzero((grid > 0).all(axis=1))
+        out[:, inner] = self.to_input(np.einsum("gk,fkd->fgd", grid[inner], corners))
+        # Each edge point keyed by its edge's ends (smaller first) and its step from the
+        # smaller one: (a·n + b)·(steps + 1) + i.
+        edge = np.flatnonzero(~(grid > 0).all(axis=1))
+        ends = np.argsort(grid[edge] == 0, axis=1, kind="stable")[:, :2]  # its two corners
+        a, b = self.f[:, ends[:, 0]], self.f[:, ends[:, 1]]  # (f, edge points)
+        low, high = np.minimum(a, b), np.maximum(a, b)
+        weight = np.where(a == high, grid[edge, ends[:, 0]], grid[edge, ends[:, 1]])
+        step = np.rint(weight * _GRID_STEPS).astype(np.int64)
+        key = (low.astype(np.int64) * len(self.v) + high) * (_GRID_STEPS + 1) + step
+        keys, first, back = np.unique(key.ravel(), return_index=True, return_inverse=True)
+        t = (step.ravel()[first] / _GRID_STEPS)[:, None]
+        points = (1.0 - t) * self.v[low.ravel()[first]] + t * self.v[high.ravel()[first]]
+        out[:, edge] = self.to_input(points)[back].reshape(low.shape)
+        return out
 
     def triangle_points(
         self, faces: NDArray[np.intp], v: NDArray[np.float64]
@@ -388,7 +427,7 @@ class _Mesh:
             on_mesh, which = on_mesh_of(new)
             d = np.linalg.norm(np.asarray(on_mesh) - new, axis=1)
             self.s = np.concatenate([self.s, new])
-            self.s_tree = cKDTree(self.s)
+            self.s_tree = _tree(self.s)
             self.ds = np.concatenate([self.ds, d])
             self.s_face = np.concatenate([self.s_face, np.asarray(which)])
             self.ds_exact = np.concatenate([self.ds_exact, np.ones(len(new), dtype=bool)])
