@@ -368,10 +368,29 @@ class _Mesh:
                 return float(self.dt.flat[j]), "mesh", j
             if self.ds_exact[i]:
                 return float(self.ds[i]), "input", i
-            # The bounds left by the moves since the last time, exact in one call.
-            stale = np.flatnonzero(~self.ds_exact)
-            self.ds[stale], self.s_face[stale] = _to_triangles(self.s[stale], self.v[self.f])
-            self.ds_exact[stale] = True
+            # The bounds left by the moves that may be the largest (a bound is at least the
+            # distance: those below the largest exact one cannot be), exact in one call.
+            exact = self.ds.max(where=self.ds_exact, initial=0.0)
+            self.make_exact(max(float(self.dt.flat[j]), float(exact)))
+
+    def make_exact(self, least: float) -> None:
+        """The distances to the mesh held as bounds and reaching ``least``, exact in one call."""
+        stale = np.flatnonzero(~self.ds_exact & (self.ds >= least))
+        if len(stale) == 0:
+            return
+        # Only the triangles whose boxes meet the points' box widened by their largest
+        # bound: a point's nearest triangle is no farther than its bound, so its nearest
+        # point lies in that box (the same answers, ties to the least index as over all;
+        # the BVH of all 10,000 triangles of the armadillo at 5,000 cost 2.6 ms a call).
+        points = self.s[stale]
+        reach = float(self.ds[stale].max())
+        low, high = points.min(axis=0) - reach, points.max(axis=0) + reach
+        a, b, c = (self.v[self.f[:, k]] for k in range(3))
+        meets = (np.maximum(np.maximum(a, b), c) >= low) & (np.minimum(np.minimum(a, b), c) <= high)
+        local = np.flatnonzero(meets.all(axis=1))
+        self.ds[stale], which = _to_triangles(points, self.v[self.f[local]])
+        self.s_face[stale] = local[which]
+        self.ds_exact[stale] = True
 
     def refine(self, worst: float) -> float:
         """Search the triangles near the worst distance finer (:data:`_REFINE_SHARE`).
@@ -406,6 +425,7 @@ class _Mesh:
         # The input's triangles with a point near the worst distance (a sample in it, or
         # a corner): their farthest points join the input's points.
         n_samples = len(self.sample_faces)
+        self.make_exact(bar)  # (the bounds below it cannot be hot)
         hot_points = self.ds >= bar
         corner = np.zeros(len(rv), dtype=bool)
         corner[self.input_vertices] = hot_points[n_samples : n_samples + len(self.input_vertices)]
