@@ -292,7 +292,8 @@ class _Mesh:
         along = _along_creases(rv[edges], _CREASE_STEP * _mean_edge(self.v, self.f))
         self.input_vertices = np.flatnonzero(np.bincount(rf.ravel(), minlength=len(rv)))
         self.s = np.concatenate([points, rv[self.input_vertices], along])
-        self.s_tree = _tree(self.s)
+        self.s_tree = _tree(self.s)  # of these points; :meth:`refine`'s join unindexed
+        self.in_tree = len(self.s)
         self.ds, self.s_face = _to_triangles(self.s, self.v[self.f])
         self.ds_exact = np.ones(len(self.s), dtype=bool)
         # The checked points of every triangle (the grid, and one more, its centroid until
@@ -342,13 +343,28 @@ class _Mesh:
         return self.ring_faces[self.ring_start[a] : self.ring_start[a + 1]]
 
     def around(self, vertices: NDArray[np.intp]) -> NDArray[np.intp]:
-        """The triangles around any of ``vertices``."""
+        """The triangles around any of ``vertices`` (sorted, once each)."""
+        if len(vertices) == 1:  # a vertex's own ring is sorted, once each (a stable sort)
+            return self.ring(int(vertices[0]))
         return np.unique(np.concatenate([self.ring(b) for b in vertices]))
 
     def neighbours(self, a: int) -> NDArray[np.intp]:
         """The vertices sharing a triangle with ``a``, not ``a`` itself."""
         near = np.unique(self.f[self.ring(a)])
         return near[near != a]
+
+    def near(self, centre: NDArray[np.float64], radius: float) -> NDArray[np.intp]:
+        """The input's points within ``radius`` of ``centre`` (3,): their indices.
+
+        Through the k-d tree for the points of the start, one by one for the few that
+        :meth:`refine` added (a new tree of all cost 14 ms a round on the armadillo).
+        """
+        found = np.asarray(self.s_tree.query_ball_point(centre, radius), dtype=np.intp)
+        added = self.s[self.in_tree :]
+        if len(added) == 0:
+            return found
+        close = np.einsum("ij,ij->i", added - centre, added - centre) <= radius * radius
+        return np.concatenate([found, self.in_tree + np.flatnonzero(close)])
 
     def to_input(self, points: NDArray[np.float64]) -> NDArray[np.float64]:
         """Distances (f, g) of points (f, g, 3) to the input."""
@@ -446,8 +462,7 @@ class _Mesh:
             new = np.vstack([points[first], peak])
             on_mesh, which = on_mesh_of(new)
             d = np.linalg.norm(np.asarray(on_mesh) - new, axis=1)
-            self.s = np.concatenate([self.s, new])
-            self.s_tree = _tree(self.s)
+            self.s = np.concatenate([self.s, new])  # not in the tree: :meth:`near`
             self.ds = np.concatenate([self.ds, d])
             self.s_face = np.concatenate([self.s_face, np.asarray(which)])
             self.ds_exact = np.concatenate([self.ds_exact, np.ones(len(new), dtype=bool)])
@@ -549,7 +564,7 @@ def _try(
         corners = np.vstack([v[np.unique(tri)], old])
         centre = corners.mean(axis=0)
         radius = float(np.linalg.norm(corners - centre, axis=1).max())
-        near = np.asarray(mesh.s_tree.query_ball_point(centre, radius + worst), dtype=np.intp)
+        near = mesh.near(centre, radius + worst)
         if len(near) == 0:
             return ring, dt, near, np.zeros(0), np.zeros(0, dtype=np.intp)
         # Bounds first: a point nearest a triangle off the ring keeps its bound; one nearest
