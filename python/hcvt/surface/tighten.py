@@ -280,7 +280,8 @@ class _Mesh:
         self.v = np.array(vertices, dtype=np.float64)
         self.f = np.asarray(faces, dtype=np.intp)
         self.surface = surface
-        rv, rf = surface.vertices, surface.faces
+        # The input's vertices and triangles, kept (the domain copies them at each reading).
+        self.rv, self.rf = rv, rf = surface.vertices, surface.faces
         # Vertex -> its triangles (CSR).
         order = np.argsort(self.f.ravel(), kind="stable")
         self.ring_start = np.searchsorted(self.f.ravel()[order], np.arange(len(self.v) + 1))
@@ -415,7 +416,7 @@ class _Mesh:
         """
         bar = _REFINE_SHARE * worst
         found = 0.0
-        rv, rf = self.surface.vertices, self.surface.faces
+        rv, rf = self.rv, self.rf
         # The mesh's triangles: the farthest point of each becomes its extra point.
         hot = np.flatnonzero(self.dt.max(axis=1) >= bar)
         if len(hot):
@@ -737,7 +738,7 @@ def tighten(
     )
     before = mesh.worst()[0]
     # Below this the distances are round-off (a flat part, a mesh already on the input).
-    negligible = _NEGLIGIBLE * float(np.linalg.norm(np.ptp(surface.vertices, axis=0)))
+    negligible = _NEGLIGIBLE * float(np.linalg.norm(np.ptp(mesh.rv, axis=0)))
     moves = rounds = 0
     allowed = _REFINE_ROUNDS
     while moves < max_moves:
