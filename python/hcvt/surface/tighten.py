@@ -32,7 +32,7 @@ input, ``_core.closest_points`` for the mesh): from points of the input (its ver
 samples by area, and 1 or 3 points along each of its creases) to the mesh, and from 13
 points of each mesh triangle (a barycentric grid of step 1/4 and one more) to the input;
 around a moved vertex they are updated over the triangles around its ring (upper bounds,
-made exact again, all at once, before the largest is used).
+those that may be the largest made exact again, in one call, before the largest is used).
 """
 
 from __future__ import annotations
