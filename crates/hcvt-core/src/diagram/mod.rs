@@ -374,7 +374,7 @@ where
 /// winding numbers (checked) and index, and the power diagrams' block grid. The diagrams
 /// of one optimal transport (up to a dozen, of the same sites) keep them from the first
 /// (and the grid from the first power diagram): computing them again for each of the 8
-/// diagrams of a transport at 10,000 sites was 6.8% of its instructions
+/// diagrams of a transport at 10,000 sites was 7.3% of its instructions
 /// (`docs/results/transport.txt` §15). Empty until a diagram fills it; read only by
 /// diagrams of as many sites with the same options (its holder's to give the same sites).
 #[derive(Default)]

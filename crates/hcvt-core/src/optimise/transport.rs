@@ -86,7 +86,7 @@
 //! **Set-up kept.** What a diagram computes of the sites alone (their Morton order,
 //! winding numbers, nearest-site index and the power diagrams' block grid) is computed by
 //! the first diagram and kept for every trial (`diagram::SiteSetup`): at 10,000 sites it
-//! was 6.8% of the transport's instructions, computed again for each of its 8 diagrams
+//! was 7.3% of the transport's instructions, computed again for each of its 8 diagrams
 //! (`docs/results/transport.txt` §15). The same cells, so the same weights bit for bit.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
