@@ -351,11 +351,26 @@ impl<const D: usize> MaxGrid<D> {
     }
 
     /// The cube of blocks within `outer` of `p`, as its first and last block.
+    ///
+    /// Why `span = ⌈outer/side·(1 + 10⁻⁶) + 10⁻⁶⌉` blocks on either side of `p`'s own
+    /// suffice: `p` lies in its block `c` along each axis `k` (or beyond the grid's box
+    /// on the side its clamped block reaches out, or a rounding of the floor away from
+    /// the edge it sits on), so a block `b ≥ c + span + 1` starts at least `span·side`
+    /// beyond `p` (`b ≤ c − span − 1` ends that far before it), less the rounding of
+    /// `lo + b·side − p`: a few ulps of the grid's extent, `< 2²⁰` blocks, so below
+    /// `10⁻⁹·side`. Its squared distance from `p` thus exceeds `outer²(1 + 10⁻⁶)`, more
+    /// than every reach its callers test blocks against: each is for a weight at most
+    /// `w_max`, or a cell that has only shrunk since `outer` was taken, with a relative
+    /// rounding margin `≤ 10⁻¹²` (their roots and squares monotone; a cell's radius grown
+    /// by a clip's rounding, a few ulps, is within the `10⁻⁶`). Every block outside the
+    /// cube would fail its test: the same blocks are read. (The earlier `⌈outer/side⌉ + 1`
+    /// read 25 blocks where 9 can reach, most cells' `outer` being under a side; reading
+    /// the 16 others was 2.9% of a transport's instructions.)
     fn cube(&self, p: [f64; D], outer: f64) -> ([usize; D], [usize; D]) {
         let centre = self.block(&p);
-        let span = (outer / self.side).ceil();
+        let span = (outer / self.side * (1.0 + 1e-6) + 1e-6).ceil();
         let span = if span < 1e9 {
-            span as usize + 1
+            span as usize
         } else {
             usize::MAX / 4
         };
