@@ -82,6 +82,11 @@ struct MaxGrid<const D: usize> {
     /// Side of a block, `L`.
     side: f64,
     dims: [usize; D],
+    /// Per axis `k`, the blocks' boundaries `lo_k + i·side` for `i` in `0..=dims_k`, the
+    /// first `−∞` and the last `+∞` (the edge blocks reach out to infinity): `near2`, a
+    /// tenth of the scans' instructions, reads them rather than computing them with a
+    /// branch at each use (the same operations: the same values bit for bit).
+    edges: [Vec<f64>; D],
     /// Per block, row-major with axis 0 fastest; `-∞` for an empty block.
     max: Vec<f64>,
     /// The sites of block `b` are `members[starts[b]..starts[b + 1]]`, in index order.
@@ -162,10 +167,17 @@ impl<const D: usize> MaxGrid<D> {
         let dims: [usize; D] =
             std::array::from_fn(|k| ((extent[k] / side).floor() as usize + 1).min(1 << 20));
         let blocks = dims.iter().product();
+        let edges = std::array::from_fn(|k| {
+            let mut edges: Vec<f64> = (0..=dims[k]).map(|i| lo[k] + i as f64 * side).collect();
+            edges[0] = f64::NEG_INFINITY;
+            edges[dims[k]] = f64::INFINITY;
+            edges
+        });
         let mut grid = Self {
             lo,
             side,
             dims,
+            edges,
             max: vec![f64::NEG_INFINITY; blocks],
             starts: vec![0; blocks + 1],
             members: vec![0; sites.len()],
@@ -220,6 +232,7 @@ impl<const D: usize> MaxGrid<D> {
             starts: self.starts.clone(),
             members: self.members.clone(),
             member_sites: self.member_sites.clone(),
+            edges: self.edges.clone(),
             ..*self
         }
     }
@@ -243,16 +256,7 @@ impl<const D: usize> MaxGrid<D> {
     fn near2(&self, first: [usize; D], last: [usize; D], p: [f64; D]) -> f64 {
         let mut near2 = 0.0;
         for k in 0..D {
-            let a = if first[k] == 0 {
-                f64::NEG_INFINITY
-            } else {
-                self.lo[k] + first[k] as f64 * self.side
-            };
-            let b = if last[k] + 1 == self.dims[k] {
-                f64::INFINITY
-            } else {
-                self.lo[k] + (last[k] + 1) as f64 * self.side
-            };
+            let (a, b) = (self.edges[k][first[k]], self.edges[k][last[k] + 1]);
             let gap = (a - p[k]).max(p[k] - b).max(0.0);
             near2 += gap * gap;
         }
@@ -1090,6 +1094,7 @@ mod tests {
             .chain(&g.max)
             .chain(&g.coarse_max)
             .chain(&g.member_weights)
+            .chain(g.edges.iter().flatten())
             .chain(g.member_sites.iter().flatten());
         let counts = (g.dims.iter().chain(&g.coarse_dims)).map(|&d| d as u64);
         let members = g.starts.iter().chain(&g.members).map(|&m| u64::from(m));
