@@ -82,7 +82,7 @@ pub use polygon_cell::PolygonCell;
 pub use polyhedron_cell::PolyhedronCell;
 pub(crate) use power::Margins;
 pub use power::PowerWhole;
-use power::{MarginRows, MarginScratch, Power};
+use power::{MarginRows, MarginScratch, Power, SiteBlocks};
 pub use sphere::{Sphere, ON_SPHERE_TOL};
 pub use sphere_region::{SphereRegion, MAX_REACH_DEGREES};
 pub use surface::{RestrictedDelaunay, Surface, SurfacePieces};
@@ -93,7 +93,7 @@ pub use warm::WarmStart;
 use weighted_sums::{FaceNodes, WeightedSums};
 
 /// How to treat unusual input.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Options {
     /// Accept sites outside the domain. The cell of such a site is the part of its Voronoi
     /// cell that lies inside the domain: possibly empty, and not containing its site.
@@ -350,11 +350,45 @@ pub fn clipped_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
-    clipped_diagram_above::<D, C, K>(domain, sites, request, None, None, &mut None)?.ok_or_else(
-        || CoreError::InvalidSettings {
+    clipped_diagram_kept::<D, C, K>(domain, sites, request, None)
+}
+
+/// [`clipped_diagram`], reading (or, the first time, keeping) what it computes of the sites
+/// alone in `setup` ([`SiteSetup`]).
+pub(crate) fn clipped_diagram_kept<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    request: &Request<'_, D>,
+    setup: Option<&mut SiteSetup<D>>,
+) -> Result<Clipped<D, C>, CoreError>
+where
+    Euclid: Space<D>,
+{
+    clipped_diagram_above::<D, C, K>(domain, sites, request, None, None, &mut None, setup)?
+        .ok_or_else(|| CoreError::InvalidSettings {
             reason: "a diagram without a mass floor stopped below one".into(),
-        },
-    )
+        })
+}
+
+/// What a diagram computes of its sites alone, whatever their weights: their Morton order,
+/// winding numbers (checked) and index, and the power diagrams' block grid. The diagrams
+/// of one optimal transport (up to a dozen, of the same sites) keep them from the first
+/// (and the grid from the first power diagram): computing them again for each of the 8
+/// diagrams of a transport at 10,000 sites was 7.3% of its instructions
+/// (`docs/results/transport.txt` §15). Empty until a diagram fills it; read only by
+/// diagrams of as many sites with the same options (its holder's to give the same sites).
+#[derive(Default)]
+pub(crate) struct SiteSetup<const D: usize> {
+    kept: Option<KeptSites<D>>,
+}
+
+struct KeptSites<const D: usize> {
+    options: Options,
+    order: Vec<u32>,
+    windings: Vec<Option<i32>>,
+    index: SiteIndex<D>,
+    /// The power diagrams' grid, kept by the first.
+    blocks: Option<SiteBlocks<D>>,
 }
 
 /// A floor on the cells' masses below which a diagram is of no use to its caller
@@ -382,6 +416,7 @@ pub(crate) fn trial_diagram<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     request: &Request<'_, D>,
     floor: f64,
     margins: Option<&MarginRequest<'_, D>>,
+    setup: &mut SiteSetup<D>,
 ) -> Result<Option<Trial<D, C>>, CoreError>
 where
     Euclid: Space<D>,
@@ -392,7 +427,15 @@ where
     };
     let floor = request.density.is_none().then_some(&floor);
     let mut taken = None;
-    let out = clipped_diagram_above::<D, C, K>(domain, sites, request, floor, margins, &mut taken)?;
+    let out = clipped_diagram_above::<D, C, K>(
+        domain,
+        sites,
+        request,
+        floor,
+        margins,
+        &mut taken,
+        Some(setup),
+    )?;
     Ok(out.map(|clipped| (clipped, taken)))
 }
 
@@ -411,7 +454,8 @@ pub(crate) struct MarginRequest<'a, const D: usize> {
 }
 
 /// [`clipped_diagram`], or `None` when a cell is below `floor` ([`trial_diagram`]); the
-/// margins `margins` asks to take in `taken`.
+/// margins `margins` asks to take in `taken`; the sites' order, windings, index and power
+/// grid from `setup` when it holds them (kept there otherwise).
 fn clipped_diagram_above<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: &[[f64; D]],
@@ -419,6 +463,7 @@ fn clipped_diagram_above<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     floor: Option<&MassFloor>,
     margins: Option<&MarginRequest<'_, D>>,
     taken: &mut Option<Margins<D>>,
+    setup: Option<&mut SiteSetup<D>>,
 ) -> Result<Option<Clipped<D, C>>, CoreError>
 where
     Euclid: Space<D>,
@@ -456,25 +501,44 @@ where
     // A warm diagram visits the sites in the previous one's order (the cells do not
     // depend on it); a sampled density is asked for its nodes batch by batch, as cold.
     let sampled = matches!(density, Some(Density::Sampled { .. }));
-    let order = match (moved.as_ref(), request.warm) {
-        (Some(_), Some(warm)) if !sampled => warm.order().to_vec(),
-        _ => morton_order(sites),
+    let kept = (setup.as_deref())
+        .and_then(|s| s.kept.as_ref())
+        .filter(|k| k.options == request.options && k.windings.len() == sites.len());
+    let (order, morton) = match (moved.as_ref(), request.warm) {
+        (Some(_), Some(warm)) if !sampled => (warm.order().to_vec(), false),
+        _ => (
+            kept.map_or_else(|| morton_order(sites), |k| k.order.clone()),
+            true,
+        ),
     };
     let integrand = request.integrand;
     // The winding numbers and the index are dropped before the batches are assembled,
-    // when every batch and the whole diagram are alive at once (issue 32: memory).
+    // when every batch and the whole diagram are alive at once (issue 32: memory), unless
+    // `setup` keeps them.
     let power_start = request
         .power_start
         .filter(|d| weights.is_some() && d.len() == sites.len());
     let batches = {
-        let windings = checked_windings(domain, sites, request.options)?;
-        let index = SiteIndex::new(sites)?;
+        let mut computed = None;
+        let (windings, index) = match kept {
+            Some(k) => (&k.windings, &k.index),
+            None => {
+                let c = computed.insert((
+                    checked_windings(domain, sites, request.options)?,
+                    SiteIndex::new(sites)?,
+                ));
+                (&c.0, &c.1)
+            }
+        };
         let visit = Visit {
             sites,
-            index: &index,
-            windings: &windings,
+            index,
+            windings,
             power: weights.map(|w| {
-                let power = Power::new(w, sites);
+                let power = match kept.and_then(|k| k.blocks.as_ref()) {
+                    Some(blocks) => Power::on_blocks(w, blocks),
+                    None => Power::new(w, sites),
+                };
                 match (margins, power_start) {
                     (Some(m), Some(_)) => power.with_margins(m.stored, m.dmax, m.record),
                     _ => power,
@@ -496,13 +560,32 @@ where
             reach: false,
             floor,
         };
-        visit.batches::<C, K>(
+        let batches = visit.batches::<C, K>(
             domain,
             &order,
             integrand,
             request.keep_cells,
             &weighted_sums,
-        )
+        );
+        let blocks = (visit.power.as_ref())
+            .filter(|_| kept.is_some_and(|k| k.blocks.is_none()))
+            .map(Power::blocks);
+        if let Some(setup) = setup {
+            match (&mut setup.kept, computed) {
+                (None, Some((windings, index))) if morton => {
+                    setup.kept = Some(KeptSites {
+                        options: request.options,
+                        order: order.clone(),
+                        windings,
+                        index,
+                        blocks: None,
+                    });
+                }
+                (Some(k), _) if blocks.is_some() => k.blocks = blocks,
+                _ => {}
+            }
+        }
+        batches
     };
     let mut batches = without_errors(batches)?;
     if floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {

@@ -82,6 +82,12 @@
 //! of the cells of the last two or three trials pass (10,000 and 100,000 sites, square and
 //! L-shape); CPU time of the transport on one thread 0-5% lower in the square at 10,000
 //! sites, 13-14% in the L-shape, 4.5% in the square at 100,000 (§14).
+//!
+//! **Set-up kept.** What a diagram computes of the sites alone (their Morton order,
+//! winding numbers, nearest-site index and the power diagrams' block grid) is computed by
+//! the first diagram and kept for every trial (`diagram::SiteSetup`): at 10,000 sites it
+//! was 7.3% of the transport's instructions, computed again for each of its 8 diagrams
+//! (`docs/results/transport.txt` §15). The same cells, so the same weights bit for bit.
 
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -99,8 +105,8 @@ use rayon::prelude::*;
 
 use crate::density::Density;
 use crate::diagram::{
-    clipped_diagram, trial_diagram, Clipped, ConvexCell, Diagram, DomainKind, FaceIntegrals,
-    FaceIntegrand, MarginRequest, Margins, Matrix, Request as DiagramRequest,
+    clipped_diagram_kept, trial_diagram, Clipped, ConvexCell, Diagram, DomainKind, FaceIntegrals,
+    FaceIntegrand, MarginRequest, Margins, Matrix, Request as DiagramRequest, SiteSetup,
 };
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub, Euclid, Space};
@@ -255,7 +261,10 @@ where
     };
     // The fill-reducing ordering and symbolic factorisation of earlier steps.
     let mut ordering = Kept::default();
-    let mut current = Evaluation::new::<C, K>(domain, sites, &weights, settings.density)?;
+    // The sites' order, windings and index, computed by the first diagram for every other.
+    let mut setup = SiteSetup::default();
+    let mut current =
+        Evaluation::new::<C, K>(domain, sites, &weights, settings.density, &mut setup)?;
     let total: f64 = current.masses.iter().sum();
     let given: f64 = masses.iter().sum();
     let targets: Vec<f64> = if settings.normalise {
@@ -349,6 +358,7 @@ where
                 &current.diagram,
                 floor,
                 use_margins.then_some(&margin_request),
+                &mut setup,
             )?;
             diagrams += 1;
             if let Some((evaluation, taken)) = evaluation {
@@ -454,25 +464,27 @@ struct Evaluation<const D: usize> {
 }
 
 impl<const D: usize> Evaluation<D> {
-    /// The power diagram of `weights`.
+    /// The power diagram of `weights`, keeping what it computes of the sites in `setup`.
     fn new<C: ConvexCell<D>, K: DomainKind<D>>(
         domain: &K,
         sites: &[[f64; D]],
         weights: &[f64],
         density: Option<&Density<'_, D>>,
+        setup: &mut SiteSetup<D>,
     ) -> Result<Self, CoreError>
     where
         Euclid: Space<D>,
     {
         let integrand = density.map(|_| FaceMass);
         let request = Self::request(weights, density, integrand.as_ref(), None);
-        let clipped = clipped_diagram::<D, C, K>(domain, sites, &request)?;
+        let clipped = clipped_diagram_kept::<D, C, K>(domain, sites, &request, Some(setup))?;
         Ok(Self::of(clipped, density))
     }
 
     /// The power diagram of the trial `weights`, each cell started from its neighbours in
     /// `start`, or `None` as soon as a cell's mass is found below `floor`
     /// ([`trial_diagram`]); with `margins`, the margins it took.
+    #[allow(clippy::too_many_arguments)]
     fn trial<C: ConvexCell<D>, K: DomainKind<D>>(
         domain: &K,
         sites: &[[f64; D]],
@@ -481,13 +493,14 @@ impl<const D: usize> Evaluation<D> {
         start: &Diagram<D>,
         floor: f64,
         margins: Option<&MarginRequest<'_, D>>,
+        setup: &mut SiteSetup<D>,
     ) -> Result<Option<(Self, Option<Margins<D>>)>, CoreError>
     where
         Euclid: Space<D>,
     {
         let integrand = density.map(|_| FaceMass);
         let request = Self::request(weights, density, integrand.as_ref(), Some(start));
-        let clipped = trial_diagram::<D, C, K>(domain, sites, &request, floor, margins)?;
+        let clipped = trial_diagram::<D, C, K>(domain, sites, &request, floor, margins, setup)?;
         Ok(clipped.map(|(clipped, taken)| (Self::of(clipped, density), taken)))
     }
 
@@ -1004,11 +1017,12 @@ fn symmetric_product(matrix: &SparseColMat<usize, f64>, x: &[f64], out: &mut [f6
     out.fill(0.0);
     for (j, &xj) in x.iter().enumerate() {
         let mut sum = 0.0;
-        for k in col_ptr[j]..col_ptr[j + 1] {
-            let i = rows[k];
-            out[i] += values[k] * xj;
+        // Column j's rows and values as slices: no bounds check of theirs in the loop.
+        let column = col_ptr[j]..col_ptr[j + 1];
+        for (&i, &v) in rows[column.clone()].iter().zip(&values[column]) {
+            out[i] += v * xj;
             if i != j {
-                sum += values[k] * x[i];
+                sum += v * x[i];
             }
         }
         out[j] += sum;
