@@ -24,6 +24,7 @@ from hcvt.geometry.surface_points import closest_points
 from hcvt.surface.quality import (
     HausdorffWarning,
     SurfaceQuality,
+    edge_counts,
     edge_topology,
     hausdorff_one_sided,
     surface_quality,
@@ -355,7 +356,8 @@ def test_remeshing_an_open_surface_names_its_border_defects() -> None:
     # no triangle (borders need a 1D restricted diagram of their own: not done). Both are
     # reported, naming the site; the rest is a manifold of the scan's genus.
     domain = surface(OPEN)
-    out = hcvt.remesh(domain, 1500, seed=1, density=None)  # uniform: this seed has the defect
+    # The border free (border=False; uniform): this seed has the defect.
+    out = hcvt.remesh(domain, 1500, seed=1, density=None, border=False)
     got = edge_topology(out.faces, 1500)
     assert got["manifold"] and not got["closed"] and got["genus"] == 0
     assert 1 <= got["border_loops"] <= 5
@@ -366,7 +368,58 @@ def test_remeshing_an_open_surface_names_its_border_defects() -> None:
     # The defects of the early stop sent the CVT on at tighter tolerances, within max_iter.
     assert out.cvt.iterations < out.iterations <= 200 and out.cvt.tol < REMESH_TOL
     with pytest.raises(hcvt.RemeshError, match="in no triangle, first site"):
-        hcvt.remesh(domain, 1500, seed=1, check=True, density=None)
+        hcvt.remesh(domain, 1500, seed=1, check=True, density=None, border=False)
+
+
+def _on_segments(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Each point's distance (p,) to the nearest of the segments ``a[k]-b[k]`` (s, 3)."""
+    ab = b - a
+    t = np.einsum("psk,sk->ps", points[:, None, :] - a[None], ab) / np.einsum("sk,sk->s", ab, ab)
+    nearest = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+    return np.linalg.norm(points[:, None, :] - nearest, axis=2).min(axis=1)
+
+
+@needs_data
+@pytest.mark.parametrize("seed", [0, 1])
+def test_remeshing_an_open_surface_keeps_its_border_loops(seed: int) -> None:
+    # By default the border is held as a feature curve: the scan's five holes stay five
+    # border loops, every border vertex of the mesh on the scan's border, no defects
+    # (measured: Hausdorff 0.609% / 0.718% of the diagonal for seeds 0 / 1; with the
+    # border free, above, 2.79% / 2.97%: a hole closed, a border site in no triangle).
+    domain = surface(OPEN)
+    out = hcvt.remesh(domain, 1500, seed=seed)
+    got = edge_topology(out.faces, 1500)
+    want = edge_topology(domain.faces, len(domain.vertices))
+    assert out.defects == [] and len(out.vertices) == 1500
+    assert got["manifold"] and not got["closed"] and got["genus"] == 0
+    assert got["border_loops"] == want["border_loops"] == 5
+    pairs, counts = edge_counts(domain.faces)
+    rim = pairs[counts == 1]
+    mine, mine_counts = edge_counts(out.faces)
+    on_border = np.unique(mine[mine_counts == 1])
+    v = domain.vertices
+    distance = _on_segments(out.vertices[on_border], v[rim[:, 0]], v[rim[:, 1]])
+    diagonal = float(np.linalg.norm(np.ptp(v, axis=0)))
+    assert distance.max() < 1e-9 * diagonal
+    assert out.quality.hausdorff < 1.0  # % of the diagonal (2.8-3.0% with border=False)
+
+
+def test_an_open_box_keeps_its_rim_and_with_features_its_corners() -> None:
+    trimesh = pytest.importorskip("trimesh")
+    box = trimesh.creation.box()
+    top = box.face_normals[:, 2] > 0.5
+    domain = hcvt.Domain.from_surface(box.vertices, box.faces[~top])
+    rim_corners = box.vertices[box.vertices[:, 2] > 0]
+    for features in (None, 30.0):
+        out = hcvt.remesh(domain, 300, seed=0, features=features)
+        got = edge_topology(out.faces, 300)
+        assert out.defects == [] and got["manifold"] and got["border_loops"] == 1
+        mine, counts = edge_counts(out.faces)
+        rim = out.vertices[np.unique(mine[counts == 1])]
+        assert np.abs(rim[:, 2] - 0.5).max() < 1e-12  # every border vertex on the rim
+        gaps = np.linalg.norm(rim_corners[:, None] - out.vertices[None], axis=2).min(axis=1)
+        # The border's 90° corners are held with features only (BORDER_CORNER_ANGLE).
+        assert (gaps.max() < 1e-12) == (features is not None)
 
 
 def test_remesh_refuses_a_solid() -> None:

@@ -40,6 +40,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from hcvt.density import DensityLike
@@ -135,22 +137,31 @@ def check_angle(angle: float) -> float:
 
 
 def detect_features(
-    vertices: NDArray[np.float64], faces: NDArray[np.intp], angle: float
+    vertices: NDArray[np.float64],
+    faces: NDArray[np.intp],
+    angle: float,
+    *,
+    creases: bool = True,
 ) -> FeatureCurves:
     """The feature edges of a triangle surface above ``angle`` degrees, chained into curves.
 
     ``vertices`` (m, 3) and ``faces`` (f, 3) as :meth:`hcvt.Domain.from_surface` takes them.
+    The border's edges are features; with ``creases=False`` they alone are (an open
+    surface's border, :func:`hcvt.remesh`'s ``border``), ``angle`` then deciding only
+    where a curve turns enough to make a corner.
     """
     angle = check_angle(angle)
     faces = np.asarray(faces, dtype=np.intp)
-    trimesh = load("trimesh")
-    mesh = trimesh.Trimesh(vertices, faces, process=False)
-    sharp = np.degrees(mesh.face_adjacency_angles) > angle
     pairs, counts = edge_counts(faces)
     border = pairs[counts == 1]
-    edges = np.unique(
-        np.sort(np.concatenate([mesh.face_adjacency_edges[sharp], border]), axis=1), axis=0
-    ).astype(np.intp)
+    sharp_edges = np.empty((0, 2), dtype=np.intp)
+    if creases:
+        trimesh = load("trimesh")
+        mesh = trimesh.Trimesh(vertices, faces, process=False)
+        sharp_edges = mesh.face_adjacency_edges[np.degrees(mesh.face_adjacency_angles) > angle]
+    edges = np.unique(np.sort(np.concatenate([sharp_edges, border]), axis=1), axis=0).astype(
+        np.intp
+    )
     corners = _corners(np.asarray(vertices, dtype=np.float64), edges, angle)
     return FeatureCurves(angle, edges, corners, _chains(edges, corners, len(vertices)))
 
@@ -212,24 +223,48 @@ def _chains(
 
 
 def long_curves(
-    features: FeatureCurves, vertices: NDArray[np.float64], shortest: float
+    features: FeatureCurves,
+    vertices: NDArray[np.float64],
+    shortest: float,
+    *,
+    whole: bool = False,
 ) -> FeatureCurves:
     """``features`` without the curves shorter than ``shortest`` (L), open or closed.
 
-    Their corners go too, unless a curve kept ends there (:data:`SHORTEST_CURVE`).
+    Their corners go too, unless a curve kept ends there (:data:`SHORTEST_CURVE`). With
+    ``whole``, a curve goes only when all the curves joined to it (a border loop cut at
+    its corners) are shorter together: a loop's short pieces stay with it.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
-    kept = []
+    lengths = []
     for chain, closed in features.curves:
         polyline = vertices[np.append(chain, chain[0]) if closed else chain]
-        if np.linalg.norm(np.diff(polyline, axis=0), axis=1).sum() >= shortest:
-            kept.append((chain, closed))
+        lengths.append(float(np.linalg.norm(np.diff(polyline, axis=0), axis=1).sum()))
+    if whole and features.curves:
+        lengths = _joined_lengths(features.curves, lengths, len(vertices))
+    kept = [
+        curve for curve, length in zip(features.curves, lengths, strict=True) if length >= shortest
+    ]
     ends = {int(c[i]) for c, closed in kept if not closed for i in (0, -1)}
     corners = np.array([c for c in features.corners.tolist() if c in ends], dtype=np.intp)
     edges = [np.sort(np.column_stack([c[:-1], c[1:]]), axis=1) for c, _ in kept]
     edges += [np.sort([[c[-1], c[0]]], axis=1) for c, closed in kept if closed]
     all_edges = np.concatenate(edges).astype(np.intp) if edges else features.edges[:0]
     return FeatureCurves(features.angle, all_edges, corners, kept)
+
+
+def _joined_lengths(
+    curves: list[tuple[NDArray[np.intp], bool]], lengths: list[float], n_vertices: int
+) -> list[float]:
+    """Per curve, the total length (L) of the curves joined to it through shared vertices."""
+    chains = [np.append(c, c[0]) if closed else c for c, closed in curves]
+    a = np.concatenate([c[:-1] for c in chains])
+    b = np.concatenate([c[1:] for c in chains])
+    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(n_vertices, n_vertices))
+    _, label = connected_components(graph, directed=False)
+    of_curve = np.array([label[c[0]] for c, _ in curves])
+    total = np.bincount(of_curve, weights=np.asarray(lengths))
+    return [float(total[k]) for k in of_curve]
 
 
 def site_spacing(area: float, n: int) -> float:
@@ -375,15 +410,21 @@ def _without_shortcuts(points: NDArray[np.float64], segments: NDArray[np.intp]) 
         segments = segments[keep]
 
 
-def plan_feature_sites(surface: Domain, n: int, angle: float) -> FeatureSites:
+def plan_feature_sites(
+    surface: Domain, n: int, angle: float, *, creases: bool = True
+) -> FeatureSites:
     """The fixed sites of :func:`hcvt.remesh` with ``features=angle`` for ``n`` sites in all.
 
+    With ``creases=False`` those of the border alone (:func:`detect_features`).
     Raises ValueError for a bad angle, or when the features take all ``n`` sites.
     """
-    features = detect_features(surface.vertices, surface.faces, angle)
+    features = detect_features(surface.vertices, surface.faces, angle, creases=creases)
     spacing = FEATURE_SPACING * site_spacing(surface.volume, n)
     features = long_curves(
-        features, surface.vertices, SHORTEST_CURVE * site_spacing(surface.volume, n)
+        features,
+        surface.vertices,
+        SHORTEST_CURVE * site_spacing(surface.volume, n),
+        whole=not creases,
     )
     sites = feature_sites(features, surface.vertices, spacing)
     sites = weld_sites(sites, WELD * site_spacing(surface.volume, n))
@@ -391,6 +432,9 @@ def plan_feature_sites(surface: Domain, n: int, angle: float) -> FeatureSites:
         raise ValueError(
             f"the features above {angle}° take {len(sites.points)} sites, n = {n} leaves "
             "none for the rest of the surface: raise n or the angle"
+            if creases
+            else f"the border takes {len(sites.points)} sites, n = {n} leaves none for the "
+            "rest of the surface: raise n, or remesh with border=False"
         )
     return sites
 
