@@ -668,6 +668,13 @@ SPECIFIC: dict[str, list[Row]] = {
             Raises(ValueError, '"curvature", a density'),
         ),
         (
+            "surface: remesh of an open surface whose border takes every site",
+            lambda: hcvt.remesh(
+                hcvt.Domain.from_surface(CUBE_VERTICES, np.asarray(CUBE_FACES)[2:]), 3
+            ),
+            Raises(ValueError, "the border takes"),
+        ),
+        (
             "surface: remesh with n = 0",
             lambda: hcvt.remesh(cube_surface(), 0),
             Raises(ValueError, "n must be a positive integer"),
