@@ -28,8 +28,8 @@ default threads; pyacvd's kd-tree runs OpenMP threads: it is not single-threaded
 ~1.8 cores on armadillo 5k; MeshLab's remeshing is single-threaded), with ``--cores 1``
 every thread pinned to one CPU, hcvt on one thread and ``OMP_NUM_THREADS=1``
 (``timing.use_cores``). Until 2026-12-04 this script pinned hcvt alone to one thread and
-left pyacvd its OpenMP threads. Timings are under load (other jobs share the machine):
-ratios are of runs taken in turn in the same process.
+left pyacvd its OpenMP threads. The header prints the load average at the start (the machine
+may be shared): ratios are of runs taken in turn in the same process.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/remesh.py [--quick] [--models bunny ...] [--n ...]
         [--cores 1]
@@ -325,7 +325,8 @@ def main() -> None:
         f"{'model':10} {'n':>6} {'code':8} {'verts':>6} {'Qmin':>6} {'Qmean':>6} {'θmin':>6} "
         f"{'%<30':>6} {'H %':>6} {'manif':>5} {'genus':>5} {'s':>8} {'cpu s':>8} {'s/hcvt':>7}"
     )
-    print(f"under load: other jobs share this machine; ratios are in-run; {cores}")
+    load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    print(f"load average {load} at the start; ratios are in-run; {cores}")
     if args.features is not None:
         print(f"sharp features above {args.features}° kept by hcvt and MeshLab")
     print(header)
