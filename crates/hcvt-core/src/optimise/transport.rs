@@ -24,11 +24,13 @@
 //! while its factor stays within 10% of that size, [`analyse`]), serially. Later steps
 //! first solve by conjugate gradients preconditioned by the last factor, an earlier step's
 //! matrix (`Kept::preconditioned`), to the inexact-Newton goal below, and factorise afresh
-//! only if 30 iterations do not reach it. Why: factorising every step (AMD, symbolic and
-//! numeric) took a third of the transport's samples at 10,000 sites (perf, one thread);
-//! with the kept factor one factorisation serves the whole run at 10,000 and 100,000 sites
-//! in the square and the L-shape (10 to 20 iterations a step, solving to a fiftieth of the
-//! goal), CPU time 6.4 to 4.6 s in the L-shape at 100,000 (`docs/results/transport.txt`). Its residual is then checked
+//! only if 30 iterations do not reach it, or once near the solution while the factor is
+//! simplicial ([`REFACTORISE_BELOW`]: 10,000 sites, not 100,000). Why: factorising every
+//! step (AMD, symbolic and numeric) took a third of the transport's samples at 10,000
+//! sites (perf, one thread); with the kept factor one factorisation served the whole run
+//! at 10,000 and 100,000 sites in the square and the L-shape (10 to 20 iterations a step,
+//! solving to a fiftieth of the goal), CPU time 6.4 to 4.6 s in the L-shape at 100,000
+//! (`docs/results/transport.txt`). Its residual is then checked
 //! cell by cell against the inexact-Newton goal below and, if short of it, polished by
 //! the conjugate gradients, which also solve every system the factorisation does not take:
 //! a face graph that is not connected, or a factor fuller than `MAX_FILL_PER_ROW` (3D:
@@ -175,7 +177,7 @@ const MARGINS_BELOW: f64 = 0.05;
 /// steps and diagrams), and the triangular solves of those iterations cost more than one
 /// factorisation: 3.9% fewer instructions in the whole run (`docs/results/transport.txt`
 /// §17). A supernodal factor (100,000 sites) costs more than 20 iterations to compute
-/// afresh, and there it was slower (3.85 against 3.51 s, the square).
+/// afresh, and there it was slower (CPU 3.84 against 3.51 s, the square).
 const REFACTORISE_BELOW: f64 = 0.05;
 
 /// The largest relative error expected after a full Newton step from `error`, the step
