@@ -1056,10 +1056,27 @@ impl<'a, const D: usize> Power<'a, D> {
         if b.is_nan() || b > MARGIN_WEIGHT * side * side {
             return false;
         }
-        let e2 = cell.vertices().iter().fold(0.0_f64, |e2, &v| {
-            let near2 = (m.vertices.iter()).fold(f64::INFINITY, |n, &a| n.min(norm2(sub(v, a))));
-            e2.max(near2)
-        });
+        // The largest over the cell's vertices of the squared distance to the nearest
+        // stored vertex. `min` and `max` round nothing, so the order of the reads is free
+        // and a vertex stops at the first stored vertex within the running largest: it
+        // cannot raise it (the same `e2` bit for bit). Each vertex starts at the stored
+        // vertex of its own index, its likely nearest (the cell moves little between solves).
+        let stored = m.vertices;
+        let e2 = cell
+            .vertices()
+            .iter()
+            .enumerate()
+            .fold(0.0_f64, |e2, (k, &v)| {
+                let (head, tail) = stored.split_at(k % stored.len());
+                let mut near2 = f64::INFINITY;
+                for &a in tail.iter().chain(head) {
+                    near2 = near2.min(norm2(sub(v, a)));
+                    if near2 <= e2 {
+                        return e2;
+                    }
+                }
+                e2.max(near2)
+            });
         let e = e2.sqrt() * (1.0 + MARGIN_ROUNDING);
         if e.is_nan() || e > MARGIN_REACH * side {
             return false;

@@ -24,11 +24,13 @@
 //! while its factor stays within 10% of that size, [`analyse`]), serially. Later steps
 //! first solve by conjugate gradients preconditioned by the last factor, an earlier step's
 //! matrix (`Kept::preconditioned`), to the inexact-Newton goal below, and factorise afresh
-//! only if 30 iterations do not reach it. Why: factorising every step (AMD, symbolic and
-//! numeric) took a third of the transport's samples at 10,000 sites (perf, one thread);
-//! with the kept factor one factorisation serves the whole run at 10,000 and 100,000 sites
-//! in the square and the L-shape (10 to 20 iterations a step, solving to a fiftieth of the
-//! goal), CPU time 6.4 to 4.6 s in the L-shape at 100,000 (`docs/results/transport.txt`). Its residual is then checked
+//! only if 30 iterations do not reach it, or once near the solution while the factor is
+//! simplicial ([`REFACTORISE_BELOW`]: 10,000 sites, not 100,000). Why: factorising every
+//! step (AMD, symbolic and numeric) took a third of the transport's samples at 10,000
+//! sites (perf, one thread); with the kept factor one factorisation served the whole run
+//! at 10,000 and 100,000 sites in the square and the L-shape (10 to 20 iterations a step,
+//! solving to a fiftieth of the goal), CPU time 6.4 to 4.6 s in the L-shape at 100,000
+//! (`docs/results/transport.txt`). Its residual is then checked
 //! cell by cell against the inexact-Newton goal below and, if short of it, polished by
 //! the conjugate gradients, which also solve every system the factorisation does not take:
 //! a face graph that is not connected, or a factor fuller than `MAX_FILL_PER_ROW` (3D:
@@ -94,7 +96,7 @@ use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use std::borrow::Cow;
 use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
@@ -163,6 +165,20 @@ pub fn set_stored_margins(on: bool) {
 /// that of error 0.1, none (`docs/results/transport.txt` §11, §14), and taking margins
 /// widens the scan of every cell (about 40% more time in the certificate).
 const MARGINS_BELOW: f64 = 0.05;
+
+/// The Newton step whose iterate is expected ([`expected_error`]) to have a largest relative
+/// error below this factorises its own Laplacian afresh, once a run, instead of solving by
+/// conjugate gradients preconditioned by the first step's factor, when that factor is
+/// simplicial ([`Kept::cheap_to_refactorise`]); the later steps are preconditioned by the
+/// fresh factor. Why: near the solution the faces barely move, so the fresh factor is
+/// nearly the later matrices' own: the square at 10,000 sites took 0, 3 and 4 iterations
+/// in its last three steps where the first step's factor took 11, 16 and 18 (69 in all,
+/// then 31; 12 runs of 10,000 sites, square and L-shape: 699 then 259, the same Newton
+/// steps and diagrams), and the triangular solves of those iterations cost more than one
+/// factorisation: 3.9% fewer instructions in the whole run (`docs/results/transport.txt`
+/// §17). A supernodal factor (100,000 sites) costs more than 20 iterations to compute
+/// afresh, and there it was slower (CPU 3.84 against 3.51 s, the square).
+const REFACTORISE_BELOW: f64 = 0.05;
 
 /// The largest relative error expected after a full Newton step from `error`, the step
 /// before having started from `previous`: quadratic convergence with the constant that
@@ -301,6 +317,8 @@ where
     let use_margins = STORED_MARGINS.load(AtomicOrdering::Relaxed);
     let mut margins: Option<Margins<D>> = None;
     let mut iterates: Vec<Vec<f64>> = Vec::new();
+    // Whether the factor was refreshed near the solution ([`REFACTORISE_BELOW`]).
+    let mut refreshed = false;
     while error > settings.tol && history.len() < settings.max_iter {
         let residual: Vec<f64> = targets
             .iter()
@@ -320,15 +338,17 @@ where
         } else {
             model
         };
+        let expected = expected_error(error, history.last().map(|r: &TransportRecord| r.max_error));
+        let refresh = !refreshed && expected < REFACTORISE_BELOW && ordering.cheap_to_refactorise();
+        refreshed |= refresh;
         let (start, preconditioned) =
-            match laplacian.direct(&residual, &targets, goal, &mut ordering) {
+            match laplacian.direct(&residual, &targets, goal, &mut ordering, refresh) {
                 Some((x, iterations)) => (Some(x), iterations),
                 None => (None, 0),
             };
         let (direction, cg_iterations) = laplacian.solve(&residual, &targets, goal, start);
         let cg_iterations = cg_iterations + preconditioned;
         let norm = norm_of(&residual);
-        let expected = expected_error(error, history.last().map(|r: &TransportRecord| r.max_error));
         let record = (use_margins && expected < MARGINS_BELOW && expected > settings.tol)
             .then_some(iterates.len() as u32);
         let mut step = first_trial;
@@ -728,13 +748,15 @@ impl<const D: usize> Laplacian<'_, D> {
     /// has its pattern ([`Kept`]). Before factorising, the system is solved to `goal`
     /// (relative to `targets`, as [`Laplacian::solve`]) by conjugate gradients
     /// preconditioned by the last factorisation, when there is one
-    /// ([`Kept::preconditioned`]); the iterations are returned with the solution.
+    /// ([`Kept::preconditioned`]), unless `refresh` asks for this matrix's own factor
+    /// ([`REFACTORISE_BELOW`]); the iterations are returned with the solution.
     fn direct(
         &self,
         b: &[f64],
         targets: &[f64],
         goal: f64,
         kept: &mut Kept,
+        refresh: bool,
     ) -> Option<(Vec<f64>, usize)> {
         let n = b.len();
         if n < 2 {
@@ -752,14 +774,23 @@ impl<const D: usize> Laplacian<'_, D> {
         // solves took 7 and 10 (each step's error falling less while large); a thousand
         // times closer took the exact solves' steps too, with 100 iterations against 80.
         let sharper = (goal * 0.02).max(goal.min(1e-12));
-        if let Some(solved) = kept.preconditioned(&matrix, fixed, &x, targets, sharper) {
-            return Some(solved);
+        if !refresh {
+            if let Some(solved) = kept.preconditioned(&matrix, fixed, &x, targets, sharper) {
+                return Some(solved);
+            }
         }
         let pattern = matrix.symbolic();
         let same = kept.analysed.as_ref().is_some_and(|a| {
             a.fixed == fixed && a.col_ptr == pattern.col_ptr() && a.rows == pattern.row_idx()
         });
         if !same {
+            // A refreshed factor takes a fresh ordering: the kept one, the first step's, had
+            // let the fill grow past `REUSE_FILL` by then (the benchmark's square and
+            // L-shape at 10,000 sites), so its analysis, tried first, was wasted: 2% of
+            // the run's instructions.
+            if refresh {
+                kept.ordering = None;
+            }
             let symbolic = analyse(&matrix, &mut kept.ordering)?;
             kept.analysed = Some(Analysed {
                 fixed,
@@ -906,6 +937,18 @@ struct Kept {
 const PRECONDITIONED_ITERATIONS: usize = 30;
 
 impl Kept {
+    /// Whether there is a factor and it is simplicial: faer chooses the supernodal one when
+    /// the factorisation takes more than 40 multiply-adds per entry of the factor, i.e. when
+    /// it costs more than about 20 preconditioned iterations (two triangular solves each),
+    /// the iterations a fresh factor saves at [`REFACTORISE_BELOW`].
+    fn cheap_to_refactorise(&self) -> bool {
+        self.values.is_some()
+            && self
+                .analysed
+                .as_ref()
+                .is_some_and(|a| matches!(a.symbolic.raw(), SymbolicCholeskyRaw::Simplicial(_)))
+    }
+
     /// `x` with `A x = rhs` (`A` the grounded Laplacian `matrix`, lower triangle, cell
     /// `fixed` held; `rhs[fixed] = 0`) by conjugate gradients preconditioned by the last
     /// factorisation, an earlier step's matrix with the same cell held, and the iterations
