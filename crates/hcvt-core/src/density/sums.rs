@@ -41,7 +41,7 @@ pub fn polynomial_cone<const D: usize>(
     let (mut mass, mut first, mut second) = (0.0, [0.0; D], 0.0);
     // Σ_q w_q of ρ's non-constant part on the face (the weights sum to 1).
     let mut face_mean = 0.0;
-    for (lambda, w) in face_rule.nodes() {
+    for (lambda, w) in face_rule.nodes_in(D - 1) {
         let y = face_node(face, lambda);
         let linear = dot(local.linear, y);
         let quadratic = dot(std::array::from_fn(|r| dot(local.quadratic[r], y)), y);
@@ -72,7 +72,7 @@ pub fn polynomial_face_moments<const D: usize>(
     measure: f64,
 ) -> FaceMoments<D> {
     let mut m = FaceMoments::zero();
-    for (lambda, w) in face_rule.nodes() {
+    for (lambda, w) in face_rule.nodes_in(D - 1) {
         let y = face_node(simplex, lambda);
         let f = w * measure * local.value(y);
         m.measure += f;
