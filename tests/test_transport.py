@@ -142,3 +142,25 @@ def test_newton_systems_are_factorised_and_the_same_on_1_and_3_threads():
         [c.area for c in reference_cells_2d(l_shape, sites, one.weights, sites[:first], 20.0)]
     )
     np.testing.assert_array_less(np.abs(areas - masses[:first]) / masses[:first], 1e-10)
+
+
+def test_l_shape_with_a_quadratic_density_meets_masses_to_1e_10():
+    """ρ = 1 + x + 2y² on the L-shape (1 to 11): the power cells of the weights found, cut
+    by shapely and integrated by test_density's product Gauss rule, hold their targets
+    within 1e-10 (the masses' sum, the L-shape's ∫ρ, by the same rule)."""
+    from test_density import _polygon_moments
+
+    l_shape = shapely.Polygon([(0, 0), (2, 0), (2, 1), (1, 1), (1, 2), (0, 2)])
+    domain = hcvt.Domain.from_polygon(l_shape)
+    rho = hcvt.Polynomial.parse("1 + x + 2*y^2")
+    total = _polygon_moments(l_shape, rho, np.zeros(2))[0]
+    assert total == pytest.approx(11.5, rel=1e-14)
+    n = 150
+    sites = random_inside(domain, n, seed=31)
+    masses = random_masses(n, total, seed=32)
+    out = hcvt.optimal_transport(domain, sites, masses, density=rho)
+    print(f"{n} sites: {out.iterations} Newton steps, max relative error {out.max_error:.2e}")
+    assert out.converged and out.max_error <= 1e-10
+    cells = reference_cells_2d(l_shape, sites, out.weights, sites, 20.0)
+    reference = np.array([_polygon_moments(c, rho, np.zeros(2))[0] for c in cells])
+    np.testing.assert_array_less(np.abs(reference - masses) / masses, 1e-10)

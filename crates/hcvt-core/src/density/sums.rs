@@ -25,22 +25,27 @@ use super::Quadratic;
 pub type Cone<const D: usize> = ([[f64; D]; D], f64);
 
 /// The moments of `ρ = local` (about the site) over the cone simplex from the site over
-/// `face`, of signed measure `measure`, by the face averages of the module docs.
+/// `face`, of signed measure `measure`, by the face averages of the module docs; and ρ's
+/// mean over `face` itself (its `∫ρ` divided by its measure), from the same nodes: the
+/// face masses of the transport's Hessian (`diagram::faces`) at no second pass.
 #[inline]
 pub fn polynomial_cone<const D: usize>(
     local: &Quadratic<D>,
     face_rule: &Rule,
     face: &[[f64; D]; D],
     measure: f64,
-) -> Moments<D> {
+) -> (Moments<D>, f64) {
     let d = D as f64;
     let c = local.constant;
     // Σ_q w_q of each homogeneous part, already divided by d + k.
     let (mut mass, mut first, mut second) = (0.0, [0.0; D], 0.0);
-    for (lambda, w) in face_rule.nodes() {
+    // Σ_q w_q of ρ's non-constant part on the face (the weights sum to 1).
+    let mut face_mean = 0.0;
+    for (lambda, w) in face_rule.nodes_in(D - 1) {
         let y = face_node(face, lambda);
         let linear = dot(local.linear, y);
         let quadratic = dot(std::array::from_fn(|r| dot(local.quadratic[r], y)), y);
+        face_mean += w * (linear + quadratic);
         mass += w * (linear / (d + 1.0) + quadratic / (d + 2.0));
         let f = w * (c / (d + 1.0) + linear / (d + 2.0) + quadratic / (d + 3.0));
         for (sum, &yk) in first.iter_mut().zip(&y) {
@@ -49,11 +54,12 @@ pub fn polynomial_cone<const D: usize>(
         second += w * norm2(y) * (c / (d + 2.0) + linear / (d + 3.0) + quadratic / (d + 4.0));
     }
     let scale = d * measure;
-    Moments {
+    let cone = Moments {
         mass: c * measure + scale * mass,
         first: first.map(|x| scale * x),
         second: scale * second,
-    }
+    };
+    (cone, c + face_mean)
 }
 
 /// The ρ-weighted moments `∫ρ`, `∫ρ y`, `∫ρ y yᵀ` of the face simplex `simplex`
@@ -66,7 +72,7 @@ pub fn polynomial_face_moments<const D: usize>(
     measure: f64,
 ) -> FaceMoments<D> {
     let mut m = FaceMoments::zero();
-    for (lambda, w) in face_rule.nodes() {
+    for (lambda, w) in face_rule.nodes_in(D - 1) {
         let y = face_node(simplex, lambda);
         let f = w * measure * local.value(y);
         m.measure += f;
@@ -181,7 +187,7 @@ mod tests {
         let q2 = Quadratic::new(1.3, [0.4, -0.7], [[0.9, 0.2], [0.2, -0.3]]).unwrap();
         let face2 = [[0.3, -0.2], [0.5, 0.6]];
         let measure2 = 0.5 * (face2[0][0] * face2[1][1] - face2[0][1] * face2[1][0]);
-        let by_face = polynomial_cone(&q2, &quadrature::SEGMENT_5, &face2, measure2);
+        let (by_face, _) = polynomial_cone(&q2, &quadrature::SEGMENT_5, &face2, measure2);
         let by_volume = sum_sampled(
             &[(face2, measure2)],
             &TRIANGLE_4,
@@ -199,11 +205,33 @@ mod tests {
         .unwrap();
         let face3 = [[0.4, 0.1, -0.2], [-0.1, 0.5, 0.3], [0.2, -0.3, 0.6]];
         let det = crate::moments::tetra_moments(face3[0], face3[1], face3[2]).mass;
-        let by_face = polynomial_cone(&q3, &TRIANGLE_4, &face3, det);
+        let (by_face, _) = polynomial_cone(&q3, &TRIANGLE_4, &face3, det);
         let values: Vec<f64> = (TETRA_5.nodes())
             .map(|(l, _)| q3.value(cone_node(&face3, l)))
             .collect();
         close(&by_face, &sum_sampled(&[(face3, det)], &TETRA_5, &values));
+    }
+
+    /// ρ's mean over a cone's face, from the cone's nodes, is the face's `∫ρ` by
+    /// [`polynomial_face_moments`] over its measure, in 2D and 3D.
+    #[test]
+    fn a_cones_face_mean_is_the_faces_mass_over_its_measure() {
+        let q2 = Quadratic::new(1.3, [0.4, -0.7], [[0.9, 0.2], [0.2, -0.3]]).unwrap();
+        let face2 = [[0.3, -0.2], [0.5, 0.6]];
+        let length = crate::geometry::norm2(crate::geometry::sub(face2[1], face2[0])).sqrt();
+        let (_, mean) = polynomial_cone(&q2, &quadrature::SEGMENT_5, &face2, 0.17);
+        let mass = polynomial_face_moments(&q2, &quadrature::SEGMENT_5, &face2, length).measure;
+        assert!((mean * length - mass).abs() < 1e-15 * mass, "{mean} {mass}");
+        let q3 = Quadratic::new(
+            0.8,
+            [0.1, 0.5, -0.2],
+            [[0.7, 0.1, 0.0], [0.1, 0.4, -0.2], [0.0, -0.2, 1.1]],
+        )
+        .unwrap();
+        let face3 = [[0.4, 0.1, -0.2], [-0.1, 0.5, 0.3], [0.2, -0.3, 0.6]];
+        let (_, mean) = polynomial_cone(&q3, &TRIANGLE_4, &face3, 0.05);
+        let mass = polynomial_face_moments(&q3, &TRIANGLE_4, &face3, 0.3).measure;
+        assert!((mean * 0.3 - mass).abs() < 1e-15 * mass, "{mean} {mass}");
     }
 
     fn close<const D: usize>(a: &Moments<D>, b: &Moments<D>) {

@@ -33,6 +33,14 @@ pub trait FaceIntegrand<const D: usize>: Sync {
         face: &mut Matrix<D>,
         cell: &mut Matrix<D>,
     );
+
+    /// Whether [`FaceIntegrand::add`] reads only `m.measure` (with a density, `∫_F ρ`):
+    /// the optimal transport's face masses. A polynomial density then takes each face's
+    /// `∫ρ` from the nodes that integrate its cone, in the same pass, and `add` gets
+    /// moments whose `first` and `second` are zero.
+    fn reads_measure_only(&self) -> bool {
+        false
+    }
 }
 
 /// What a [`FaceIntegrand`] summed over a diagram, in the diagram's rows.
@@ -64,6 +72,9 @@ pub struct FaceSums<const D: usize> {
     pub(super) boundary: f64,
     /// With a density: the cell's ρ-weighted moments (or nodes), over the same pieces.
     pub(super) weighted: WeightedSums<D>,
+    /// With a polynomial and a [`FaceIntegrand::reads_measure_only`]: ρ's mean over each
+    /// face simplex of the current piece, in [`ConvexCell::for_each_cone`]'s order.
+    face_means: Vec<f64>,
 }
 
 impl<const D: usize> Default for FaceSums<D> {
@@ -74,6 +85,7 @@ impl<const D: usize> Default for FaceSums<D> {
             cell_integral: [[0.0; D]; D],
             boundary: 0.0,
             weighted: WeightedSums::default(),
+            face_means: Vec::new(),
         }
     }
 }
@@ -96,23 +108,73 @@ impl<const D: usize> FaceSums<D> {
         sign: f64,
         row: Option<FaceRow<'_, D>>,
     ) -> Moments<D> {
-        self.weighted.add_piece(piece, sign);
         match row {
             Some(row) if self.weighted.weighs_faces() => {
-                // The integrand sees ρ-weighted face moments; the neighbours their measure.
-                let weighted = std::mem::take(&mut self.weighted);
-                piece.for_each_face_simplex(|f, simplex, measure| {
-                    let m = weighted.face_moments(simplex, measure);
-                    self.add_weighted_moments(f, sign, measure, &m, row);
-                });
-                self.weighted = weighted;
-                piece.moments()
+                if row.integrand.reads_measure_only() {
+                    self.integrate_face_masses(piece, sign, row)
+                } else {
+                    self.integrate_weighted_faces(piece, sign, row)
+                }
             }
-            Some(row) => piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m, row)),
-            None => piece.moments_and_faces(|f, m| {
-                self.add(f, sign * m);
-            }),
+            Some(row) => {
+                self.weighted.add_piece(piece, sign, None);
+                piece.moments_and_face_moments(|f, m| self.add_moments(f, sign, &m, row))
+            }
+            None => {
+                self.weighted.add_piece(piece, sign, None);
+                piece.moments_and_faces(|f, m| {
+                    self.add(f, sign * m);
+                })
+            }
         }
+    }
+
+    /// [`FaceSums::integrate`] with a polynomial: `row`'s integrand sees each face
+    /// simplex's ρ-weighted moments, by the face rule on the simplex; the neighbours their
+    /// measure.
+    fn integrate_weighted_faces<C: ConvexCell<D>>(
+        &mut self,
+        piece: &C,
+        sign: f64,
+        row: FaceRow<'_, D>,
+    ) -> Moments<D> {
+        self.weighted.add_piece(piece, sign, None);
+        let weighted = std::mem::take(&mut self.weighted);
+        piece.for_each_face_simplex(|f, simplex, measure| {
+            let m = weighted.face_moments(simplex, measure);
+            self.add_weighted_moments(f, sign, measure, &m, row);
+        });
+        self.weighted = weighted;
+        piece.moments()
+    }
+
+    /// [`FaceSums::integrate`] with a polynomial for an integrand of face measures only
+    /// ([`FaceIntegrand::reads_measure_only`]): each face simplex's `∫ρ` is its measure
+    /// times ρ's mean over it, which the nodes integrating its cone gave
+    /// ([`WeightedSums::add_piece`]); no second pass over the face rule, no first or
+    /// second face moments.
+    fn integrate_face_masses<C: ConvexCell<D>>(
+        &mut self,
+        piece: &C,
+        sign: f64,
+        row: FaceRow<'_, D>,
+    ) -> Moments<D> {
+        let mut means = std::mem::take(&mut self.face_means);
+        means.clear();
+        self.weighted.add_piece(piece, sign, Some(&mut means));
+        // The face simplices are the cones' faces, in the same order (`ConvexCell`).
+        let mut face_mean = means.iter();
+        piece.for_each_face_simplex(|f, _, measure| {
+            let mean = face_mean.next().expect("one face simplex per cone");
+            let m = FaceMoments {
+                measure: mean * measure,
+                ..FaceMoments::zero()
+            };
+            self.add_weighted_moments(f, sign, measure, &m, row);
+        });
+        debug_assert!(face_mean.next().is_none(), "one cone per face simplex");
+        self.face_means = means;
+        piece.moments()
     }
 
     /// Add a face's measure; the index of its neighbour's entry, if it has one.
@@ -197,5 +259,125 @@ impl<const D: usize> FaceSums<D> {
                 at -= 1;
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::density::{Density, Quadratic};
+    use crate::diagram::{PolygonCell, PolyhedronCell};
+    use crate::geometry::{Aabb, HalfSpace};
+
+    /// Sums each face's `∫ρ` in entry `[0][0]`, reading the measure alone or not.
+    struct Masses {
+        measure_only: bool,
+    }
+
+    impl<const D: usize> FaceIntegrand<D> for Masses {
+        fn add(
+            &self,
+            _: usize,
+            _: usize,
+            _: Option<[f64; D]>,
+            sign: f64,
+            m: &FaceMoments<D>,
+            face: &mut Matrix<D>,
+            cell: &mut Matrix<D>,
+        ) {
+            face[0][0] += sign * m.measure;
+            cell[0][0] += sign * m.measure;
+        }
+
+        fn reads_measure_only(&self) -> bool {
+            self.measure_only
+        }
+    }
+
+    /// `cell` and a piece of it with sign −1 (as a cell crossing the boundary has),
+    /// integrated by `FaceSums` for an integrand reading the measure alone and one
+    /// reading the moments: the same faces, `∫ρ` over each to round-off, the cell's
+    /// moments and weighted moments bit for bit.
+    fn same_masses_either_way<const D: usize, C: ConvexCell<D>>(
+        rho: Quadratic<D>,
+        site: [f64; D],
+        cell: &C,
+        piece: &C,
+    ) {
+        let density = Density::Polynomial(rho);
+        let sums = |measure_only: bool| {
+            let integrand = Masses { measure_only };
+            let row = FaceRow {
+                integrand: &integrand,
+                site: 0,
+            };
+            let mut faces = FaceSums::<D> {
+                weighted: WeightedSums::new(Some(&density)).unwrap(),
+                ..FaceSums::default()
+            };
+            faces.weighted.start_cell(site);
+            let whole = faces.integrate(cell, 1.0, Some(row));
+            let part = faces.integrate(piece, -1.0, Some(row));
+            faces.sort_neighbors();
+            (faces, whole, part)
+        };
+        let (masses, moments) = (sums(true), sums(false));
+        assert_eq!(masses.1, moments.1);
+        assert_eq!(masses.2, moments.2);
+        assert_eq!(masses.0.weighted.moments, moments.0.weighted.moments);
+        assert_eq!(masses.0.neighbors, moments.0.neighbors);
+        assert!(masses.0.neighbors.len() >= 2, "{:?}", masses.0.neighbors);
+        let pairs = masses.0.integrals.iter().zip(&moments.0.integrals);
+        for (a, b) in pairs.chain([(&masses.0.cell_integral, &moments.0.cell_integral)]) {
+            let (a, b) = (a[0][0], b[0][0]);
+            assert!(b > 0.0 && (a - b).abs() <= 1e-14 * b, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn face_masses_from_the_cones_nodes_are_the_face_rules() {
+        let rho = Quadratic::new(1.0, [1.0, 0.5], [[0.0, 0.3], [0.3, 2.0]]).unwrap();
+        let site = [0.4, 0.7];
+        let mut cell = PolygonCell::from_box(&Aabb {
+            lo: [-0.4, -0.7],
+            hi: [0.6, 0.3],
+        });
+        for (normal, offset, j) in [([1.0, 1.0], 0.3, 3), ([-1.0, 0.4], 0.2, 5)] {
+            cell.clip(&HalfSpace { normal, offset }, Face::Neighbor(j));
+        }
+        let mut piece = cell.clone();
+        piece.clip(
+            &HalfSpace {
+                normal: [0.0, 1.0],
+                offset: -0.1,
+            },
+            Face::Boundary(0),
+        );
+        same_masses_either_way(rho, site, &cell, &piece);
+
+        let rho = Quadratic::new(
+            2.0,
+            [1.0, -0.5, 0.3],
+            [[1.0, 0.2, 0.0], [0.2, 0.5, 0.1], [0.0, 0.1, 2.0]],
+        )
+        .unwrap();
+        let site = [0.5, 0.5, 0.5];
+        let mut cell = PolyhedronCell::from_box(&Aabb {
+            lo: [-0.5; 3],
+            hi: [0.5; 3],
+        });
+        let planes = [([1.0, 1.0, 0.0], 0.4, 2), ([0.0, -1.0, 1.0], 0.3, 7)];
+        for (normal, offset, j) in planes {
+            cell.clip(&HalfSpace { normal, offset }, Face::Neighbor(j));
+        }
+        let mut piece = cell.clone();
+        piece.clip(
+            &HalfSpace {
+                normal: [0.0, 0.0, 1.0],
+                offset: -0.2,
+            },
+            Face::Boundary(0),
+        );
+        same_masses_either_way(rho, site, &cell, &piece);
     }
 }

@@ -226,8 +226,16 @@ impl<const D: usize> WeightedSums<D> {
         self.moments.add_scaled(&m, 1.0);
     }
 
-    /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex.
-    pub fn add_piece<C: ConvexCell<D>>(&mut self, piece: &C, sign: f64) {
+    /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex. With a
+    /// polynomial and `face_means`, push ρ's mean over each cone's face there too, cone
+    /// after cone, from the nodes that integrate the cone: what gives the faces' `∫ρ` to
+    /// an integrand that reads nothing else ([`super::FaceIntegrand::reads_measure_only`]).
+    pub fn add_piece<C: ConvexCell<D>>(
+        &mut self,
+        piece: &C,
+        sign: f64,
+        mut face_means: Option<&mut Vec<f64>>,
+    ) {
         match &self.kind {
             Kind::Off | Kind::PerVertex { .. } => {}
             Kind::Polynomial {
@@ -235,8 +243,11 @@ impl<const D: usize> WeightedSums<D> {
             } => {
                 let m = &mut self.moments;
                 piece.for_each_cone(|face, measure| {
-                    let cone = polynomial_cone(local, face_rule, face, measure);
+                    let (cone, face_mean) = polynomial_cone(local, face_rule, face, measure);
                     m.add_scaled(&cone, sign);
+                    if let Some(means) = face_means.as_deref_mut() {
+                        means.push(face_mean);
+                    }
                 });
             }
             Kind::Sampled => {

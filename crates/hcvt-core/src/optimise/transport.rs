@@ -566,6 +566,10 @@ impl<const D: usize> FaceIntegrand<D> for FaceMass {
     ) {
         face[0][0] += sign * m.measure;
     }
+
+    fn reads_measure_only(&self) -> bool {
+        true
+    }
 }
 
 /// The graph Laplacian of a power diagram, `c_ij = ∫_{F_ij} ρ / (2|z_i − z_j|)`, in the
