@@ -422,6 +422,27 @@ def test_an_open_box_keeps_its_rim_and_with_features_its_corners() -> None:
         assert (gaps.max() < 1e-12) == (features is not None)
 
 
+@pytest.mark.parametrize(("offset", "scale"), [(1e6, 1.0), (0.0, 1e-3), (-3e5, 1e4)])
+def test_an_open_box_remeshed_anywhere_at_any_scale_gives_the_unit_boxs_mesh(
+    offset: float, scale: float
+) -> None:
+    # The border held by default is planned in the surface's own frame (angles, spacings):
+    # moved and scaled, the same triangles, the vertices where the unit box's map to
+    # (measured: 1.4e-8 of the unit size at 1e6 away, the input's rounding grown by the
+    # iterations; 1e-14 and 1.2e-12 scaled), the same Hausdorff distance (% of diagonal).
+    trimesh = pytest.importorskip("trimesh")
+    box = trimesh.creation.box()
+    faces = box.faces[box.face_normals[:, 2] <= 0.5]
+    unit = hcvt.remesh(hcvt.Domain.from_surface(box.vertices, faces), 300, seed=0)
+    moved = hcvt.Domain.from_surface(box.vertices * scale + offset, faces)
+    out = hcvt.remesh(moved, 300, seed=0)
+    assert out.defects == [] and edge_topology(out.faces, 300)["border_loops"] == 1
+    assert np.abs((out.vertices - offset) / scale - unit.vertices).max() < 1e-7
+    triangles = {tuple(t) for t in np.sort(out.faces, axis=1)}
+    assert triangles == {tuple(t) for t in np.sort(unit.faces, axis=1)}
+    assert abs(out.quality.hausdorff - unit.quality.hausdorff) < 1e-6
+
+
 def test_remesh_refuses_a_solid() -> None:
     cube = hcvt.Domain.box([0, 0, 0], [1, 1, 1])
     with pytest.raises(ValueError, match="surface"):
