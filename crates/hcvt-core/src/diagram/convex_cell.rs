@@ -94,7 +94,9 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
 
     /// Call `f(face, simplex, measure)` for every `(D − 1)`-simplex of the faces (edges in
     /// 2D; the fan triangles of [`ConvexCell::for_each_cone`] in 3D), relative to the site,
-    /// with its measure: what a density weighs the Hessian's face terms over.
+    /// with its measure: what a density weighs the Hessian's face terms over. One simplex per
+    /// cone of [`ConvexCell::for_each_cone`], in the same order (the transport's face masses
+    /// take each simplex's `∫ρ` from its cone's nodes: `FaceSums::integrate_face_masses`).
     fn for_each_face_simplex(&self, f: impl FnMut(Face, &[[f64; D]; D], f64));
 
     /// Call `f(face, measure)` for every face (length in 2D, area in 3D).
