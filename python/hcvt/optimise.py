@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.core_results import RestrictedDelaunayArrays
 from hcvt.density import DEFAULT_QUADRATURE_DEGREE, DensityLike, Polynomial, core_arguments
 from hcvt.diagram import Diagram, as_sites, as_weights

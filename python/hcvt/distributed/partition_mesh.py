@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.distributed import partition as pt
 from hcvt.geometry.domain import Domain
 from hcvt.io.pvtu import write_pvtu

@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry import repair as mesh
 from hcvt.geometry.crs import projected_crs

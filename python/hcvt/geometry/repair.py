@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.errors import InvalidDomainError
 from hcvt.lazy import load
 

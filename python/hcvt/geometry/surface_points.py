@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt import _core
+import hcvt._core as _core
 
 
 def cross_rows(u: NDArray[np.float64], w: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -24,7 +24,7 @@ import numpy as np
 import shapely
 from numpy.typing import NDArray
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.errors import InvalidMeshError
 from hcvt.geometry.domain import BOX_FACES, Domain, wrapped
 from hcvt.mesh.polymesh import PolyMesh

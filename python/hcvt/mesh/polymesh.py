@@ -14,7 +14,7 @@ import numpy as np
 import shapely
 from numpy.typing import ArrayLike, NDArray
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.core_results import MeshQualityArrays
 from hcvt.errors import InvalidMeshError
 

@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.density import DensityLike, triangle_values
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.surface_points import sample_by_area

@@ -45,7 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from hcvt import _core
+import hcvt._core as _core
 from hcvt.errors import InvalidDomainError
 from hcvt.geometry.domain import Domain
 from hcvt.geometry.surface_points import cross_rows, sample_by_area
