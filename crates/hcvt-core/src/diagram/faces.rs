@@ -41,6 +41,15 @@ pub trait FaceIntegrand<const D: usize>: Sync {
     fn reads_measure_only(&self) -> bool {
         false
     }
+
+    /// With [`FaceIntegrand::reads_measure_only`]: whether the diagram's caller reads the
+    /// cells' ρ-weighted masses and nothing else of their weighted moments (the transport's
+    /// trial diagrams). A polynomial density then sums each cone's `∫ρ` and its face's
+    /// mean alone, by a face rule of degree 2 ([`WeightedSums::add_piece_mass`]), and
+    /// [`super::Diagram::weighted`] holds zero first and second moments.
+    fn reads_cell_masses_only(&self) -> bool {
+        false
+    }
 }
 
 /// What a [`FaceIntegrand`] summed over a diagram, in the diagram's rows.
@@ -161,7 +170,11 @@ impl<const D: usize> FaceSums<D> {
     ) -> Moments<D> {
         let mut means = std::mem::take(&mut self.face_means);
         means.clear();
-        self.weighted.add_piece(piece, sign, Some(&mut means));
+        if row.integrand.reads_cell_masses_only() {
+            self.weighted.add_piece_mass(piece, sign, &mut means);
+        } else {
+            self.weighted.add_piece(piece, sign, Some(&mut means));
+        }
         // The face simplices are the cones' faces, in the same order (`ConvexCell`).
         let mut face_mean = means.iter();
         piece.for_each_face_simplex(|f, _, measure| {

@@ -7,8 +7,8 @@ use crate::density::quadrature::{self, Rule};
 use std::sync::Arc;
 
 use crate::density::{
-    linear_face_moments, polynomial_cone, polynomial_face_moments, Cone, Density, Quadratic,
-    POLYNOMIAL_DEGREE,
+    linear_face_moments, polynomial_cone, polynomial_cone_mass, polynomial_face_moments, Cone,
+    Density, Quadratic, POLYNOMIAL_DEGREE, POLYNOMIAL_MASS_DEGREE,
 };
 use crate::error::CoreError;
 use crate::geometry::{add, scale};
@@ -72,11 +72,12 @@ enum Kind<const D: usize> {
     /// No density: nothing.
     Off,
     /// A polynomial, in absolute coordinates and about the current cell's site, with the
-    /// face rule.
+    /// face rule of its moments and that of its masses alone.
     Polynomial {
         global: Quadratic<D>,
         local: Quadratic<D>,
         face_rule: Rule,
+        mass_rule: Rule,
     },
     /// A field: the cone simplices are kept for one evaluation of the whole diagram.
     Sampled,
@@ -115,16 +116,20 @@ impl<const D: usize> WeightedSums<D> {
     pub fn new(density: Option<&Density<'_, D>>) -> Result<Self, CoreError> {
         let kind = match density {
             None => Kind::Off,
-            Some(Density::Polynomial(q)) => Kind::Polynomial {
-                global: *q,
-                local: *q,
-                // Face averages of degree ≤ 4 on (D − 1)-simplices.
-                face_rule: quadrature::rule(D - 1, POLYNOMIAL_DEGREE).ok_or(
-                    CoreError::InvalidDensity {
+            Some(Density::Polynomial(q)) => {
+                let face_rule = |degree| {
+                    quadrature::rule(D - 1, degree).ok_or(CoreError::InvalidDensity {
                         reason: format!("no face rule in {D} dimensions"),
-                    },
-                )?,
-            },
+                    })
+                };
+                Kind::Polynomial {
+                    global: *q,
+                    local: *q,
+                    // Face averages of degree ≤ 4 on (D − 1)-simplices; ≤ 2 for the mass.
+                    face_rule: face_rule(POLYNOMIAL_DEGREE)?,
+                    mass_rule: face_rule(POLYNOMIAL_MASS_DEGREE)?,
+                }
+            }
             Some(d @ Density::Sampled { .. }) => {
                 d.rule()?;
                 Kind::Sampled
@@ -255,5 +260,30 @@ impl<const D: usize> WeightedSums<D> {
                 piece.for_each_cone(|face, measure| cones.push((*face, sign * measure)));
             }
         }
+    }
+
+    /// [`WeightedSums::add_piece`] with `face_means`, of a polynomial's masses alone: each
+    /// cone's `∫ρ` and its face's mean by the face rule of degree 2
+    /// ([`polynomial_cone_mass`]), the same to round-off; the first and second moments
+    /// stay zero. For a caller that reads the cells' masses and nothing else of them (the
+    /// transport's trial diagrams); other densities as [`WeightedSums::add_piece`].
+    pub fn add_piece_mass<C: ConvexCell<D>>(
+        &mut self,
+        piece: &C,
+        sign: f64,
+        face_means: &mut Vec<f64>,
+    ) {
+        let Kind::Polynomial {
+            local, mass_rule, ..
+        } = &self.kind
+        else {
+            return self.add_piece(piece, sign, Some(face_means));
+        };
+        let mass = &mut self.moments.mass;
+        piece.for_each_cone(|face, measure| {
+            let (cone, face_mean) = polynomial_cone_mass(local, mass_rule, face, measure);
+            *mass += sign * cone;
+            face_means.push(face_mean);
+        });
     }
 }
