@@ -26,7 +26,7 @@ pub(crate) mod quadrature;
 mod sums;
 
 pub use sums::{
-    cone_node, face_node, linear_face_moments, polynomial_cone, polynomial_cone_mass,
+    cone_measure, cone_node, face_node, linear_face_moments, polynomial_cone, polynomial_cone_mass,
     polynomial_face_moments, sum_sampled, sum_sampled_on_faces, Cone,
 };
 

@@ -111,6 +111,21 @@ pub fn polynomial_face_moments<const D: usize>(
     m
 }
 
+/// The signed measure of the cone simplex from the origin over `face` (`D` = 2 or 3),
+/// `det(face) / D!`: what the cells' `for_each_cone` give with it.
+#[inline]
+pub fn cone_measure<const D: usize>(face: &[[f64; D]; D]) -> f64 {
+    let v = |i: usize, k: usize| face[i][k];
+    match D {
+        2 => 0.5 * (v(0, 0) * v(1, 1) - v(0, 1) * v(1, 0)),
+        3 => {
+            let minor = |a: usize, b: usize| v(1, a) * v(2, b) - v(1, b) * v(2, a);
+            (v(0, 0) * minor(1, 2) - v(0, 1) * minor(0, 2) + v(0, 2) * minor(0, 1)) / 6.0
+        }
+        _ => unreachable!("cells have 2 or 3 dimensions"),
+    }
+}
+
 /// The point of `face` (the `D` vertices) with barycentric coordinates `lambda` on its
 /// vertices `1..D` (vertex 0 takes the rest).
 #[inline]
@@ -297,6 +312,21 @@ mod tests {
         );
         let (low, _) = polynomial_cone_mass(&q3, &quadrature::TRIANGLE_1, &face3, 0.05);
         assert!((low - full.mass).abs() > 1e-6 * full.mass, "{low} {full:?}");
+    }
+
+    /// A cone's measure is half the cross product in 2D and the tetrahedron's volume in 3D,
+    /// signed by the face's orientation.
+    #[test]
+    fn a_cones_measure_is_its_simplexs() {
+        let face2 = [[0.3, -0.2], [0.5, 0.6]];
+        assert_eq!(cone_measure(&face2), 0.5 * (0.3 * 0.6 + 0.2 * 0.5));
+        assert_eq!(cone_measure(&[face2[1], face2[0]]), -cone_measure(&face2));
+        let face3 = [[0.4, 0.1, -0.2], [-0.1, 0.5, 0.3], [0.2, -0.3, 0.6]];
+        let volume = crate::moments::tetra_moments(face3[0], face3[1], face3[2]).mass;
+        assert!((cone_measure(&face3) - volume).abs() < 1e-17, "{volume}");
+        assert!(volume > 0.0);
+        let flipped = cone_measure(&[face3[1], face3[0], face3[2]]);
+        assert!((flipped + volume).abs() < 1e-17, "{flipped}");
     }
 
     fn close<const D: usize>(a: &Moments<D>, b: &Moments<D>) {

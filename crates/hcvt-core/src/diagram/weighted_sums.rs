@@ -7,8 +7,8 @@ use crate::density::quadrature::{self, Rule};
 use std::sync::Arc;
 
 use crate::density::{
-    linear_face_moments, polynomial_cone, polynomial_cone_mass, polynomial_face_moments, Cone,
-    Density, Quadratic, POLYNOMIAL_DEGREE, POLYNOMIAL_MASS_DEGREE,
+    cone_measure, linear_face_moments, polynomial_cone, polynomial_cone_mass,
+    polynomial_face_moments, Cone, Density, Quadratic, POLYNOMIAL_DEGREE, POLYNOMIAL_MASS_DEGREE,
 };
 use crate::error::CoreError;
 use crate::geometry::{add, scale};
@@ -262,28 +262,21 @@ impl<const D: usize> WeightedSums<D> {
         }
     }
 
-    /// [`WeightedSums::add_piece`] with `face_means`, of a polynomial's masses alone: each
-    /// cone's `∫ρ` and its face's mean by the face rule of degree 2
-    /// ([`polynomial_cone_mass`]), the same to round-off; the first and second moments
-    /// stay zero. For a caller that reads the cells' masses and nothing else of them (the
-    /// transport's trial diagrams); other densities as [`WeightedSums::add_piece`].
-    pub fn add_piece_mass<C: ConvexCell<D>>(
-        &mut self,
-        piece: &C,
-        sign: f64,
-        face_means: &mut Vec<f64>,
-    ) {
+    /// Add the cone simplex from the site over `face` (relative to the site) with `sign`,
+    /// by its `∫ρ` alone, and return ρ's mean over `face`, both by the face rule of degree
+    /// 2 ([`polynomial_cone_mass`]: what [`WeightedSums::add_piece`] sums to round-off);
+    /// the first and second moments stay zero. For a caller that reads the cells' masses
+    /// and nothing else of them (the transport's trial diagrams). Without a polynomial,
+    /// nothing is added and the mean is 1 (as [`WeightedSums::face_moments`] is geometric).
+    pub fn add_cone_mass(&mut self, face: &[[f64; D]; D], sign: f64) -> f64 {
         let Kind::Polynomial {
             local, mass_rule, ..
         } = &self.kind
         else {
-            return self.add_piece(piece, sign, Some(face_means));
+            return 1.0;
         };
-        let mass = &mut self.moments.mass;
-        piece.for_each_cone(|face, measure| {
-            let (cone, face_mean) = polynomial_cone_mass(local, mass_rule, face, measure);
-            *mass += sign * cone;
-            face_means.push(face_mean);
-        });
+        let (mass, face_mean) = polynomial_cone_mass(local, mass_rule, face, cone_measure(face));
+        self.moments.mass += sign * mass;
+        face_mean
     }
 }
