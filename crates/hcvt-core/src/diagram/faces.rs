@@ -45,7 +45,7 @@ pub trait FaceIntegrand<const D: usize>: Sync {
     /// With [`FaceIntegrand::reads_measure_only`]: whether the diagram's caller reads the
     /// cells' ρ-weighted masses and nothing else of their weighted moments (the transport's
     /// trial diagrams). A polynomial density then sums each cone's `∫ρ` and its face's
-    /// mean alone, by a face rule of degree 2 ([`WeightedSums::add_cone_mass`]), and
+    /// mean alone, by a face rule of degree 2 ([`WeightedSums::cone_masses`]), and
     /// [`super::Diagram::weighted`] holds zero first and second moments.
     fn reads_cell_masses_only(&self) -> bool {
         false
@@ -192,23 +192,28 @@ impl<const D: usize> FaceSums<D> {
     /// [`FaceSums::integrate_face_masses`] for a caller of the cells' masses alone
     /// ([`FaceIntegrand::reads_cell_masses_only`]): one pass over the face simplices, each
     /// adding its cone's `∫ρ` to the cell's and its own `∫ρ` to its face, both from the
-    /// nodes of the face rule of degree 2 ([`WeightedSums::add_cone_mass`]).
+    /// nodes of the face rule of degree 2 ([`WeightedSums::cone_masses`]); the first and
+    /// second weighted moments stay zero.
     fn integrate_masses_alone<C: ConvexCell<D>>(
         &mut self,
         piece: &C,
         sign: f64,
         row: FaceRow<'_, D>,
     ) -> Moments<D> {
-        let mut weighted = std::mem::take(&mut self.weighted);
+        let Some(cones) = self.weighted.cone_masses() else {
+            return self.integrate_weighted_faces(piece, sign, row);
+        };
+        let mut mass = 0.0;
         piece.for_each_face_simplex(|f, simplex, measure| {
-            let mean = weighted.add_cone_mass(simplex, sign);
+            let (cone, mean) = cones.of(simplex);
+            mass += cone;
             let m = FaceMoments {
                 measure: mean * measure,
                 ..FaceMoments::zero()
             };
             self.add_weighted_moments(f, sign, measure, &m, row);
         });
-        self.weighted = weighted;
+        self.weighted.moments.mass += sign * mass;
         piece.moments()
     }
 

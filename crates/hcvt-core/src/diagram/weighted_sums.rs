@@ -262,21 +262,37 @@ impl<const D: usize> WeightedSums<D> {
         }
     }
 
-    /// Add the cone simplex from the site over `face` (relative to the site) with `sign`,
-    /// by its `∫ρ` alone, and return ρ's mean over `face`, both by the face rule of degree
-    /// 2 ([`polynomial_cone_mass`]: what [`WeightedSums::add_piece`] sums to round-off);
-    /// the first and second moments stay zero. For a caller that reads the cells' masses
-    /// and nothing else of them (the transport's trial diagrams). Without a polynomial,
-    /// nothing is added and the mean is 1 (as [`WeightedSums::face_moments`] is geometric).
-    pub fn add_cone_mass(&mut self, face: &[[f64; D]; D], sign: f64) -> f64 {
-        let Kind::Polynomial {
-            local, mass_rule, ..
-        } = &self.kind
-        else {
-            return 1.0;
-        };
-        let (mass, face_mean) = polynomial_cone_mass(local, mass_rule, face, cone_measure(face));
-        self.moments.mass += sign * mass;
-        face_mean
+    /// With a polynomial, what gives a cone's `∫ρ` alone ([`ConeMasses`]): for a caller
+    /// that reads the cells' masses and nothing else of them (the transport's trial
+    /// diagrams), which adds them to [`WeightedSums::moments`]' mass itself.
+    pub fn cone_masses(&self) -> Option<ConeMasses<D>> {
+        match &self.kind {
+            Kind::Polynomial {
+                local, mass_rule, ..
+            } => Some(ConeMasses {
+                local: *local,
+                mass_rule: *mass_rule,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// A polynomial about the current cell's site with the face rule of degree 2: the masses
+/// of the cones alone, apart from the [`WeightedSums`] (copied out, a small value, while
+/// the cell's faces are summed).
+#[derive(Debug, Clone, Copy)]
+pub struct ConeMasses<const D: usize> {
+    local: Quadratic<D>,
+    mass_rule: Rule,
+}
+
+impl<const D: usize> ConeMasses<D> {
+    /// The `∫ρ` of the cone simplex from the site over `face` (relative to the site), of
+    /// signed measure, and ρ's mean over `face` ([`polynomial_cone_mass`]: what
+    /// [`WeightedSums::add_piece`] sums to round-off).
+    #[inline]
+    pub fn of(&self, face: &[[f64; D]; D]) -> (f64, f64) {
+        polynomial_cone_mass(&self.local, &self.mass_rule, face, cone_measure(face))
     }
 }
