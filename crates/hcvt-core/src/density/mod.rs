@@ -26,8 +26,8 @@ pub(crate) mod quadrature;
 mod sums;
 
 pub use sums::{
-    cone_node, face_node, linear_face_moments, polynomial_cone, polynomial_face_moments,
-    sum_sampled, sum_sampled_on_faces, Cone,
+    cone_measure, cone_node, face_node, linear_face_moments, polynomial_cone, polynomial_cone_mass,
+    polynomial_face_moments, sum_sampled, sum_sampled_on_faces, Cone,
 };
 
 use crate::error::CoreError;
@@ -148,6 +148,10 @@ impl<const D: usize> std::fmt::Debug for Density<'_, D> {
 
 /// Degree of the rule a [`Quadratic`] is integrated with: `ρ |y|²` has degree 4.
 pub const POLYNOMIAL_DEGREE: usize = 4;
+
+/// Degree of the face rule a [`Quadratic`]'s cone masses alone are integrated with
+/// ([`polynomial_cone_mass`]): ρ has degree 2.
+pub const POLYNOMIAL_MASS_DEGREE: usize = 2;
 
 impl<const D: usize> Density<'_, D> {
     /// The quadrature rule this density is integrated with in cells of dimension `D`.

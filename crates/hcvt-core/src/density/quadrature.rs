@@ -8,6 +8,7 @@
 //!
 //! | rule | points | degree | source |
 //! |------|--------|--------|--------|
+//! | `SEGMENT_3` | 2 | 3 | Gauss–Legendre |
 //! | `SEGMENT_5` | 3 | 5 | Gauss–Legendre |
 //! | `TRIANGLE_1`, `TETRA_1` | 1 | 1 | the centroid |
 //! | `TRIANGLE_2` | 3 | 2 | Strang and Fix 1973, table 4.1 |
@@ -52,6 +53,17 @@ const T5A: f64 = 0.470_142_064_105_115_089_77;
 const T5B: f64 = 0.101_286_507_323_456_338_8;
 const T5WA: f64 = 0.132_394_152_788_506_180_74;
 const T5WB: f64 = 0.125_939_180_544_827_152_6;
+
+/// `√(1/3)/2`: the 2-point Gauss–Legendre points sit this far from the middle of [0, 1].
+const G2: f64 = 0.288_675_134_594_812_882_25;
+
+/// Degree 3 on the segment: 2-point Gauss–Legendre.
+pub const SEGMENT_3: Rule = Rule {
+    dim: 1,
+    points: &[0.5 - G2, 0.5 + G2],
+    weights: &[0.5, 0.5],
+    degree: 3,
+};
 
 /// `√(3/5)/2`: the outer Gauss–Legendre points sit this far from the middle of [0, 1].
 const G3: f64 = 0.387_298_334_620_741_688_52;
@@ -185,10 +197,9 @@ pub const TETRA_5: Rule = Rule {
 /// The rule of fewest points on the `dim`-simplex (1, 2 or 3) that is exact to at least
 /// `degree` (`1..=MAX_DEGREE`); `None` otherwise.
 pub fn rule(dim: usize, degree: usize) -> Option<Rule> {
-    if dim == 1 && degree <= 5 {
-        return Some(SEGMENT_5);
-    }
     match (dim, degree) {
+        (1, 1..=3) => Some(SEGMENT_3),
+        (1, 4 | 5) => Some(SEGMENT_5),
         (2, 1) => Some(TRIANGLE_1),
         (2, 2) => Some(TRIANGLE_2),
         (2, 3 | 4) => Some(TRIANGLE_4),
@@ -291,6 +302,7 @@ mod tests {
 
     #[test]
     fn every_rule_has_its_stated_degree() {
+        check::<1>(&SEGMENT_3);
         check::<1>(&SEGMENT_5);
         for rule in [TRIANGLE_1, TRIANGLE_2, TRIANGLE_4, TRIANGLE_5] {
             check::<2>(&rule);

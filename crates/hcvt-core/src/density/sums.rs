@@ -62,6 +62,31 @@ pub fn polynomial_cone<const D: usize>(
     (cone, c + face_mean)
 }
 
+/// The mass `∫ρ` of the cone simplex from the site over `face`, of signed measure
+/// `measure`, for `ρ = local` about the site, and ρ's mean over `face`: what
+/// [`polynomial_cone`] gives of them (the same to round-off), without the first and second
+/// moments and by a face rule of degree ≥ 2 (`mass_rule`: 2 Gauss points on a segment, 3
+/// on a triangle, where the moments take 3 and 6).
+#[inline]
+pub fn polynomial_cone_mass<const D: usize>(
+    local: &Quadratic<D>,
+    mass_rule: &Rule,
+    face: &[[f64; D]; D],
+    measure: f64,
+) -> (f64, f64) {
+    let d = D as f64;
+    // Face averages of ρ's linear and quadratic parts (the weights sum to 1).
+    let (mut linear, mut quadratic) = (0.0, 0.0);
+    for (lambda, w) in mass_rule.nodes_in(D - 1) {
+        let y = face_node(face, lambda);
+        linear += w * dot(local.linear, y);
+        quadratic += w * dot(std::array::from_fn(|r| dot(local.quadratic[r], y)), y);
+    }
+    let c = local.constant;
+    let mass = measure * (c + d * (linear / (d + 1.0) + quadratic / (d + 2.0)));
+    (mass, c + linear + quadratic)
+}
+
 /// The ρ-weighted moments `∫ρ`, `∫ρ y`, `∫ρ y yᵀ` of the face simplex `simplex`
 /// (relative to the site) of `measure`, for `ρ = local` about the site: exact with a
 /// face rule of degree ≥ 4.
@@ -84,6 +109,21 @@ pub fn polynomial_face_moments<const D: usize>(
         }
     }
     m
+}
+
+/// The signed measure of the cone simplex from the origin over `face` (`D` = 2 or 3),
+/// `det(face) / D!`: what the cells' `for_each_cone` give with it.
+#[inline]
+pub fn cone_measure<const D: usize>(face: &[[f64; D]; D]) -> f64 {
+    let v = |i: usize, k: usize| face[i][k];
+    match D {
+        2 => 0.5 * (v(0, 0) * v(1, 1) - v(0, 1) * v(1, 0)),
+        3 => {
+            let minor = |a: usize, b: usize| v(1, a) * v(2, b) - v(1, b) * v(2, a);
+            (v(0, 0) * minor(1, 2) - v(0, 1) * minor(0, 2) + v(0, 2) * minor(0, 1)) / 6.0
+        }
+        _ => unreachable!("cells have 2 or 3 dimensions"),
+    }
 }
 
 /// The point of `face` (the `D` vertices) with barycentric coordinates `lambda` on its
@@ -232,6 +272,61 @@ mod tests {
         let (_, mean) = polynomial_cone(&q3, &TRIANGLE_4, &face3, 0.05);
         let mass = polynomial_face_moments(&q3, &TRIANGLE_4, &face3, 0.3).measure;
         assert!((mean * 0.3 - mass).abs() < 1e-15 * mass, "{mean} {mass}");
+    }
+
+    /// The mass alone by the degree-2 face rule is the degree-4 rule's cone mass and face
+    /// mean to round-off, in 2D and 3D; a degree-1 rule is not.
+    #[test]
+    fn a_cones_mass_alone_is_its_moments_mass() {
+        let q2 = Quadratic::new(1.3, [0.4, -0.7], [[0.9, 0.2], [0.2, -0.3]]).unwrap();
+        let face2 = [[0.3, -0.2], [0.5, 0.6]];
+        let q3 = Quadratic::new(
+            0.8,
+            [0.1, 0.5, -0.2],
+            [[0.7, 0.1, 0.0], [0.1, 0.4, -0.2], [0.0, -0.2, 1.1]],
+        )
+        .unwrap();
+        let face3 = [[0.4, 0.1, -0.2], [-0.1, 0.5, 0.3], [0.2, -0.3, 0.6]];
+        let mass_rule = |dim| quadrature::rule(dim, crate::density::POLYNOMIAL_MASS_DEGREE);
+        let (full, mean) = polynomial_cone(&q2, &quadrature::SEGMENT_5, &face2, 0.17);
+        let (mass, mass_mean) = polynomial_cone_mass(&q2, &mass_rule(1).unwrap(), &face2, 0.17);
+        assert_eq!(mass_rule(1).unwrap().weights.len(), 2);
+        assert!(
+            (mass - full.mass).abs() < 1e-15 * full.mass,
+            "{mass} {full:?}"
+        );
+        assert!(
+            (mass_mean - mean).abs() < 1e-15 * mean,
+            "{mass_mean} {mean}"
+        );
+        let (full, mean) = polynomial_cone(&q3, &TRIANGLE_4, &face3, 0.05);
+        let (mass, mass_mean) = polynomial_cone_mass(&q3, &mass_rule(2).unwrap(), &face3, 0.05);
+        assert_eq!(mass_rule(2).unwrap().weights.len(), 3);
+        assert!(
+            (mass - full.mass).abs() < 1e-15 * full.mass,
+            "{mass} {full:?}"
+        );
+        assert!(
+            (mass_mean - mean).abs() < 1e-15 * mean,
+            "{mass_mean} {mean}"
+        );
+        let (low, _) = polynomial_cone_mass(&q3, &quadrature::TRIANGLE_1, &face3, 0.05);
+        assert!((low - full.mass).abs() > 1e-6 * full.mass, "{low} {full:?}");
+    }
+
+    /// A cone's measure is half the cross product in 2D and the tetrahedron's volume in 3D,
+    /// signed by the face's orientation.
+    #[test]
+    fn a_cones_measure_is_its_simplexs() {
+        let face2 = [[0.3, -0.2], [0.5, 0.6]];
+        assert_eq!(cone_measure(&face2), 0.5 * (0.3 * 0.6 + 0.2 * 0.5));
+        assert_eq!(cone_measure(&[face2[1], face2[0]]), -cone_measure(&face2));
+        let face3 = [[0.4, 0.1, -0.2], [-0.1, 0.5, 0.3], [0.2, -0.3, 0.6]];
+        let volume = crate::moments::tetra_moments(face3[0], face3[1], face3[2]).mass;
+        assert!((cone_measure(&face3) - volume).abs() < 1e-17, "{volume}");
+        assert!(volume > 0.0);
+        let flipped = cone_measure(&[face3[1], face3[0], face3[2]]);
+        assert!((flipped + volume).abs() < 1e-17, "{flipped}");
     }
 
     fn close<const D: usize>(a: &Moments<D>, b: &Moments<D>) {

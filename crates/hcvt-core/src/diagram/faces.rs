@@ -41,6 +41,15 @@ pub trait FaceIntegrand<const D: usize>: Sync {
     fn reads_measure_only(&self) -> bool {
         false
     }
+
+    /// With [`FaceIntegrand::reads_measure_only`]: whether the diagram's caller reads the
+    /// cells' ρ-weighted masses and nothing else of their weighted moments (the transport's
+    /// trial diagrams). A polynomial density then sums each cone's `∫ρ` and its face's
+    /// mean alone, by a face rule of degree 2 ([`WeightedSums::cone_masses`]), and
+    /// [`super::Diagram::weighted`] holds zero first and second moments.
+    fn reads_cell_masses_only(&self) -> bool {
+        false
+    }
 }
 
 /// What a [`FaceIntegrand`] summed over a diagram, in the diagram's rows.
@@ -159,6 +168,9 @@ impl<const D: usize> FaceSums<D> {
         sign: f64,
         row: FaceRow<'_, D>,
     ) -> Moments<D> {
+        if row.integrand.reads_cell_masses_only() {
+            return self.integrate_masses_alone(piece, sign, row);
+        }
         let mut means = std::mem::take(&mut self.face_means);
         means.clear();
         self.weighted.add_piece(piece, sign, Some(&mut means));
@@ -174,6 +186,34 @@ impl<const D: usize> FaceSums<D> {
         });
         debug_assert!(face_mean.next().is_none(), "one cone per face simplex");
         self.face_means = means;
+        piece.moments()
+    }
+
+    /// [`FaceSums::integrate_face_masses`] for a caller of the cells' masses alone
+    /// ([`FaceIntegrand::reads_cell_masses_only`]): one pass over the face simplices, each
+    /// adding its cone's `∫ρ` to the cell's and its own `∫ρ` to its face, both from the
+    /// nodes of the face rule of degree 2 ([`WeightedSums::cone_masses`]); the first and
+    /// second weighted moments stay zero.
+    fn integrate_masses_alone<C: ConvexCell<D>>(
+        &mut self,
+        piece: &C,
+        sign: f64,
+        row: FaceRow<'_, D>,
+    ) -> Moments<D> {
+        let Some(cones) = self.weighted.cone_masses() else {
+            return self.integrate_weighted_faces(piece, sign, row);
+        };
+        let mut mass = 0.0;
+        piece.for_each_face_simplex(|f, simplex, measure| {
+            let (cone, mean) = cones.of(simplex);
+            mass += cone;
+            let m = FaceMoments {
+                measure: mean * measure,
+                ..FaceMoments::zero()
+            };
+            self.add_weighted_moments(f, sign, measure, &m, row);
+        });
+        self.weighted.moments.mass += sign * mass;
         piece.moments()
     }
 
@@ -269,9 +309,11 @@ mod tests {
     use crate::diagram::{PolygonCell, PolyhedronCell};
     use crate::geometry::{Aabb, HalfSpace};
 
-    /// Sums each face's `∫ρ` in entry `[0][0]`, reading the measure alone or not.
+    /// Sums each face's `∫ρ` in entry `[0][0]`, reading the measure alone or not, and
+    /// the cells' masses alone or not.
     struct Masses {
         measure_only: bool,
+        cells_alone: bool,
     }
 
     impl<const D: usize> FaceIntegrand<D> for Masses {
@@ -292,12 +334,18 @@ mod tests {
         fn reads_measure_only(&self) -> bool {
             self.measure_only
         }
+
+        fn reads_cell_masses_only(&self) -> bool {
+            self.cells_alone
+        }
     }
 
     /// `cell` and a piece of it with sign −1 (as a cell crossing the boundary has),
     /// integrated by `FaceSums` for an integrand reading the measure alone and one
     /// reading the moments: the same faces, `∫ρ` over each to round-off, the cell's
-    /// moments and weighted moments bit for bit.
+    /// moments and weighted moments bit for bit; and for one reading the cells' masses
+    /// alone: the same faces, `∫ρ` over each and over the cell to round-off, no first or
+    /// second weighted moments.
     fn same_masses_either_way<const D: usize, C: ConvexCell<D>>(
         rho: Quadratic<D>,
         site: [f64; D],
@@ -305,8 +353,11 @@ mod tests {
         piece: &C,
     ) {
         let density = Density::Polynomial(rho);
-        let sums = |measure_only: bool| {
-            let integrand = Masses { measure_only };
+        let sums = |measure_only: bool, cells_alone: bool| {
+            let integrand = Masses {
+                measure_only,
+                cells_alone,
+            };
             let row = FaceRow {
                 integrand: &integrand,
                 site: 0,
@@ -321,7 +372,21 @@ mod tests {
             faces.sort_neighbors();
             (faces, whole, part)
         };
-        let (masses, moments) = (sums(true), sums(false));
+        let (masses, moments) = (sums(true, false), sums(false, false));
+        let alone = sums(true, true);
+        assert_eq!(alone.1, moments.1);
+        assert_eq!(alone.0.neighbors, moments.0.neighbors);
+        let (mass, full) = (alone.0.weighted.moments, moments.0.weighted.moments);
+        assert!(
+            (mass.mass - full.mass).abs() <= 1e-14 * full.mass,
+            "{mass:?} {full:?}"
+        );
+        assert_eq!((mass.first, mass.second), ([0.0; D], 0.0));
+        let pairs = alone.0.integrals.iter().zip(&moments.0.integrals);
+        for (a, b) in pairs {
+            let (a, b) = (a[0][0], b[0][0]);
+            assert!(b > 0.0 && (a - b).abs() <= 1e-14 * b, "{a} vs {b}");
+        }
         assert_eq!(masses.1, moments.1);
         assert_eq!(masses.2, moments.2);
         assert_eq!(masses.0.weighted.moments, moments.0.weighted.moments);

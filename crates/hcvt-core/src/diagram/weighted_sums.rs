@@ -7,8 +7,8 @@ use crate::density::quadrature::{self, Rule};
 use std::sync::Arc;
 
 use crate::density::{
-    linear_face_moments, polynomial_cone, polynomial_face_moments, Cone, Density, Quadratic,
-    POLYNOMIAL_DEGREE,
+    cone_measure, linear_face_moments, polynomial_cone, polynomial_cone_mass,
+    polynomial_face_moments, Cone, Density, Quadratic, POLYNOMIAL_DEGREE, POLYNOMIAL_MASS_DEGREE,
 };
 use crate::error::CoreError;
 use crate::geometry::{add, scale};
@@ -72,11 +72,12 @@ enum Kind<const D: usize> {
     /// No density: nothing.
     Off,
     /// A polynomial, in absolute coordinates and about the current cell's site, with the
-    /// face rule.
+    /// face rule of its moments and that of its masses alone.
     Polynomial {
         global: Quadratic<D>,
         local: Quadratic<D>,
         face_rule: Rule,
+        mass_rule: Rule,
     },
     /// A field: the cone simplices are kept for one evaluation of the whole diagram.
     Sampled,
@@ -115,16 +116,20 @@ impl<const D: usize> WeightedSums<D> {
     pub fn new(density: Option<&Density<'_, D>>) -> Result<Self, CoreError> {
         let kind = match density {
             None => Kind::Off,
-            Some(Density::Polynomial(q)) => Kind::Polynomial {
-                global: *q,
-                local: *q,
-                // Face averages of degree ≤ 4 on (D − 1)-simplices.
-                face_rule: quadrature::rule(D - 1, POLYNOMIAL_DEGREE).ok_or(
-                    CoreError::InvalidDensity {
+            Some(Density::Polynomial(q)) => {
+                let face_rule = |degree| {
+                    quadrature::rule(D - 1, degree).ok_or(CoreError::InvalidDensity {
                         reason: format!("no face rule in {D} dimensions"),
-                    },
-                )?,
-            },
+                    })
+                };
+                Kind::Polynomial {
+                    global: *q,
+                    local: *q,
+                    // Face averages of degree ≤ 4 on (D − 1)-simplices; ≤ 2 for the mass.
+                    face_rule: face_rule(POLYNOMIAL_DEGREE)?,
+                    mass_rule: face_rule(POLYNOMIAL_MASS_DEGREE)?,
+                }
+            }
             Some(d @ Density::Sampled { .. }) => {
                 d.rule()?;
                 Kind::Sampled
@@ -255,5 +260,39 @@ impl<const D: usize> WeightedSums<D> {
                 piece.for_each_cone(|face, measure| cones.push((*face, sign * measure)));
             }
         }
+    }
+
+    /// With a polynomial, what gives a cone's `∫ρ` alone ([`ConeMasses`]): for a caller
+    /// that reads the cells' masses and nothing else of them (the transport's trial
+    /// diagrams), which adds them to [`WeightedSums::moments`]' mass itself.
+    pub fn cone_masses(&self) -> Option<ConeMasses<D>> {
+        match &self.kind {
+            Kind::Polynomial {
+                local, mass_rule, ..
+            } => Some(ConeMasses {
+                local: *local,
+                mass_rule: *mass_rule,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// A polynomial about the current cell's site with the face rule of degree 2: the masses
+/// of the cones alone, apart from the [`WeightedSums`] (copied out, a small value, while
+/// the cell's faces are summed).
+#[derive(Debug, Clone, Copy)]
+pub struct ConeMasses<const D: usize> {
+    local: Quadratic<D>,
+    mass_rule: Rule,
+}
+
+impl<const D: usize> ConeMasses<D> {
+    /// The `∫ρ` of the cone simplex from the site over `face` (relative to the site), of
+    /// signed measure, and ρ's mean over `face` ([`polynomial_cone_mass`]: what
+    /// [`WeightedSums::add_piece`] sums to round-off).
+    #[inline]
+    pub fn of(&self, face: &[[f64; D]; D]) -> (f64, f64) {
+        polynomial_cone_mass(&self.local, &self.mass_rule, face, cone_measure(face))
     }
 }

@@ -305,8 +305,16 @@ where
     let mut ordering = Kept::default();
     // The sites' order, windings and index, computed by the first diagram for every other.
     let mut setup = SiteSetup::default();
-    let mut current =
-        Evaluation::new::<C, K>(domain, sites, &weights, settings.density, &mut setup)?;
+    // A warm start may be the answer already: its diagram takes the moments a returned
+    // diagram needs ([`Evaluation::has_moments`]).
+    let mut current = Evaluation::new::<C, K>(
+        domain,
+        sites,
+        &weights,
+        settings.density,
+        start.is_some(),
+        &mut setup,
+    )?;
     let total: f64 = current.masses.iter().sum();
     let given: f64 = masses.iter().sum();
     let targets: Vec<f64> = if settings.normalise {
@@ -398,11 +406,13 @@ where
                 dmax: &dmax,
                 record,
             };
+            // The trials of the step expected to end the run take the cells' moments
+            // ([`Evaluation::has_moments`]).
             let evaluation = Evaluation::trial::<C, K>(
                 domain,
                 sites,
                 &trial,
-                settings.density,
+                (settings.density, last),
                 &current.diagram,
                 floor,
                 use_margins.then_some(&margin_request),
@@ -457,6 +467,23 @@ where
         current = evaluation;
         error = max_error(&current.masses, &targets);
     }
+    if !current.has_moments {
+        // The run ended where it was not expected to: the last diagram again, with the
+        // moments (each cell from its own neighbours; no cell can fall below a floor).
+        current = Evaluation::trial::<C, K>(
+            domain,
+            sites,
+            &weights,
+            (settings.density, true),
+            &current.diagram,
+            0.0,
+            None,
+            &mut setup,
+        )?
+        .expect("no floor to fall below")
+        .0;
+        error = max_error(&current.masses, &targets);
+    }
     Ok(Transport {
         weights,
         diagram: current.diagram,
@@ -509,35 +536,47 @@ struct Evaluation<const D: usize> {
     diagram: Diagram<D>,
     masses: Vec<f64>,
     face_mass: Option<FaceIntegrals<D>>,
+    /// Whether `diagram` holds its cells' weighted moments, not their masses alone: what
+    /// a returned diagram needs (its centroids, energy, gradient). A polynomial density's
+    /// trial diagrams sum the masses alone ([`FaceMass::cell_moments`]) but in the Newton
+    /// step expected to end the run; when another ends it, its diagram is computed again.
+    /// Why: summing the moments took 8% of a run's instructions with ρ = 1 + x + 2y² (the
+    /// square at 10,000 sites, 7 diagrams), the masses alone by 2 points a face 40% of
+    /// that: 3.4% fewer in all, 4.1% in the L-shape, the same Newton steps and diagrams
+    /// (`docs/results/transport.txt` §21).
+    has_moments: bool,
 }
 
 impl<const D: usize> Evaluation<D> {
-    /// The power diagram of `weights`, keeping what it computes of the sites in `setup`.
+    /// The power diagram of `weights`, keeping what it computes of the sites in `setup`;
+    /// with the cells' weighted moments when `moments` ([`Evaluation::has_moments`]).
     fn new<C: ConvexCell<D>, K: DomainKind<D>>(
         domain: &K,
         sites: &[[f64; D]],
         weights: &[f64],
         density: Option<&Density<'_, D>>,
+        moments: bool,
         setup: &mut SiteSetup<D>,
     ) -> Result<Self, CoreError>
     where
         Euclid: Space<D>,
     {
-        let integrand = density.map(|_| FaceMass);
+        let integrand = density.map(|_| FaceMass::with(moments));
         let request = Self::request(weights, density, integrand.as_ref(), None);
         let clipped = clipped_diagram_kept::<D, C, K>(domain, sites, &request, Some(setup))?;
-        Ok(Self::of(clipped, density))
+        Ok(Self::of(clipped, density, moments))
     }
 
     /// The power diagram of the trial `weights`, each cell started from its neighbours in
     /// `start`, or `None` as soon as a cell's mass is found below `floor`
-    /// ([`trial_diagram`]); with `margins`, the margins it took.
+    /// ([`trial_diagram`]); with `margins`, the margins it took. `density` comes with
+    /// whether the cells' weighted moments are summed ([`Evaluation::has_moments`]).
     #[allow(clippy::too_many_arguments)]
     fn trial<C: ConvexCell<D>, K: DomainKind<D>>(
         domain: &K,
         sites: &[[f64; D]],
         weights: &[f64],
-        density: Option<&Density<'_, D>>,
+        (density, moments): (Option<&Density<'_, D>>, bool),
         start: &Diagram<D>,
         floor: f64,
         margins: Option<&MarginRequest<'_, D>>,
@@ -546,10 +585,10 @@ impl<const D: usize> Evaluation<D> {
     where
         Euclid: Space<D>,
     {
-        let integrand = density.map(|_| FaceMass);
+        let integrand = density.map(|_| FaceMass::with(moments));
         let request = Self::request(weights, density, integrand.as_ref(), Some(start));
         let clipped = trial_diagram::<D, C, K>(domain, sites, &request, floor, margins, setup)?;
-        Ok(clipped.map(|(clipped, taken)| (Self::of(clipped, density), taken)))
+        Ok(clipped.map(|(clipped, taken)| (Self::of(clipped, density, moments), taken)))
     }
 
     fn request<'a>(
@@ -567,19 +606,30 @@ impl<const D: usize> Evaluation<D> {
         }
     }
 
-    fn of<C>(clipped: Clipped<D, C>, density: Option<&Density<'_, D>>) -> Self {
+    fn of<C>(clipped: Clipped<D, C>, density: Option<&Density<'_, D>>, moments: bool) -> Self {
         let masses = clipped.diagram.masses();
         Self {
             diagram: clipped.diagram,
             masses,
             face_mass: density.map(|_| clipped.face_integrals),
+            has_moments: moments || !matches!(density, Some(Density::Polynomial(_))),
         }
     }
 }
 
 /// `∫_F ρ` over each face between cells, in entry `[0][0]` of its matrix: the integrand
 /// sees ρ-weighted face moments (DESIGN §8), whose measure is that integral.
-struct FaceMass;
+struct FaceMass {
+    /// Whether the diagram sums its cells' weighted moments, not their masses alone
+    /// ([`FaceIntegrand::reads_cell_masses_only`]).
+    cell_moments: bool,
+}
+
+impl FaceMass {
+    fn with(cell_moments: bool) -> Self {
+        Self { cell_moments }
+    }
+}
 
 impl<const D: usize> FaceIntegrand<D> for FaceMass {
     fn add(
@@ -597,6 +647,10 @@ impl<const D: usize> FaceIntegrand<D> for FaceMass {
 
     fn reads_measure_only(&self) -> bool {
         true
+    }
+
+    fn reads_cell_masses_only(&self) -> bool {
+        !self.cell_moments
     }
 }
 

@@ -106,6 +106,83 @@ fn masses_with_a_polynomial_density_are_met() {
     check::<2, PolygonCell, _>(&square, &sites, &out, Some(&density));
 }
 
+/// With a polynomial the trial diagrams sum the cells' masses alone: the returned diagram
+/// holds every weighted moment all the same, those of the power diagram of its weights
+/// computed afresh, whether the run ends where it was expected to, at `max_iter`, with no
+/// step at all, or from a warm start that is the answer already; in 2D and 3D.
+#[test]
+fn a_polynomials_returned_diagram_has_its_weighted_moments_however_the_run_ends() {
+    let square = BoxDomain::new([0.0, 0.0], [1.0, 1.0]).unwrap();
+    let sites = interior_sites(&square, 800, 8);
+    let density =
+        Density::Polynomial(Quadratic::new(1.0, [1.0, 0.0], [[0.0, 0.0], [0.0, 2.0]]).unwrap());
+    let masses = vec![(1.0 + 0.5 + 2.0 / 3.0) / sites.len() as f64; sites.len()];
+    returned_moments::<2, PolygonCell, _>(&square, &sites, &masses, &density);
+    let cube = BoxDomain::new([0.0; 3], [1.0; 3]).unwrap();
+    let sites = interior_sites(&cube, 300, 9);
+    let density = Density::Polynomial(
+        Quadratic::new(
+            1.0,
+            [0.5, 0.0, 1.0],
+            [[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]],
+        )
+        .unwrap(),
+    );
+    let masses = vec![(1.0 + 0.75 + 1.0 / 3.0) / sites.len() as f64; sites.len()];
+    returned_moments::<3, PolyhedronCell, _>(&cube, &sites, &masses, &density);
+}
+
+fn returned_moments<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    masses: &[f64],
+    density: &Density<'_, D>,
+) where
+    Euclid: Space<D>,
+{
+    let run = |max_iter: usize, start: Option<&[f64]>| {
+        let settings = TransportSettings {
+            density: Some(density),
+            max_iter,
+            ..settings()
+        };
+        optimal_transport_from::<D, C, K>(domain, sites, masses, start, &settings).unwrap()
+    };
+    let solved = run(50, None);
+    assert!(solved.converged, "max error {:e}", solved.max_error);
+    let cut_short = run(2, None);
+    assert!(!cut_short.converged && cut_short.history.len() == 2);
+    let warm = run(50, Some(&solved.weights));
+    assert!(warm.converged && warm.history.is_empty());
+    for out in [solved, cut_short, run(0, None), warm] {
+        let again = clipped_diagram::<D, C, K>(
+            domain,
+            sites,
+            &Request {
+                weights: Some(&out.weights),
+                density: Some(density),
+                ..Request::default()
+            },
+        )
+        .unwrap()
+        .diagram;
+        let pairs = out.diagram.weighted.iter().zip(&again.weighted);
+        for (i, (m, a)) in pairs.enumerate() {
+            let scale = a.mass.abs() + a.second.abs();
+            let near = |x: f64, y: f64| (x - y).abs() <= 1e-12 * scale;
+            assert!(
+                near(m.mass, a.mass) && near(m.second, a.second),
+                "cell {i}: {m:?} {a:?}"
+            );
+            assert!(m.second > 0.0, "cell {i}: {m:?}");
+            for k in 0..D {
+                assert!(near(m.first[k], a.first[k]), "cell {i}: {m:?} {a:?}");
+            }
+        }
+        assert_eq!(out.diagram.weighted.len(), sites.len());
+    }
+}
+
 #[test]
 fn masses_in_a_periodic_box_and_a_3d_box_are_met() {
     let torus = PeriodicBox::new([0.0, 0.0], [1.0, 2.0], [true, true]).unwrap();
