@@ -497,10 +497,10 @@ where
     let weighted_sums = WeightedSums::new(density)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
-    let moved = request.warm.and_then(|w| w.moved(sites));
     // A warm diagram visits the sites in the previous one's order (the cells do not
     // depend on it); a sampled density is asked for its nodes batch by batch, as cold.
     let sampled = matches!(density, Some(Density::Sampled { .. }));
+    let moved = request.warm.and_then(|w| w.moved(sites, !sampled));
     let kept = (setup.as_deref())
         .and_then(|s| s.kept.as_ref())
         .filter(|k| k.options == request.options && k.windings.len() == sites.len());
@@ -772,6 +772,7 @@ where
         let convex = domain.is_convex();
         visit
             .par_chunks(BATCH)
+            .enumerate()
             .map_init(
                 || {
                     let mut measuring = MeasureScratch::default();
@@ -783,9 +784,9 @@ where
                         MarginScratch::default(),
                     )
                 },
-                |(scratch, measuring, hinted, margin), chunk| {
+                |(scratch, measuring, hinted, margin), (first, chunk)| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
-                    for &i in chunk {
+                    for (visited, &i) in (first * BATCH..).zip(chunk) {
                         if self.floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
                             break;
                         }
@@ -794,7 +795,9 @@ where
                         // A power cell need not hold its site: the early cut by the
                         // boundary near the cell assumes it does (`cut_by_boundary`).
                         let convex_inside = convex && winding == Some(1) && self.power.is_none();
-                        let warm = self.warm.and_then(|(w, moved)| w.certified(i, moved));
+                        let warm = self
+                            .warm
+                            .and_then(|(w, moved)| w.certified(i, visited, moved));
                         let started = self.started_cell(domain, i, hinted, margin);
                         let (cell, inside) = match started.map_or_else(
                             || {
@@ -1161,8 +1164,8 @@ fn copy_faces<const D: usize, C, T: Copy>(
     }
 }
 
-/// The batches' near-site lists in site order, when they recorded them, with the order
-/// the sites were visited in.
+/// The batches' near-site lists in visiting order `order` (the batches' own, one after
+/// the other), when they recorded them.
 fn warm_lists<const D: usize, C>(
     sites: &[[f64; D]],
     order: Vec<u32>,
@@ -1172,25 +1175,16 @@ fn warm_lists<const D: usize, C>(
         return None;
     }
     let n = sites.len();
-    let mut offsets = vec![0; n + 1];
-    let mut complete2 = vec![0.0; n];
+    let mut offsets = Vec::with_capacity(n + 1);
+    offsets.push(0);
+    let mut complete2 = Vec::with_capacity(n);
+    let mut near = Vec::with_capacity(batches.iter().map(|b| b.near.len()).sum());
     for b in batches {
-        for (k, (&i, &count)) in b.sites.iter().zip(&b.near_counts).enumerate() {
-            offsets[i as usize + 1] = count as usize;
-            complete2[i as usize] = b.near_complete2[k];
+        for &count in &b.near_counts {
+            offsets.push(offsets.last().copied().unwrap_or(0) + count as usize);
         }
-    }
-    for i in 0..n {
-        offsets[i + 1] += offsets[i];
-    }
-    let mut near = vec![0; offsets[n]];
-    for b in batches {
-        let mut at = 0;
-        for (&i, &count) in b.sites.iter().zip(&b.near_counts) {
-            let (from, count) = (offsets[i as usize], count as usize);
-            near[from..from + count].copy_from_slice(&b.near[at..at + count]);
-            at += count;
-        }
+        complete2.extend_from_slice(&b.near_complete2);
+        near.extend_from_slice(&b.near);
     }
     let warm_cells = batches.iter().map(|b| b.warm_cells).sum();
     Some(WarmStart::from_lists(
