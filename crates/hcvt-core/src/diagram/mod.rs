@@ -73,6 +73,7 @@ pub use domain_kind::DomainKind;
 pub use faces::{FaceIntegrals, FaceIntegrand, Matrix};
 use faces::{FaceRow, FaceSums};
 pub use knn::SiteIndex;
+use knn::{DeferredIndex, IndexRef};
 pub use mesh::{
     conforming_mesh, conforming_mesh_part, conforming_power_mesh, MeshDomain, MeshPart, PolyMesh,
 };
@@ -518,16 +519,22 @@ where
     let power_start = request
         .power_start
         .filter(|d| weights.is_some() && d.len() == sites.len());
+    // A power start replaces the warm lists (its cells stream no sites).
+    let warm = (request.warm.zip(moved.as_ref())).filter(|_| power_start.is_none());
     let batches = {
         let mut computed = None;
-        let (windings, index) = match kept {
-            Some(k) => (&k.windings, &k.index),
+        let (windings, index): (_, IndexRef<'_, D>) = match kept {
+            Some(k) => (&k.windings, (&k.index).into()),
             None => {
                 let c = computed.insert((
                     checked_windings(domain, sites, request.options)?,
-                    SiteIndex::new(sites)?,
+                    DeferredIndex::new(sites)?,
                 ));
-                (&c.0, &c.1)
+                if warm.is_none() {
+                    // A cold diagram reads it from its first cell on.
+                    c.1.get();
+                }
+                (&c.0, (&c.1).into())
             }
         };
         let visit = Visit {
@@ -546,11 +553,7 @@ where
             }),
             power_start,
             total_sites: sites.len(),
-            // A power start replaces the warm lists (its cells stream no sites).
-            warm: request
-                .warm
-                .zip(moved.as_ref())
-                .filter(|_| power_start.is_none()),
+            warm,
             // Sites moved too far are not recorded: the next diagram starts from an empty
             // state and records the lists afresh (cold).
             record: power_start.is_none()
@@ -577,7 +580,7 @@ where
                         options: request.options,
                         order: order.clone(),
                         windings,
-                        index,
+                        index: index.into_built(),
                         blocks: None,
                     });
                 }
@@ -702,7 +705,8 @@ pub(crate) fn checked_part<const D: usize, K: DomainKind<D>>(
 /// problem (more than `sites.len()` when `sites` is a partition with its halo).
 struct Visit<'a, const D: usize> {
     sites: &'a [[f64; D]],
-    index: &'a SiteIndex<D>,
+    /// Filled on first use when the cells start warm ([`DeferredIndex`]).
+    index: IndexRef<'a, D>,
     /// Indexed like `sites`; only the entries of the sites visited are read.
     windings: &'a [Option<i32>],
     /// The weights of a power diagram, indexed like `sites`.
@@ -970,7 +974,7 @@ where
     let index = SiteIndex::new(sites)?;
     let visit = Visit {
         sites,
-        index: &index,
+        index: (&index).into(),
         windings: &windings,
         power,
         power_start: None,

@@ -8,7 +8,7 @@
 //! missing from the list was beyond `ρ_i` and is now beyond `ρ_i − δ_i − δ` from site `i`:
 //! the list is complete within that *certified* distance, and the stream takes its sites
 //! from it, sorted as the grid sorts them. A cell that asks farther falls back to the
-//! grid ([`super::knn::SiteIndex::near_warm`]). The cells are therefore the cold cells
+//! grid ([`super::knn::IndexRef::near_warm`]). The cells are therefore the cold cells
 //! bit for bit whatever the previous diagram was; only the time changes.
 
 use rayon::prelude::*;
