@@ -198,6 +198,14 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
         }
     }
 
+    /// Room for the near-site lists of `cells` cells of about `per_cell` sites each:
+    /// grown from nothing they were reallocated a dozen times a batch.
+    fn reserve_lists(&mut self, cells: usize, per_cell: usize) {
+        self.near_counts.reserve(cells);
+        self.near_complete2.reserve(cells);
+        self.near.reserve(cells * per_cell);
+    }
+
     /// Append site `i`'s cell: its `moments` and the faces measured into `faces`.
     fn push(&mut self, i: usize, moments: Moments<D>, faces: &mut FaceSums<D>, integrals: bool) {
         faces.sort_neighbors();
@@ -774,6 +782,8 @@ where
         weighted: &WeightedSums<D>,
     ) -> Vec<Batch<D, C>> {
         let convex = domain.is_convex();
+        // The lists recorded are about as long as the ones read (cold: a guess, 2D's).
+        let near_per_cell = self.warm.map_or(16, |(w, _)| w.mean_list_len());
         visit
             .par_chunks(BATCH)
             .enumerate()
@@ -790,6 +800,9 @@ where
                 },
                 |(scratch, measuring, hinted, margin), (first, chunk)| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
+                    if self.record {
+                        batch.reserve_lists(chunk.len(), near_per_cell);
+                    }
                     for (visited, &i) in (first * BATCH..).zip(chunk) {
                         if self.floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
                             break;

@@ -90,6 +90,11 @@ impl<const D: usize> WarmStart<D> {
             + self.order.len() * std::mem::size_of::<u32>()
     }
 
+    /// The mean length of the lists, rounded up (0 when empty).
+    pub(super) fn mean_list_len(&self) -> usize {
+        self.near.len().div_ceil(self.sites.len().max(1))
+    }
+
     /// The order the recording diagram visited its sites in.
     pub(super) fn order(&self) -> &[u32] {
         &self.order
