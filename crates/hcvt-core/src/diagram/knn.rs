@@ -153,7 +153,7 @@ impl<const D: usize> SiteIndex<D> {
 /// it) is decided at once, and a kd-tree is built at once.
 pub struct DeferredIndex<'a, const D: usize> {
     sites: &'a [[f64; D]],
-    /// The grid to fill; `None` for a kd-tree (built in `index`).
+    /// The grid to fill; `None` once `index` is built whole (a kd-tree, or at once).
     plan: Option<GridPlan<D>>,
     index: OnceLock<SiteIndex<D>>,
 }
@@ -168,6 +168,19 @@ impl<'a, const D: usize> DeferredIndex<'a, D> {
             let _ = index.set(SiteIndex::tree(sites)?);
         }
         Ok(Self { sites, plan, index })
+    }
+
+    /// The index of `sites` built whole at once (nothing deferred), for a diagram whose
+    /// cells all read it.
+    pub fn built(sites: &'a [[f64; D]]) -> Result<Self, CoreError> {
+        let index = OnceLock::new();
+        // Set on a fresh cell: it cannot be taken.
+        let _ = index.set(SiteIndex::new(sites)?);
+        Ok(Self {
+            sites,
+            plan: None,
+            index,
+        })
     }
 
     /// The index, filled now if it was not.
@@ -224,7 +237,10 @@ impl<'a, const D: usize> IndexRef<'a, D> {
     fn is_grid(self) -> bool {
         match self {
             Self::Built(index) => matches!(index.kind, Kind::Grid(_)),
-            Self::Deferred(deferred) => deferred.plan.is_some(),
+            Self::Deferred(deferred) => match deferred.index.get() {
+                Some(index) => matches!(index.kind, Kind::Grid(_)),
+                None => deferred.plan.is_some(),
+            },
         }
     }
 

@@ -534,14 +534,13 @@ where
         let (windings, index): (_, IndexRef<'_, D>) = match kept {
             Some(k) => (&k.windings, (&k.index).into()),
             None => {
-                let c = computed.insert((
-                    checked_windings(domain, sites, request.options)?,
-                    DeferredIndex::new(sites)?,
-                ));
-                if warm.is_none() {
-                    // A cold diagram reads it from its first cell on.
-                    c.1.get();
-                }
+                let windings = checked_windings(domain, sites, request.options)?;
+                // A cold diagram reads the index from its first cell on.
+                let index = match warm {
+                    Some(_) => DeferredIndex::new(sites)?,
+                    None => DeferredIndex::built(sites)?,
+                };
+                let c = computed.insert((windings, index));
                 (&c.0, (&c.1).into())
             }
         };
