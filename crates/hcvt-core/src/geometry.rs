@@ -88,7 +88,9 @@ impl<const D: usize> Lattice<D> {
     /// Coordinates of the cell holding `p`, clamped to the lattice.
     pub fn coordinates(&self, p: &[f64; D]) -> [usize; D] {
         std::array::from_fn(|k| {
-            let x = ((p[k] - self.lo[k]) * self.inverse[k]).floor();
+            // A positive `x` truncates to its floor; without SSE4.1 `floor` is a call to
+            // libm, 2% of a warm-started 2D diagram's instructions (callgrind).
+            let x = (p[k] - self.lo[k]) * self.inverse[k];
             if x > 0.0 {
                 (x as usize).min(self.cells[k] - 1)
             } else {

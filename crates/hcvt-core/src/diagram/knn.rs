@@ -8,6 +8,7 @@
 //! queries.
 
 use std::num::NonZeroUsize;
+use std::sync::OnceLock;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
@@ -73,7 +74,7 @@ impl NearScratch {
         self.at_last.clear();
         self.vouched2 = 0.0;
     }
-    /// The candidates of the last warm stream ([`SiteIndex::near_warm`]) within its
+    /// The candidates of the last warm stream ([`IndexRef::near_warm`]) within its
     /// certified distance, nearest first.
     pub fn certified(&self) -> impl Iterator<Item = u32> + '_ {
         self.gathered[..self.sorted].iter().map(|&(_, j)| j)
@@ -88,6 +89,11 @@ impl<const D: usize> SiteIndex<D> {
                 kind: Kind::Grid(grid),
             });
         }
+        Self::tree(sites)
+    }
+
+    /// The kd-tree of `sites`.
+    fn tree(sites: &[[f64; D]]) -> Result<Self, CoreError> {
         ImmutableKdTree::new_from_slice(sites)
             .map(|tree| Self {
                 kind: Kind::Tree(tree, sites.len()),
@@ -109,47 +115,10 @@ impl<const D: usize> SiteIndex<D> {
             },
         };
         NearSites {
-            index: self,
+            index: IndexRef::Built(self),
             p,
             scratch,
             state,
-        }
-    }
-
-    /// [`SiteIndex::near`] from a warm start: `candidates` are sites known to include
-    /// every site within `certified2` of `p` (`p` is `sites[i]`, itself a candidate). They
-    /// are streamed in the grid's order, squared distance then index, as long as they are
-    /// certified; a request beyond `certified2` switches to the grid's own stream, which
-    /// returns the same sites in the same order. So the stream is the cold one bit for bit,
-    /// however far the sites moved. A kd-tree orders ties its own way: it streams cold.
-    pub fn near_warm<'a>(
-        &'a self,
-        p: [f64; D],
-        sites: &[[f64; D]],
-        candidates: &[u32],
-        certified2: f64,
-        scratch: &'a mut NearScratch,
-    ) -> NearSites<'a, D> {
-        // A NaN or empty certificate streams cold.
-        let certified = certified2.partial_cmp(&0.0) == Some(std::cmp::Ordering::Greater);
-        if !matches!(self.kind, Kind::Grid(_)) || !certified {
-            return self.near(p, scratch);
-        }
-        scratch.reset();
-        let gathered = &mut scratch.gathered;
-        for &j in candidates {
-            let dist2 = norm2(sub(sites[j as usize], p));
-            if dist2 <= certified2 {
-                gathered.push((dist2.to_bits(), j));
-            }
-        }
-        sort_nearly_sorted(gathered);
-        scratch.sorted = gathered.len();
-        NearSites {
-            index: self,
-            p,
-            scratch,
-            state: State::Warm { certified2 },
         }
     }
 
@@ -177,9 +146,147 @@ impl<const D: usize> SiteIndex<D> {
     }
 }
 
+/// A [`SiteIndex`] of some sites whose grid is filled on first use: a warm-started
+/// diagram whose cells all stream from their lists ([`IndexRef::near_warm`]) never reads
+/// it: its fill was 1.3% of such a 2D diagram's instructions (callgrind, square 20k),
+/// besides writing a fresh array of 24 B/site. Whether the sites get a
+/// grid or a kd-tree (which orders ties its own way, so a warm stream cannot stand for
+/// it) is decided at once, and a kd-tree is built at once.
+pub struct DeferredIndex<'a, const D: usize> {
+    sites: &'a [[f64; D]],
+    /// The grid to fill; `None` once `index` is built whole (a kd-tree, or at once).
+    plan: Option<GridPlan<D>>,
+    index: OnceLock<SiteIndex<D>>,
+}
+
+impl<'a, const D: usize> DeferredIndex<'a, D> {
+    /// The index of `sites` (must be finite), its grid not filled yet.
+    pub fn new(sites: &'a [[f64; D]]) -> Result<Self, CoreError> {
+        let plan = GridPlan::new(sites);
+        let index = OnceLock::new();
+        if plan.is_none() {
+            // Set on a fresh cell: it cannot be taken.
+            let _ = index.set(SiteIndex::tree(sites)?);
+        }
+        Ok(Self { sites, plan, index })
+    }
+
+    /// The index of `sites` built whole at once (nothing deferred), for a diagram whose
+    /// cells all read it.
+    pub fn built(sites: &'a [[f64; D]]) -> Result<Self, CoreError> {
+        let index = OnceLock::new();
+        // Set on a fresh cell: it cannot be taken.
+        let _ = index.set(SiteIndex::new(sites)?);
+        Ok(Self {
+            sites,
+            plan: None,
+            index,
+        })
+    }
+
+    /// The index, filled now if it was not.
+    pub fn get(&self) -> &SiteIndex<D> {
+        self.index.get_or_init(|| {
+            let plan = self
+                .plan
+                .as_ref()
+                .expect("a grid is planned when no tree is built");
+            SiteIndex {
+                kind: Kind::Grid(plan.fill(self.sites)),
+            }
+        })
+    }
+
+    /// The filled index, for keeping.
+    pub fn into_built(self) -> SiteIndex<D> {
+        self.get();
+        self.index.into_inner().expect("filled just above")
+    }
+}
+
+/// A built [`SiteIndex`] or a [`DeferredIndex`], as the cells read them.
+#[derive(Clone, Copy)]
+pub enum IndexRef<'a, const D: usize> {
+    /// An index built whole.
+    Built(&'a SiteIndex<D>),
+    /// An index filled on first use.
+    Deferred(&'a DeferredIndex<'a, D>),
+}
+
+impl<'a, const D: usize> From<&'a SiteIndex<D>> for IndexRef<'a, D> {
+    fn from(index: &'a SiteIndex<D>) -> Self {
+        Self::Built(index)
+    }
+}
+
+impl<'a, const D: usize> From<&'a DeferredIndex<'a, D>> for IndexRef<'a, D> {
+    fn from(index: &'a DeferredIndex<'a, D>) -> Self {
+        Self::Deferred(index)
+    }
+}
+
+impl<'a, const D: usize> IndexRef<'a, D> {
+    /// The index, filled now if it was deferred.
+    pub fn get(self) -> &'a SiteIndex<D> {
+        match self {
+            Self::Built(index) => index,
+            Self::Deferred(deferred) => deferred.get(),
+        }
+    }
+
+    /// Whether the index is a grid (without filling it).
+    fn is_grid(self) -> bool {
+        match self {
+            Self::Built(index) => matches!(index.kind, Kind::Grid(_)),
+            Self::Deferred(deferred) => match deferred.index.get() {
+                Some(index) => matches!(index.kind, Kind::Grid(_)),
+                None => deferred.plan.is_some(),
+            },
+        }
+    }
+
+    /// [`SiteIndex::near`] from a warm start: `candidates` are sites known to include
+    /// every site within `certified2` of `p` (`p` is `sites[i]`, itself a candidate). They
+    /// are streamed in the grid's order, squared distance then index, as long as they are
+    /// certified; a request beyond `certified2` switches to the grid's own stream (filling
+    /// a deferred grid), which returns the same sites in the same order. So the stream is
+    /// the cold one bit for bit, however far the sites moved. A kd-tree orders ties its
+    /// own way: it streams cold.
+    pub fn near_warm(
+        self,
+        p: [f64; D],
+        sites: &[[f64; D]],
+        candidates: &[u32],
+        certified2: f64,
+        scratch: &'a mut NearScratch,
+    ) -> NearSites<'a, D> {
+        // A NaN or empty certificate streams cold.
+        let certified = certified2.partial_cmp(&0.0) == Some(std::cmp::Ordering::Greater);
+        if !self.is_grid() || !certified {
+            return self.get().near(p, scratch);
+        }
+        scratch.reset();
+        let gathered = &mut scratch.gathered;
+        for &j in candidates {
+            let dist2 = norm2(sub(sites[j as usize], p));
+            if dist2 <= certified2 {
+                gathered.push((dist2.to_bits(), j));
+            }
+        }
+        sort_nearly_sorted(gathered);
+        scratch.sorted = gathered.len();
+        NearSites {
+            index: self,
+            p,
+            scratch,
+            state: State::Warm { certified2 },
+        }
+    }
+}
+
 /// A stream of the sites in increasing distance from a point.
 pub struct NearSites<'a, const D: usize> {
-    index: &'a SiteIndex<D>,
+    index: IndexRef<'a, D>,
     p: [f64; D],
     scratch: &'a mut NearScratch,
     state: State<D>,
@@ -187,7 +294,7 @@ pub struct NearSites<'a, const D: usize> {
 
 enum State<const D: usize> {
     Grid(Rings<D>),
-    /// Certified candidates sorted in `gathered[..sorted]` ([`SiteIndex::near_warm`]).
+    /// Certified candidates sorted in `gathered[..sorted]` ([`IndexRef::near_warm`]).
     Warm {
         certified2: f64,
     },
@@ -234,7 +341,7 @@ impl<const D: usize> NearSites<'_, D> {
         }
         match &mut self.state {
             State::Grid(rings) => {
-                let Kind::Grid(grid) = &self.index.kind else {
+                let Kind::Grid(grid) = &self.index.get().kind else {
                     unreachable!("a grid stream comes from a grid")
                 };
                 grid.next_within(rings, self.p, self.scratch, limit2)
@@ -244,7 +351,7 @@ impl<const D: usize> NearSites<'_, D> {
                 position,
                 last_dist2,
             } => {
-                let Kind::Tree(tree, n) = &self.index.kind else {
+                let Kind::Tree(tree, n) = &self.index.get().kind else {
                     unreachable!("a tree stream comes from a tree")
                 };
                 let next = tree_next(tree, *n, self.p, self.scratch, k, position, *last_dist2)?;
@@ -266,9 +373,11 @@ impl<const D: usize> NearSites<'_, D> {
     /// Leave the warm candidates for the grid's stream, skipping the sites already
     /// returned: they are the grid's first ones, in its order.
     fn go_cold(&mut self, limit2: f64) {
-        let Kind::Grid(grid) = &self.index.kind else {
+        let Kind::Grid(grid) = &self.index.get().kind else {
             unreachable!("a warm stream comes from a grid")
         };
+        // Resolved once: the grid stream reads it at every step.
+        self.index = IndexRef::Built(self.index.get());
         let returned = self.scratch.next;
         let scratch = &mut *self.scratch;
         scratch.gathered.clear();
@@ -336,6 +445,96 @@ struct Grid<const D: usize> {
     slack: f64,
 }
 
+/// A grid decided on but not filled: its buckets, each site's bucket and their counts.
+struct GridPlan<const D: usize> {
+    buckets: Lattice<D>,
+    /// Sites per bucket, `starts[b + 1]` for bucket `b` (`starts[0]` is 0).
+    starts: Vec<u32>,
+    /// Each site's bucket.
+    site_buckets: Vec<u32>,
+    slack: f64,
+}
+
+impl<const D: usize> GridPlan<D> {
+    /// The buckets of `sites` and their counts, or `None` when they are too crowded for a
+    /// grid (or too far apart for the floating-point box).
+    fn new(sites: &[[f64; D]]) -> Option<Self> {
+        let n = sites.len();
+        if n == 0 || n >= u32::MAX as usize {
+            return None;
+        }
+        let bounds = Aabb::of_points(sites);
+        let extent = sub(bounds.hi, bounds.lo);
+        if !extent.iter().all(|e| e.is_finite()) {
+            return None;
+        }
+        let buckets = Lattice::new(bounds.lo, extent, n.div_ceil(SITES_PER_BUCKET));
+        let (mut site_buckets, mut starts) = counted(sites, &buckets)?;
+        // Sites filling a fraction of their box (a star, a ball) would crowd the buckets
+        // they occupy: aim at SITES_PER_BUCKET in the occupied buckets instead.
+        let occupied = starts.iter().filter(|&&c| c > 0).count();
+        let mut buckets = buckets;
+        if occupied > 0 && 4 * occupied < 3 * buckets.len() {
+            let target = n.div_ceil(SITES_PER_BUCKET) * buckets.len() / occupied;
+            buckets = Lattice::new(bounds.lo, extent, target.min(MAX_BUCKETS_PER_SITE * n));
+            (site_buckets, starts) = counted(sites, &buckets)?;
+        }
+        let crowding: usize = starts.iter().map(|&c| (c as usize).pow(2)).sum();
+        if crowding > MAX_CROWDING * n {
+            return None;
+        }
+        let largest_side = buckets.side.iter().fold(0.0, |m: f64, &s| m.max(s));
+        Some(Self {
+            buckets,
+            starts,
+            site_buckets,
+            slack: rounding_slack(&bounds, extent, largest_side),
+        })
+    }
+
+    /// The grid: the sites sorted into their buckets (by index within a bucket).
+    fn fill(&self, sites: &[[f64; D]]) -> Grid<D> {
+        let mut starts = self.starts.clone();
+        for b in 1..starts.len() {
+            starts[b] += starts[b - 1];
+        }
+        let mut next = starts.clone();
+        let mut points = vec![([0.0; D], 0); sites.len()];
+        for (i, &b) in self.site_buckets.iter().enumerate() {
+            points[next[b as usize] as usize] = (sites[i], i as u32);
+            next[b as usize] += 1;
+        }
+        Grid {
+            buckets: self.buckets.clone(),
+            starts,
+            points,
+            slack: self.slack,
+        }
+    }
+}
+
+/// Each site's bucket of `lattice`, and the sites per bucket shifted by one (`counts[b +
+/// 1]` for bucket `b`), or `None` when the buckets do not fit a `u32`.
+fn counted<const D: usize>(
+    sites: &[[f64; D]],
+    lattice: &Lattice<D>,
+) -> Option<(Vec<u32>, Vec<u32>)> {
+    let count = lattice.len();
+    if count >= u32::MAX as usize {
+        return None;
+    }
+    let mut counts = vec![0u32; count + 1];
+    let site_buckets = sites
+        .iter()
+        .map(|s| {
+            let b = lattice.index(lattice.coordinates(s));
+            counts[b + 1] += 1;
+            b as u32
+        })
+        .collect();
+    Some((site_buckets, counts))
+}
+
 /// Where a grid stream stands: the bucket of the query and the next ring to gather.
 struct Rings<const D: usize> {
     center: [usize; D],
@@ -348,53 +547,7 @@ impl<const D: usize> Grid<D> {
     /// The grid of `sites`, or `None` when they are too crowded for one (or too far apart
     /// for the floating-point box).
     fn new(sites: &[[f64; D]]) -> Option<Self> {
-        let n = sites.len();
-        if n == 0 || n >= u32::MAX as usize {
-            return None;
-        }
-        let bounds = Aabb::of_points(sites);
-        let extent = sub(bounds.hi, bounds.lo);
-        if !extent.iter().all(|e| e.is_finite()) {
-            return None;
-        }
-        let mut buckets = Lattice::new(bounds.lo, extent, n.div_ceil(SITES_PER_BUCKET));
-        // Sites filling a fraction of their box (a star, a ball) would crowd the buckets
-        // they occupy: aim at SITES_PER_BUCKET in the occupied buckets instead.
-        let occupied = occupied_buckets(sites, &buckets);
-        if occupied > 0 && 4 * occupied < 3 * buckets.len() {
-            let target = n.div_ceil(SITES_PER_BUCKET) * buckets.len() / occupied;
-            buckets = Lattice::new(bounds.lo, extent, target.min(MAX_BUCKETS_PER_SITE * n));
-        }
-        let count = buckets.len();
-        let largest_side = buckets.side.iter().fold(0.0, |m: f64, &s| m.max(s));
-        let mut grid = Self {
-            buckets,
-            starts: vec![0; count + 1],
-            points: Vec::new(),
-            slack: rounding_slack(&bounds, extent, largest_side),
-        };
-        let buckets: Vec<usize> = sites.iter().map(|s| grid.bucket(s)).collect();
-        for &b in &buckets {
-            grid.starts[b + 1] += 1;
-        }
-        let crowding: usize = grid.starts.iter().map(|&c| (c as usize).pow(2)).sum();
-        if crowding > MAX_CROWDING * n {
-            return None;
-        }
-        for b in 0..count {
-            grid.starts[b + 1] += grid.starts[b];
-        }
-        let mut next = grid.starts.clone();
-        grid.points = vec![([0.0; D], 0); n];
-        for (i, &b) in buckets.iter().enumerate() {
-            grid.points[next[b] as usize] = (sites[i], i as u32);
-            next[b] += 1;
-        }
-        Some(grid)
-    }
-
-    fn bucket(&self, p: &[f64; D]) -> usize {
-        self.buckets.index(self.buckets.coordinates(p))
+        Some(GridPlan::new(sites)?.fill(sites))
     }
 
     fn ring_start(&self, p: [f64; D]) -> Rings<D> {
@@ -627,15 +780,6 @@ fn sort_nearly_sorted(gathered: &mut [(u64, u32)]) {
 /// At most this many buckets per site, however little of their box the sites fill.
 const MAX_BUCKETS_PER_SITE: usize = 4;
 
-/// Buckets of `lattice` that hold a site.
-fn occupied_buckets<const D: usize>(sites: &[[f64; D]], lattice: &Lattice<D>) -> usize {
-    let mut seen = vec![false; lattice.len()];
-    for s in sites {
-        seen[lattice.index(lattice.coordinates(s))] = true;
-    }
-    seen.iter().filter(|&&s| s).count()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -749,6 +893,35 @@ mod tests {
         let got: Vec<_> = std::iter::from_fn(|| near.next_within(limit2)).collect();
         assert_eq!(got, expected[..10]);
         assert_eq!(near.next_within(limit2), None);
+    }
+
+    /// A deferred grid is not filled while a warm stream answers from its candidates;
+    /// asked beyond them, the stream fills it and goes on as the cold stream does.
+    #[test]
+    fn a_warm_stream_fills_a_deferred_grid_only_when_it_goes_cold() {
+        let sites = random_points::<2>(2000, 13);
+        let deferred = DeferredIndex::new(&sites).unwrap();
+        let i = 77;
+        let p = sites[i];
+        let cold = brute_force(&sites, p);
+        // Candidates: the 12 nearest sites (shuffled), complete within the 12th distance.
+        let mut candidates: Vec<u32> = cold[..12].iter().map(|&(j, _)| j).rev().collect();
+        candidates.swap(3, 8);
+        let certified2 = cold[11].1;
+        let mut scratch = NearScratch::default();
+        let index = IndexRef::from(&deferred);
+        let mut near = index.near_warm(p, &sites, &candidates, certified2, &mut scratch);
+        let mut got = Vec::new();
+        while let Some(next) = near.next_within(certified2) {
+            got.push(next);
+        }
+        assert_eq!(got, cold[..12]);
+        assert!(deferred.index.get().is_none(), "filled by a warm stream");
+        while let Some(next) = near.next_within(f64::INFINITY) {
+            got.push(next);
+        }
+        assert!(deferred.index.get().is_some());
+        assert_eq!(got, cold);
     }
 
     #[test]

@@ -73,6 +73,7 @@ pub use domain_kind::DomainKind;
 pub use faces::{FaceIntegrals, FaceIntegrand, Matrix};
 use faces::{FaceRow, FaceSums};
 pub use knn::SiteIndex;
+use knn::{DeferredIndex, IndexRef};
 pub use mesh::{
     conforming_mesh, conforming_mesh_part, conforming_power_mesh, MeshDomain, MeshPart, PolyMesh,
 };
@@ -195,6 +196,14 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             margins: MarginRows::default(),
             error: None,
         }
+    }
+
+    /// Room for the near-site lists of `cells` cells of about `per_cell` sites each:
+    /// grown from nothing they were reallocated a dozen times a batch.
+    fn reserve_lists(&mut self, cells: usize, per_cell: usize) {
+        self.near_counts.reserve(cells);
+        self.near_complete2.reserve(cells);
+        self.near.reserve(cells * per_cell);
     }
 
     /// Append site `i`'s cell: its `moments` and the faces measured into `faces`.
@@ -497,10 +506,10 @@ where
     let weighted_sums = WeightedSums::new(density)?;
     // Visit the sites along a Morton curve: neighbouring cells then share index buckets
     // and boundary elements in cache. Results go back to index order afterwards.
-    let moved = request.warm.and_then(|w| w.moved(sites));
     // A warm diagram visits the sites in the previous one's order (the cells do not
     // depend on it); a sampled density is asked for its nodes batch by batch, as cold.
     let sampled = matches!(density, Some(Density::Sampled { .. }));
+    let moved = request.warm.and_then(|w| w.moved(sites, !sampled));
     let kept = (setup.as_deref())
         .and_then(|s| s.kept.as_ref())
         .filter(|k| k.options == request.options && k.windings.len() == sites.len());
@@ -518,16 +527,21 @@ where
     let power_start = request
         .power_start
         .filter(|d| weights.is_some() && d.len() == sites.len());
+    // A power start replaces the warm lists (its cells stream no sites).
+    let warm = (request.warm.zip(moved.as_ref())).filter(|_| power_start.is_none());
     let batches = {
         let mut computed = None;
-        let (windings, index) = match kept {
-            Some(k) => (&k.windings, &k.index),
+        let (windings, index): (_, IndexRef<'_, D>) = match kept {
+            Some(k) => (&k.windings, (&k.index).into()),
             None => {
-                let c = computed.insert((
-                    checked_windings(domain, sites, request.options)?,
-                    SiteIndex::new(sites)?,
-                ));
-                (&c.0, &c.1)
+                let windings = checked_windings(domain, sites, request.options)?;
+                // A cold diagram reads the index from its first cell on.
+                let index = match warm {
+                    Some(_) => DeferredIndex::new(sites)?,
+                    None => DeferredIndex::built(sites)?,
+                };
+                let c = computed.insert((windings, index));
+                (&c.0, (&c.1).into())
             }
         };
         let visit = Visit {
@@ -546,11 +560,7 @@ where
             }),
             power_start,
             total_sites: sites.len(),
-            // A power start replaces the warm lists (its cells stream no sites).
-            warm: request
-                .warm
-                .zip(moved.as_ref())
-                .filter(|_| power_start.is_none()),
+            warm,
             // Sites moved too far are not recorded: the next diagram starts from an empty
             // state and records the lists afresh (cold).
             record: power_start.is_none()
@@ -577,7 +587,7 @@ where
                         options: request.options,
                         order: order.clone(),
                         windings,
-                        index,
+                        index: index.into_built(),
                         blocks: None,
                     });
                 }
@@ -702,7 +712,8 @@ pub(crate) fn checked_part<const D: usize, K: DomainKind<D>>(
 /// problem (more than `sites.len()` when `sites` is a partition with its halo).
 struct Visit<'a, const D: usize> {
     sites: &'a [[f64; D]],
-    index: &'a SiteIndex<D>,
+    /// Filled on first use when the cells start warm ([`DeferredIndex`]).
+    index: IndexRef<'a, D>,
     /// Indexed like `sites`; only the entries of the sites visited are read.
     windings: &'a [Option<i32>],
     /// The weights of a power diagram, indexed like `sites`.
@@ -770,8 +781,11 @@ where
         weighted: &WeightedSums<D>,
     ) -> Vec<Batch<D, C>> {
         let convex = domain.is_convex();
+        // The lists recorded are about as long as the ones read (cold: a guess, 2D's).
+        let near_per_cell = self.warm.map_or(16, |(w, _)| w.mean_list_len());
         visit
             .par_chunks(BATCH)
+            .enumerate()
             .map_init(
                 || {
                     let mut measuring = MeasureScratch::default();
@@ -783,9 +797,12 @@ where
                         MarginScratch::default(),
                     )
                 },
-                |(scratch, measuring, hinted, margin), chunk| {
+                |(scratch, measuring, hinted, margin), (first, chunk)| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
-                    for &i in chunk {
+                    if self.record {
+                        batch.reserve_lists(chunk.len(), near_per_cell);
+                    }
+                    for (visited, &i) in (first * BATCH..).zip(chunk) {
                         if self.floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
                             break;
                         }
@@ -794,7 +811,9 @@ where
                         // A power cell need not hold its site: the early cut by the
                         // boundary near the cell assumes it does (`cut_by_boundary`).
                         let convex_inside = convex && winding == Some(1) && self.power.is_none();
-                        let warm = self.warm.and_then(|(w, moved)| w.certified(i, moved));
+                        let warm = self
+                            .warm
+                            .and_then(|(w, moved)| w.certified(i, visited, moved));
                         let started = self.started_cell(domain, i, hinted, margin);
                         let (cell, inside) = match started.map_or_else(
                             || {
@@ -967,7 +986,7 @@ where
     let index = SiteIndex::new(sites)?;
     let visit = Visit {
         sites,
-        index: &index,
+        index: (&index).into(),
         windings: &windings,
         power,
         power_start: None,
@@ -1161,8 +1180,8 @@ fn copy_faces<const D: usize, C, T: Copy>(
     }
 }
 
-/// The batches' near-site lists in site order, when they recorded them, with the order
-/// the sites were visited in.
+/// The batches' near-site lists in visiting order `order` (the batches' own, one after
+/// the other), when they recorded them.
 fn warm_lists<const D: usize, C>(
     sites: &[[f64; D]],
     order: Vec<u32>,
@@ -1172,25 +1191,16 @@ fn warm_lists<const D: usize, C>(
         return None;
     }
     let n = sites.len();
-    let mut offsets = vec![0; n + 1];
-    let mut complete2 = vec![0.0; n];
+    let mut offsets = Vec::with_capacity(n + 1);
+    offsets.push(0);
+    let mut complete2 = Vec::with_capacity(n);
+    let mut near = Vec::with_capacity(batches.iter().map(|b| b.near.len()).sum());
     for b in batches {
-        for (k, (&i, &count)) in b.sites.iter().zip(&b.near_counts).enumerate() {
-            offsets[i as usize + 1] = count as usize;
-            complete2[i as usize] = b.near_complete2[k];
+        for &count in &b.near_counts {
+            offsets.push(offsets.last().copied().unwrap_or(0) + count as usize);
         }
-    }
-    for i in 0..n {
-        offsets[i + 1] += offsets[i];
-    }
-    let mut near = vec![0; offsets[n]];
-    for b in batches {
-        let mut at = 0;
-        for (&i, &count) in b.sites.iter().zip(&b.near_counts) {
-            let (from, count) = (offsets[i as usize], count as usize);
-            near[from..from + count].copy_from_slice(&b.near[at..at + count]);
-            at += count;
-        }
+        complete2.extend_from_slice(&b.near_complete2);
+        near.extend_from_slice(&b.near);
     }
     let warm_cells = batches.iter().map(|b| b.warm_cells).sum();
     Some(WarmStart::from_lists(

@@ -420,7 +420,7 @@ where
         });
         let visit = Visit {
             sites: &images.sites,
-            index: &index,
+            index: (&index).into(),
             windings,
             power: image_weights
                 .as_deref()

@@ -10,7 +10,7 @@ use crate::geometry::{add, norm2, scale, sub, Euclid, HalfSpace, Space};
 
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
-use super::knn::{NearScratch, SiteIndex};
+use super::knn::{IndexRef, NearScratch, SiteIndex};
 use super::power::Power;
 use super::warm::margin2;
 
@@ -78,12 +78,13 @@ const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
 ///
 /// With `warm`, the site's list of near sites from a previous diagram and the squared
 /// distance within which it holds every site: the nearest sites are streamed from it,
-/// and the cell is the same bit for bit ([`SiteIndex::near_warm`]). With `record`, the
+/// and the cell is the same bit for bit ([`IndexRef::near_warm`]); the index (possibly
+/// deferred, [`super::knn::DeferredIndex`]) is filled only if some cell needs it. With `record`, the
 /// cell's own list for the next diagram is left in [`CellScratch::record`].
 #[allow(clippy::too_many_arguments)]
-pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+pub fn voronoi_cell<'a, 'i, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
-    index: &SiteIndex<D>,
+    index: impl Into<IndexRef<'i, D>>,
     sites: &[[f64; D]],
     power: Option<&Power<'_, D>>,
     total_sites: usize,
@@ -96,6 +97,7 @@ pub fn voronoi_cell<'a, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
 where
     Euclid: Space<D>,
 {
+    let index = index.into();
     let (inside, stayed_warm, vouched2) = streamed_cell(
         domain,
         index,
@@ -118,7 +120,7 @@ where
 /// a stream that stayed warm keeps its certified candidates; a cold one gathers the sites
 /// within a margin beyond the distance it read.
 fn remember<const D: usize, C>(
-    index: &SiteIndex<D>,
+    index: IndexRef<'_, D>,
     sites: &[[f64; D]],
     i: usize,
     stayed_warm: bool,
@@ -135,7 +137,7 @@ fn remember<const D: usize, C>(
         return;
     }
     let record2 = margin2(vouched2);
-    let mut near = index.near(sites[i], &mut scratch.near);
+    let mut near = index.get().near(sites[i], &mut scratch.near);
     while let Some((j, _)) = near.next_within(record2) {
         scratch.record.push(j);
     }
@@ -147,7 +149,7 @@ fn remember<const D: usize, C>(
 #[allow(clippy::too_many_arguments)]
 fn streamed_cell<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
-    index: &SiteIndex<D>,
+    index: IndexRef<'_, D>,
     sites: &[[f64; D]],
     power: Option<&Power<'_, D>>,
     total_sites: usize,
@@ -185,7 +187,7 @@ where
         Some((candidates, certified2)) => {
             index.near_warm(site, sites, candidates, certified2, &mut scratch.near)
         }
-        None => index.near(site, &mut scratch.near),
+        None => index.get().near(site, &mut scratch.near),
     };
     let mut clipped = 0; // sites taken from the stream, the site itself included
     let mut last2: f64 = 0.0; // squared distance of the last site taken
@@ -227,7 +229,7 @@ where
                 scratch.reach2 = last2;
                 return Ok((false, stayed_warm, vouched2));
             }
-            let reach = validate_vertices(domain, cell, index, sites, power, i, true)?;
+            let reach = validate_vertices(domain, cell, index.get(), sites, power, i, true)?;
             scratch.reach2 = last2.max(reach * reach);
             return Ok((false, stayed_warm, vouched2));
         }
@@ -246,7 +248,7 @@ where
             if local2 <= LOCAL_REACH2 * last2 {
                 localise(cell, local2.sqrt());
                 let (stayed_warm, vouched2) = (near.is_warm(), near.vouched2());
-                let reach = validate_vertices(domain, cell, index, sites, power, i, false)?;
+                let reach = validate_vertices(domain, cell, index.get(), sites, power, i, false)?;
                 scratch.reach2 = last2.max(reach * reach);
                 return Ok((false, stayed_warm, vouched2));
             }

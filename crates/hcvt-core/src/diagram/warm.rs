@@ -8,23 +8,28 @@
 //! missing from the list was beyond `ρ_i` and is now beyond `ρ_i − δ_i − δ` from site `i`:
 //! the list is complete within that *certified* distance, and the stream takes its sites
 //! from it, sorted as the grid sorts them. A cell that asks farther falls back to the
-//! grid ([`super::knn::SiteIndex::near_warm`]). The cells are therefore the cold cells
+//! grid ([`super::knn::IndexRef::near_warm`]). The cells are therefore the cold cells
 //! bit for bit whatever the previous diagram was; only the time changes.
 
 use rayon::prelude::*;
 
 use crate::geometry::{norm2, sub};
 
-/// The previous diagram's near-site lists, in site order, for [`super::Request::warm`].
-/// Empty (the default) starts cold; a state of another number of sites is ignored.
+/// The previous diagram's near-site lists, in the order it visited its sites, for
+/// [`super::Request::warm`]. Empty (the default) starts cold; a state of another number
+/// of sites is ignored.
+///
+/// The lists are kept in visiting order (slot `k` is site `order[k]`'s), as the batches
+/// recorded them: the next diagram visits the sites in the same order and reads slot
+/// after slot, where a copy into site order held 2% of a warm 2D diagram's instructions.
 #[derive(Debug, Clone, Default)]
 pub struct WarmStart<const D: usize> {
-    /// The sites of the diagram that recorded the lists, `L`.
+    /// The sites of the diagram that recorded the lists, in visiting order, `L`.
     sites: Vec<[f64; D]>,
-    /// The list of site `i` is `near[offsets[i]..offsets[i + 1]]` (itself included).
+    /// The list of slot `k` is `near[offsets[k]..offsets[k + 1]]` (its site included).
     offsets: Vec<usize>,
     near: Vec<u32>,
-    /// Per site, every site within this squared distance of it is on its list, `L²`.
+    /// Per slot, every site within this squared distance of its site is on its list, `L²`.
     complete2: Vec<f64>,
     /// The order the diagram visited the sites in (Morton), which the next one reuses:
     /// the sites moved little, and the order only decides which cells share a cache.
@@ -33,13 +38,17 @@ pub struct WarmStart<const D: usize> {
     warm_cells: usize,
 }
 
-/// How far the sites moved since a [`WarmStart`] was recorded: per site, the squared
+/// How far the sites moved since a [`WarmStart`] was recorded: per slot, the squared
 /// distance within which its list still holds every site (`L²`; 0 when nothing is),
 /// worked out once for the whole diagram: each cell reads its one entry, where working
 /// it out again from the movements and the lists' radii held 3% of a warm 2D diagram's
 /// samples (`perf`, square 20k), mostly waiting on those arrays.
 pub(super) struct Moved {
     certified2: Vec<f64>,
+    /// Per site, its slot, when the diagram visits the sites in another order than the
+    /// recording one (a sampled density keeps the cold order); `None` when it visits
+    /// them in the same order, slot by slot.
+    slots: Option<Vec<u32>>,
 }
 
 /// A cold cell remembers the sites within this factor of the distance it read, so that
@@ -81,19 +90,25 @@ impl<const D: usize> WarmStart<D> {
             + self.order.len() * std::mem::size_of::<u32>()
     }
 
+    /// The mean length of the lists, rounded up (0 when empty).
+    pub(super) fn mean_list_len(&self) -> usize {
+        self.near.len().div_ceil(self.sites.len().max(1))
+    }
+
     /// The order the recording diagram visited its sites in.
     pub(super) fn order(&self) -> &[u32] {
         &self.order
     }
 
     /// How far `sites` moved from the remembered ones; `None` when the state is for
-    /// another number of sites (or empty).
-    pub(super) fn moved(&self, sites: &[[f64; D]]) -> Option<Moved> {
+    /// another number of sites (or empty). `same_order`: the diagram visits the sites in
+    /// [`WarmStart::order`] and looks its lists up by its visiting position.
+    pub(super) fn moved(&self, sites: &[[f64; D]], same_order: bool) -> Option<Moved> {
         if self.sites.is_empty() || self.sites.len() != sites.len() {
             return None;
         }
-        let each: Vec<f64> = (self.sites.par_iter().zip(sites))
-            .map(|(&old, &new)| norm2(sub(new, old)).sqrt() * (1.0 + ROUNDING))
+        let each: Vec<f64> = (self.sites.par_iter().zip(&self.order))
+            .map(|(&old, &i)| norm2(sub(sites[i as usize], old)).sqrt() * (1.0 + ROUNDING))
             .collect();
         let most = each.iter().fold(0.0, |m: f64, &d| m.max(d));
         if !most.is_finite() {
@@ -111,18 +126,39 @@ impl<const D: usize> WarmStart<D> {
                 certified2 > 0.0 && certified2 * MARGIN * MARGIN >= complete2
             })
             .count();
-        (2 * likely >= sites.len()).then_some(Moved { certified2 })
+        if 2 * likely < sites.len() {
+            return None;
+        }
+        let slots = (!same_order).then(|| {
+            let mut slots = vec![0; sites.len()];
+            for (k, &i) in self.order.iter().enumerate() {
+                slots[i as usize] = k as u32;
+            }
+            slots
+        });
+        Some(Moved { certified2, slots })
     }
 
     /// Site `i`'s remembered list and the squared distance within which it still holds
-    /// every site after `moved`; `None` when nothing is certified.
-    pub(super) fn certified(&self, i: usize, moved: &Moved) -> Option<(&[u32], f64)> {
-        let certified2 = moved.certified2[i];
-        (certified2 > 0.0).then(|| (&self.near[self.offsets[i]..self.offsets[i + 1]], certified2))
+    /// every site after `moved`; `None` when nothing is certified. `visited`: the cell's
+    /// position in the diagram's visiting order (its slot when that is the recording
+    /// diagram's order).
+    pub(super) fn certified(
+        &self,
+        i: usize,
+        visited: usize,
+        moved: &Moved,
+    ) -> Option<(&[u32], f64)> {
+        let k = moved
+            .slots
+            .as_ref()
+            .map_or(visited, |slots| slots[i] as usize);
+        let certified2 = moved.certified2[k];
+        (certified2 > 0.0).then(|| (&self.near[self.offsets[k]..self.offsets[k + 1]], certified2))
     }
 
-    /// The state of `sites` from their lists in site order: site `i`'s is
-    /// `near[offsets[i]..offsets[i + 1]]`, complete within `complete2[i]`.
+    /// The state of `sites` from their lists in visiting order `order`: site `order[k]`'s
+    /// is `near[offsets[k]..offsets[k + 1]]`, complete within `complete2[k]`.
     pub(super) fn from_lists(
         sites: &[[f64; D]],
         offsets: Vec<usize>,
@@ -132,7 +168,7 @@ impl<const D: usize> WarmStart<D> {
         warm_cells: usize,
     ) -> Self {
         Self {
-            sites: sites.to_vec(),
+            sites: order.iter().map(|&i| sites[i as usize]).collect(),
             offsets,
             near,
             complete2,

@@ -7,8 +7,8 @@ use crate::common::{data_3d, dented_cube, interior_sites, polygon, read_mesh};
 use hcvt_core::lloyd::lloyd_step;
 use hcvt_core::sample::Lcg;
 use hcvt_core::{
-    clipped_diagram, BoxDomain, ConvexCell, Diagram, DomainKind, Euclid, PeriodicBox, PolygonCell,
-    PolyhedronCell, Request, Space, WarmStart,
+    clipped_diagram, BoxDomain, ConvexCell, CoreError, Density, Diagram, DomainKind, Euclid, Field,
+    PeriodicBox, PolygonCell, PolyhedronCell, Request, Space, WarmStart,
 };
 
 /// Every array of two diagrams equal bit for bit.
@@ -56,7 +56,7 @@ fn warm_chain<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     mut sites: Vec<[f64; D]>,
     steps: &[f64],
-    weights: Option<&[f64]>,
+    cold_request: Request<'_, D>,
     what: &str,
 ) -> (Vec<f64>, Diagram<D>)
 where
@@ -64,10 +64,6 @@ where
 {
     let n = sites.len();
     let h = (domain.volume() / n as f64).powf(1.0 / D as f64);
-    let cold_request = Request {
-        weights,
-        ..Request::default()
-    };
     let mut state = WarmStart::new();
     let mut fractions = Vec::new();
     let mut last = Diagram::default();
@@ -104,7 +100,7 @@ fn check_kind<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     Euclid: Space<D>,
 {
     let steps = [0.01, 0.01, 0.02, 0.15, 1.0, 0.01, 0.01];
-    let (fractions, _) = warm_chain::<D, C, K>(domain, sites, &steps, None, what);
+    let (fractions, _) = warm_chain::<D, C, K>(domain, sites, &steps, Request::default(), what);
     assert_eq!(fractions[0], 0.0, "{what}: the first diagram is cold");
     assert!(fractions[1] > 0.9, "{what}: small steps {fractions:?}");
     assert!(fractions[2] > 0.9, "{what}: small steps {fractions:?}");
@@ -161,11 +157,47 @@ fn a_warm_power_diagram_is_the_cold_one() {
         &square,
         sites,
         &[0.01, 0.01, 0.15],
-        Some(&weights),
+        Request {
+            weights: Some(&weights),
+            ..Request::default()
+        },
         "power",
     );
     assert!(fractions[1] > 0.9, "{fractions:?}");
     assert!(fractions[3] < 1.0, "{fractions:?}");
+}
+
+/// A field for the sampled density: `1 + x² + exp(y)`, one value per node.
+struct Bumpy;
+
+impl Field<2> for Bumpy {
+    fn values(&self, points: Vec<[f64; 2]>) -> Result<Vec<f64>, CoreError> {
+        Ok(points
+            .iter()
+            .map(|p| 1.0 + p[0] * p[0] + p[1].exp())
+            .collect())
+    }
+}
+
+/// A sampled density visits the sites in the cold (Morton) order, not the recording
+/// diagram's: each cell finds its list by its site, and the cells are the cold ones.
+#[test]
+fn a_warm_diagram_with_a_sampled_density_is_the_cold_one() {
+    let square = polygon(&[&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]]);
+    let sites = interior_sites(&square, 2000, 12);
+    let field = Bumpy;
+    let density = Density::Sampled {
+        field: &field,
+        degree: 2,
+    };
+    let request = Request {
+        density: Some(&density),
+        ..Request::default()
+    };
+    let (fractions, _) =
+        warm_chain::<2, PolygonCell, _>(&square, sites, &[0.01, 0.15, 0.01], request, "sampled");
+    assert!(fractions[1] > 0.9, "{fractions:?}");
+    assert!(fractions[2] < 1.0, "{fractions:?}");
 }
 
 /// A periodic box computes its cells among images: it ignores the warm start (and
@@ -174,8 +206,13 @@ fn a_warm_power_diagram_is_the_cold_one() {
 fn a_periodic_box_ignores_the_warm_start() {
     let torus = PeriodicBox::new([0.0; 2], [1.0; 2], [true, false]).unwrap();
     let sites = interior_sites(&torus, 800, 10);
-    let (fractions, _) =
-        warm_chain::<2, PolygonCell, _>(&torus, sites, &[0.01, 1.0], None, "periodic");
+    let (fractions, _) = warm_chain::<2, PolygonCell, _>(
+        &torus,
+        sites,
+        &[0.01, 1.0],
+        Request::default(),
+        "periodic",
+    );
     assert!(fractions.is_empty());
 }
 
@@ -194,7 +231,7 @@ fn a_warm_chain_is_the_same_with_one_or_three_threads() {
                 &dented,
                 sites.clone(),
                 &[0.01, 0.3],
-                None,
+                Request::default(),
                 "threads",
             )
         })
