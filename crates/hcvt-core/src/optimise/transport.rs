@@ -645,7 +645,7 @@ impl<const D: usize> FaceIntegrand<D> for FaceMass {
         face[0][0] += sign * m.measure;
     }
 
-    fn reads_measure_only(&self) -> bool {
+    fn is_face_mass(&self) -> bool {
         true
     }
 
