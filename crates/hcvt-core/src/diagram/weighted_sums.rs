@@ -234,7 +234,7 @@ impl<const D: usize> WeightedSums<D> {
     /// Add `piece` (relative to the site) with `sign`, cone simplex by cone simplex. With a
     /// polynomial and `face_means`, push ρ's mean over each cone's face there too, cone
     /// after cone, from the nodes that integrate the cone: what gives the faces' `∫ρ` to
-    /// an integrand that reads nothing else ([`super::FaceIntegrand::reads_measure_only`]).
+    /// an integrand that reads nothing else ([`super::FaceIntegrand::is_face_mass`]).
     pub fn add_piece<C: ConvexCell<D>>(
         &mut self,
         piece: &C,

@@ -24,8 +24,8 @@
 //! while its factor stays within 10% of that size, [`analyse`]), serially. Later steps
 //! first solve by conjugate gradients preconditioned by the last factor, an earlier step's
 //! matrix (`Kept::preconditioned`), to the inexact-Newton goal below, and factorise afresh
-//! only if 30 iterations do not reach it, or once near the solution while the factor is
-//! simplicial ([`REFACTORISE_BELOW`]: 10,000 sites, not 100,000). Why: factorising every
+//! only if 30 iterations do not reach it, or once near the solution
+//! ([`REFACTORISE_BELOW`]). Why: factorising every
 //! step (AMD, symbolic and numeric) took a third of the transport's samples at 10,000
 //! sites (perf, one thread); with the kept factor one factorisation served the whole run
 //! at 10,000 and 100,000 sites in the square and the L-shape (10 to 20 iterations a step,
@@ -96,7 +96,7 @@ use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
-    SymbolicCholeskyRaw, SymmetricOrdering,
+    SymmetricOrdering,
 };
 use std::borrow::Cow;
 use std::sync::atomic::{AtomicBool, Ordering as AtomicOrdering};
@@ -168,16 +168,19 @@ const MARGINS_BELOW: f64 = 0.05;
 
 /// The Newton step whose iterate is expected ([`expected_error`]) to have a largest relative
 /// error below this factorises its own Laplacian afresh, once a run, instead of solving by
-/// conjugate gradients preconditioned by the first step's factor, when that factor is
-/// simplicial ([`Kept::cheap_to_refactorise`]); the later steps are preconditioned by the
-/// fresh factor. Why: near the solution the faces barely move, so the fresh factor is
+/// conjugate gradients preconditioned by the first step's factor ([`Kept::has_factor`]);
+/// the later steps are preconditioned by the fresh factor. Why: near the solution the faces barely move, so the fresh factor is
 /// nearly the later matrices' own: the square at 10,000 sites took 0, 3 and 4 iterations
 /// in its last three steps where the first step's factor took 11, 16 and 18 (69 in all,
 /// then 31; 12 runs of 10,000 sites, square and L-shape: 699 then 259, the same Newton
 /// steps and diagrams), and the triangular solves of those iterations cost more than one
 /// factorisation: 3.9% fewer instructions in the whole run (`docs/results/transport.txt`
-/// §17). A supernodal factor (100,000 sites) costs more than 20 iterations to compute
-/// afresh, and there it was slower (CPU 3.84 against 3.51 s, the square).
+/// §17). At 100,000 sites too, where the factor is supernodal: its triangular solves took
+/// 28% of the run's instructions (faer's per-supernode dispatch), one factorisation the
+/// cost of about 3 iterations; the square with ρ = 1 + x + 2y² took 22 iterations where
+/// it took 70, 14% fewer instructions (CPU −7% under load), the L-shape 25 for 67, the
+/// same Newton steps and diagrams, uniform and polynomial (§21). (An earlier measure,
+/// CPU 3.84 against 3.51 s in the square, under load, had kept it to simplicial factors.)
 const REFACTORISE_BELOW: f64 = 0.05;
 
 /// The largest relative error expected after a full Newton step from `error`, the step
@@ -370,7 +373,7 @@ where
         let last = model <= 10.0 * settings.tol;
         let goal = if last { 0.1 * settings.tol } else { model };
         let expected = expected_error(error, history.last().map(|r: &TransportRecord| r.max_error));
-        let refresh = !refreshed && expected < REFACTORISE_BELOW && ordering.cheap_to_refactorise();
+        let refresh = !refreshed && expected < REFACTORISE_BELOW && ordering.has_factor();
         refreshed |= refresh;
         let (start, preconditioned) = match laplacian.direct(
             &residual,
@@ -645,7 +648,7 @@ impl<const D: usize> FaceIntegrand<D> for FaceMass {
         face[0][0] += sign * m.measure;
     }
 
-    fn reads_measure_only(&self) -> bool {
+    fn is_face_mass(&self) -> bool {
         true
     }
 
@@ -1017,16 +1020,9 @@ struct Kept {
 const PRECONDITIONED_ITERATIONS: usize = 30;
 
 impl Kept {
-    /// Whether there is a factor and it is simplicial: faer chooses the supernodal one when
-    /// the factorisation takes more than 40 multiply-adds per entry of the factor, i.e. when
-    /// it costs more than about 20 preconditioned iterations (two triangular solves each),
-    /// the iterations a fresh factor saves at [`REFACTORISE_BELOW`].
-    fn cheap_to_refactorise(&self) -> bool {
-        self.values.is_some()
-            && self
-                .analysed
-                .as_ref()
-                .is_some_and(|a| matches!(a.symbolic.raw(), SymbolicCholeskyRaw::Simplicial(_)))
+    /// Whether there is a factor, which a fresh one could replace ([`REFACTORISE_BELOW`]).
+    fn has_factor(&self) -> bool {
+        self.values.is_some() && self.analysed.is_some()
     }
 
     /// `x` with `A x = rhs` (`A` the grounded Laplacian `matrix`, lower triangle, cell
