@@ -472,14 +472,15 @@ where
     }
     if !current.has_moments {
         // The run ended where it was not expected to: the last diagram again, with the
-        // moments (each cell from its own neighbours; no cell can fall below a floor).
+        // moments (each cell from its own neighbours). No floor: a cell's mass is never
+        // below −∞ (not even a sliver's round-off below 0), so a diagram always comes back.
         current = Evaluation::trial::<C, K>(
             domain,
             sites,
             &weights,
             (settings.density, true),
             &current.diagram,
-            0.0,
+            f64::NEG_INFINITY,
             None,
             &mut setup,
         )?
