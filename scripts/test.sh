@@ -57,11 +57,6 @@ python -m ruff format --check python tests benchmarks examples docs/conf.py
 echo "== mypy";     python -m mypy && python -m mypy.stubtest hcvt._core
 # Doctests from the installed package (--pyargs): the source tree has no compiled core.
 echo "== pytest";   python -m pytest --pyargs hcvt tests --durations=25
-# A miscompilation seen once with one codegen unit (crates/hcvt-core/src/moments.rs,
-# FaceMoments::simplex): the Hessian's finite-difference test, built that way too. Only
-# hcvt-core takes one codegen unit (its lib and test binary, where thin LTO generates its
-# code); --workspace keeps the features of the dependencies as above (-p hcvt-core alone
-# unifies fewer features and rebuilt num-complex, gemm and faer), so they stay Fresh.
-echo "== cargo test, one codegen unit"
-cargo test --release --workspace --test it \
-    --config 'profile.release.package.hcvt-core.codegen-units=1' -- optimise::
+# A miscompilation was seen once with one codegen unit (crates/hcvt-core/src/moments.rs,
+# FaceMoments::simplex, caught by the Hessian's finite-difference test): hcvt-core is now
+# built that way by default (Cargo.toml), so every test above runs on such a build.
