@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use crate::geometry::Aabb;
 use crate::moments::Moments;
 
-use super::Diagram;
+use super::output::Diagram;
 
 /// Site indices sorted along a Z-order (Morton) curve over the sites' bounding box, ties
 /// broken by index so that the order is deterministic.

@@ -46,11 +46,12 @@ use super::clip::MeasureScratch;
 use super::convex_cell::ConvexCell;
 use super::domain_kind::{DomainKind, BOX_MARGIN};
 use super::faces::{FaceIntegrals, FaceIntegrand, FaceRow, Matrix};
+use super::output::{Batch, Clipped, Diagram};
 use super::torus::Torus;
 use super::weighted_sums::WeightedSums;
 use super::{
-    checked_part, checked_windings, morton_order, without_errors, Batch, Clipped, Diagram,
-    PartCells, Power, Request, SiteIndex, Visit,
+    checked_part, checked_windings, morton_order, without_errors, PartCells, Power, Request,
+    SiteIndex, Visit,
 };
 
 /// Width of the first band of images, in mean spacings `(V/n)^{1/d}`, per dimension. The

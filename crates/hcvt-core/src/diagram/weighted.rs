@@ -10,10 +10,11 @@ use crate::error::CoreError;
 use crate::geometry::{add, scale};
 use crate::moments::Moments;
 
+use super::convex_cell::ConvexCell;
 use super::domain_kind::DomainKind;
 use super::faces::FaceIntegrand;
+use super::output::{Batch, Diagram};
 use super::weighted_sums::{FaceNodes, FACE_NODES};
-use super::{Batch, ConvexCell, Diagram};
 
 /// Evaluate `field` once at the nodes of `rule` in every cone simplex of every cell of
 /// `batches`, and at the nodes of their deferred faces ([`FaceNodes`]) (in batch order, a
