@@ -85,7 +85,7 @@ where
     let request = PointRequest::default();
     let (mut cold_ms, mut warm_ms) = (Vec::new(), Vec::new());
     let mut equal = true;
-    let mut warm_cells = 0;
+    let (mut warm_cells, mut ring_cells) = (0, 0);
     for _ in 0..repeats {
         let mut cold = evaluate::<D, C, K>(domain, late.sites.clone(), &request)?;
         let mut state = WarmStart::new();
@@ -100,16 +100,19 @@ where
             warm = evaluate_warm::<D, C, K>(domain, next, &request, &mut state)?;
             warm_ms.push(1e3 * t.elapsed().as_secs_f64());
             warm_cells += state.warm_cells();
+            ring_cells += state.ring_cells();
             equal &= same(&cold, &warm);
         }
     }
     let (c, w) = (median(&mut cold_ms), median(&mut warm_ms));
     println!(
         "per diagram (median of {} Lloyd steps): cold {c:.3} ms, warm {w:.3} ms, warm/cold {:.3}, \
-         cells warm {:.1}%, near-site lists {} B/site, bitwise equal: {equal}",
+         cells warm {:.1}% (rebuilt from their ring {:.1}%), near-site lists {} B/site, \
+         bitwise equal: {equal}",
         cold_ms.len(),
         w / c,
         100.0 * warm_cells as f64 / (n * cold_ms.len()) as f64,
+        100.0 * ring_cells as f64 / (n * cold_ms.len()) as f64,
         late_bytes::<D, C, K>(domain, &late.sites)?,
     );
     Ok(equal)

@@ -42,6 +42,40 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// whole cell already and nothing changed.
     fn clip(&mut self, h: &HalfSpace<D>, face: Face) -> bool;
 
+    /// Recompute every vertex from the half-spaces of the faces it joins, and start the
+    /// faces at the neighbour of least index, so that the cell's bits depend only on which
+    /// half-spaces bound it, not on the order they cut it: a warm diagram can then build
+    /// the cell from its previous neighbours ([`ConvexCell::rebuild_from_ring`]) bit for bit as the
+    /// clips made it. `plane(j)`: the half-space of neighbour `j`'s face, as clipped by.
+    /// `false`, the cell unchanged, when some face is not a neighbour's, a vertex does not
+    /// come out finite, or the kind has no canonical form (the default: 3D).
+    fn canonicalise(&mut self, plane: impl Fn(u32) -> HalfSpace<D>) -> bool {
+        let _ = plane;
+        false
+    }
+
+    /// Become the canonical cell ([`ConvexCell::canonicalise`]) whose faces are those of
+    /// the neighbours `ring` in order, `plane(j)` the half-space of neighbour `j`'s face,
+    /// if those half-spaces bound such a cell with every vertex farther than `separation`
+    /// (relative to each plane's `|normal|²`) inside every half-space but its own faces'.
+    /// `false` (the cell left in any state) otherwise, or when the kind has no canonical
+    /// form (the default).
+    fn rebuild_from_ring(
+        &mut self,
+        ring: &[u32],
+        plane: impl Fn(u32) -> HalfSpace<D>,
+        separation: f64,
+    ) -> bool {
+        let _ = (ring, plane, separation);
+        false
+    }
+
+    /// Append the neighbours of a canonical cell ([`ConvexCell::canonicalise`]) to `out`,
+    /// face after face: what [`ConvexCell::rebuild_from_ring`] rebuilds it from.
+    fn ring(&self, out: &mut Vec<u32>) {
+        let _ = out;
+    }
+
     /// Call `f(face, h)` for the half-space `h` (relative to the site) of every face. The
     /// 3D cell gives every plane that has cut it, in the order they did, exactly as given
     /// to [`ConvexCell::clip`] (one may since have been cut away); the 2D cell each edge's

@@ -30,6 +30,7 @@
 //! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
 //! | `scratch.rs` | per-thread buffers reused from cell to cell (`with_scratch`) |
 //! | `warm.rs` | [`WarmStart`]: the previous diagram's near-site lists, which certify a cell's nearest sites without the index |
+//! | `ring.rs` | a warm cell rebuilt from its previous neighbours' ring without clipping, bit for bit the clipped cell (2D) |
 //! | `power.rs` | a power diagram's weights: its planes and how far its cells look for sites (DESIGN §14) |
 //! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
 //! | `weighted_sums.rs` | with a density: one cell's weighted sums over its pieces, as `faces.rs` measures them |
@@ -49,6 +50,7 @@ mod polygon_cell;
 mod polygon_clip;
 mod polyhedron_cell;
 mod power;
+mod ring;
 mod scratch;
 mod sphere;
 mod sphere_density;
@@ -696,6 +698,8 @@ where
                             batch.near_counts.push(near.len() as u32);
                             batch.near.extend_from_slice(near);
                             batch.near_complete2.push(complete2);
+                            batch.near_rings.push(scratch.record_ring());
+                            batch.ring_cells += usize::from(scratch.rebuilt());
                             batch.warm_cells += usize::from(warm);
                         }
                     }

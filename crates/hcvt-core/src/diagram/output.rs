@@ -165,8 +165,12 @@ pub(super) struct Batch<const D: usize, C> {
     pub(super) near_counts: Vec<u32>,
     pub(super) near: Vec<u32>,
     pub(super) near_complete2: Vec<f64>,
-    /// Cells whose nearest sites came from the warm start alone.
+    /// Per cell, how many sites at the head of its list are its ring ([`super::ring`]).
+    pub(super) near_rings: Vec<u8>,
+    /// Cells whose nearest sites came from the warm start alone, and of those the cells
+    /// rebuilt from their ring.
     pub(super) warm_cells: usize,
+    pub(super) ring_cells: usize,
     /// The stored margins the power cells took ([`super::MarginRequest::record`]).
     pub(super) margins: MarginRows<D>,
     /// The error of the batch's first offending site in index order.
@@ -199,7 +203,9 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             near_counts: Vec::new(),
             near: Vec::new(),
             near_complete2: Vec::new(),
+            near_rings: Vec::new(),
             warm_cells: 0,
+            ring_cells: 0,
             margins: MarginRows::default(),
             error: None,
         }
@@ -210,6 +216,7 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
     pub(super) fn reserve_lists(&mut self, cells: usize, per_cell: usize) {
         self.near_counts.reserve(cells);
         self.near_complete2.reserve(cells);
+        self.near_rings.reserve(cells);
         self.near.reserve(cells * per_cell);
     }
 
@@ -402,16 +409,20 @@ pub(super) fn warm_lists<const D: usize, C>(
     let mut offsets = Vec::with_capacity(n + 1);
     offsets.push(0);
     let mut complete2 = Vec::with_capacity(n);
+    let mut rings = Vec::with_capacity(n);
     let mut near = Vec::with_capacity(batches.iter().map(|b| b.near.len()).sum());
     for b in batches {
         for &count in &b.near_counts {
             offsets.push(offsets.last().copied().unwrap_or(0) + count as usize);
         }
         complete2.extend_from_slice(&b.near_complete2);
+        rings.extend_from_slice(&b.near_rings);
         near.extend_from_slice(&b.near);
     }
     let warm_cells = batches.iter().map(|b| b.warm_cells).sum();
-    Some(WarmStart::from_lists(
-        sites, offsets, near, complete2, order, warm_cells,
-    ))
+    let ring_cells = batches.iter().map(|b| b.ring_cells).sum();
+    Some(
+        WarmStart::from_lists(sites, offsets, near, complete2, rings, order)
+            .with_counts(warm_cells, ring_cells),
+    )
 }

@@ -12,6 +12,8 @@ pub struct PolygonCell {
     // Buffers reused by `clip`, so that clipping allocates only while a cell grows.
     spare_vertices: Vec<[f64; 2]>,
     spare_faces: Vec<Face>,
+    // The half-spaces of a ring (`rebuild_from_ring`).
+    planes: Vec<HalfSpace<2>>,
 }
 
 /// Vertices a new cell has room for: a Voronoi cell has about 6, and allocations were a
@@ -43,6 +45,33 @@ impl PolygonCell {
     pub fn faces(&self) -> &[Face] {
         &self.faces
     }
+
+    /// [`ConvexCell::rebuild_from_ring`] with the ring's half-spaces worked out, `planes[k]`
+    /// `ring[k]`'s.
+    fn vertices_of_ring(&mut self, ring: &[u32], planes: &[HalfSpace<2>], separation: f64) -> bool {
+        let m = ring.len();
+        self.vertices.clear();
+        self.faces.clear();
+        let mut before = &planes[m - 1];
+        for (at, &j) in planes.iter().zip(ring) {
+            self.vertices.push(meet(before, at));
+            self.faces.push(Face::Neighbor(j));
+            before = at;
+        }
+        (0..m).all(|k| {
+            let v = self.vertices[k];
+            let w = self.vertices[if k + 1 == m { 0 } else { k + 1 }];
+            let previous = if k == 0 { m - 1 } else { k - 1 };
+            // The outward normal of edge v -> w along the face's own.
+            let along = dot([w[1] - v[1], v[0] - w[0]], planes[k].normal) > 0.0;
+            along
+                && (planes.iter().enumerate()).all(|(l, h)| {
+                    l == k
+                        || l == previous
+                        || dot(h.normal, v) - h.offset < -separation * norm2(h.normal)
+                })
+        })
+    }
 }
 
 /// The point where the segment from `a` (signed distance `da`) to `b` (`db`) crosses the line.
@@ -52,6 +81,28 @@ fn crossing(a: [f64; 2], b: [f64; 2], da: f64, db: f64) -> [f64; 2] {
     [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
 }
 
+/// The point on the lines of `a` and `b` (Cramer's rule): the canonical vertex between
+/// two faces, computed in the faces' order only ([`ConvexCell::canonicalise`]). Not finite
+/// when the lines are parallel.
+#[inline]
+fn meet(a: &HalfSpace<2>, b: &HalfSpace<2>) -> [f64; 2] {
+    let (p, q) = (a.normal, b.normal);
+    let det = p[0] * q[1] - p[1] * q[0];
+    [
+        (a.offset * q[1] - b.offset * p[1]) / det,
+        (p[0] * b.offset - q[0] * a.offset) / det,
+    ]
+}
+
+/// The neighbour of a face, `None` for the others.
+#[inline]
+fn neighbour(face: Face) -> Option<u32> {
+    match face {
+        Face::Neighbor(j) => Some(j),
+        _ => None,
+    }
+}
+
 impl ConvexCell<2> for PolygonCell {
     fn from_box(b: &Aabb<2>) -> Self {
         let mut c = Self {
@@ -59,6 +110,7 @@ impl ConvexCell<2> for PolygonCell {
             faces: Vec::with_capacity(CAPACITY),
             spare_vertices: Vec::with_capacity(CAPACITY),
             spare_faces: Vec::with_capacity(CAPACITY),
+            planes: Vec::new(),
         };
         c.reset_to_box(b);
         c
@@ -125,6 +177,71 @@ impl ConvexCell<2> for PolygonCell {
         self.spare_vertices = std::mem::replace(&mut self.vertices, vertices);
         self.spare_faces = std::mem::replace(&mut self.faces, faces);
         true
+    }
+
+    /// Vertex `k` joins the faces of edges `k − 1` and `k`: it is recomputed as [`meet`] of
+    /// their half-spaces, in that order, after the edges are rotated to start at the
+    /// neighbour of least index.
+    fn canonicalise(&mut self, plane: impl Fn(u32) -> HalfSpace<2>) -> bool {
+        let n = self.faces.len();
+        if n < 3 {
+            return false;
+        }
+        let mut first = 0;
+        let mut least = u32::MAX;
+        for (k, &face) in self.faces.iter().enumerate() {
+            match neighbour(face) {
+                Some(j) if j < least => (first, least) = (k, j),
+                Some(_) => {}
+                None => return false,
+            }
+        }
+        let face_plane = |k: usize| plane(neighbour(self.faces[(first + k) % n]).unwrap_or(0));
+        let mut vertices = std::mem::take(&mut self.spare_vertices);
+        vertices.clear();
+        let mut before = face_plane(n - 1);
+        for k in 0..n {
+            let at = face_plane(k);
+            vertices.push(meet(&before, &at));
+            before = at;
+        }
+        if !vertices
+            .iter()
+            .all(|v| v[0].is_finite() && v[1].is_finite())
+        {
+            self.spare_vertices = vertices;
+            return false;
+        }
+        self.faces.rotate_left(first);
+        self.spare_vertices = std::mem::replace(&mut self.vertices, vertices);
+        true
+    }
+
+    /// The vertices as [`PolygonCell::canonicalise`] makes them; the cell stands when every
+    /// vertex lies inside every other face's half-space by `separation` and every edge
+    /// runs counter-clockwise along its line: the polygon is then the intersection of the
+    /// half-spaces, with one edge on each (a ring in another order, or with a face that
+    /// no longer bounds the cell, puts some vertex outside some half-space).
+    fn rebuild_from_ring(
+        &mut self,
+        ring: &[u32],
+        plane: impl Fn(u32) -> HalfSpace<2>,
+        separation: f64,
+    ) -> bool {
+        let m = ring.len();
+        if m < 3 {
+            return false;
+        }
+        let mut planes = std::mem::take(&mut self.planes);
+        planes.clear();
+        planes.extend(ring.iter().map(|&j| plane(j)));
+        let made = self.vertices_of_ring(ring, &planes, separation);
+        self.planes = planes;
+        made
+    }
+
+    fn ring(&self, out: &mut Vec<u32>) {
+        out.extend(self.faces.iter().filter_map(|&f| neighbour(f)));
     }
 
     fn for_each_plane(&self, mut f: impl FnMut(Face, &HalfSpace<2>)) {
@@ -328,6 +445,80 @@ mod tests {
                 (bound, d2) => panic!("{seg:?}: {bound:?} vs {d2:?}"),
             }
         }
+    }
+
+    /// The cell of site 0 among `sites`, clipped by their bisectors in the order given.
+    fn clipped(sites: &[[f64; 2]], order: &[usize]) -> PolygonCell {
+        let mut c = PolygonCell::from_box(&Aabb {
+            lo: [-10.0, -10.0],
+            hi: [10.0, 10.0],
+        });
+        for &j in order {
+            c.clip(
+                &HalfSpace::bisector(sub(sites[j], sites[0])),
+                Face::Neighbor(j as u32),
+            );
+        }
+        c
+    }
+
+    fn bits(c: &PolygonCell) -> Vec<[u64; 2]> {
+        c.vertices().iter().map(|v| v.map(f64::to_bits)).collect()
+    }
+
+    /// Clipped in two orders the cells differ in their last bits; canonical, they are
+    /// equal, and the ring rebuilds them bit for bit. A ring out of order, or with a site
+    /// that does not bound the cell, is refused.
+    #[test]
+    fn a_canonical_cell_is_the_same_in_any_order_and_rebuilt_from_its_ring() {
+        let mut rng = crate::sample::Lcg::new(7);
+        let mut differed = 0;
+        for _ in 0..200 {
+            let sites: Vec<[f64; 2]> = (0..12).map(|_| [rng.unit(), rng.unit()]).collect();
+            let plane = |j: u32| HalfSpace::bisector(sub(sites[j as usize], sites[0]));
+            let forward: Vec<usize> = (1..12).collect();
+            let backward: Vec<usize> = (1..12).rev().collect();
+            let (mut a, mut b) = (clipped(&sites, &forward), clipped(&sites, &backward));
+            if a.faces().contains(&Face::Box) {
+                continue; // the box bounds it: no canonical form
+            }
+            differed += usize::from(bits(&a) != bits(&b));
+            assert!(a.canonicalise(plane) && b.canonicalise(plane));
+            assert_eq!(bits(&a), bits(&b));
+            assert_eq!(a.faces(), b.faces());
+            let mut ring = Vec::new();
+            a.ring(&mut ring);
+            let least = ring.iter().min().copied();
+            assert_eq!(
+                ring.first().copied(),
+                least,
+                "starts at the least neighbour"
+            );
+            let mut rebuilt = PolygonCell::default();
+            assert!(rebuilt.rebuild_from_ring(&ring, plane, 1e-9));
+            assert_eq!(bits(&rebuilt), bits(&a));
+            assert_eq!(rebuilt.faces(), a.faces());
+            assert_eq!(rebuilt.moments(), a.moments());
+            // Two faces swapped.
+            let mut swapped = ring.clone();
+            swapped.swap(1, 2);
+            assert!(
+                !rebuilt.rebuild_from_ring(&swapped, plane, 1e-9),
+                "{swapped:?}"
+            );
+            // A site that does not bound the cell, put in the ring.
+            if let Some(extra) = (1..12u32).find(|j| !ring.contains(j)) {
+                let mut more = ring.clone();
+                more.insert(1, extra);
+                assert!(!rebuilt.rebuild_from_ring(&more, plane, 1e-9), "{more:?}");
+            }
+            // (A face left out makes a larger cell of the other half-spaces: the ring
+            // alone cannot tell; its site, on the cell's list, does (`ring_cell`).)
+        }
+        assert!(
+            differed > 20,
+            "the orders differed in {differed} cells only"
+        );
     }
 
     #[test]

@@ -12,7 +12,8 @@ use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::knn::{IndexRef, NearScratch, SiteIndex};
 use super::power::Power;
-use super::warm::margin2;
+use super::ring::ring_cell;
+use super::warm::{margin2, WarmList};
 
 /// Neighbour count, per dimension, after which a cell that has not reached its security
 /// radius is localised to the domain (see [`DomainKind::local_radius2`]). 16 in 2D: a CVT of the star
@@ -77,10 +78,15 @@ const PRECLIP_K: [usize; 4] = [usize::MAX, usize::MAX, usize::MAX, 16];
 /// empties stops streaming (an empty cell: mass 0, no faces).
 ///
 /// With `warm`, the site's list of near sites from a previous diagram and the squared
-/// distance within which it holds every site: the nearest sites are streamed from it,
-/// and the cell is the same bit for bit ([`IndexRef::near_warm`]); the index (possibly
-/// deferred, [`super::knn::DeferredIndex`]) is filled only if some cell needs it. With `record`, the
-/// cell's own list for the next diagram is left in [`CellScratch::record`].
+/// distance within which it holds every site: the cell is rebuilt from its previous ring
+/// where that certifies it ([`ring_cell`]), else the nearest sites are streamed from the
+/// list ([`IndexRef::near_warm`]); either way the cell is the same bit for bit, and the
+/// index (possibly deferred, [`super::knn::DeferredIndex`]) is filled only if some cell
+/// needs it. With `record`, the cell's own list for the next diagram is left in
+/// [`CellScratch::record`].
+///
+/// A cell of a plain Voronoi diagram bounded by its neighbours alone is left canonical
+/// ([`ConvexCell::canonicalise`]; 2D), its bits independent of the order of the clips.
 #[allow(clippy::too_many_arguments)]
 pub fn voronoi_cell<'a, 'i, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
@@ -90,13 +96,20 @@ pub fn voronoi_cell<'a, 'i, const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     total_sites: usize,
     i: usize,
     convex_inside: bool,
-    warm: Option<(&[u32], f64)>,
+    warm: Option<WarmList<'_>>,
     record: bool,
     scratch: &'a mut CellScratch<C>,
 ) -> Result<(&'a C, bool), CoreError>
 where
     Euclid: Space<D>,
 {
+    scratch.rebuilt = false;
+    if let Some(w) = warm.filter(|w| w.ring > 0 && power.is_none()) {
+        if try_ring_cell(domain, sites, i, convex_inside, w, scratch) {
+            let cell = scratch.cell.as_ref().expect("the cell just built");
+            return Ok((cell, false));
+        }
+    }
     let index = index.into();
     let (inside, stayed_warm, vouched2) = streamed_cell(
         domain,
@@ -116,30 +129,89 @@ where
     Ok((cell, inside))
 }
 
+/// Site `i`'s cell rebuilt from the ring of `warm` ([`ring_cell`]) into `scratch`, with
+/// its record for the next diagram; `false` when it must be clipped. Only where the
+/// clipped cell would be plain and canonical: no power, no part validated early, no cut
+/// by the boundary planes (which a cell clipped in the domain may get, and `inside`
+/// with it).
+fn try_ring_cell<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: &[[f64; D]],
+    i: usize,
+    convex_inside: bool,
+    warm: WarmList<'_>,
+    scratch: &mut CellScratch<C>,
+) -> bool {
+    let preclip = convex_inside && PRECLIP_K.get(D).is_some_and(|&k| k != usize::MAX);
+    if preclip || domain.validate_part_after().is_some() {
+        return false;
+    }
+    let start = domain.start(sites[i]);
+    let cell = scratch.cell.get_or_insert_with(|| C::from_box(&start));
+    let localise_after = LOCALISE_K.get(D).copied().unwrap_or(64);
+    let made = ring_cell(
+        sites,
+        i,
+        &start,
+        warm,
+        localise_after,
+        cell,
+        &mut scratch.record,
+    );
+    let Some(made) = made else {
+        return false;
+    };
+    scratch.reach2 = made.reach2;
+    scratch.record2 = warm.certified2;
+    scratch.record_warm = true;
+    scratch.record_ring = warm.ring as u8;
+    scratch.canonical = true;
+    scratch.rebuilt = true;
+    true
+}
+
 /// Leave in `scratch.record` the sites near site `i` for the next diagram's warm start:
 /// a stream that stayed warm keeps its certified candidates; a cold one gathers the sites
-/// within a margin beyond the distance it read.
-fn remember<const D: usize, C>(
+/// within a margin beyond the distance it read. A canonical cell's ring goes first
+/// ([`ring_cell`] rebuilds the next cell from it), the other sites after it.
+fn remember<const D: usize, C: ConvexCell<D>>(
     index: IndexRef<'_, D>,
     sites: &[[f64; D]],
     i: usize,
     stayed_warm: bool,
     vouched2: f64,
-    warm: Option<(&[u32], f64)>,
+    warm: Option<WarmList<'_>>,
     scratch: &mut CellScratch<C>,
 ) {
     scratch.record.clear();
     scratch.record_warm = false;
-    if let (true, Some((_, certified2))) = (stayed_warm, warm) {
-        scratch.record.extend(scratch.near.certified());
-        scratch.record2 = certified2;
+    scratch.record_ring = 0;
+    let cell = scratch.cell.as_ref().filter(|_| scratch.canonical);
+    if let Some(cell) = cell {
+        cell.ring(&mut scratch.record);
+        // A ring longer than its count can say is not remembered.
+        match u8::try_from(scratch.record.len()) {
+            Ok(ring) => scratch.record_ring = ring,
+            Err(_) => scratch.record.clear(),
+        }
+    }
+    let ring = usize::from(scratch.record_ring);
+    let record = &mut scratch.record;
+    let mut keep = |j: u32| {
+        if !record[..ring].contains(&j) {
+            record.push(j);
+        }
+    };
+    if let (true, Some(w)) = (stayed_warm, warm) {
+        scratch.near.certified().for_each(&mut keep);
+        scratch.record2 = w.certified2;
         scratch.record_warm = true;
         return;
     }
     let record2 = margin2(vouched2);
     let mut near = index.get().near(sites[i], &mut scratch.near);
     while let Some((j, _)) = near.next_within(record2) {
-        scratch.record.push(j);
+        keep(j);
     }
     scratch.record2 = record2;
 }
@@ -155,7 +227,7 @@ fn streamed_cell<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     total_sites: usize,
     i: usize,
     convex_inside: bool,
-    warm: Option<(&[u32], f64)>,
+    warm: Option<WarmList<'_>>,
     scratch: &mut CellScratch<C>,
 ) -> Result<(bool, bool, f64), CoreError>
 where
@@ -163,6 +235,7 @@ where
 {
     let site = sites[i];
     let start = domain.start(site);
+    scratch.canonical = false;
     let cell = scratch.cell.get_or_insert_with(|| C::from_box(&start));
     cell.reset_to_box(&start);
     let mut radius2 = cell.max_dist2();
@@ -184,9 +257,7 @@ where
     };
     let mut inside = false;
     let mut near = match warm {
-        Some((candidates, certified2)) => {
-            index.near_warm(site, sites, candidates, certified2, &mut scratch.near)
-        }
+        Some(w) => index.near_warm(site, sites, w.near, w.certified2, &mut scratch.near),
         None => index.get().near(site, &mut scratch.near),
     };
     let mut clipped = 0; // sites taken from the stream, the site itself included
@@ -274,6 +345,12 @@ where
         let empty = cell.is_empty();
         return Ok((inside || empty, near.is_warm(), near.vouched2()));
     }
+    // The plain cell in its canonical form, which a warm diagram can rebuild unclipped.
+    scratch.canonical =
+        !inside && cell.canonicalise(|j| HalfSpace::bisector(sub(sites[j as usize], site)));
+    if scratch.canonical {
+        radius2 = cell.max_dist2();
+    }
     scratch.reach2 = last2.max(stop2(radius2));
     Ok((inside, near.is_warm(), near.vouched2()))
 }
@@ -291,6 +368,12 @@ pub struct CellScratch<C> {
     record2: f64,
     /// Whether the last cell's stream stayed warm.
     record_warm: bool,
+    /// How many sites at the head of `record` are the last cell's ring.
+    record_ring: u8,
+    /// Whether the last cell is canonical ([`ConvexCell::canonicalise`]).
+    canonical: bool,
+    /// Whether the last cell was rebuilt from its ring ([`ring_cell`]).
+    rebuilt: bool,
 }
 
 impl<C> CellScratch<C> {
@@ -298,6 +381,16 @@ impl<C> CellScratch<C> {
     /// within which they are every site (`L²`), and whether its stream stayed warm.
     pub fn record(&self) -> (&[u32], f64, bool) {
         (&self.record, self.record2, self.record_warm)
+    }
+
+    /// How many sites at the head of [`CellScratch::record`] are the last cell's ring.
+    pub fn record_ring(&self) -> u8 {
+        self.record_ring
+    }
+
+    /// Whether the last cell was rebuilt from its ring ([`ring_cell`]), unclipped.
+    pub fn rebuilt(&self) -> bool {
+        self.rebuilt
     }
 
     /// The reach of the last cell computed ([`voronoi_cell_among`]), `L²`.
@@ -316,6 +409,9 @@ impl<C> Default for CellScratch<C> {
             record: Vec::new(),
             record2: 0.0,
             record_warm: false,
+            record_ring: 0,
+            canonical: false,
+            rebuilt: false,
         }
     }
 }

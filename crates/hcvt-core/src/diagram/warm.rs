@@ -10,6 +10,9 @@
 //! from it, sorted as the grid sorts them. A cell that asks farther falls back to the
 //! grid ([`super::knn::IndexRef::near_warm`]). The cells are therefore the cold cells
 //! bit for bit whatever the previous diagram was; only the time changes.
+//!
+//! A canonical cell's list starts with its ring, its neighbours face after face: the next
+//! diagram first tries to rebuild the cell from them without clipping ([`super::ring`]).
 
 use rayon::prelude::*;
 
@@ -31,11 +34,16 @@ pub struct WarmStart<const D: usize> {
     near: Vec<u32>,
     /// Per slot, every site within this squared distance of its site is on its list, `L²`.
     complete2: Vec<f64>,
+    /// Per slot, how many sites at the head of its list are its cell's ring (the
+    /// neighbours of a canonical cell, face after face: [`super::ring`]); 0 for none.
+    rings: Vec<u8>,
     /// The order the diagram visited the sites in (Morton), which the next one reuses:
     /// the sites moved little, and the order only decides which cells share a cache.
     order: Vec<u32>,
     /// Cells of the recording diagram whose nearest sites came from the warm start alone.
     warm_cells: usize,
+    /// Of those, the cells rebuilt from their ring ([`super::ring`]).
+    ring_cells: usize,
 }
 
 /// How far the sites moved since a [`WarmStart`] was recorded: per slot, the squared
@@ -81,12 +89,19 @@ impl<const D: usize> WarmStart<D> {
         self.warm_cells
     }
 
+    /// Of [`WarmStart::warm_cells`], the cells rebuilt from their previous ring without
+    /// clipping.
+    pub fn ring_cells(&self) -> usize {
+        self.ring_cells
+    }
+
     /// Bytes held, for the memory accounts.
     pub fn bytes(&self) -> usize {
         self.sites.len() * std::mem::size_of::<[f64; D]>()
             + self.offsets.len() * std::mem::size_of::<usize>()
             + self.near.len() * std::mem::size_of::<u32>()
             + self.complete2.len() * std::mem::size_of::<f64>()
+            + self.rings.len()
             + self.order.len() * std::mem::size_of::<u32>()
     }
 
@@ -148,34 +163,64 @@ impl<const D: usize> WarmStart<D> {
         i: usize,
         visited: usize,
         moved: &Moved,
-    ) -> Option<(&[u32], f64)> {
+    ) -> Option<WarmList<'_>> {
         let k = moved
             .slots
             .as_ref()
             .map_or(visited, |slots| slots[i] as usize);
         let certified2 = moved.certified2[k];
-        (certified2 > 0.0).then(|| (&self.near[self.offsets[k]..self.offsets[k + 1]], certified2))
+        (certified2 > 0.0).then(|| WarmList {
+            near: &self.near[self.offsets[k]..self.offsets[k + 1]],
+            ring: usize::from(self.rings[k]),
+            certified2,
+        })
     }
 
     /// The state of `sites` from their lists in visiting order `order`: site `order[k]`'s
-    /// is `near[offsets[k]..offsets[k + 1]]`, complete within `complete2[k]`.
+    /// is `near[offsets[k]..offsets[k + 1]]`, complete within `complete2[k]`, its first
+    /// `rings[k]` sites its cell's ring.
     pub(super) fn from_lists(
         sites: &[[f64; D]],
         offsets: Vec<usize>,
         near: Vec<u32>,
         complete2: Vec<f64>,
+        rings: Vec<u8>,
         order: Vec<u32>,
-        warm_cells: usize,
     ) -> Self {
         Self {
             sites: order.iter().map(|&i| sites[i as usize]).collect(),
             offsets,
             near,
             complete2,
+            rings,
             order,
-            warm_cells,
+            warm_cells: 0,
+            ring_cells: 0,
         }
     }
+
+    /// The state with the counts of cells its diagram computed warm, and of those rebuilt
+    /// from their ring.
+    pub(super) fn with_counts(self, warm_cells: usize, ring_cells: usize) -> Self {
+        Self {
+            warm_cells,
+            ring_cells,
+            ..self
+        }
+    }
+}
+
+/// A cell's remembered near sites ([`WarmStart::certified`]).
+#[derive(Debug, Clone, Copy)]
+pub struct WarmList<'a> {
+    /// Sites holding every site within `certified2` of the cell's site (itself included),
+    /// its ring first.
+    pub near: &'a [u32],
+    /// How many sites at the head of `near` are the ring of the cell's previous, canonical
+    /// form (0: none).
+    pub ring: usize,
+    /// `L²`.
+    pub certified2: f64,
 }
 
 /// The squared distance within which a list complete within `complete2` (`L²`) still

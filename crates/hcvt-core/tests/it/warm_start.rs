@@ -14,6 +14,23 @@ use hcvt_core::{
 /// Every array of two diagrams equal bit for bit.
 fn assert_same<const D: usize>(a: &Diagram<D>, b: &Diagram<D>, what: &str) {
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let differ: Vec<usize> = (0..a.moments.len())
+        .filter(|&i| a.moments[i] != b.moments[i])
+        .collect();
+    if !differ.is_empty() {
+        let i = differ[0];
+        let nb = |d: &Diagram<D>| {
+            d.neighbor_sites[d.neighbor_offsets[i]..d.neighbor_offsets[i + 1]].to_vec()
+        };
+        panic!(
+            "{what}: {} cells differ, first {i}: {:?} vs {:?}; {:?} vs {:?}",
+            differ.len(),
+            a.moments[i],
+            b.moments[i],
+            nb(a),
+            nb(b)
+        );
+    }
     assert_eq!(a.moments, b.moments, "{what}: moments");
     assert_eq!(
         bits(&a.boundary_measure),
@@ -51,14 +68,15 @@ where
 
 /// A chain of diagrams of `sites` moved by each of `steps` (in mean spacings `h`) in
 /// turn, each computed warm from the previous and cold, asserted equal; returns the
-/// fraction of cells computed warm at each step, and the last diagram.
+/// fraction of cells computed warm at each step, the fraction of cells rebuilt from their
+/// ring (unclipped), and the last diagram.
 fn warm_chain<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     mut sites: Vec<[f64; D]>,
     steps: &[f64],
     cold_request: Request<'_, D>,
     what: &str,
-) -> (Vec<f64>, Diagram<D>)
+) -> (Vec<f64>, Vec<f64>, Diagram<D>)
 where
     Euclid: Space<D>,
 {
@@ -66,6 +84,7 @@ where
     let h = (domain.volume() / n as f64).powf(1.0 / D as f64);
     let mut state = WarmStart::new();
     let mut fractions = Vec::new();
+    let mut rings = Vec::new();
     let mut last = Diagram::default();
     for (k, &step) in [0.0].iter().chain(steps).enumerate() {
         if k > 0 {
@@ -85,13 +104,16 @@ where
         if let Some(next) = warm.warm {
             state = next;
             fractions.push(state.warm_cells() as f64 / n as f64);
+            rings.push(state.ring_cells() as f64 / n as f64);
         }
         last = warm.diagram;
     }
-    (fractions, last)
+    (fractions, rings, last)
 }
 
-/// Small steps keep most cells warm; large ones send most to the index; all bitwise.
+/// Small steps keep most cells warm; large ones send most to the index; all bitwise. In
+/// 2D most cells after a small step are rebuilt from their ring; 3D has no canonical
+/// cells and rebuilds none.
 fn check_kind<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: Vec<[f64; D]>,
@@ -100,8 +122,17 @@ fn check_kind<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     Euclid: Space<D>,
 {
     let steps = [0.01, 0.01, 0.02, 0.15, 1.0, 0.01, 0.01];
-    let (fractions, _) = warm_chain::<D, C, K>(domain, sites, &steps, Request::default(), what);
+    let (fractions, rings, _) =
+        warm_chain::<D, C, K>(domain, sites, &steps, Request::default(), what);
     assert_eq!(fractions[0], 0.0, "{what}: the first diagram is cold");
+    if D == 2 {
+        // Random sites: about 60% (a CVT's cells, more regular, more).
+        assert!(rings[1] > 0.5 && rings[2] > 0.5, "{what}: rings {rings:?}");
+        assert!(rings[4] < rings[2], "{what}: rings {rings:?}");
+        assert_eq!(rings[5..7], [0.0, 0.0], "{what}: a large step");
+    } else {
+        assert!(rings.iter().all(|&r| r == 0.0), "{what}: rings {rings:?}");
+    }
     assert!(fractions[1] > 0.9, "{what}: small steps {fractions:?}");
     assert!(fractions[2] > 0.9, "{what}: small steps {fractions:?}");
     // A step of 0.15 spacings: some cells fall back to the index, most stay warm.
@@ -153,7 +184,7 @@ fn a_warm_power_diagram_is_the_cold_one() {
     let mut rng = Lcg::new(4);
     let h2 = 1.0 / sites.len() as f64;
     let weights: Vec<f64> = sites.iter().map(|_| 0.3 * h2 * rng.unit()).collect();
-    let (fractions, _) = warm_chain::<2, PolygonCell, _>(
+    let (fractions, _, _) = warm_chain::<2, PolygonCell, _>(
         &square,
         sites,
         &[0.01, 0.01, 0.15],
@@ -194,7 +225,7 @@ fn a_warm_diagram_with_a_sampled_density_is_the_cold_one() {
         density: Some(&density),
         ..Request::default()
     };
-    let (fractions, _) =
+    let (fractions, _, _) =
         warm_chain::<2, PolygonCell, _>(&square, sites, &[0.01, 0.15, 0.01], request, "sampled");
     assert!(fractions[1] > 0.9, "{fractions:?}");
     assert!(fractions[2] < 1.0, "{fractions:?}");
@@ -206,7 +237,7 @@ fn a_warm_diagram_with_a_sampled_density_is_the_cold_one() {
 fn a_periodic_box_ignores_the_warm_start() {
     let torus = PeriodicBox::new([0.0; 2], [1.0; 2], [true, false]).unwrap();
     let sites = interior_sites(&torus, 800, 10);
-    let (fractions, _) = warm_chain::<2, PolygonCell, _>(
+    let (fractions, _, _) = warm_chain::<2, PolygonCell, _>(
         &torus,
         sites,
         &[0.01, 1.0],
@@ -236,8 +267,8 @@ fn a_warm_chain_is_the_same_with_one_or_three_threads() {
             )
         })
     };
-    let (one, a) = run(1);
-    let (three, b) = run(3);
+    let (one, _, a) = run(1);
+    let (three, _, b) = run(3);
     assert_eq!(one, three);
     assert_same(&a, &b, "1 against 3 threads");
 }
