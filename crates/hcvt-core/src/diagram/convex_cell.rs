@@ -15,6 +15,16 @@ pub(super) fn any_by_fours<T>(items: &[T], pred: impl Fn(&T) -> bool) -> bool {
         || fours.remainder().iter().any(pred)
 }
 
+/// The order of the faces of a canonical cell ([`ConvexCell::canonicalise`]): by their
+/// normals' coordinates, x first. It does not depend on what the neighbours are called, so
+/// a partition, which numbers its sites its own way, orders them as the whole diagram does.
+pub(super) fn normal_order<const D: usize>(a: &[f64; D], b: &[f64; D]) -> std::cmp::Ordering {
+    (0..D)
+        .map(|k| a[k].total_cmp(&b[k]))
+        .find(|o| o.is_ne())
+        .unwrap_or(std::cmp::Ordering::Equal)
+}
+
 /// What made a face of a convex cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Face {
@@ -42,11 +52,12 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     /// whole cell already and nothing changed.
     fn clip(&mut self, h: &HalfSpace<D>, face: Face) -> bool;
 
-    /// Recompute every vertex from the half-spaces of the faces it joins, and start the
-    /// faces at the neighbour of least index, so that the cell's bits depend only on which
-    /// half-spaces bound it, not on the order they cut it: a warm diagram can then build
-    /// the cell from its previous neighbours ([`ConvexCell::rebuild_from_ring`]) bit for bit as the
-    /// clips made it. `plane(j)`: the half-space of neighbour `j`'s face, as clipped by.
+    /// Recompute every vertex from the half-spaces of the faces it joins, and put the faces
+    /// in [`normal_order`] (2D: start at the least), so that the cell's bits depend only on
+    /// which half-spaces bound it, not on the order they cut it: a warm diagram can then
+    /// build the cell from its previous neighbours ([`ConvexCell::rebuild_from_ring`]) bit
+    /// for bit as the clips made it. `plane(j)`: the half-space of neighbour `j`'s face,
+    /// as clipped by.
     /// `false`, the cell unchanged, when some face is not a neighbour's, a vertex does not
     /// come out finite, or the kind has no canonical form (the default: 3D).
     fn canonicalise(&mut self, plane: impl Fn(u32) -> HalfSpace<D>) -> bool {
@@ -55,25 +66,28 @@ pub trait ConvexCell<const D: usize>: Clone + Send + Sync {
     }
 
     /// Become the canonical cell ([`ConvexCell::canonicalise`]) whose faces are those of
-    /// the neighbours `ring` in order, `plane(j)` the half-space of neighbour `j`'s face,
-    /// if those half-spaces bound such a cell with every vertex farther than `separation`
-    /// (relative to each plane's `|normal|²`) inside every half-space but its own faces'.
-    /// `false` (the cell left in any state) otherwise, or when the kind has no canonical
-    /// form (the default).
+    /// the neighbours `ring` in order (3D: with the vertices where the faces `triangles`
+    /// meet), `plane(j)` the half-space of neighbour `j`'s face, if those half-spaces bound
+    /// such a cell with every vertex farther than `separation` (relative to each plane's
+    /// `|normal|²`) inside every half-space but its own faces'. `false` (the cell left in
+    /// any state) otherwise, or when the kind has no canonical form (the default).
     fn rebuild_from_ring(
         &mut self,
         ring: &[u32],
+        triangles: &[[u8; 3]],
         plane: impl Fn(u32) -> HalfSpace<D>,
         separation: f64,
     ) -> bool {
-        let _ = (ring, plane, separation);
+        let _ = (ring, triangles, plane, separation);
         false
     }
 
-    /// Append the neighbours of a canonical cell ([`ConvexCell::canonicalise`]) to `out`,
-    /// face after face: what [`ConvexCell::rebuild_from_ring`] rebuilds it from.
-    fn ring(&self, out: &mut Vec<u32>) {
-        let _ = out;
+    /// Append the neighbours of a canonical cell ([`ConvexCell::canonicalise`]) to
+    /// `neighbours`, face after face, and (3D) its vertices as triples of their faces'
+    /// positions there to `triangles`: what [`ConvexCell::rebuild_from_ring`] rebuilds it
+    /// from.
+    fn ring(&self, neighbours: &mut Vec<u32>, triangles: &mut Vec<[u8; 3]>) {
+        let _ = (neighbours, triangles);
     }
 
     /// Call `f(face, h)` for the half-space `h` (relative to the site) of every face. The

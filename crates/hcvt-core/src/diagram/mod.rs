@@ -699,6 +699,9 @@ where
                             batch.near.extend_from_slice(near);
                             batch.near_complete2.push(complete2);
                             batch.near_rings.push(scratch.record_ring());
+                            let triangles = scratch.record_triangles();
+                            batch.near_triangle_counts.push(triangles.len() as u32);
+                            batch.near_triangles.extend_from_slice(triangles);
                             batch.ring_cells += usize::from(scratch.rebuilt());
                             batch.warm_cells += usize::from(warm);
                         }

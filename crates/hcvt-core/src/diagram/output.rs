@@ -165,8 +165,11 @@ pub(super) struct Batch<const D: usize, C> {
     pub(super) near_counts: Vec<u32>,
     pub(super) near: Vec<u32>,
     pub(super) near_complete2: Vec<f64>,
-    /// Per cell, how many sites at the head of its list are its ring ([`super::ring`]).
+    /// Per cell, how many sites at the head of its list are its ring ([`super::ring`]),
+    /// and (3D) how many vertex triangles the ring has, the triangles cell after cell.
     pub(super) near_rings: Vec<u8>,
+    pub(super) near_triangle_counts: Vec<u32>,
+    pub(super) near_triangles: Vec<[u8; 3]>,
     /// Cells whose nearest sites came from the warm start alone, and of those the cells
     /// rebuilt from their ring.
     pub(super) warm_cells: usize,
@@ -204,6 +207,8 @@ impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
             near: Vec::new(),
             near_complete2: Vec::new(),
             near_rings: Vec::new(),
+            near_triangle_counts: Vec::new(),
+            near_triangles: Vec::new(),
             warm_cells: 0,
             ring_cells: 0,
             margins: MarginRows::default(),
@@ -410,6 +415,9 @@ pub(super) fn warm_lists<const D: usize, C>(
     offsets.push(0);
     let mut complete2 = Vec::with_capacity(n);
     let mut rings = Vec::with_capacity(n);
+    let mut triangle_offsets = Vec::with_capacity(n + 1);
+    triangle_offsets.push(0u32);
+    let mut triangles = Vec::with_capacity(batches.iter().map(|b| b.near_triangles.len()).sum());
     let mut near = Vec::with_capacity(batches.iter().map(|b| b.near.len()).sum());
     for b in batches {
         for &count in &b.near_counts {
@@ -417,10 +425,15 @@ pub(super) fn warm_lists<const D: usize, C>(
         }
         complete2.extend_from_slice(&b.near_complete2);
         rings.extend_from_slice(&b.near_rings);
+        for &count in &b.near_triangle_counts {
+            triangle_offsets.push(triangle_offsets.last().copied().unwrap_or(0) + count);
+        }
+        triangles.extend_from_slice(&b.near_triangles);
         near.extend_from_slice(&b.near);
     }
     let warm_cells = batches.iter().map(|b| b.warm_cells).sum();
     let ring_cells = batches.iter().map(|b| b.ring_cells).sum();
+    let rings = (rings, triangles, triangle_offsets);
     Some(
         WarmStart::from_lists(sites, offsets, near, complete2, rings, order)
             .with_counts(warm_cells, ring_cells),

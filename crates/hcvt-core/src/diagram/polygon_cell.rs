@@ -1,6 +1,6 @@
 //! The 2D convex cell: a counter-clockwise polygon whose edges remember their face.
 
-use super::convex_cell::{any_by_fours, ConvexCell, Face};
+use super::convex_cell::{any_by_fours, normal_order, ConvexCell, Face};
 use crate::geometry::{dot, norm2, sub, Aabb, HalfSpace};
 use crate::moments::{triangle_moments, FaceMoments, Moments};
 
@@ -46,18 +46,10 @@ impl PolygonCell {
         &self.faces
     }
 
-    /// [`ConvexCell::rebuild_from_ring`] with the ring's half-spaces worked out, `planes[k]`
-    /// `ring[k]`'s.
-    fn vertices_of_ring(&mut self, ring: &[u32], planes: &[HalfSpace<2>], separation: f64) -> bool {
-        let m = ring.len();
-        self.vertices.clear();
-        self.faces.clear();
-        let mut before = &planes[m - 1];
-        for (at, &j) in planes.iter().zip(ring) {
-            self.vertices.push(meet(before, at));
-            self.faces.push(Face::Neighbor(j));
-            before = at;
-        }
+    /// Every vertex inside every half-space of `planes` (those of the faces, in order) but
+    /// its own two by `separation`, and every edge counter-clockwise along its line.
+    fn stands(&self, planes: &[HalfSpace<2>], separation: f64) -> bool {
+        let m = planes.len();
         (0..m).all(|k| {
             let v = self.vertices[k];
             let w = self.vertices[if k + 1 == m { 0 } else { k + 1 }];
@@ -92,6 +84,37 @@ fn meet(a: &HalfSpace<2>, b: &HalfSpace<2>) -> [f64; 2] {
         (a.offset * q[1] - b.offset * p[1]) / det,
         (p[0] * b.offset - q[0] * a.offset) / det,
     ]
+}
+
+/// The smallest angle between two adjacent faces of a canonical cell, as the sine: nearer
+/// parallel, Cramer's rule in [`meet`] would move their vertex by more than 1e-10 of the
+/// spacing (the clips interpolate along edges instead), and the cell has no canonical form.
+const MIN_SINE: f64 = 1e-6;
+
+/// The position of the face of least normal ([`normal_order`]).
+fn least_normal(planes: &[HalfSpace<2>]) -> usize {
+    (0..planes.len())
+        .min_by(|&a, &b| normal_order(&planes[a].normal, &planes[b].normal))
+        .unwrap_or(0)
+}
+
+/// Vertex `k` of the faces of `planes` in order: [`meet`] of faces `k − 1` and `k`, into
+/// `out`; `false` when two adjacent faces are too near parallel or turn clockwise.
+fn canonical_vertices(planes: &[HalfSpace<2>], out: &mut Vec<[f64; 2]>) -> bool {
+    out.clear();
+    let Some(mut before) = planes.last() else {
+        return false;
+    };
+    for at in planes {
+        let (p, q) = (before.normal, at.normal);
+        let det = p[0] * q[1] - p[1] * q[0];
+        if det.is_nan() || det <= MIN_SINE * (norm2(p) * norm2(q)).sqrt() {
+            return false;
+        }
+        out.push(meet(before, at));
+        before = at;
+    }
+    true
 }
 
 /// The neighbour of a face, `None` for the others.
@@ -180,41 +203,34 @@ impl ConvexCell<2> for PolygonCell {
     }
 
     /// Vertex `k` joins the faces of edges `k − 1` and `k`: it is recomputed as [`meet`] of
-    /// their half-spaces, in that order, after the edges are rotated to start at the
-    /// neighbour of least index.
+    /// their half-spaces, in that order, after the edges are rotated to start at the face
+    /// of least normal ([`normal_order`]).
     fn canonicalise(&mut self, plane: impl Fn(u32) -> HalfSpace<2>) -> bool {
-        let n = self.faces.len();
-        if n < 3 {
+        if self.faces.len() < 3 {
             return false;
         }
-        let mut first = 0;
-        let mut least = u32::MAX;
-        for (k, &face) in self.faces.iter().enumerate() {
+        let mut planes = std::mem::take(&mut self.planes);
+        planes.clear();
+        for &face in &self.faces {
             match neighbour(face) {
-                Some(j) if j < least => (first, least) = (k, j),
-                Some(_) => {}
-                None => return false,
+                Some(j) => planes.push(plane(j)),
+                None => {
+                    self.planes = planes;
+                    return false;
+                }
             }
         }
-        let face_plane = |k: usize| plane(neighbour(self.faces[(first + k) % n]).unwrap_or(0));
+        let first = least_normal(&planes);
+        planes.rotate_left(first);
         let mut vertices = std::mem::take(&mut self.spare_vertices);
-        vertices.clear();
-        let mut before = face_plane(n - 1);
-        for k in 0..n {
-            let at = face_plane(k);
-            vertices.push(meet(&before, &at));
-            before = at;
+        let made = canonical_vertices(&planes, &mut vertices);
+        if made {
+            self.faces.rotate_left(first);
+            vertices = std::mem::replace(&mut self.vertices, vertices);
         }
-        if !vertices
-            .iter()
-            .all(|v| v[0].is_finite() && v[1].is_finite())
-        {
-            self.spare_vertices = vertices;
-            return false;
-        }
-        self.faces.rotate_left(first);
-        self.spare_vertices = std::mem::replace(&mut self.vertices, vertices);
-        true
+        self.spare_vertices = vertices;
+        self.planes = planes;
+        made
     }
 
     /// The vertices as [`PolygonCell::canonicalise`] makes them; the cell stands when every
@@ -225,23 +241,31 @@ impl ConvexCell<2> for PolygonCell {
     fn rebuild_from_ring(
         &mut self,
         ring: &[u32],
+        _: &[[u8; 3]],
         plane: impl Fn(u32) -> HalfSpace<2>,
         separation: f64,
     ) -> bool {
-        let m = ring.len();
-        if m < 3 {
+        if ring.len() < 3 {
             return false;
         }
         let mut planes = std::mem::take(&mut self.planes);
         planes.clear();
         planes.extend(ring.iter().map(|&j| plane(j)));
-        let made = self.vertices_of_ring(ring, &planes, separation);
+        let first = least_normal(&planes);
+        planes.rotate_left(first);
+        self.faces.clear();
+        let rotated = ring[first..].iter().chain(&ring[..first]);
+        self.faces.extend(rotated.map(|&j| Face::Neighbor(j)));
+        let mut vertices = std::mem::take(&mut self.vertices);
+        let made = canonical_vertices(&planes, &mut vertices);
+        self.vertices = vertices;
+        let stands = made && self.stands(&planes, separation);
         self.planes = planes;
-        made
+        stands
     }
 
-    fn ring(&self, out: &mut Vec<u32>) {
-        out.extend(self.faces.iter().filter_map(|&f| neighbour(f)));
+    fn ring(&self, neighbours: &mut Vec<u32>, _: &mut Vec<[u8; 3]>) {
+        neighbours.extend(self.faces.iter().filter_map(|&f| neighbour(f)));
     }
 
     fn for_each_plane(&self, mut f: impl FnMut(Face, &HalfSpace<2>)) {
@@ -487,15 +511,11 @@ mod tests {
             assert_eq!(bits(&a), bits(&b));
             assert_eq!(a.faces(), b.faces());
             let mut ring = Vec::new();
-            a.ring(&mut ring);
-            let least = ring.iter().min().copied();
-            assert_eq!(
-                ring.first().copied(),
-                least,
-                "starts at the least neighbour"
-            );
+            a.ring(&mut ring, &mut Vec::new());
+            let planes: Vec<HalfSpace<2>> = ring.iter().map(|&j| plane(j)).collect();
+            assert_eq!(least_normal(&planes), 0, "starts at the least normal");
             let mut rebuilt = PolygonCell::default();
-            assert!(rebuilt.rebuild_from_ring(&ring, plane, 1e-9));
+            assert!(rebuilt.rebuild_from_ring(&ring, &[], plane, 1e-9));
             assert_eq!(bits(&rebuilt), bits(&a));
             assert_eq!(rebuilt.faces(), a.faces());
             assert_eq!(rebuilt.moments(), a.moments());
@@ -503,14 +523,17 @@ mod tests {
             let mut swapped = ring.clone();
             swapped.swap(1, 2);
             assert!(
-                !rebuilt.rebuild_from_ring(&swapped, plane, 1e-9),
+                !rebuilt.rebuild_from_ring(&swapped, &[], plane, 1e-9),
                 "{swapped:?}"
             );
             // A site that does not bound the cell, put in the ring.
             if let Some(extra) = (1..12u32).find(|j| !ring.contains(j)) {
                 let mut more = ring.clone();
                 more.insert(1, extra);
-                assert!(!rebuilt.rebuild_from_ring(&more, plane, 1e-9), "{more:?}");
+                assert!(
+                    !rebuilt.rebuild_from_ring(&more, &[], plane, 1e-9),
+                    "{more:?}"
+                );
             }
             // (A face left out makes a larger cell of the other half-spaces: the ring
             // alone cannot tell; its site, on the cell's list, does (`ring_cell`).)

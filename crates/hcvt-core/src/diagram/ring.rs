@@ -26,22 +26,22 @@ pub(super) struct RingCell {
     /// The squared distance of the farthest site of the warm list the cell read, or the
     /// stopping distance `4 r²` if farther: the cold cell's reach.
     pub reach2: f64,
+    /// How many sites the cold cell would have taken from its stream, its own included.
+    pub taken: usize,
 }
 
 /// Site `i`'s cell from `warm`'s ring into `cell` (relative to the site), its near sites
 /// for the next diagram (the ring first) into `record`; `None` when the ring does not
 /// certify the cell and it must be clipped (`cell` and `record` then hold anything).
 ///
-/// The cold cell starts from the box `start` (relative to the site), streams every site
-/// within twice its radius and would be localised once it took `localise_after` of them
-/// (its site included): cells that reach near the box (whose cold cell has the box's
-/// faces), that many sites, or beyond what the list certifies fall back.
+/// The cold cell starts from the box `start` (relative to the site) and streams every
+/// site within twice its radius ([`RingCell::taken`] of them): cells that reach near the
+/// box (whose cold cell has the box's faces) or beyond what the list certifies fall back.
 pub(super) fn ring_cell<const D: usize, C: ConvexCell<D>>(
     sites: &[[f64; D]],
     i: usize,
     start: &Aabb<D>,
     warm: WarmList<'_>,
-    localise_after: usize,
     cell: &mut C,
     record: &mut Vec<u32>,
 ) -> Option<RingCell> {
@@ -57,7 +57,9 @@ pub(super) fn ring_cell<const D: usize, C: ConvexCell<D>>(
     }
     // The half-spaces exactly as the clips take them (`voronoi_cell`).
     let plane = |j: u32| HalfSpace::bisector(sub(sites[j as usize], site));
-    if !cell.rebuild_from_ring(ring, plane, SEPARATION) || !well_inside(cell.vertices(), start) {
+    if !cell.rebuild_from_ring(ring, warm.triangles, plane, SEPARATION)
+        || !well_inside(cell.vertices(), start)
+    {
         return None;
     }
     let stop2 = 4.0 * cell.max_dist2();
@@ -87,8 +89,9 @@ pub(super) fn ring_cell<const D: usize, C: ConvexCell<D>>(
         taken += 1;
         last2 = last2.max(dist2);
     }
-    (taken < localise_after).then_some(RingCell {
+    Some(RingCell {
         reach2: last2.max(stop2),
+        taken,
     })
 }
 

@@ -105,9 +105,9 @@ where
 {
     scratch.rebuilt = false;
     if let Some(w) = warm.filter(|w| w.ring > 0 && power.is_none()) {
-        if try_ring_cell(domain, sites, i, convex_inside, w, scratch) {
+        if let Some(inside) = try_ring_cell(domain, sites, i, convex_inside, w, scratch) {
             let cell = scratch.cell.as_ref().expect("the cell just built");
-            return Ok((cell, false));
+            return Ok((cell, inside));
         }
     }
     let index = index.into();
@@ -130,10 +130,12 @@ where
 }
 
 /// Site `i`'s cell rebuilt from the ring of `warm` ([`ring_cell`]) into `scratch`, with
-/// its record for the next diagram; `false` when it must be clipped. Only where the
-/// clipped cell would be plain and canonical: no power, no part validated early, no cut
-/// by the boundary planes (which a cell clipped in the domain may get, and `inside`
-/// with it).
+/// its record for the next diagram, and whether it lies in the domain; `None` when it must
+/// be clipped. Only where the clipped cell would be plain and canonical: no power, no part
+/// validated early. A cell inside a convex domain that the cold stream would have cut by
+/// the boundary planes near it (after `PRECLIP_K` sites) is cut by them here too: it is
+/// the cold cell, and in the domain, only if they leave it as it was (else the cold
+/// cell has boundary faces and no canonical form).
 fn try_ring_cell<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: &[[f64; D]],
@@ -141,33 +143,46 @@ fn try_ring_cell<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     convex_inside: bool,
     warm: WarmList<'_>,
     scratch: &mut CellScratch<C>,
-) -> bool {
-    let preclip = convex_inside && PRECLIP_K.get(D).is_some_and(|&k| k != usize::MAX);
-    if preclip || domain.validate_part_after().is_some() {
-        return false;
+) -> Option<bool> {
+    if domain.validate_part_after().is_some() {
+        return None;
     }
     let start = domain.start(sites[i]);
     let cell = scratch.cell.get_or_insert_with(|| C::from_box(&start));
     let localise_after = LOCALISE_K.get(D).copied().unwrap_or(64);
-    let made = ring_cell(
-        sites,
-        i,
-        &start,
-        warm,
-        localise_after,
-        cell,
-        &mut scratch.record,
-    );
-    let Some(made) = made else {
-        return false;
-    };
+    let made = ring_cell(sites, i, &start, warm, cell, &mut scratch.record);
+    let made = made?;
+    let preclip_after = PRECLIP_K.get(D).copied().unwrap_or(usize::MAX);
+    let inside = convex_inside && made.taken >= preclip_after;
+    // A cell the cold stream would localise (it is not inside by then).
+    if !inside && made.taken >= localise_after {
+        return None;
+    }
+    if inside {
+        let planes = plane_count(cell);
+        if !domain.cut_convex(cell, sites[i], &mut scratch.candidates)
+            || plane_count(cell) != planes
+        {
+            return None;
+        }
+    }
     scratch.reach2 = made.reach2;
     scratch.record2 = warm.certified2;
     scratch.record_warm = true;
     scratch.record_ring = warm.ring as u8;
+    scratch.record_triangles.clear();
+    scratch.record_triangles.extend_from_slice(warm.triangles);
     scratch.canonical = true;
     scratch.rebuilt = true;
-    true
+    Some(inside)
+}
+
+/// How many planes have cut `cell` (3D) or how many edges it has (2D): what a clip that
+/// changes it changes.
+fn plane_count<const D: usize, C: ConvexCell<D>>(cell: &C) -> usize {
+    let mut count = 0;
+    cell.for_each_plane(|_, _| count += 1);
+    count
 }
 
 /// Leave in `scratch.record` the sites near site `i` for the next diagram's warm start:
@@ -184,15 +199,19 @@ fn remember<const D: usize, C: ConvexCell<D>>(
     scratch: &mut CellScratch<C>,
 ) {
     scratch.record.clear();
+    scratch.record_triangles.clear();
     scratch.record_warm = false;
     scratch.record_ring = 0;
     let cell = scratch.cell.as_ref().filter(|_| scratch.canonical);
     if let Some(cell) = cell {
-        cell.ring(&mut scratch.record);
+        cell.ring(&mut scratch.record, &mut scratch.record_triangles);
         // A ring longer than its count can say is not remembered.
         match u8::try_from(scratch.record.len()) {
             Ok(ring) => scratch.record_ring = ring,
-            Err(_) => scratch.record.clear(),
+            Err(_) => {
+                scratch.record.clear();
+                scratch.record_triangles.clear();
+            }
         }
     }
     let ring = usize::from(scratch.record_ring);
@@ -346,8 +365,7 @@ where
         return Ok((inside || empty, near.is_warm(), near.vouched2()));
     }
     // The plain cell in its canonical form, which a warm diagram can rebuild unclipped.
-    scratch.canonical =
-        !inside && cell.canonicalise(|j| HalfSpace::bisector(sub(sites[j as usize], site)));
+    scratch.canonical = cell.canonicalise(|j| HalfSpace::bisector(sub(sites[j as usize], site)));
     if scratch.canonical {
         radius2 = cell.max_dist2();
     }
@@ -368,8 +386,10 @@ pub struct CellScratch<C> {
     record2: f64,
     /// Whether the last cell's stream stayed warm.
     record_warm: bool,
-    /// How many sites at the head of `record` are the last cell's ring.
+    /// How many sites at the head of `record` are the last cell's ring, and (3D) its
+    /// vertex triangles.
     record_ring: u8,
+    record_triangles: Vec<[u8; 3]>,
     /// Whether the last cell is canonical ([`ConvexCell::canonicalise`]).
     canonical: bool,
     /// Whether the last cell was rebuilt from its ring ([`ring_cell`]).
@@ -386,6 +406,11 @@ impl<C> CellScratch<C> {
     /// How many sites at the head of [`CellScratch::record`] are the last cell's ring.
     pub fn record_ring(&self) -> u8 {
         self.record_ring
+    }
+
+    /// The vertex triangles of the last cell's ring (3D).
+    pub fn record_triangles(&self) -> &[[u8; 3]] {
+        &self.record_triangles
     }
 
     /// Whether the last cell was rebuilt from its ring ([`ring_cell`]), unclipped.
@@ -410,6 +435,7 @@ impl<C> Default for CellScratch<C> {
             record2: 0.0,
             record_warm: false,
             record_ring: 0,
+            record_triangles: Vec::new(),
             canonical: false,
             rebuilt: false,
         }

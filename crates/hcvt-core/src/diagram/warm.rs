@@ -37,6 +37,10 @@ pub struct WarmStart<const D: usize> {
     /// Per slot, how many sites at the head of its list are its cell's ring (the
     /// neighbours of a canonical cell, face after face: [`super::ring`]); 0 for none.
     rings: Vec<u8>,
+    /// The vertex triangles of slot `k`'s ring (3D, [`super::ConvexCell::ring`]):
+    /// `triangles[triangle_offsets[k]..triangle_offsets[k + 1]]`.
+    triangles: Vec<[u8; 3]>,
+    triangle_offsets: Vec<u32>,
     /// The order the diagram visited the sites in (Morton), which the next one reuses:
     /// the sites moved little, and the order only decides which cells share a cache.
     order: Vec<u32>,
@@ -102,6 +106,8 @@ impl<const D: usize> WarmStart<D> {
             + self.near.len() * std::mem::size_of::<u32>()
             + self.complete2.len() * std::mem::size_of::<f64>()
             + self.rings.len()
+            + self.triangles.len() * 3
+            + self.triangle_offsets.len() * std::mem::size_of::<u32>()
             + self.order.len() * std::mem::size_of::<u32>()
     }
 
@@ -169,30 +175,39 @@ impl<const D: usize> WarmStart<D> {
             .as_ref()
             .map_or(visited, |slots| slots[i] as usize);
         let certified2 = moved.certified2[k];
+        let triangles = match self.triangle_offsets.get(k..k + 2) {
+            Some(&[from, to]) => &self.triangles[from as usize..to as usize],
+            _ => &[],
+        };
         (certified2 > 0.0).then(|| WarmList {
             near: &self.near[self.offsets[k]..self.offsets[k + 1]],
             ring: usize::from(self.rings[k]),
+            triangles,
             certified2,
         })
     }
 
     /// The state of `sites` from their lists in visiting order `order`: site `order[k]`'s
     /// is `near[offsets[k]..offsets[k + 1]]`, complete within `complete2[k]`, its first
-    /// `rings[k]` sites its cell's ring.
+    /// `rings.0[k]` sites its cell's ring, whose triangles are
+    /// `rings.1[rings.2[k]..rings.2[k + 1]]`.
     pub(super) fn from_lists(
         sites: &[[f64; D]],
         offsets: Vec<usize>,
         near: Vec<u32>,
         complete2: Vec<f64>,
-        rings: Vec<u8>,
+        rings: (Vec<u8>, Vec<[u8; 3]>, Vec<u32>),
         order: Vec<u32>,
     ) -> Self {
+        let (rings, triangles, triangle_offsets) = rings;
         Self {
             sites: order.iter().map(|&i| sites[i as usize]).collect(),
             offsets,
             near,
             complete2,
             rings,
+            triangles,
+            triangle_offsets,
             order,
             warm_cells: 0,
             ring_cells: 0,
@@ -219,6 +234,8 @@ pub struct WarmList<'a> {
     /// How many sites at the head of `near` are the ring of the cell's previous, canonical
     /// form (0: none).
     pub ring: usize,
+    /// The ring's vertex triangles (3D; [`super::ConvexCell::ring`]).
+    pub triangles: &'a [[u8; 3]],
     /// `L²`.
     pub certified2: f64,
 }

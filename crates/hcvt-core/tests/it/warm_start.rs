@@ -111,9 +111,8 @@ where
     (fractions, rings, last)
 }
 
-/// Small steps keep most cells warm; large ones send most to the index; all bitwise. In
-/// 2D most cells after a small step are rebuilt from their ring; 3D has no canonical
-/// cells and rebuilds none.
+/// Small steps keep most cells warm; large ones send most to the index; all bitwise.
+/// After a small step most cells are rebuilt from their ring, unclipped.
 fn check_kind<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     domain: &K,
     sites: Vec<[f64; D]>,
@@ -125,14 +124,15 @@ fn check_kind<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
     let (fractions, rings, _) =
         warm_chain::<D, C, K>(domain, sites, &steps, Request::default(), what);
     assert_eq!(fractions[0], 0.0, "{what}: the first diagram is cold");
-    if D == 2 {
-        // Random sites: about 60% (a CVT's cells, more regular, more).
-        assert!(rings[1] > 0.5 && rings[2] > 0.5, "{what}: rings {rings:?}");
-        assert!(rings[4] < rings[2], "{what}: rings {rings:?}");
-        assert_eq!(rings[5..7], [0.0, 0.0], "{what}: a large step");
-    } else {
-        assert!(rings.iter().all(|&r| r == 0.0), "{what}: rings {rings:?}");
-    }
+    // Random sites: about 60% in 2D and 37-40% in 3D; a CVT's cells, more regular, more
+    // (benchmarks/warm_start.py).
+    let least = if D == 2 { 0.5 } else { 0.3 };
+    assert!(
+        rings[1] > least && rings[2] > least,
+        "{what}: rings {rings:?}"
+    );
+    assert!(rings[4] < rings[2], "{what}: rings {rings:?}");
+    assert_eq!(rings[5..7], [0.0, 0.0], "{what}: a large step");
     assert!(fractions[1] > 0.9, "{what}: small steps {fractions:?}");
     assert!(fractions[2] > 0.9, "{what}: small steps {fractions:?}");
     // A step of 0.15 spacings: some cells fall back to the index, most stay warm.

@@ -8,8 +8,11 @@
 //! its triangle is created, so every face that uses it sees the same bits.
 //!
 //! `mod.rs` holds the representation, its clipping and [`ConvexCell`]; `faces.rs` walks the
-//! faces (their polygons and moments); `tests.rs` checks both against closed forms.
+//! faces (their polygons and moments); `canonical.rs` gives a cell its canonical form and
+//! rebuilds one from its planes and triangles (warm diagrams); `tests.rs` checks them
+//! against closed forms.
 
+mod canonical;
 mod faces;
 #[cfg(test)]
 mod tests;
@@ -20,7 +23,8 @@ use crate::geometry::{add, cross, dot, norm2, scale, sub, Aabb, HalfSpace};
 use crate::moments::{FaceMoments, Moments};
 
 /// A plane of the cell, `normal · x <= offset`, and what made it. Vertices are computed
-/// once, when their triangle is made, never from the planes.
+/// when their triangle is made, along the old edge; a cell bounded by its neighbours alone
+/// then has them recomputed from its planes in its canonical form (`canonical.rs`).
 #[derive(Debug, Clone, Copy)]
 struct Plane {
     normal: [f64; 3],
@@ -42,6 +46,8 @@ pub struct PolyhedronCell {
     /// Largest `|v|²` over the vertices, kept up to date by every change: the driver asks
     /// for it after each clip, and most clips change nothing.
     max_dist2: f64,
+    /// The canonical form's buffers (`canonical.rs`), made on first use, not cloned.
+    buffers: Option<Box<canonical::Buffers>>,
 }
 
 /// Buffers of a clip that changes the cell, one set per thread: cells are made and cloned
@@ -118,6 +124,7 @@ impl Clone for PolyhedronCell {
             neighbors: roomy(&self.neighbors),
             vertices: roomy(&self.vertices),
             max_dist2: self.max_dist2,
+            buffers: None,
         }
     }
 
@@ -298,6 +305,7 @@ impl ConvexCell<3> for PolyhedronCell {
             neighbors: Vec::with_capacity(64),
             vertices: Vec::with_capacity(64),
             max_dist2: 0.0,
+            buffers: None,
         };
         cell.reset_to_box(b);
         cell
@@ -312,6 +320,7 @@ impl ConvexCell<3> for PolyhedronCell {
             neighbors,
             vertices,
             max_dist2,
+            ..
         } = self;
         planes.clear();
         triangles.clear();
@@ -377,6 +386,25 @@ impl ConvexCell<3> for PolyhedronCell {
             }
         }
         false
+    }
+
+    /// The planes are those the cell holds, as clipped by: `plane` is not needed.
+    fn canonicalise(&mut self, _: impl Fn(u32) -> HalfSpace<3>) -> bool {
+        self.canonicalise_cell()
+    }
+
+    fn rebuild_from_ring(
+        &mut self,
+        ring: &[u32],
+        triangles: &[[u8; 3]],
+        plane: impl Fn(u32) -> HalfSpace<3>,
+        separation: f64,
+    ) -> bool {
+        self.rebuild(ring, triangles, plane, separation)
+    }
+
+    fn ring(&self, neighbours: &mut Vec<u32>, triangles: &mut Vec<[u8; 3]>) {
+        self.canonical_ring(neighbours, triangles);
     }
 
     fn for_each_plane(&self, mut f: impl FnMut(Face, &HalfSpace<3>)) {

@@ -232,3 +232,74 @@ fn random_clips_satisfy_the_divergence_theorem() {
         assert!(m.mass > 0.0);
     }
 }
+
+/// The cell of site 0 among `sites`, clipped by their bisectors in the order given.
+fn clipped(sites: &[[f64; 3]], order: &[usize]) -> PolyhedronCell {
+    let mut c = cube(-10.0, 10.0);
+    for &j in order {
+        let q = sub(sites[j], sites[0]);
+        c.clip(&HalfSpace::bisector(q), Face::Neighbor(j as u32));
+    }
+    c
+}
+
+fn vertex_bits(c: &PolyhedronCell) -> Vec<[u64; 3]> {
+    c.vertices.iter().map(|v| v.map(f64::to_bits)).collect()
+}
+
+/// Clipped in two orders, with their neighbours numbered two ways, the canonical cells are
+/// equal bit for bit (vertices, triangles, adjacency, moments); rebuilt from the planes
+/// and triangles they are the same again; a ring missing a plane or a triangle list of
+/// another cell is refused.
+#[test]
+fn a_canonical_cell_is_the_same_in_any_order_and_rebuilt_from_its_ring() {
+    let mut rng = crate::sample::Lcg::new(5);
+    let (mut differed, mut canonical) = (0, 0);
+    for _ in 0..100 {
+        let sites: Vec<[f64; 3]> = (0..40)
+            .map(|_| [rng.unit(), rng.unit(), rng.unit()])
+            .collect();
+        let forward: Vec<usize> = (1..40).collect();
+        let backward: Vec<usize> = (1..40).rev().collect();
+        let (mut a, mut b) = (clipped(&sites, &forward), clipped(&sites, &backward));
+        differed += usize::from(vertex_bits(&a) != vertex_bits(&b));
+        let plane = |j: u32| HalfSpace::bisector(sub(sites[j as usize], sites[0]));
+        let (made_a, made_b) = (a.canonicalise(plane), b.canonicalise(plane));
+        assert_eq!(made_a, made_b);
+        if !made_a {
+            continue;
+        }
+        assert!(
+            a.planes.iter().all(|p| p.face != Face::Box),
+            "cut-away planes dropped"
+        );
+        canonical += 1;
+        assert_eq!(vertex_bits(&a), vertex_bits(&b));
+        assert_eq!(a.triangles, b.triangles);
+        assert_eq!(a.neighbors, b.neighbors);
+        assert_eq!(a.moments(), b.moments());
+        assert_adjacency_consistent(&a);
+        let (mut ring, mut triangles) = (Vec::new(), Vec::new());
+        a.ring(&mut ring, &mut triangles);
+        let mut rebuilt = PolyhedronCell::default();
+        assert!(rebuilt.rebuild_from_ring(&ring, &triangles, plane, 1e-9));
+        assert_eq!(vertex_bits(&rebuilt), vertex_bits(&a));
+        assert_eq!(rebuilt.triangles, a.triangles);
+        assert_eq!(rebuilt.neighbors, a.neighbors);
+        assert_eq!(rebuilt.moments(), a.moments());
+        // A plane dropped from the ring: the triangles name planes it no longer has.
+        assert!(!rebuilt.rebuild_from_ring(&ring[1..], &triangles, plane, 1e-9));
+        // A neighbour swapped for a site that does not bound the cell.
+        if let Some(extra) = (1..40u32).find(|j| !ring.contains(j)) {
+            let mut other = ring.clone();
+            other[0] = extra;
+            assert!(!rebuilt.rebuild_from_ring(&other, &triangles, plane, 1e-9));
+        }
+    }
+    assert!(
+        differed > 20,
+        "the orders differed in {differed} cells only"
+    );
+    // Half the sites lie near the unit cube's sides: their cells reach the box (50 here).
+    assert!(canonical >= 40, "{canonical} canonical cells");
+}
