@@ -1,6 +1,6 @@
 //! The 2D convex cell: a counter-clockwise polygon whose edges remember their face.
 
-use super::convex_cell::{any_by_fours, normal_order, ConvexCell, Face};
+use super::convex_cell::{any_by_fours, ConvexCell, Face};
 use crate::geometry::{dot, norm2, sub, Aabb, HalfSpace};
 use crate::moments::{triangle_moments, FaceMoments, Moments};
 
@@ -91,24 +91,31 @@ fn meet(a: &HalfSpace<2>, b: &HalfSpace<2>) -> [f64; 2] {
 /// spacing (the clips interpolate along edges instead), and the cell has no canonical form.
 const MIN_SINE: f64 = 1e-6;
 
-/// The position of the face of least normal ([`normal_order`]).
+/// The position of the face of least normal, x first ([`super::convex_cell::normal_order`] by plain
+/// comparisons: the normals of a cell are finite).
 fn least_normal(planes: &[HalfSpace<2>]) -> usize {
-    (0..planes.len())
-        .min_by(|&a, &b| normal_order(&planes[a].normal, &planes[b].normal))
-        .unwrap_or(0)
+    let mut least = 0;
+    for (k, h) in planes.iter().enumerate().skip(1) {
+        let (a, b) = (h.normal, planes[least].normal);
+        if a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]) {
+            least = k;
+        }
+    }
+    least
 }
 
-/// Vertex `k` of the faces of `planes` in order: [`meet`] of faces `k − 1` and `k`, into
-/// `out`; `false` when two adjacent faces are too near parallel or turn clockwise.
-fn canonical_vertices(planes: &[HalfSpace<2>], out: &mut Vec<[f64; 2]>) -> bool {
+/// Vertex `k` of the faces of `planes` taken from position `first` on: [`meet`] of faces
+/// `k − 1` and `k`, into `out`; `false` when two adjacent faces are too near parallel or
+/// turn clockwise.
+fn canonical_vertices(planes: &[HalfSpace<2>], first: usize, out: &mut Vec<[f64; 2]>) -> bool {
     out.clear();
-    let Some(mut before) = planes.last() else {
-        return false;
-    };
-    for at in planes {
+    let n = planes.len();
+    let mut before = &planes[(first + n - 1) % n];
+    for k in 0..n {
+        let at = &planes[(first + k) % n];
         let (p, q) = (before.normal, at.normal);
         let det = p[0] * q[1] - p[1] * q[0];
-        if det.is_nan() || det <= MIN_SINE * (norm2(p) * norm2(q)).sqrt() {
+        if det.is_nan() || det <= 0.0 || det * det <= MIN_SINE * MIN_SINE * norm2(p) * norm2(q) {
             return false;
         }
         out.push(meet(before, at));
@@ -204,7 +211,7 @@ impl ConvexCell<2> for PolygonCell {
 
     /// Vertex `k` joins the faces of edges `k − 1` and `k`: it is recomputed as [`meet`] of
     /// their half-spaces, in that order, after the edges are rotated to start at the face
-    /// of least normal ([`normal_order`]).
+    /// of least normal ([`super::convex_cell::normal_order`]).
     fn canonicalise(&mut self, plane: impl Fn(u32) -> HalfSpace<2>) -> bool {
         if self.faces.len() < 3 {
             return false;
@@ -221,11 +228,13 @@ impl ConvexCell<2> for PolygonCell {
             }
         }
         let first = least_normal(&planes);
-        planes.rotate_left(first);
         let mut vertices = std::mem::take(&mut self.spare_vertices);
-        let made = canonical_vertices(&planes, &mut vertices);
+        let made = canonical_vertices(&planes, first, &mut vertices);
         if made {
-            self.faces.rotate_left(first);
+            let n = self.faces.len();
+            self.spare_faces.clear();
+            (self.spare_faces).extend((0..n).map(|k| self.faces[(first + k) % n]));
+            std::mem::swap(&mut self.faces, &mut self.spare_faces);
             vertices = std::mem::replace(&mut self.vertices, vertices);
         }
         self.spare_vertices = vertices;
@@ -257,7 +266,7 @@ impl ConvexCell<2> for PolygonCell {
         let rotated = ring[first..].iter().chain(&ring[..first]);
         self.faces.extend(rotated.map(|&j| Face::Neighbor(j)));
         let mut vertices = std::mem::take(&mut self.vertices);
-        let made = canonical_vertices(&planes, &mut vertices);
+        let made = canonical_vertices(&planes, 0, &mut vertices);
         self.vertices = vertices;
         let stands = made && self.stands(&planes, separation);
         self.planes = planes;

@@ -29,10 +29,11 @@ const MIN_SINE: f64 = 1e-6;
 pub(super) struct Buffers {
     /// Per plane of the cell: its canonical index, or [`NONE`].
     index: Vec<u32>,
-    /// The planes that bound the cell, as `(neighbour, plane)`.
-    used: Vec<(u32, u16)>,
-    /// Per triangle: its planes renamed and rotated, its index, its rotation.
-    keys: Vec<([u16; 3], u32, u8)>,
+    /// The planes that bound the cell, as ([`order_bits`] of the normal, plane).
+    used: Vec<([u64; 3], u16)>,
+    /// Per triangle: its planes renamed and rotated (8 bits each), its rotation (2 bits)
+    /// and its index (30 bits), packed so that sorting the numbers sorts the triangles.
+    keys: Vec<u64>,
     /// Per triangle: its canonical position.
     position: Vec<u32>,
     /// Per directed edge `a -> b` (`a * planes + b`): the triangle holding it.
@@ -61,6 +62,17 @@ fn vertex_of(a: &Plane, b: &Plane, c: &Plane) -> Option<[f64; 3]> {
         scale(ab, c.offset),
     );
     Some(scale(v, 1.0 / det))
+}
+
+/// `x`'s bits as a number in [`f64::total_cmp`]'s order: the normals' sort key, worked out
+/// once per plane instead of in every comparison.
+fn order_bits(x: f64) -> u64 {
+    let bits = x.to_bits();
+    if bits >> 63 == 1 {
+        !bits
+    } else {
+        bits | (1 << 63)
+    }
 }
 
 /// `tri` rotated to start at its least entry, and by how much.
@@ -97,19 +109,20 @@ impl PolyhedronCell {
         for tri in &self.triangles {
             for &p in tri {
                 if b.index[p as usize] == NONE {
-                    let Face::Neighbor(j) = self.planes[p as usize].face else {
+                    let Face::Neighbor(_) = self.planes[p as usize].face else {
                         return false;
                     };
                     b.index[p as usize] = 0;
-                    b.used.push((j, p));
+                    let normal = self.planes[p as usize].normal;
+                    b.used.push((normal.map(order_bits), p));
                 }
             }
         }
-        let normal = |p: u16| &self.planes[p as usize].normal;
-        b.used
-            .sort_unstable_by(|x, y| normal_order(normal(x.1), normal(y.1)));
-        let same = |w: &[(u32, u16)]| normal_order(normal(w[0].1), normal(w[1].1)).is_eq();
-        if b.used.len() > usize::from(u8::MAX) + 1 || b.used.windows(2).any(same) {
+        // In `normal_order`: the keys compare as the normals do.
+        b.used.sort_unstable();
+        let same = |w: &[([u64; 3], u16)]| w[0].0 == w[1].0;
+        let too_many = b.used.len() > usize::from(u8::MAX) + 1 || self.triangles.len() >= 1 << 30;
+        if too_many || b.used.windows(2).any(same) {
             return false;
         }
         for (k, &(_, p)) in b.used.iter().enumerate() {
@@ -118,23 +131,27 @@ impl PolyhedronCell {
         b.keys.clear();
         for (t, tri) in self.triangles.iter().enumerate() {
             let (key, rotation) = least_first(tri.map(|p| b.index[p as usize] as u16));
-            b.keys.push((key, t as u32, rotation));
+            let key = (u64::from(key[0]) << 16) | (u64::from(key[1]) << 8) | u64::from(key[2]);
+            b.keys
+                .push((key << 32) | (u64::from(rotation) << 30) | t as u64);
         }
         b.keys.sort_unstable();
         b.position.clear();
         b.position.resize(self.triangles.len(), 0);
-        for (s, &(_, t, _)) in b.keys.iter().enumerate() {
-            b.position[t as usize] = s as u32;
+        for (s, &packed) in b.keys.iter().enumerate() {
+            b.position[(packed & ((1 << 30) - 1)) as usize] = s as u32;
         }
         b.planes.clear();
         b.planes
             .extend(b.used.iter().map(|&(_, p)| self.planes[p as usize]));
         b.triangles.clear();
         b.neighbors.clear();
-        for &(key, t, rotation) in &b.keys {
-            let old = self.neighbors[t as usize];
-            let r = usize::from(rotation);
-            b.triangles.push(key);
+        for &packed in &b.keys {
+            let old = self.neighbors[(packed & ((1 << 30) - 1)) as usize];
+            let r = ((packed >> 30) & 3) as usize;
+            let key = packed >> 32;
+            let planes = [key >> 16, (key >> 8) & 0xff, key & 0xff];
+            b.triangles.push(planes.map(|p| p as u16));
             b.neighbors.push(std::array::from_fn(|k| {
                 b.position[old[(k + r) % 3] as usize]
             }));
