@@ -520,10 +520,14 @@ impl<'a, const D: usize> Tracker<'a, D> {
         for &(i, x) in &self.held {
             sites[i] = x;
         }
-        let mut point = if self.request.hessian {
-            // Newton's steps reach across cells until the end game: warm-started, a
-            // star of 5,000 sites took 5.1-5.5 s against 4.3-4.6 s cold (same 177
-            // diagrams, one thread, under load), where L-BFGS gained 14-21%.
+        // Newton's steps reach across cells until the end game, so a warm start pays only
+        // where cells survive a step. In 2D a warm cell is rebuilt from its ring without
+        // clipping (diagram/ring.rs), and warm Newton runs took 0.92-0.995x the cold
+        // instructions (callgrind: square 1k, 5k, star 2k; about half the cells come
+        // from their ring, long trial steps stay cold); 3D has no ring rebuild and gained
+        // 0.7% (ball 1k): cold there. docs/results/newton_variants.txt, round 4.
+        let newton_cold = self.request.hessian && D != 2;
+        let mut point = if newton_cold {
             evaluate::<D, C, K>(domain, sites, &self.request)?
         } else {
             evaluate_warm::<D, C, K>(domain, sites, &self.request, &mut self.warm)?
