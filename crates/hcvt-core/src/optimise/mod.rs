@@ -524,8 +524,9 @@ impl<'a, const D: usize> Tracker<'a, D> {
         // where cells survive a step. In 2D a warm cell is rebuilt from its ring without
         // clipping (diagram/ring.rs), and warm Newton runs took 0.92-0.995x the cold
         // instructions (callgrind: square 1k, 5k, star 2k; about half the cells come
-        // from their ring, long trial steps stay cold); 3D has no ring rebuild and gained
-        // 0.7% (ball 1k): cold there. docs/results/newton_variants.txt, round 4.
+        // from their ring, long trial steps stay cold); 3D gained 0.7% (ball 1k) before
+        // its cells could be rebuilt too, and stays cold until measured again.
+        // docs/results/newton_variants.txt, round 4.
         let newton_cold = self.request.hessian && D != 2;
         let mut point = if newton_cold {
             evaluate::<D, C, K>(domain, sites, &self.request)?
