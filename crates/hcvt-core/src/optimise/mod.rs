@@ -520,19 +520,13 @@ impl<'a, const D: usize> Tracker<'a, D> {
         for &(i, x) in &self.held {
             sites[i] = x;
         }
-        // Newton's steps reach across cells until the end game, so a warm start pays only
-        // where cells survive a step. In 2D a warm cell is rebuilt from its ring without
-        // clipping (diagram/ring.rs), and warm Newton runs took 0.92-0.995x the cold
-        // instructions (callgrind: square 1k, 5k, star 2k; about half the cells come
-        // from their ring, long trial steps stay cold); 3D gained 0.7% (ball 1k) before
-        // its cells could be rebuilt too, and stays cold until measured again.
+        // Every method's diagrams start warm: a cell that kept its neighbours is rebuilt
+        // from its ring without clipping (diagram/ring.rs), bitwise the cold cell. Newton's
+        // long steps leave fewer such cells, yet warm runs took 0.92-0.995x the cold
+        // instructions in 2D (callgrind: square 1k, 5k, star 2k, 10k) and 0.972x in 3D
+        // (ball 1k seed 0: 15.08 -> 14.65 G, the same 118 diagrams).
         // docs/results/newton_variants.txt, round 4.
-        let newton_cold = self.request.hessian && D != 2;
-        let mut point = if newton_cold {
-            evaluate::<D, C, K>(domain, sites, &self.request)?
-        } else {
-            evaluate_warm::<D, C, K>(domain, sites, &self.request, &mut self.warm)?
-        };
+        let mut point = evaluate_warm::<D, C, K>(domain, sites, &self.request, &mut self.warm)?;
         // A zero row: the two-loop recursion then gives a zero move (its pairs' rows are
         // zero too), and the line search's slopes leave the site out.
         for &(i, _) in &self.held {
