@@ -131,15 +131,17 @@ impl PolyhedronCell {
         b.index.clear();
         b.index.resize(self.planes.len(), NONE);
         b.used.clear();
+        // Slices held apart from `b`, so that a push into one does not reload the others.
+        let (index, used) = (&mut b.index[..], &mut b.used);
         for tri in &self.triangles {
             for &p in tri {
-                if b.index[p as usize] == NONE {
+                if index[p as usize] == NONE {
                     let Face::Neighbor(_) = self.planes[p as usize].face else {
                         return false;
                     };
-                    b.index[p as usize] = 0;
+                    index[p as usize] = 0;
                     let x = order_bits(self.planes[p as usize].normal[0]);
-                    b.used.push((u128::from(x) << 64) | u128::from(p));
+                    used.push((u128::from(x) << 64) | u128::from(p));
                 }
             }
         }
@@ -308,17 +310,19 @@ fn vertices_into(b: &mut Buffers) -> bool {
     b.lengths.clear();
     b.lengths.extend(b.planes.iter().map(|p| norm2(p.normal)));
     b.vertices.clear();
+    // Slices held apart from `b`, so that a push into `vertices` does not reload them.
+    let (planes, lengths, vertices) = (&b.planes[..], &b.lengths[..], &mut b.vertices);
     // `f64::max` as a plain comparison (which passes over a NaN alike).
     let mut max_dist2 = 0.0;
     for tri in &b.triangles {
-        let plane = |k: usize| &b.planes[tri[k] as usize];
-        let lengths = tri.map(|p| b.lengths[p as usize]);
+        let plane = |k: usize| &planes[tri[k] as usize];
+        let lengths = tri.map(|p| lengths[p as usize]);
         match vertex_of(plane(0), plane(1), plane(2), lengths) {
             Some(v) => {
                 if norm2(v) > max_dist2 {
                     max_dist2 = norm2(v);
                 }
-                b.vertices.push(v);
+                vertices.push(v);
             }
             None => return false,
         }
@@ -343,14 +347,15 @@ fn adjacency(b: &mut Buffers) -> bool {
         }
     }
     b.neighbors.clear();
+    // Held apart from `b`, so that a push into `neighbors` does not reload `edges`.
+    let (edges, neighbors) = (&b.edges[..], &mut b.neighbors);
     for tri in &b.triangles {
-        let across: [u32; 3] = std::array::from_fn(|k| {
-            b.edges[usize::from(tri[(k + 1) % 3]) * m + usize::from(tri[k])]
-        });
+        let across: [u32; 3] =
+            std::array::from_fn(|k| edges[usize::from(tri[(k + 1) % 3]) * m + usize::from(tri[k])]);
         if across.contains(&NONE) {
             return false;
         }
-        b.neighbors.push(across);
+        neighbors.push(across);
     }
     true
 }
