@@ -111,17 +111,24 @@ fn canonical_vertices(planes: &[HalfSpace<2>], first: usize, out: &mut Vec<[f64;
     out.clear();
     let n = planes.len();
     let mut before = &planes[(first + n - 1) % n];
-    for k in 0..n {
-        let at = &planes[(first + k) % n];
+    // Each face's `|normal|²` once, carried to the next vertex.
+    let mut before_length = norm2(before.normal);
+    let (tail, head) = planes.split_at(first);
+    // A chain's `all` runs as two plain loops (rotating the planes cost more: callgrind).
+    head.iter().chain(tail).all(|at| {
         let (p, q) = (before.normal, at.normal);
+        let at_length = norm2(q);
         let det = p[0] * q[1] - p[1] * q[0];
-        if det.is_nan() || det <= 0.0 || det * det <= MIN_SINE * MIN_SINE * norm2(p) * norm2(q) {
+        if det.is_nan()
+            || det <= 0.0
+            || det * det <= MIN_SINE * MIN_SINE * before_length * at_length
+        {
             return false;
         }
         out.push(meet(before, at));
-        before = at;
-    }
-    true
+        (before, before_length) = (at, at_length);
+        true
+    })
 }
 
 /// The neighbour of a face, `None` for the others.
@@ -231,9 +238,9 @@ impl ConvexCell<2> for PolygonCell {
         let mut vertices = std::mem::take(&mut self.spare_vertices);
         let made = canonical_vertices(&planes, first, &mut vertices);
         if made {
-            let n = self.faces.len();
+            let (tail, head) = self.faces.split_at(first);
             self.spare_faces.clear();
-            (self.spare_faces).extend((0..n).map(|k| self.faces[(first + k) % n]));
+            self.spare_faces.extend(head.iter().chain(tail));
             std::mem::swap(&mut self.faces, &mut self.spare_faces);
             vertices = std::mem::replace(&mut self.vertices, vertices);
         }

@@ -29,11 +29,16 @@ const MIN_SINE: f64 = 1e-6;
 pub(super) struct Buffers {
     /// Per plane of the cell: its canonical index, or [`NONE`].
     index: Vec<u32>,
-    /// The planes that bound the cell, as ([`order_bits`] of the normal, plane).
-    used: Vec<([u64; 3], u16)>,
+    /// The planes that bound the cell, as [`order_bits`] of the normal's x (high half)
+    /// and plane (low half): one number per plane decides the order but for ties in x.
+    used: Vec<u128>,
     /// Per triangle: its planes renamed and rotated (8 bits each), its rotation (2 bits)
     /// and its index (30 bits), packed so that sorting the numbers sorts the triangles.
     keys: Vec<u64>,
+    /// `keys` sorted ([`sort_by_least_plane`]).
+    sorted: Vec<u64>,
+    /// Per canonical plane: where its triangles start in `sorted`.
+    starts: Vec<u32>,
     /// Per triangle: its canonical position.
     position: Vec<u32>,
     /// Per directed edge `a -> b` (`a * planes + b`): the triangle holding it.
@@ -42,18 +47,23 @@ pub(super) struct Buffers {
     triangles: Vec<[u16; 3]>,
     neighbors: Vec<[u32; 3]>,
     vertices: Vec<[f64; 3]>,
+    /// Per plane: `|normal|²`, worked out once for its vertices ([`vertices_into`]).
+    lengths: Vec<f64>,
+    /// The largest `|v|²` of `vertices`.
+    max_dist2: f64,
 }
 
 /// Where the planes `a`, `b`, `c` meet, by Cramer's rule in this order; `None` when they
-/// are too nearly dependent or turn clockwise ([`MIN_SINE`]).
-fn vertex_of(a: &Plane, b: &Plane, c: &Plane) -> Option<[f64; 3]> {
+/// are too nearly dependent or turn clockwise ([`MIN_SINE`]). `lengths`: their normals'
+/// `|n|²`.
+fn vertex_of(a: &Plane, b: &Plane, c: &Plane, lengths: [f64; 3]) -> Option<[f64; 3]> {
     let (bc, ca, ab) = (
         cross(b.normal, c.normal),
         cross(c.normal, a.normal),
         cross(a.normal, b.normal),
     );
     let det = dot(a.normal, bc);
-    let lengths = (norm2(a.normal) * norm2(b.normal) * norm2(c.normal)).sqrt();
+    let lengths = (lengths[0] * lengths[1] * lengths[2]).sqrt();
     if det.is_nan() || det <= MIN_SINE * lengths {
         return None;
     }
@@ -77,14 +87,29 @@ fn order_bits(x: f64) -> u64 {
 
 /// `tri` rotated to start at its least entry, and by how much.
 fn least_first(tri: [u16; 3]) -> ([u16; 3], u8) {
-    let k = if tri[1] < tri[0] && tri[1] < tri[2] {
-        1
-    } else if tri[2] < tri[0] && tri[2] < tri[1] {
-        2
+    let [a, b, c] = tri;
+    if b < a && b < c {
+        ([b, c, a], 1)
+    } else if c < a && c < b {
+        ([c, a, b], 2)
     } else {
-        0
-    };
-    ([tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]], k as u8)
+        (tri, 0)
+    }
+}
+
+/// The triangle a packed key ([`Buffers::keys`]) stands for.
+fn triangle_of(packed: u64) -> usize {
+    (packed & ((1 << 30) - 1)) as usize
+}
+
+/// `x` rotated left by `r` (0, 1 or 2): as [`least_first`] turns a triangle.
+fn rotated<T: Copy>(x: [T; 3], r: u64) -> [T; 3] {
+    let [a, b, c] = x;
+    match r {
+        1 => [b, c, a],
+        2 => [c, a, b],
+        _ => x,
+    }
 }
 
 impl PolyhedronCell {
@@ -106,57 +131,73 @@ impl PolyhedronCell {
         b.index.clear();
         b.index.resize(self.planes.len(), NONE);
         b.used.clear();
+        // Slices held apart from `b`, so that a push into one does not reload the others.
+        let (index, used) = (&mut b.index[..], &mut b.used);
         for tri in &self.triangles {
             for &p in tri {
-                if b.index[p as usize] == NONE {
+                if index[p as usize] == NONE {
                     let Face::Neighbor(_) = self.planes[p as usize].face else {
                         return false;
                     };
-                    b.index[p as usize] = 0;
-                    let normal = self.planes[p as usize].normal;
-                    b.used.push((normal.map(order_bits), p));
+                    index[p as usize] = 0;
+                    let x = order_bits(self.planes[p as usize].normal[0]);
+                    used.push((u128::from(x) << 64) | u128::from(p));
                 }
             }
         }
-        // In `normal_order`: the keys compare as the normals do.
-        b.used.sort_unstable();
-        let same = |w: &[([u64; 3], u16)]| w[0].0 == w[1].0;
         let too_many = b.used.len() > usize::from(u8::MAX) + 1 || self.triangles.len() >= 1 << 30;
-        if too_many || b.used.windows(2).any(same) {
+        if too_many || !self.sort_used(&mut b.used) {
             return false;
         }
-        for (k, &(_, p)) in b.used.iter().enumerate() {
-            b.index[p as usize] = k as u32;
+        for (k, &packed) in b.used.iter().enumerate() {
+            b.index[packed as u16 as usize] = k as u32;
         }
+        // Filled by `extend` from slices (no capacity check per element).
+        let index = &b.index;
         b.keys.clear();
-        for (t, tri) in self.triangles.iter().enumerate() {
-            let (key, rotation) = least_first(tri.map(|p| b.index[p as usize] as u16));
-            let key = (u64::from(key[0]) << 16) | (u64::from(key[1]) << 8) | u64::from(key[2]);
-            b.keys
-                .push((key << 32) | (u64::from(rotation) << 30) | t as u64);
-        }
-        b.keys.sort_unstable();
+        b.keys
+            .extend(self.triangles.iter().enumerate().map(|(t, tri)| {
+                let (key, rotation) = least_first(tri.map(|p| index[p as usize] as u16));
+                let key = (u64::from(key[0]) << 16) | (u64::from(key[1]) << 8) | u64::from(key[2]);
+                (key << 32) | (u64::from(rotation) << 30) | t as u64
+            }));
+        sort_by_least_plane(b);
         b.position.clear();
         b.position.resize(self.triangles.len(), 0);
-        for (s, &packed) in b.keys.iter().enumerate() {
-            b.position[(packed & ((1 << 30) - 1)) as usize] = s as u32;
+        for (s, &packed) in b.sorted.iter().enumerate() {
+            b.position[triangle_of(packed)] = s as u32;
         }
         b.planes.clear();
-        b.planes
-            .extend(b.used.iter().map(|&(_, p)| self.planes[p as usize]));
+        b.planes.extend(
+            b.used
+                .iter()
+                .map(|&packed| self.planes[packed as u16 as usize]),
+        );
         b.triangles.clear();
-        b.neighbors.clear();
-        for &packed in &b.keys {
-            let old = self.neighbors[(packed & ((1 << 30) - 1)) as usize];
-            let r = ((packed >> 30) & 3) as usize;
+        b.triangles.extend(b.sorted.iter().map(|&packed| {
             let key = packed >> 32;
-            let planes = [key >> 16, (key >> 8) & 0xff, key & 0xff];
-            b.triangles.push(planes.map(|p| p as u16));
-            b.neighbors.push(std::array::from_fn(|k| {
-                b.position[old[(k + r) % 3] as usize]
-            }));
-        }
+            [key >> 16, (key >> 8) & 0xff, key & 0xff].map(|p| p as u16)
+        }));
+        let position = &b.position;
+        b.neighbors.clear();
+        b.neighbors.extend(b.sorted.iter().map(|&packed| {
+            let old = rotated(self.neighbors[triangle_of(packed)], (packed >> 30) & 3);
+            old.map(|t| position[t as usize])
+        }));
         vertices_into(b)
+    }
+
+    /// `used` (see [`Buffers::used`]) in [`normal_order`]; `false` when two planes have one
+    /// normal. The x bits alone order them unless two share an x: then by the whole
+    /// normal, as [`order_bits`] of each coordinate compare as the normals do.
+    fn sort_used(&self, used: &mut [u128]) -> bool {
+        used.sort_unstable();
+        if used.windows(2).all(|w| w[0] >> 64 != w[1] >> 64) {
+            return true;
+        }
+        let key = |packed: &u128| self.planes[*packed as u16 as usize].normal.map(order_bits);
+        used.sort_unstable_by_key(key);
+        used.windows(2).all(|w| key(&w[0]) != key(&w[1]))
     }
 
     /// Become the cell held in `b` (its buffers swapped with this cell's).
@@ -165,8 +206,7 @@ impl PolyhedronCell {
         std::mem::swap(&mut self.triangles, &mut b.triangles);
         std::mem::swap(&mut self.neighbors, &mut b.neighbors);
         std::mem::swap(&mut self.vertices, &mut b.vertices);
-        self.max_dist2 =
-            (self.vertices.iter()).fold(0.0, |m, &v| if norm2(v) > m { norm2(v) } else { m });
+        self.max_dist2 = b.max_dist2;
         true
     }
 
@@ -230,16 +270,64 @@ impl PolyhedronCell {
     }
 }
 
-/// The vertices of `b`'s triangles ([`vertex_of`]); `false` when one has none.
+/// `b.keys` sorted into `b.sorted`: counted out by their least plane (the top byte of
+/// their key), then each plane's few sorted by insertion.
+fn sort_by_least_plane(b: &mut Buffers) {
+    let least = |packed: u64| (packed >> 48) as usize;
+    b.starts.clear();
+    b.starts.resize(b.used.len() + 1, 0);
+    for &packed in &b.keys {
+        b.starts[least(packed) + 1] += 1;
+    }
+    for p in 1..b.starts.len() {
+        b.starts[p] += b.starts[p - 1];
+    }
+    b.sorted.clear();
+    b.sorted.resize(b.keys.len(), 0);
+    for &packed in &b.keys {
+        let at = &mut b.starts[least(packed)];
+        b.sorted[*at as usize] = packed;
+        *at += 1;
+    }
+    // `starts[p]` is now where plane `p + 1`'s triangles start.
+    let mut from = 0;
+    for &end in &b.starts[..b.used.len()] {
+        let end = end as usize;
+        for i in from + 1..end {
+            let mut k = i;
+            while k > from && b.sorted[k - 1] > b.sorted[k] {
+                b.sorted.swap(k - 1, k);
+                k -= 1;
+            }
+        }
+        from = end;
+    }
+}
+
+/// The vertices of `b`'s triangles ([`vertex_of`]) and their largest `|v|²`; `false` when
+/// one has none.
 fn vertices_into(b: &mut Buffers) -> bool {
+    b.lengths.clear();
+    b.lengths.extend(b.planes.iter().map(|p| norm2(p.normal)));
     b.vertices.clear();
+    // Slices held apart from `b`, so that a push into `vertices` does not reload them.
+    let (planes, lengths, vertices) = (&b.planes[..], &b.lengths[..], &mut b.vertices);
+    // `f64::max` as a plain comparison (which passes over a NaN alike).
+    let mut max_dist2 = 0.0;
     for tri in &b.triangles {
-        let plane = |k: usize| &b.planes[tri[k] as usize];
-        match vertex_of(plane(0), plane(1), plane(2)) {
-            Some(v) => b.vertices.push(v),
+        let plane = |k: usize| &planes[tri[k] as usize];
+        let lengths = tri.map(|p| lengths[p as usize]);
+        match vertex_of(plane(0), plane(1), plane(2), lengths) {
+            Some(v) => {
+                if norm2(v) > max_dist2 {
+                    max_dist2 = norm2(v);
+                }
+                vertices.push(v);
+            }
             None => return false,
         }
     }
+    b.max_dist2 = max_dist2;
     true
 }
 
@@ -259,24 +347,27 @@ fn adjacency(b: &mut Buffers) -> bool {
         }
     }
     b.neighbors.clear();
+    // Held apart from `b`, so that a push into `neighbors` does not reload `edges`.
+    let (edges, neighbors) = (&b.edges[..], &mut b.neighbors);
     for tri in &b.triangles {
-        let across: [u32; 3] = std::array::from_fn(|k| {
-            b.edges[usize::from(tri[(k + 1) % 3]) * m + usize::from(tri[k])]
-        });
+        let across: [u32; 3] =
+            std::array::from_fn(|k| edges[usize::from(tri[(k + 1) % 3]) * m + usize::from(tri[k])]);
         if across.contains(&NONE) {
             return false;
         }
-        b.neighbors.push(across);
+        neighbors.push(across);
     }
     true
 }
 
 /// Every vertex inside every plane but its own three by `separation` of the plane's
-/// `|normal|²`.
+/// `|normal|²` (`b.lengths`, as [`vertices_into`] left them). Each vertex is tested
+/// against each plane first and asks whether the plane is its own only when the test
+/// fails: three planes in every dozen or so.
 fn separated(b: &Buffers, separation: f64) -> bool {
     (b.triangles.iter().zip(&b.vertices)).all(|(tri, &v)| {
-        (b.planes.iter().enumerate()).all(|(l, p)| {
-            tri.contains(&(l as u16)) || dot(p.normal, v) - p.offset < -separation * norm2(p.normal)
+        (b.planes.iter().zip(&b.lengths).enumerate()).all(|(l, (p, &length))| {
+            dot(p.normal, v) - p.offset < -separation * length || tri.contains(&(l as u16))
         })
     })
 }
