@@ -80,7 +80,9 @@ pub use mesh::{
     conforming_mesh, conforming_mesh_part, conforming_power_mesh, MeshDomain, MeshPart, PolyMesh,
 };
 pub use order::morton_order;
-use output::{assemble, Batch, BATCH};
+#[cfg(test)]
+use output::BATCH;
+use output::{assemble, batch_cells, Batch};
 pub use output::{Clipped, Diagram};
 pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
@@ -598,8 +600,8 @@ where
             .then_some(&*cell)
     }
 
-    /// The cells of the sites `visit`, in that order, measured in batches of [`BATCH`] in
-    /// parallel; errors are kept in their batch.
+    /// The cells of the sites `visit`, in that order, measured in batches ([`batch_cells`])
+    /// in parallel; errors are kept in their batch.
     fn batches<C: ConvexCell<D>, K: DomainKind<D>>(
         &self,
         domain: &K,
@@ -611,8 +613,12 @@ where
         let convex = domain.is_convex();
         // The lists recorded are about as long as the ones read (cold: a guess, 2D's).
         let near_per_cell = self.warm.map_or(16, |(w, _)| w.mean_list_len());
+        let cells_per_batch = batch_cells(visit.len(), rayon::current_num_threads());
         visit
-            .par_chunks(BATCH)
+            .par_chunks(cells_per_batch)
+            // Every batch a task of its own: rayon's default stops splitting at a quarter
+            // of the batches on two threads, and a thread done early found nothing to take.
+            .with_max_len(1)
             .enumerate()
             .map_init(
                 || {
@@ -630,7 +636,7 @@ where
                     if self.record {
                         batch.reserve_lists(chunk.len(), near_per_cell);
                     }
-                    for (visited, &i) in (first * BATCH..).zip(chunk) {
+                    for (visited, &i) in (first * cells_per_batch..).zip(chunk) {
                         if self.floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
                             break;
                         }
