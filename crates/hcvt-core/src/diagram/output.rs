@@ -187,8 +187,8 @@ pub(super) const BATCH: usize = 256;
 /// Batches per thread that a small diagram is cut into ([`batch_cells`]).
 const BATCHES_PER_THREAD: usize = 8;
 
-/// Fewest cells per [`Batch`]: below this a batch's allocations would cost more than its
-/// cells' share of the imbalance saves.
+/// Fewest cells per [`Batch`], so that its allocations stay small beside its cells' work
+/// (a floor, not tuned).
 const MIN_BATCH: usize = 32;
 
 /// Cells per [`Batch`] of a diagram of `n` cells on `threads` threads: [`BATCH`], or

@@ -200,7 +200,7 @@ const PRODUCT_ROWS: usize = 256;
 /// Tasks per thread that a small product is cut into ([`product_rows`]).
 const PRODUCT_TASKS_PER_THREAD: usize = 4;
 
-/// Fewest rows per task of a product.
+/// Fewest rows per task of a product (a floor, not tuned).
 const MIN_PRODUCT_ROWS: usize = 32;
 
 /// Rows per parallel task of a product with `n` rows on `threads` threads: [`PRODUCT_ROWS`],
