@@ -80,9 +80,7 @@ pub use mesh::{
     conforming_mesh, conforming_mesh_part, conforming_power_mesh, MeshDomain, MeshPart, PolyMesh,
 };
 pub use order::morton_order;
-#[cfg(test)]
-use output::BATCH;
-use output::{assemble, batch_cells, Batch};
+use output::{assemble, Batch, BATCH};
 pub use output::{Clipped, Diagram};
 pub use periodic_box::PeriodicBox;
 pub use polygon_cell::PolygonCell;
@@ -600,8 +598,8 @@ where
             .then_some(&*cell)
     }
 
-    /// The cells of the sites `visit`, in that order, measured in batches ([`batch_cells`])
-    /// in parallel; errors are kept in their batch.
+    /// The cells of the sites `visit`, in that order, measured in batches of [`BATCH`] in
+    /// parallel; errors are kept in their batch.
     fn batches<C: ConvexCell<D>, K: DomainKind<D>>(
         &self,
         domain: &K,
@@ -613,12 +611,8 @@ where
         let convex = domain.is_convex();
         // The lists recorded are about as long as the ones read (cold: a guess, 2D's).
         let near_per_cell = self.warm.map_or(16, |(w, _)| w.mean_list_len());
-        let cells_per_batch = batch_cells(visit.len(), rayon::current_num_threads());
         visit
-            .par_chunks(cells_per_batch)
-            // Every batch a task of its own: rayon's default stops splitting at a quarter
-            // of the batches on two threads, and a thread done early found nothing to take.
-            .with_max_len(1)
+            .par_chunks(BATCH)
             .enumerate()
             .map_init(
                 || {
@@ -636,7 +630,7 @@ where
                     if self.record {
                         batch.reserve_lists(chunk.len(), near_per_cell);
                     }
-                    for (visited, &i) in (first * cells_per_batch..).zip(chunk) {
+                    for (visited, &i) in (first * BATCH..).zip(chunk) {
                         if self.floor.is_some_and(|f| f.below.load(Ordering::Relaxed)) {
                             break;
                         }

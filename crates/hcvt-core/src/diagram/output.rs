@@ -180,31 +180,9 @@ pub(super) struct Batch<const D: usize, C> {
     pub(super) error: Option<(usize, CoreError)>,
 }
 
-/// Most cells per [`Batch`]: enough to make its allocations rare, few enough to balance
-/// the threads of a large diagram.
+/// Cells per [`Batch`]: enough to make its allocations rare, few enough to balance the
+/// threads.
 pub(super) const BATCH: usize = 256;
-
-/// Batches per thread that a small diagram is cut into ([`batch_cells`]).
-const BATCHES_PER_THREAD: usize = 8;
-
-/// Fewest cells per [`Batch`], so that its allocations stay small beside its cells' work
-/// (a floor, not tuned).
-const MIN_BATCH: usize = 32;
-
-/// Cells per [`Batch`] of a diagram of `n` cells on `threads` threads: [`BATCH`], or
-/// fewer so that each thread gets [`BATCHES_PER_THREAD`] batches. Why: 1,000 sites made 4
-/// batches, and on two threads the cells' cost from batch to batch (boundary, rebuilt or
-/// clipped cells) left one thread waiting for the other: rayon's stealing replayed on
-/// per-cell times of Newton runs (square 1k, ball 1k) made the batch pass 3.5-4% longer
-/// than half its work, against 1-1.5% with 16 batches each a task
-/// (docs/results/newton_variants.txt, round 5b). The cells do not depend on the batches
-/// (they are assembled by site), so neither does the diagram.
-pub(super) fn batch_cells(n: usize, threads: usize) -> usize {
-    if threads <= 1 {
-        return BATCH;
-    }
-    (n / (threads * BATCHES_PER_THREAD)).clamp(MIN_BATCH, BATCH)
-}
 
 impl<const D: usize, C: ConvexCell<D>> Batch<D, C> {
     pub(super) fn new(cells: usize, integrals: bool) -> Self {

@@ -110,13 +110,11 @@ impl<const D: usize> Hessian<D> {
             }
             sum
         };
-        let task_rows = product_rows(out.len(), rayon::current_num_threads());
-        out.par_chunks_mut(task_rows)
-            .with_max_len(1)
+        out.par_chunks_mut(PRODUCT_ROWS)
             .enumerate()
             .for_each(|(c, rows)| {
                 for (k, o) in rows.iter_mut().enumerate() {
-                    *o = row(c * task_rows + k);
+                    *o = row(c * PRODUCT_ROWS + k);
                 }
             });
         if let Some(reduction) = &self.reduction {
@@ -192,27 +190,10 @@ fn mat_vec<const D: usize>(m: &Matrix<D>, v: [f64; D]) -> [f64; D] {
     m.map(|row| dot(row, v))
 }
 
-/// Most rows of a Hessian product per parallel task: some 5 (2D) to 25 (3D) microseconds
-/// of work each. With 1,024 the product of a 1,000-site problem was one task, and the CG
+/// Rows of a Hessian product per parallel task: some 5 (2D) to 25 (3D) microseconds of
+/// work each. With 1,024 the product of a 1,000-site problem was one task, and the CG
 /// iterations (10-13% of a Newton run) kept one of two threads idle.
 const PRODUCT_ROWS: usize = 256;
-
-/// Tasks per thread that a small product is cut into ([`product_rows`]).
-const PRODUCT_TASKS_PER_THREAD: usize = 4;
-
-/// Fewest rows per task of a product (a floor, not tuned).
-const MIN_PRODUCT_ROWS: usize = 32;
-
-/// Rows per parallel task of a product with `n` rows on `threads` threads: [`PRODUCT_ROWS`],
-/// or fewer so that each thread gets [`PRODUCT_TASKS_PER_THREAD`] tasks, and a thread that
-/// joins late still finds work. Each row is summed alone, so the product does not depend
-/// on the tasks.
-fn product_rows(n: usize, threads: usize) -> usize {
-    if threads <= 1 {
-        return PRODUCT_ROWS;
-    }
-    (n / (threads * PRODUCT_TASKS_PER_THREAD)).clamp(MIN_PRODUCT_ROWS, PRODUCT_ROWS)
-}
 
 #[cfg(test)]
 mod tests {
