@@ -345,13 +345,15 @@ fn steihaug<const D: usize>(
             axpy(&mut z, tau, &d);
             return step(z, decrease, true);
         }
-        // z += α d, r += α Hd, and the next preconditioned residual's r·Pr, in one pass.
+        // z += α d, r += α Hd, and the next preconditioned residual's r·Pr, in one pass
+        // (zipped: no bounds checks in CG's serial passes).
         let mut ry_next = 0.0;
-        for i in 0..n {
+        let rows = (z.iter_mut().zip(r.iter_mut())).zip(d.iter().zip(&hd).zip(precondition));
+        for ((zi, ri), ((di, hdi), &w)) in rows {
             for k in 0..D {
-                z[i][k] += alpha * d[i][k];
-                r[i][k] += alpha * hd[i][k];
-                ry_next += precondition[i] * r[i][k] * r[i][k];
+                zi[k] += alpha * di[k];
+                ri[k] += alpha * hdi[k];
+                ry_next += w * ri[k] * ri[k];
             }
         }
         decrease += 0.5 * alpha * ry;
@@ -360,9 +362,9 @@ fn steihaug<const D: usize>(
             return step(z, decrease, false);
         }
         let beta = ry_next / ry;
-        for i in 0..n {
+        for ((di, ri), &w) in d.iter_mut().zip(&r).zip(precondition) {
             for k in 0..D {
-                d[i][k] = beta * d[i][k] - precondition[i] * r[i][k];
+                di[k] = beta * di[k] - w * ri[k];
             }
         }
         zd = beta * (zd + alpha * dd);
