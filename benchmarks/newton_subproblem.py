@@ -14,7 +14,9 @@ mass preconditioner ``2 m_i``):
   eigendecomposition ``H v = λ M v``: ``p = −(H + μM)⁻¹ g`` with ``‖p‖_M`` on the edge).
 
 Neither has the core's per-site stiffness, pinned sites or round-off rule: they compare
-the step solvers with everything else equal, not with ``hcvt.cvt``.
+the step solvers with everything else equal, not with ``hcvt.cvt``. This is a measuring
+prototype, not a second optimiser: the core's Steihaug step cannot be driven with a dense
+NumPy Hessian, so both solvers are written here in a few lines each, beside each other.
 
 ``--spectrum SEED`` prints instead, along ``hcvt.cvt``'s own Newton run from random sites, the
 generalised eigenvalues ``H v = λ M v`` (``M = diag(2 m_i)``: Lloyd's step has ``λ = 1``) at
