@@ -466,7 +466,8 @@ const ROUNDING_MARGIN: f64 = 1e-12;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagram::{voronoi_cell, CellScratch, DomainKind, PolyhedronCell, SiteIndex};
+    use crate::diagram::voronoi_cell::{voronoi_cell, CellScratch};
+    use crate::diagram::{DomainKind, PolyhedronCell, SiteIndex};
     use crate::domain::Solid;
     use crate::sample::interior_sites;
 

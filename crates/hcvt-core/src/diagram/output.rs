@@ -148,7 +148,7 @@ pub(super) struct Batch<const D: usize, C> {
     pub(super) face_integrals: Vec<Matrix<D>>,
     /// Each cell's convex cell, when kept.
     pub(super) cells: Vec<C>,
-    /// Each cell's reach ([`super::PartCells::reach2`]), when [`super::Visit::reach`] asks for it.
+    /// Each cell's reach ([`super::PartCells::reach2`]), when [`super::visit::Visit::reach`] asks for it.
     pub(super) reach2: Vec<f64>,
     /// With a polynomial density: each cell's weighted moments.
     pub(super) weighted: Vec<Moments<D>>,
@@ -438,4 +438,17 @@ pub(super) fn warm_lists<const D: usize, C>(
         WarmStart::from_lists(sites, offsets, near, complete2, rings, order)
             .with_counts(warm_cells, ring_cells),
     )
+}
+
+/// The cells of some of the sites, computed among the others: a partition's own sites
+/// among its own and its halo (DESIGN §10).
+#[derive(Debug, Clone, Default)]
+pub struct PartCells<const D: usize> {
+    /// Row `k` is the cell of site `own[k]`; neighbours are indices into the `sites` given.
+    pub diagram: Diagram<D>,
+    /// Per row, the squared distance from its site within which the cell depends on the
+    /// sites present: the cell is the one a run over all the problem's sites would compute,
+    /// bit for bit, whenever `sites` holds every site of the problem within this distance
+    /// (see [`super::clipped_cells`]), `L²`.
+    pub reach2: Vec<f64>,
 }

@@ -46,13 +46,15 @@ use super::clip::MeasureScratch;
 use super::convex_cell::ConvexCell;
 use super::domain_kind::{DomainKind, BOX_MARGIN};
 use super::faces::{FaceIntegrals, FaceIntegrand, FaceRow, Matrix};
+use super::knn::SiteIndex;
+use super::order::morton_order;
+use super::output::PartCells;
 use super::output::{Batch, Clipped, Diagram};
+use super::power::Power;
+use super::request::{checked_part, checked_windings, Request};
 use super::torus::Torus;
+use super::visit::{without_errors, Visit};
 use super::weighted_sums::WeightedSums;
-use super::{
-    checked_part, checked_windings, morton_order, without_errors, PartCells, Power, Request,
-    SiteIndex, Visit,
-};
 
 /// Width of the first band of images, in mean spacings `(V/n)^{1/d}`, per dimension. The
 /// reach of a cell (twice its radius) is about 2.5 spacings for random sites, with a tail:

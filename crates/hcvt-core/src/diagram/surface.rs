@@ -66,8 +66,12 @@ use crate::moments::{FaceMoments, Moments};
 use super::clip::MeasureScratch;
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
+use super::driver::clipped_diagram;
 use super::faces::{FaceRow, FaceSums};
+use super::output::Diagram;
 use super::polygon_clip::clip_polygon;
+use super::polyhedron_cell::PolyhedronCell;
+use super::request::Request;
 use super::scratch::with_scratch;
 
 /// Neighbours a cell streams before its pieces are validated
@@ -873,7 +877,7 @@ pub struct RestrictedDelaunay {
     pub repeated: Vec<[u32; 3]>,
     /// The restricted Voronoi diagram of the sites, which the triangulation is read from
     /// (the one [`super::clipped_diagram`] gives): callers wanting both compute it once.
-    pub diagram: super::Diagram<3>,
+    pub diagram: Diagram<3>,
 }
 
 /// The restricted Voronoi cells of sites on a surface as convex planar pieces
@@ -891,7 +895,7 @@ pub struct SurfacePieces {
     /// The input triangle of each piece.
     pub triangles: Vec<u32>,
     /// The diagram the pieces were noted by, bit for bit [`super::clipped_diagram`]'s.
-    pub diagram: super::Diagram<3>,
+    pub diagram: Diagram<3>,
 }
 
 impl Surface {
@@ -904,13 +908,12 @@ impl Surface {
     /// Errors are [`super::clipped_diagram`]'s.
     pub fn restricted_delaunay(&self, sites: &[[f64; 3]]) -> Result<RestrictedDelaunay, CoreError> {
         use rayon::prelude::*;
-        let request = super::Request {
+        let request = Request {
             keep_cells: true,
             ..Default::default()
         };
         let noting = Noting::new(self, false, sites.len());
-        let clipped =
-            super::clipped_diagram::<3, super::PolyhedronCell, _>(&noting, sites, &request)?;
+        let clipped = clipped_diagram::<3, PolyhedronCell, _>(&noting, sites, &request)?;
         let met = noting.into_notes();
         let same = SAME_POINT * self.set.bvh().bounds().diagonal();
         let found: Vec<Vec<Meeting>> = clipped
@@ -969,10 +972,9 @@ impl Surface {
     ///
     /// Errors are [`super::clipped_diagram`]'s.
     pub fn pieces(&self, sites: &[[f64; 3]]) -> Result<SurfacePieces, CoreError> {
-        let request = super::Request::default();
+        let request = Request::default();
         let noting = Noting::new(self, true, sites.len());
-        let clipped =
-            super::clipped_diagram::<3, super::PolyhedronCell, _>(&noting, sites, &request)?;
+        let clipped = clipped_diagram::<3, PolyhedronCell, _>(&noting, sites, &request)?;
         let mut met = noting.into_notes();
         let mut out = SurfacePieces {
             offsets: vec![0],
@@ -1404,7 +1406,6 @@ impl DomainKind<3> for Surface {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagram::{clipped_diagram, PolyhedronCell, Request};
 
     /// An open grid of `k × k` squares in the plane `z = 0`, each split into two triangles,
     /// bent up along x by `bend` (a roof) so that it is not flat.

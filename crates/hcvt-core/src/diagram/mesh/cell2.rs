@@ -7,7 +7,7 @@ use super::planar::{clip_ring, EdgeOf, Node, PlanarScratch, Segment};
 use super::{gen_of, CellFaces, CellGeometry, Side};
 use crate::diagram::clip::boundary_candidates;
 use crate::diagram::convex_cell::Face;
-use crate::diagram::PolygonCell;
+use crate::diagram::polygon_cell::PolygonCell;
 use crate::domain::{Polygon, WindingNumber};
 use crate::geometry::{add, sub, Euclid};
 

@@ -9,7 +9,7 @@ use super::{bisector_side, gen_of, CellFaces, CellGeometry, Side};
 use crate::diagram::clip::boundary_candidates;
 use crate::diagram::convex_cell::{ConvexCell, Face};
 use crate::diagram::polygon_clip::clip_polygon;
-use crate::diagram::PolyhedronCell;
+use crate::diagram::polyhedron_cell::PolyhedronCell;
 use crate::domain::{Solid, WindingNumber};
 use crate::geometry::{add, cross, dot, sub, Euclid, Space};
 

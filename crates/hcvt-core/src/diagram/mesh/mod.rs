@@ -29,11 +29,14 @@ use std::hash::{BuildHasherDefault, Hasher};
 use rayon::prelude::*;
 
 use super::convex_cell::{ConvexCell, Face};
+use super::domain_kind::DomainKind;
 use super::knn::{NearScratch, SiteIndex};
+use super::order::morton_order;
+use super::polygon_cell::PolygonCell;
+use super::polyhedron_cell::PolyhedronCell;
 use super::power::Power;
-use super::{checked_part, checked_windings, morton_order, voronoi_cell};
-use super::{CellScratch, Options};
-use super::{DomainKind, PolygonCell, PolyhedronCell};
+use super::request::{checked_part, checked_windings, Options};
+use super::voronoi_cell::{voronoi_cell, CellScratch};
 use crate::domain::{Boundary, Polygon, Solid, WindingNumber};
 use crate::error::CoreError;
 use crate::geometry::{add, dot, norm2, scale, sub, Euclid, Space};
