@@ -176,6 +176,55 @@ fn a_warm_box_diagram_is_the_cold_one() {
     check_kind::<3, PolyhedronCell, _>(&cube, interior_sites(&cube, 1500, 8), "3D box");
 }
 
+/// One site's long move among small ones (a Newton step across a rearranging cell) leaves
+/// the cells away from it warm: a list loses its certificate only where a long mover can
+/// have come near. Bitwise the cold diagram. `centre`: a point well inside `domain`.
+fn check_one_long_move<const D: usize, C: ConvexCell<D>, K: DomainKind<D>>(
+    domain: &K,
+    sites: Vec<[f64; D]>,
+    centre: [f64; D],
+    what: &str,
+) where
+    Euclid: Space<D>,
+{
+    let n = sites.len();
+    let h = (domain.volume() / n as f64).powf(1.0 / D as f64);
+    let recording = Request {
+        warm: Some(&WarmStart::new()),
+        ..Request::default()
+    };
+    let first = clipped_diagram::<D, C, K>(domain, &sites, &recording).unwrap();
+    let state = first.warm.expect("the lists recorded");
+    let mut next = moved(domain, &sites, 0.005 * h, 1);
+    let distance = |s: &[f64; D]| (0..D).map(|k| (s[k] - centre[k]).powi(2)).sum::<f64>();
+    let long = (0..n)
+        .min_by(|&a, &b| distance(&sites[a]).total_cmp(&distance(&sites[b])))
+        .unwrap();
+    next[long][0] += 0.4 * h;
+    let request = Request {
+        warm: Some(&state),
+        ..Request::default()
+    };
+    let warm = clipped_diagram::<D, C, K>(domain, &next, &request).unwrap();
+    let cold = clipped_diagram::<D, C, K>(domain, &next, &Request::default()).unwrap();
+    assert_same(&warm.diagram, &cold.diagram, what);
+    let warm_cells = warm.warm.expect("the lists recorded").warm_cells();
+    assert!(
+        warm_cells as f64 > 0.9 * n as f64,
+        "{what}: {warm_cells} of {n} cells warm"
+    );
+}
+
+#[test]
+fn one_long_move_leaves_the_other_cells_warm() {
+    let square = polygon(&[&[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]]);
+    let sites = interior_sites(&square, 2000, 12);
+    check_one_long_move::<2, PolygonCell, _>(&square, sites, [0.5, 0.5], "square");
+    let dented = dented_cube();
+    let sites = interior_sites(&dented, 1500, 13);
+    check_one_long_move::<3, PolyhedronCell, _>(&dented, sites, [0.5, 0.5, 0.4], "dented cube");
+}
+
 /// A power diagram streams its sites the same way: warm is cold there too.
 #[test]
 fn a_warm_power_diagram_is_the_cold_one() {
