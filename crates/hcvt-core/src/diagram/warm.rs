@@ -17,7 +17,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::{norm2, sub};
+use crate::geometry::{norm2, sub, Aabb, Lattice};
 
 /// The previous diagram's near-site lists, in the order it visited its sites, for
 /// [`super::Request::warm`]. Empty (the default) starts cold; a state of another number
@@ -279,55 +279,28 @@ const MAX_BUCKETS_PER_AXIS: usize = 6;
 /// certified and the whole diagram started cold (of a square 1k run's cells, 43% came
 /// from their ring, against 95-97% in Lloyd's late iterates).
 struct MoveGrid<const D: usize> {
-    lo: [f64; D],
-    /// Buckets per unit length (the inverse of their side), `1/L`.
-    per_length: f64,
-    dims: [usize; D],
-    /// Per bucket (the first axis fastest), the largest move of a site in it, `L`.
+    buckets: Lattice<D>,
+    /// Per bucket, the largest move of a site in it, `L`.
     most: Vec<f64>,
 }
 
 impl<const D: usize> MoveGrid<D> {
     /// The grid of `moves[k]` at `sites[k]`; `None` when the sites span no box (one site,
-    /// or all in one point) or a bucket's side is not a finite positive length.
+    /// or all in one point).
     fn new(sites: &[[f64; D]], moves: &[f64]) -> Option<Self> {
-        let mut lo = [f64::INFINITY; D];
-        let mut hi = [f64::NEG_INFINITY; D];
-        for p in sites {
-            for k in 0..D {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
+        let bounds = Aabb::of_points(sites);
+        let extent = sub(bounds.hi, bounds.lo);
+        if !extent.iter().all(|e| e.is_finite()) || extent.iter().all(|&e| e <= 0.0) {
+            return None;
         }
-        let extent: [f64; D] = std::array::from_fn(|k| hi[k] - lo[k]);
-        let side = bucket_side(extent, (sites.len() / SITES_PER_BUCKET).max(1))?;
-        let per_length = 1.0 / side;
-        let dims: [usize; D] = std::array::from_fn(|k| (extent[k] * per_length) as usize + 1);
-        let mut grid = Self {
-            lo,
-            per_length,
-            dims,
-            most: vec![0.0; dims.iter().product()],
-        };
+        let target = (sites.len() / SITES_PER_BUCKET).max(1);
+        let buckets = Lattice::new(bounds.lo, extent, target);
+        let mut most = vec![0.0f64; buckets.len()];
         for (p, &moved) in sites.iter().zip(moves) {
-            let at = grid.flat(std::array::from_fn(|k| grid.coordinate(p[k], k)));
-            grid.most[at] = grid.most[at].max(moved);
+            let at = buckets.index(buckets.coordinates(p));
+            most[at] = most[at].max(moved);
         }
-        Some(grid)
-    }
-
-    /// The bucket coordinate of `x` along axis `k`, clamped to the grid.
-    fn coordinate(&self, x: f64, k: usize) -> usize {
-        let c = ((x - self.lo[k]) * self.per_length).floor();
-        if c > 0.0 {
-            (c as usize).min(self.dims[k] - 1)
-        } else {
-            0
-        }
-    }
-
-    fn flat(&self, at: [usize; D]) -> usize {
-        (0..D).rev().fold(0, |flat, k| flat * self.dims[k] + at[k])
+        Some(Self { buckets, most })
     }
 
     /// The largest move of a site whose old position lies within `reach` of `p` (on
@@ -335,16 +308,21 @@ impl<const D: usize> MoveGrid<D> {
     /// [`MAX_BUCKETS_PER_AXIS`] buckets along an axis. The box is widened by a relative
     /// [`ROUNDING`] so that the rounding of its edges loses no bucket.
     fn most_within(&self, p: [f64; D], reach: f64) -> Option<f64> {
-        let widen = |k: usize| reach + ROUNDING * (reach + p[k].abs() + self.lo[k].abs());
-        let from: [usize; D] = std::array::from_fn(|k| self.coordinate(p[k] - widen(k), k));
-        let to: [usize; D] = std::array::from_fn(|k| self.coordinate(p[k] + widen(k), k));
+        let lo = &self.buckets.lo;
+        let widen = |k: usize| reach + ROUNDING * (reach + p[k].abs() + lo[k].abs());
+        let from = self
+            .buckets
+            .coordinates(&std::array::from_fn(|k| p[k] - widen(k)));
+        let to = self
+            .buckets
+            .coordinates(&std::array::from_fn(|k| p[k] + widen(k)));
         if (0..D).any(|k| to[k] - from[k] >= MAX_BUCKETS_PER_AXIS) {
             return None;
         }
         let mut most = 0.0f64;
         let mut at = from;
         loop {
-            most = most.max(self.most[self.flat(at)]);
+            most = most.max(self.most[self.buckets.index(at)]);
             // The next bucket of the box, the first axis fastest.
             let mut k = 0;
             loop {
@@ -360,18 +338,6 @@ impl<const D: usize> MoveGrid<D> {
             }
         }
     }
-}
-
-/// The side of `buckets` cubes filling a box of `extent` (`L`), over its widest axes only:
-/// sites on a plane or a line (a flat axis narrower than a bucket) are bucketed in the
-/// plane or along the line, not in ever thinner slabs. `None` for a box of no extent.
-fn bucket_side<const D: usize>(mut extent: [f64; D], buckets: usize) -> Option<f64> {
-    extent.sort_by(|a, b| b.total_cmp(a));
-    (1..=D).rev().find_map(|axes| {
-        let volume: f64 = extent[..axes].iter().product();
-        let side = (volume / buckets as f64).powf(1.0 / axes as f64);
-        (side.is_finite() && side > 0.0 && extent[axes - 1] >= side).then_some(side)
-    })
 }
 
 /// The squared distance a cold cell's list covers, from the distance it read.
