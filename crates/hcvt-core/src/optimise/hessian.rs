@@ -185,9 +185,15 @@ impl<const D: usize> Hessian<D> {
     }
 }
 
+/// `m v`. A loop, not `m.map(..)`: the array's `map` was left a call (`try_map`) in some
+/// builds, 4.4% of a ball 1k Newton run's samples inside the Hessian product (perf).
 #[inline]
 fn mat_vec<const D: usize>(m: &Matrix<D>, v: [f64; D]) -> [f64; D] {
-    m.map(|row| dot(row, v))
+    let mut out = [0.0; D];
+    for (o, row) in out.iter_mut().zip(m) {
+        *o = dot(*row, v);
+    }
+    out
 }
 
 /// Rows of a Hessian product per parallel task: some 5 (2D) to 25 (3D) microseconds of
