@@ -123,6 +123,23 @@ impl<const D: usize> Lattice<D> {
     }
 }
 
+/// Step `at` to the next cell of the block `from..=to` of a lattice (or any grid indexed
+/// by coordinates), axis 0 fastest; false past the last.
+pub(crate) fn next_in_box<const D: usize>(
+    at: &mut [usize; D],
+    from: [usize; D],
+    to: [usize; D],
+) -> bool {
+    for k in 0..D {
+        if at[k] < to[k] {
+            at[k] += 1;
+            return true;
+        }
+        at[k] = from[k];
+    }
+    false
+}
+
 /// Axis-aligned box `[lo, hi]`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb<const D: usize> {

@@ -44,7 +44,7 @@
 
 use std::ops::ControlFlow;
 
-use crate::geometry::{add, dot, norm2, sub, Aabb, HalfSpace};
+use crate::geometry::{add, dot, next_in_box, norm2, sub, Aabb, HalfSpace};
 
 use super::convex_cell::{ConvexCell, Face};
 
@@ -223,7 +223,7 @@ impl<const D: usize> MaxGrid<D> {
             *m = own.iter().fold(f64::NEG_INFINITY, |m, &w| m.max(w));
             let c = self.coarse_flat(at.map(|x| x / COARSE));
             coarse_max[c] = coarse_max[c].max(*m);
-            next_block(&mut at, [0; D], self.dims.map(|d| d - 1));
+            next_in_box(&mut at, [0; D], self.dims.map(|d| d - 1));
         }
         Self {
             max,
@@ -288,7 +288,7 @@ impl<const D: usize> MaxGrid<D> {
                     }
                 }
             }
-            if !next_block(&mut at, from, to) {
+            if !next_in_box(&mut at, from, to) {
                 return best;
             }
         }
@@ -343,12 +343,12 @@ impl<const D: usize> MaxGrid<D> {
                             member(state, k, block2)?;
                         }
                     }
-                    if !next_block(&mut at, first, last) {
+                    if !next_in_box(&mut at, first, last) {
                         break;
                     }
                 }
             }
-            if !next_block(&mut coarse, coarse_from, coarse_to) {
+            if !next_in_box(&mut coarse, coarse_from, coarse_to) {
                 return ControlFlow::Continue(());
             }
         }
@@ -382,18 +382,6 @@ impl<const D: usize> MaxGrid<D> {
         let to = std::array::from_fn(|k| centre[k].saturating_add(span).min(self.dims[k] - 1));
         (from, to)
     }
-}
-
-/// Step `at` to the next block of the cube `from..=to`, axis 0 fastest; false past the last.
-fn next_block<const D: usize>(at: &mut [usize; D], from: [usize; D], to: [usize; D]) -> bool {
-    for k in 0..D {
-        if at[k] < to[k] {
-            at[k] += 1;
-            return true;
-        }
-        at[k] = from[k];
-    }
-    false
 }
 
 /// `R + √(R² + Δ)` for the cell radius `r` (`r2 = R²`) and a weight excess `Δ = w_j − w_i`:

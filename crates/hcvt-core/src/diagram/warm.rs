@@ -7,8 +7,8 @@
 //! cell read). When site `i` has moved by `δ_i` and every site that was within
 //! `ρ_i + max_j δ_j` of it by at most `δ` (a grid of the largest moves, [`MoveGrid`]), a
 //! site `j` missing from the list was beyond `ρ_i` and is now beyond `ρ_i − δ_i − δ` from
-//! site `i`: the list is complete within that *certified* distance, and the stream takes its sites
-//! from it, sorted as the grid sorts them. A cell that asks farther falls back to the
+//! site `i`: the list is complete within that *certified* distance, and the stream takes
+//! its sites from it, sorted as the grid sorts them. A cell that asks farther falls back to the
 //! grid ([`super::knn::IndexRef::near_warm`]). The cells are therefore the cold cells
 //! bit for bit whatever the previous diagram was; only the time changes.
 //!
@@ -17,7 +17,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::{norm2, sub, Aabb, Lattice};
+use crate::geometry::{next_in_box, norm2, sub, Aabb, Lattice};
 
 /// The previous diagram's near-site lists, in the order it visited its sites, for
 /// [`super::Request::warm`]. Empty (the default) starts cold; a state of another number
@@ -323,18 +323,8 @@ impl<const D: usize> MoveGrid<D> {
         let mut at = from;
         loop {
             most = most.max(self.most[self.buckets.index(at)]);
-            // The next bucket of the box, the first axis fastest.
-            let mut k = 0;
-            loop {
-                if k == D {
-                    return Some(most);
-                }
-                if at[k] < to[k] {
-                    at[k] += 1;
-                    break;
-                }
-                at[k] = from[k];
-                k += 1;
+            if !next_in_box(&mut at, from, to) {
+                return Some(most);
             }
         }
     }

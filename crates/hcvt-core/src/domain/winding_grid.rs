@@ -14,7 +14,7 @@
 //! never labelled; a bucket only near it may be left unlabelled, which costs a ray cast.
 
 use super::Boundary;
-use crate::geometry::{dot, sub, Euclid, Lattice, Space};
+use crate::geometry::{dot, next_in_box, sub, Euclid, Lattice, Space};
 
 /// Label of a bucket that the boundary touches (or whose winding number does not fit).
 const TOUCHED: i8 = i8::MIN;
@@ -101,12 +101,9 @@ where
                 if touches(&simplex, lo, hi) {
                     self.labels[lattice.index(c)] = TOUCHED;
                 }
-                // Next bucket of the block: odometer over the axes.
-                let Some(k) = (0..D).find(|&k| c[k] < to[k]) else {
+                if !next_in_box(&mut c, from, to) {
                     break;
-                };
-                c[k] += 1;
-                c[..k].copy_from_slice(&from[..k]);
+                }
             }
         }
     }
