@@ -22,7 +22,8 @@
 
 use crate::geometry::{cross, dot, norm2, sub};
 
-use super::{Node, Surface};
+use super::clipper::Node;
+use super::triangles::Surface;
 use crate::diagram::weighted_sums::WeightedSums;
 
 impl Surface {
