@@ -16,8 +16,8 @@
 //! `error` holds [`CoreError`], which every layer returns.
 //!
 //! With the cargo feature `sample` (on for this crate's tests and examples, off for the
-//! binding), [`sample`] gives deterministic pseudo-random points for tests and examples: not
-//! part of the API.
+//! binding), the module `sample` gives deterministic pseudo-random points for tests and
+//! examples: not part of the API.
 //!
 //! Units: every length is in the unit of the input coordinates (`L`); volumes are `L^d`,
 //! first moments `L^(d+1)`, second moments `L^(d+2)`.

@@ -177,7 +177,7 @@ where
     measure(clipped, row, faces)
 }
 
-/// [`clip_convex`]'s cut inside [`voronoi_cell`]: `cell` (relative to `site`, strictly
+/// [`clip_convex`]'s cut inside [`voronoi_cell`](super::voronoi_cell::voronoi_cell): `cell` (relative to `site`, strictly
 /// inside the convex domain) clipped by the inner half-spaces of the boundary simplices
 /// whose boxes meet its box.
 ///

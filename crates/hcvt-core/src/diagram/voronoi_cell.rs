@@ -418,7 +418,7 @@ impl<C> CellScratch<C> {
         self.rebuilt
     }
 
-    /// The reach of the last cell computed ([`voronoi_cell_among`]), `L²`.
+    /// The reach of the last cell computed ([`voronoi_cell`]), `L²`.
     pub fn reach2(&self) -> f64 {
         self.reach2
     }

@@ -87,7 +87,7 @@ enum Kind<const D: usize> {
 }
 
 /// The weighted moments of one cell about its site (a [`Quadratic`]), or the cone
-/// simplices that give them (a [`Field`]); buffers reused from cell to cell.
+/// simplices that give them (a [`Field`](crate::density::Field)); buffers reused from cell to cell.
 #[derive(Debug, Clone)]
 pub struct WeightedSums<const D: usize> {
     kind: Kind<D>,

@@ -336,7 +336,7 @@ pub struct Point<const D: usize> {
     pub sites: Vec<[f64; D]>,
     /// Their clipped diagram.
     pub diagram: Diagram<D>,
-    /// The energy's Hessian, when asked for ([`Request::hessian`]).
+    /// The energy's Hessian, when asked for ([`PointRequest::hessian`]).
     pub hessian: Option<Hessian<D>>,
     /// `E = Σ_i tr M2_i`, summed in index order, `L^(d+2)`.
     pub energy: f64,
