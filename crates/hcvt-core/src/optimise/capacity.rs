@@ -44,13 +44,15 @@ use crate::error::CoreError;
 use crate::geometry::{Euclid, Space};
 
 use super::hessian::{Hessian, HessianTerms};
+use super::history::{Observer, Outcome, Step, StopReason, Tracker};
 use super::lbfgs::{self, Evaluator, LineSearch, Memory};
+use super::lloyd;
 use super::newton::{self, TrustRegion};
+use super::point::{Point, PointRequest, ENERGY_NOISE};
 use super::reduction::Reduction;
-use super::{
-    along_morton_curve, lloyd, optimal_transport_from, Method, Observer, Outcome, Point,
-    PointRequest, Settings, Step, StopReason, Tracker, TransportSettings, ENERGY_NOISE,
-};
+use super::run::along_morton_curve;
+use super::settings::{Method, Settings};
+use super::transport::{optimal_transport_from, TransportSettings};
 
 /// Default tolerance on `max_i |V_i − v_i| / v_i`.
 pub const DEFAULT_VOLUME_TOL: f64 = 1e-8;

@@ -19,7 +19,7 @@ use std::collections::VecDeque;
 use crate::error::CoreError;
 use crate::geometry::{dot, sub};
 
-use super::{Point, ENERGY_NOISE};
+use super::point::{Point, ENERGY_NOISE};
 
 /// `Σ_i a_i · b_i` over rows, in index order.
 pub fn dot_rows<const D: usize>(a: &[[f64; D]], b: &[[f64; D]]) -> f64 {

@@ -7,7 +7,7 @@ use crate::geometry::{add, scale, Euclid, Space};
 
 use crate::moments::Moments;
 
-use super::Point;
+use super::point::Point;
 
 /// Halvings of a move that leaves the domain before the site stays where it is.
 const MAX_HALVINGS: usize = 30;

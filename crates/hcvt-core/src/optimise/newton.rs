@@ -50,7 +50,8 @@ use crate::error::CoreError;
 use crate::geometry::norm2;
 
 use super::lbfgs::{axpy, dot_rows, mass_preconditioner, moved, Evaluator};
-use super::{Measures, Point};
+use super::point::Point;
+use super::stopping::Measures;
 
 /// Most CG iterations per step.
 pub const MAX_CG_ITERATIONS: usize = 200;

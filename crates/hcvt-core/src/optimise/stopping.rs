@@ -21,7 +21,7 @@
 use crate::error::CoreError;
 use crate::geometry::{norm2, sub};
 
-use super::Point;
+use super::point::Point;
 
 /// Default tolerance of [`Rule::Gap`] on `RMS_i |x_i − c_i| / h_i`.
 ///
