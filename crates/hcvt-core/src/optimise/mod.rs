@@ -28,7 +28,7 @@
 //!
 //! **Round-off.** Near a minimum, energy differences between line-search trials sink into
 //! round-off once the gap is about `√eps`. The line search then also accepts a step whose
-//! energy is no higher within [`ENERGY_NOISE`](point::ENERGY_NOISE) if the exact directional derivative shows
+//! energy is no higher within [`ENERGY_NOISE`] if the exact directional derivative shows
 //! the decrease (the approximate Wolfe conditions of Hager and Zhang 2005). If it still
 //! finds no step, the iteration is a Lloyd step, which needs no energy comparison, and
 //! L-BFGS restarts with an empty memory.
@@ -43,6 +43,8 @@
 //!
 //! Every step is sequential over the sites in index order and the diagram does not depend
 //! on the thread count, so neither does the result.
+//!
+//! [`ENERGY_NOISE`]: point::ENERGY_NOISE
 
 mod capacity;
 #[cfg(test)]

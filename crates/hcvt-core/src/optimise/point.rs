@@ -25,8 +25,10 @@ pub struct PointRequest<'a, const D: usize> {
     pub hessian: bool,
     /// The density ρ (DESIGN §8): energy and gradient from the ρ-weighted moments, and the
     /// Hessian with `2 m_i` the ρ-weighted mass and its face terms weighted by ρ on each
-    /// face (exact for a polynomial; a sampled field has no Hessian, [`cvt`](super::cvt) refuses Newton
+    /// face (exact for a polynomial; a sampled field has no Hessian, [`cvt`] refuses Newton
     /// with one).
+    ///
+    /// [`cvt`]: super::cvt
     pub density: Option<&'a Density<'a, D>>,
 }
 

@@ -150,9 +150,11 @@ impl<'a> HessianArcs<'a> {
 }
 
 impl Surface {
-    /// [`DomainKind::clip`](crate::diagram::domain_kind::DomainKind::clip): the moments of the cell's pieces, each piece (its triangle
+    /// [`DomainKind::clip`]: the moments of the cell's pieces, each piece (its triangle
     /// and nodes, relative to the site) told to `met` in order; with a `row`, the
     /// Hessian's terms of its arcs.
+    ///
+    /// [`DomainKind::clip`]: crate::diagram::domain_kind::DomainKind::clip
     pub(super) fn measure<C: ConvexCell<3>>(
         &self,
         cell: &C,

@@ -3,9 +3,9 @@
 //! Cell `i` of a surface `S` is `Vor(z_i) ∩ S`, the part of the surface nearer its site than
 //! any other, sites anywhere in space. The driver computes the convex 3D cell of each site
 //! as for every kind; this module clips every surface triangle that meets it by the
-//! cell's planes ([`clip_polygon`](super::polygon_clip::clip_polygon), the clipper the conforming mesh cuts a solid's boundary
+//! cell's planes ([`clip_polygon`], the clipper the conforming mesh cuts a solid's boundary
 //! triangles with) and measures the convex planar pieces in closed form: area, `∫(x − z)`
-//! and `∫|x − z|²` of the fan triangles of each piece ([`FaceMoments::simplex`](crate::moments::FaceMoments::simplex)), about the
+//! and `∫|x − z|²` of the fan triangles of each piece ([`FaceMoments::simplex`]), about the
 //! site. The neighbour face measures are the lengths of the pieces' edges on each bisector
 //! (the arcs two cells share), the boundary measure the length of the surface's border
 //! (edges of one triangle only) in the cell. The cells have dimension 2
@@ -17,8 +17,8 @@
 //! cell's planes (its corner least along the plane's normal beyond the plane). The cell of
 //! a site on a surface is a needle along the normal until sites across the model cut it:
 //! its bounding box would take in much of the model, the pruned walk does not. The test
-//! takes the planes two at a time with no branch ([`BoxPlanes`](prune::BoxPlanes)), and inner boxes that
-//! hold the site (in its own cell) are walked into untested ([`holds_site`](prune::holds_site)).
+//! takes the planes two at a time with no branch ([`BoxPlanes`]), and inner boxes that
+//! hold the site (in its own cell) are walked into untested ([`holds_site`]).
 //!
 //! **Stopping early.** Only the cell's pieces of the surface matter. After
 //! `VALIDATE_PART_K` neighbours the driver checks their vertices' nearest sites
@@ -37,15 +37,15 @@
 //! **Whole triangles.** A box of the BVH inside every plane of the cell (with a margin
 //! for round-off) gives its triangles whole, without testing them plane by plane; the
 //! other triangles are tested once against the planes their leaf's box is not inside
-//! ([`box_side`](prune::box_side); the others leave them as they are) ([`Clipper::triangle`](clipper::Clipper::triangle)) and clipped
+//! ([`box_side`]; the others leave them as they are) ([`Clipper::triangle`]) and clipped
 //! only by the planes that cut them.
 //!
 //! **The cells' pieces.** [`Surface::pieces`] hands over the pieces themselves: its
-//! diagram notes each piece's nodes as the measure sums its moments ([`Noting`](noting::Noting)).
+//! diagram notes each piece's nodes as the measure sums its moments ([`Noting`]).
 //!
 //! **The triangulation.** [`Surface::restricted_delaunay`] reads the meeting points of
 //! three cells from each cell's pieces. Its diagram notes, per site, the triangles its
-//! measure met ([`Noting`](noting::Noting)), and the meeting points clip those again instead of walking
+//! measure met ([`Noting`]), and the meeting points clip those again instead of walking
 //! the BVH a second time (the same pieces, in the same order): its triangulation took
 //! 0.37-0.39 s of CPU against 0.27-0.28 s (armadillo, 5,000 CVT sites) and 1.19 s
 //! against 0.82-0.89 s (20,000), one thread under load ~3.5.
@@ -56,6 +56,14 @@
 //! arc measures and Newton's Hessian terms ([`density`] with a density); [`delaunay`] reads
 //! the restricted Delaunay triangulation and the pieces from a diagram that [`noting`]
 //! notes; this file makes the surface a [`DomainKind`].
+//!
+//! [`clip_polygon`]: super::polygon_clip::clip_polygon
+//! [`FaceMoments::simplex`]: crate::moments::FaceMoments::simplex
+//! [`BoxPlanes`]: prune::BoxPlanes
+//! [`holds_site`]: prune::holds_site
+//! [`box_side`]: prune::box_side
+//! [`Clipper::triangle`]: clipper::Clipper::triangle
+//! [`Noting`]: noting::Noting
 
 mod clipper;
 mod delaunay;
@@ -172,7 +180,9 @@ impl DomainKind<3> for Surface {
     /// The moments of the cell's part of the surface about the site (mass the area), its
     /// arcs on bisectors into the neighbours' measures, with a `row` (Newton's Hessian)
     /// their face moments weighted by the slope of the bisector against each triangle
-    /// ([`HessianArcs`](measure::HessianArcs)), and with a density its weighted sums (`surface/density.rs`).
+    /// ([`HessianArcs`]), and with a density its weighted sums (`surface/density.rs`).
+    ///
+    /// [`HessianArcs`]: measure::HessianArcs
     fn clip<C: ConvexCell<3>>(
         &self,
         cell: &C,

@@ -98,7 +98,7 @@ fn inside_with_margin(r: &[f64; 8], lo: [f64; 3], hi: [f64; 3], reach: [f64; 3])
 /// `box_planes` the same planes): strictly outside a plane when its least value
 /// over the box, at the corner the normal points away from, exceeds the offset; inside
 /// every plane when the greatest is below it by more than the round-off of either (the
-/// triangles' corners, in the box, are then inside as [`Clipper::triangle`](super::clipper::Clipper::triangle) computes
+/// triangles' corners, in the box, are then inside as [`Clipper::triangle`] computes
 /// them, and it would leave them whole).
 ///
 /// With `across` (a leaf's box), every plane is tried and those the box is not inside
@@ -106,6 +106,8 @@ fn inside_with_margin(r: &[f64; 8], lo: [f64; 3], hi: [f64; 3], reach: [f64; 3])
 /// others, which would neither cut them nor leave them out, so they are clipped by
 /// those alone, bit for bit the same pieces. The plane that last put a box outside
 /// (`hint`) is tried first: neighbouring boxes tend to lie outside the same one.
+///
+/// [`Clipper::triangle`]: super::clipper::Clipper::triangle
 pub(super) fn box_side(
     planes: &[(Face, HalfSpace<3>)],
     box_planes: &BoxPlanes,

@@ -19,7 +19,9 @@ pub struct Surface {
     pub(super) border: Vec<[bool; 3]>,
     pub(super) area: f64,
     pub(super) first: [f64; 3],
-    /// Newton's Hessian with the flat weight on its arcs ([`HessianArcs`](measure::HessianArcs)), for a test.
+    /// Newton's Hessian with the flat weight on its arcs ([`HessianArcs`]), for a test.
+    ///
+    /// [`HessianArcs`]: measure::HessianArcs
     #[cfg(test)]
     pub(super) flat_arcs: bool,
 }
@@ -128,8 +130,10 @@ impl Surface {
         })
     }
 
-    /// The surface whose Hessian weighs its arcs as if flat (`2/|q|`, [`HessianArcs`](measure::HessianArcs)):
+    /// The surface whose Hessian weighs its arcs as if flat (`2/|q|`, [`HessianArcs`]):
     /// what the tests show the finite differences reject.
+    ///
+    /// [`HessianArcs`]: measure::HessianArcs
     #[cfg(test)]
     pub(crate) fn with_flat_arcs(mut self) -> Self {
         self.flat_arcs = true;

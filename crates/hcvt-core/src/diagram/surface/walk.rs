@@ -165,11 +165,13 @@ impl Surface {
 }
 
 /// Where [`Surface::for_each_piece`] finds the triangles of a cell. The driver validates
-/// a cell (or asks its radius, [`DomainKind::local_radius2`](crate::diagram::domain_kind::DomainKind::local_radius2), then localises and
+/// a cell (or asks its radius, [`DomainKind::local_radius2`], then localises and
 /// validates it), which only shrinks it, and measures it last: the first validation (the
 /// radius) walks the BVH and records the triangles the cell met, the later validations
 /// and the measure clip only those (a triangle that missed the larger cell misses the
 /// smaller one).
+///
+/// [`DomainKind::local_radius2`]: crate::diagram::domain_kind::DomainKind::local_radius2
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Triangles {
     /// Walk the BVH.

@@ -35,7 +35,9 @@ impl<const D: usize> Laplacian<'_, D> {
     /// (relative to `targets`, as [`Laplacian::solve`]) by conjugate gradients
     /// preconditioned by the last factorisation, when there is one
     /// ([`Kept::preconditioned`]), unless `refresh` asks for this matrix's own factor
-    /// ([`REFACTORISE_BELOW`](super::REFACTORISE_BELOW)); the iterations are returned with the solution.
+    /// ([`REFACTORISE_BELOW`]); the iterations are returned with the solution.
+    ///
+    /// [`REFACTORISE_BELOW`]: super::REFACTORISE_BELOW
     pub(super) fn direct(
         &self,
         b: &[f64],
@@ -217,7 +219,9 @@ pub(super) struct Kept {
 const PRECONDITIONED_ITERATIONS: usize = 30;
 
 impl Kept {
-    /// Whether there is a factor, which a fresh one could replace ([`REFACTORISE_BELOW`](super::REFACTORISE_BELOW)).
+    /// Whether there is a factor, which a fresh one could replace ([`REFACTORISE_BELOW`]).
+    ///
+    /// [`REFACTORISE_BELOW`]: super::REFACTORISE_BELOW
     pub(super) fn has_factor(&self) -> bool {
         self.values.is_some() && self.analysed.is_some()
     }

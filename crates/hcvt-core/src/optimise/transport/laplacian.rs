@@ -187,7 +187,9 @@ pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// iterations taken and whether `done` was reached; a breakdown (`r·z` or `p·A p` not
 /// positive, or NaN: a solution in the kernel, or round-off) ends it unreached. The one
 /// CG of both solvers: by the diagonal ([`Laplacian::solve`]) and by the last Cholesky
-/// factor ([`Kept::preconditioned`](super::factor::Kept::preconditioned)). Every dot product is summed in index order.
+/// factor ([`Kept::preconditioned`]). Every dot product is summed in index order.
+///
+/// [`Kept::preconditioned`]: super::factor::Kept::preconditioned
 pub(super) fn conjugate_gradients(
     mut product: impl FnMut(&[f64], &mut [f64]),
     mut precondition: impl FnMut(&[f64], &mut [f64]),
