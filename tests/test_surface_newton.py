@@ -1,7 +1,7 @@
 """Newton's method on triangle surfaces (issue 33): the restricted CVT's exact Hessian.
 
 The Hessian's arcs are weighted by the slope of each bisector against each triangle
-(``diagram/surface.rs``, ``HessianArcs``); the core checks it against central differences
+(``diagram/surface/measure.rs``, ``HessianArcs``); the core checks it against central differences
 of the gradient on the bunny, closed and cut open (``optimise/hessian.rs``, where the flat
 weight ``2/|q|`` fails the same check). Here: Newton through :func:`hcvt.cvt`.
 """

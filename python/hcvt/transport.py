@@ -2,7 +2,7 @@
 
 :func:`optimal_transport` finds the weights ``w`` whose power diagram (cell ``i`` the points
 where ``|x - z_i|² - w_i`` is least) gives each cell the mass asked for. The iteration runs
-in the Rust core (``hcvt-core/src/optimise/transport.rs``): damped Newton on the weights
+in the Rust core (``hcvt-core/src/optimise/transport/``): damped Newton on the weights
 (Kitagawa, Mérigot and Thibert 2019) with the exact Hessian, the graph Laplacian of the
 power diagram with edge weights ``∫_F ρ / (2|z_i - z_j|)``, solved in 2D by a sparse
 Cholesky factorisation on the first step and by conjugate gradients preconditioned by that

@@ -176,7 +176,7 @@ pub trait DomainKind<const D: usize>: Sync {
 
     /// The core sums Newton's Hessian for this kind: the flat kinds (cells of dimension
     /// `D`), the sphere (its Riemannian Hessian) and a triangle surface (its arcs weighted
-    /// by their slope, `surface.rs`); not yet a region of the sphere, whose Newton is
+    /// by their slope, `surface/measure.rs`); not yet a region of the sphere, whose Newton is
     /// refused with a message instead of reading faces it has not measured.
     fn sums_hessian(&self) -> bool {
         self.cell_dim() == D

@@ -21,10 +21,11 @@
 //! | `box_domain.rs` | [`BoxDomain`], an axis-aligned box as a domain kind: cells clipped by its sides (the start of the periodic box) |
 //! | `periodic_box.rs` | [`PeriodicBox`], a box periodic along some or all axes: cells among the sites' images in a band, each neighbour with its image shift (DESIGN §14) |
 //! | `torus.rs` | [`Torus`], a periodic box's periods and axes as a value: what the driver and the optimisers ask of a periodic domain (the wrap into the box) |
-//! | `surface.rs` | [`Surface`], a triangle surface as a domain kind: restricted Voronoi cells, the surface's triangles clipped by each convex cell (DESIGN §12) |
+//! | `surface/` | [`Surface`], a triangle surface as a domain kind: restricted Voronoi cells, the surface's triangles clipped by each convex cell (DESIGN §12); its restricted Delaunay triangulation |
 //! | `polygon_clip.rs` | one Sutherland–Hodgman step, shared by the surface's pieces and the mesh's boundary pieces |
 //! | `sphere.rs` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
 //! | `sphere_density.rs` | a density on the sphere: fan triangles mapped onto it, their rule's nodes and Jacobian, the sums with a constant exact |
+//! | `sphere_region.rs` | [`SphereRegion`], a region of the sphere bounded by great-circle polygons (an ocean basin, islands as holes) as a domain kind |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), the margin of the box a cell starts from, and its implementation for a [`crate::domain::Boundary`] |
 //! | `voronoi_cell.rs` | one site's convex Voronoi cell ([`voronoi_cell`]): kNN and the security radius, localisation to the domain (step 1) |
 //! | `clip.rs` | the cell clipped by the domain through signed cones, or by its planes when convex (step 2) |
@@ -35,7 +36,7 @@
 //! | `scratch.rs` | per-thread buffers reused from cell to cell (`with_scratch`) |
 //! | `warm.rs` | [`WarmStart`]: the previous diagram's near-site lists, which certify a cell's nearest sites without the index |
 //! | `ring.rs` | a warm cell rebuilt from its previous neighbours' ring without clipping, bit for bit the clipped cell (2D) |
-//! | `power.rs` | a power diagram's weights: its planes and how far its cells look for sites (DESIGN §14) |
+//! | `power/` | a power diagram's cells: how far they look for sites (a grid of the largest weight per block), cells started from a previous diagram, stored margins (DESIGN §14) |
 //! | `weighted.rs` | with a density (DESIGN §8): the sampled field's one evaluation, checks, [`Diagram::weighted`] |
 //! | `weighted_sums.rs` | with a density: one cell's weighted sums over its pieces, as `faces.rs` measures them |
 //! | `mesh/` | cell geometry and the conforming mesh of all cells ([`PolyMesh`], DESIGN §9) |

@@ -1,7 +1,7 @@
 //! One step of Sutherland–Hodgman: a convex polygon cut by one plane, each node carrying
 //! what the caller tags it with. Shared by the conforming mesh's boundary pieces (a
 //! solid's triangle clipped by a cell, `mesh/cell3.rs`) and the surface's cell pieces (a
-//! surface triangle clipped by a cell, `surface.rs`): one clipper of triangles by cells.
+//! surface triangle clipped by a cell, `surface/clipper.rs`): one clipper of triangles by cells.
 
 /// Keep the part of the closed convex polygon `polygon` where the side is `≤ 0`, into `out`
 /// (cleared first). `sides[k]` is node `k`'s signed side of the plane (and whether it lies

@@ -204,7 +204,7 @@ const PRODUCT_ROWS: usize = 256;
 #[cfg(test)]
 mod tests {
     //! Newton's Hessian on a triangle surface (issue 33): the arcs weighted by the slope of
-    //! their bisectors (`diagram/surface.rs`, `HessianArcs`).
+    //! their bisectors (`diagram/surface/measure.rs`, `HessianArcs`).
     use super::*;
     use crate::diagram::{PolyhedronCell, Surface};
     use crate::geometry::{cross, scale};

@@ -5,7 +5,7 @@
 //!
 //! **Pieces.** A cell's part of the surface is a set of convex planar pieces (input
 //! triangles clipped by the cell's planes), each cut into the fan triangles from its first
-//! node that the geometric measure sums in closed form (`add_piece` in `surface.rs`). Each
+//! node that the geometric measure sums in closed form (`add_piece` in `measure.rs`). Each
 //! fan triangle is flat, so the flat kinds' face rules apply to it as they stand
 //! ([`WeightedSums::add_face_piece`]; the sphere needs a Jacobian, `sphere_density.rs`,
 //! the surface does not):
