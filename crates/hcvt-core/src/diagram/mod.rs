@@ -32,7 +32,7 @@
 //! | `faces.rs` | each cell's face measures (neighbours, boundary share) and a caller's [`FaceIntegrand`] over them |
 //! | `order.rs` | the Morton order of the sites ([`morton_order`]) and [`Diagram::reordered`] |
 //! | `convex_cell.rs`, `polygon_cell.rs`, `polyhedron_cell/` | the convex cell ([`ConvexCell`]) in 2D and 3D |
-//! | `knn.rs` | the nearest-site index ([`SiteIndex`]) |
+//! | `knn/` | the nearest-site index ([`SiteIndex`]): a grid of buckets, or a kd-tree for crowded sites, and their streams |
 //! | `scratch.rs` | per-thread buffers reused from cell to cell (`with_scratch`) |
 //! | `warm.rs` | [`WarmStart`]: the previous diagram's near-site lists, which certify a cell's nearest sites without the index |
 //! | `ring.rs` | a warm cell rebuilt from its previous neighbours' ring without clipping, bit for bit the clipped cell (2D) |
