@@ -23,7 +23,7 @@
 //! | `torus.rs` | [`Torus`], a periodic box's periods and axes as a value: what the driver and the optimisers ask of a periodic domain (the wrap into the box) |
 //! | `surface/` | [`Surface`], a triangle surface as a domain kind: restricted Voronoi cells, the surface's triangles clipped by each convex cell (DESIGN §12); its restricted Delaunay triangulation |
 //! | `polygon_clip.rs` | one Sutherland–Hodgman step, shared by the surface's pieces and the mesh's boundary pieces |
-//! | `sphere.rs` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
+//! | `sphere/` | [`Sphere`], the unit sphere as a domain kind: spherical polygons cut by great circles, their exact area, first moment and energy |
 //! | `sphere_density.rs` | a density on the sphere: fan triangles mapped onto it, their rule's nodes and Jacobian, the sums with a constant exact |
 //! | `sphere_region.rs` | [`SphereRegion`], a region of the sphere bounded by great-circle polygons (an ocean basin, islands as holes) as a domain kind |
 //! | `domain_kind.rs` | [`DomainKind`], what the driver asks of a domain (DESIGN §11), the margin of the box a cell starts from, and its implementation for a [`crate::domain::Boundary`] |
