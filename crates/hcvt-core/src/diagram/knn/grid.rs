@@ -193,7 +193,10 @@ impl<const D: usize> Grid<D> {
     }
 
     /// The nearest site of `p` as `(index, squared distance)`, the least index among equals:
-    /// rings until the covered distance passes the best, keeping only that.
+    /// rings until the covered distance passes the best, keeping only that. Inlined into
+    /// [`SiteIndex::nearest_one`](super::SiteIndex::nearest_one), its one caller, as it was
+    /// before the grid had a file of its own (0.3% of a surface CVT's instructions).
+    #[inline]
     pub(super) fn nearest_one(&self, p: [f64; D]) -> (u32, f64) {
         let mut rings = self.ring_start(p);
         let mut best = (u32::MAX, f64::INFINITY);
