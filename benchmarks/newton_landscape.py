@@ -39,10 +39,10 @@ SIDE = 20.0  # the paper's square
 GAP = 20.0  # between two squares: many spacings, so no cell reaches across
 
 
-def diagrams_by_level(history: dict) -> list[int | None]:
-    """Diagrams spent until the RMS gap first falls below each of ``LEVELS``."""
-    gaps = np.asarray(history["rms_gap"])
-    spent = np.asarray(history["evaluations"])
+def diagrams_by_level(run: hcvt.CVTResult) -> list[int | None]:
+    """Diagrams ``run`` spent until its RMS gap first fell below each of ``LEVELS``."""
+    gaps = np.asarray(run.history["rms_gap"])
+    spent = np.asarray(run.history["evaluations"])
     out: list[int | None] = []
     for level in LEVELS:
         below = np.flatnonzero(gaps < level)
@@ -58,7 +58,7 @@ def phases(cases: list[str], seeds: list[int]) -> None:
         for seed in seeds:
             sites = hcvt.initialise(domain, n, method="random", seed=seed)
             run = hcvt.cvt(domain, sites, method="newton", rule="paper", tol=1e-10)
-            levels = diagrams_by_level(run.history)
+            levels = diagrams_by_level(run)
             cells = "  ".join(f"{'-' if v is None else v:>5}" for v in levels)
             print(f"{name:<10} {seed:>5}  {cells}  {run.history['evaluations'][-1]:>5}")
 
