@@ -327,7 +327,9 @@ def test_callback_may_call_back_into_hcvt():
 @pytest.mark.parametrize("threads", [None, 2])
 def test_ctrl_c_interrupts_a_long_run(threads):
     domain = shapes.square()
-    sites = random_inside(domain, 2000, seed=0)
+    # 20,000 sites: the run must outlast the timer. 2,000 stalled at round-off in 0.24 s on
+    # a quiet machine (Newton, the default), a race with the 0.2 s timer that it lost once.
+    sites = random_inside(domain, 20_000, seed=0)
     before = hcvt.get_num_threads()
     timer = threading.Timer(0.2, lambda: os.kill(os.getpid(), signal.SIGINT))
     # Ctrl-C raises KeyboardInterrupt only under Python's default handler, whatever an
