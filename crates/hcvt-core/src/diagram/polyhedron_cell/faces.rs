@@ -19,6 +19,26 @@ thread_local! {
     static WALK_BUFFERS: std::cell::RefCell<WalkBuffers> = std::cell::RefCell::default();
 }
 
+/// A triangle of a face's fan: its vertices `(v_0, a, b)` relative to the site, `L`, and
+/// their squared lengths, `L²`.
+struct FanTriangle {
+    vertices: [[f64; 3]; 3],
+    norms2: [f64; 3],
+}
+
+/// Adds to `m` the cone from the site over the fan triangle `t`, `c` its doubled vector
+/// area ([`PolyhedronCell::fan`]).
+#[inline]
+fn add_cone(m: &mut Moments<3>, t: &FanTriangle, c: [f64; 3]) {
+    let [v0, a, b] = t.vertices;
+    let [n0, na, nb] = t.norms2;
+    let mass = dot(v0, c) / 6.0;
+    let s = add(add(v0, a), b);
+    m.mass += mass;
+    m.first = add(m.first, scale(s, mass / 4.0));
+    m.second += mass * (norm2(s) + n0 + na + nb) / 20.0;
+}
+
 impl PolyhedronCell {
     /// Vertices relative to the site; vertex `t` is where the planes of triangle `t` meet.
     pub fn vertices(&self) -> &[[f64; 3]] {
@@ -82,39 +102,50 @@ impl PolyhedronCell {
     /// With `s = v_0 + a + b` the cone's second moment is `mass (|s|² + |v_0|² + |a|² +
     /// |b|²) / 20`, the sum of the six products `u · w` of `tetra_moments` rewritten.
     pub(super) fn fan(&self, ring: &[u32]) -> (Moments<3>, f64) {
-        let v = |k: usize| self.vertices[ring[k] as usize];
-        let v0 = v(0);
-        let n0 = norm2(v0);
-        let (mut a, mut na) = (v(1), norm2(v(1)));
         let mut m = Moments::zero();
         let mut area = [0.0; 3];
-        for k in 2..ring.len() {
-            let b = v(k);
-            let nb = norm2(b);
-            let c = cross(sub(a, v0), sub(b, v0));
+        self.for_each_fan_triangle(ring, |triangle, c| {
             area = add(area, c);
-            let mass = dot(v0, c) / 6.0;
-            let s = add(add(v0, a), b);
-            m.mass += mass;
-            m.first = add(m.first, scale(s, mass / 4.0));
-            m.second += mass * (norm2(s) + n0 + na + nb) / 20.0;
-            (a, na) = (b, nb);
-        }
+            add_cone(&mut m, triangle, c);
+        });
         (m, 0.5 * norm2(area).sqrt())
     }
 
     /// [`PolyhedronCell::fan`]'s cone moments with the face's own moments about the site
-    /// (for the Hessian), summed over the same fan triangles.
+    /// (for the Hessian), summed over the same fan triangles in one pass: each triangle's
+    /// cross product serves both. Two passes computed it twice: a Newton run of ball 1k
+    /// (seed 0, one thread, callgrind) took 9,662M instructions then, 9,529M now, for the
+    /// same bits.
     pub(super) fn fan_moments(&self, ring: &[u32]) -> (Moments<3>, FaceMoments<3>) {
+        let mut m = Moments::zero();
+        let mut face = FaceMoments::zero();
+        self.for_each_fan_triangle(ring, |triangle, c| {
+            add_cone(&mut m, triangle, c);
+            let area = 0.5 * norm2(c).sqrt();
+            face.add_scaled(&FaceMoments::simplex(&triangle.vertices, area), 1.0);
+        });
+        (m, face)
+    }
+
+    /// `f(triangle, c)` for each triangle `(v_0, v_{k-1}, v_k)` of the fan of `ring` from
+    /// its first vertex, `c = (v_{k-1} − v_0) × (v_k − v_0)`.
+    #[inline]
+    fn for_each_fan_triangle(&self, ring: &[u32], mut f: impl FnMut(&FanTriangle, [f64; 3])) {
         let v = |k: usize| self.vertices[ring[k] as usize];
         let v0 = v(0);
-        let mut face = FaceMoments::zero();
+        let n0 = norm2(v0);
+        let (mut a, mut na) = (v(1), norm2(v(1)));
         for k in 2..ring.len() {
-            let (a, b) = (v(k - 1), v(k));
-            let area = 0.5 * norm2(cross(sub(a, v0), sub(b, v0))).sqrt();
-            face.add_scaled(&FaceMoments::simplex(&[v0, a, b], area), 1.0);
+            let b = v(k);
+            let nb = norm2(b);
+            let c = cross(sub(a, v0), sub(b, v0));
+            let triangle = FanTriangle {
+                vertices: [v0, a, b],
+                norms2: [n0, na, nb],
+            };
+            f(&triangle, c);
+            (a, na) = (b, nb);
         }
-        (self.fan(ring).0, face)
     }
 
     /// The closed, outward boundary triangulation of the cell: every face fanned from its
