@@ -58,6 +58,7 @@ mod point;
 mod reduction;
 mod run;
 mod settings;
+mod steihaug;
 mod stopping;
 mod transport;
 
