@@ -32,6 +32,8 @@ mod domain;
 mod error;
 mod geometry;
 mod moments;
+#[cfg(test)]
+mod on_threads;
 mod optimise;
 mod quality;
 #[cfg(any(test, feature = "sample"))]

@@ -348,11 +348,7 @@ mod tests {
             degree: 5,
         };
         let weighted = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            crate::on_threads::on_threads(threads, || {
                 let request = Request {
                     density: Some(&density),
                     ..Request::default()

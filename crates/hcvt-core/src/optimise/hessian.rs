@@ -327,11 +327,7 @@ mod tests {
             assert!(flat > 1e3 * exact && flat > 1e-4, "{what}: {flat:e}");
             // Symmetric to round-off, and the same bit for bit on 1 and 3 threads.
             let hessian = |threads: usize| {
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .unwrap();
-                pool.install(|| {
+                crate::on_threads::on_threads(threads, || {
                     evaluate::<3, PolyhedronCell, _>(&surface, sites.clone(), &WITH_HESSIAN)
                         .unwrap()
                 })

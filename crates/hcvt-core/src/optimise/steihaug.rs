@@ -289,11 +289,9 @@ mod tests {
             .collect();
         let precondition: Vec<f64> = (0..n).map(|i| 0.5 + (i % 7) as f64 * 0.1).collect();
         let solve = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| steihaug(&g, &mut block_product(&blocks), &precondition, 1e6, 1e-10))
+            crate::on_threads::on_threads(threads, || {
+                steihaug(&g, &mut block_product(&blocks), &precondition, 1e6, 1e-10)
+            })
         };
         let one = solve(1);
         assert!(!one.at_edge);

@@ -491,11 +491,7 @@ fn the_hessian_does_not_depend_on_the_thread_count() {
         density: None,
     };
     let hessian = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        crate::on_threads::on_threads(threads, || {
             evaluate::<3, PolyhedronCell, _>(&Sphere, sites.clone(), &request)
                 .unwrap()
                 .hessian
