@@ -54,6 +54,22 @@ d = shapes.ball(); s = hcvt.initialise(d, 2_000, seed=0)
 t = time.perf_counter(); hcvt.cvt(d, s, "newton", max_iter=30)
 print(time.perf_counter() - t)
 """,
+    "power diagram 3D, ball, 20k": """
+import time, numpy as np, hcvt
+from hcvt.geometry import shapes
+d = shapes.ball(); s = hcvt.initialise(d, 20_000, method="random", seed=0)
+w = np.random.default_rng(1).random(20_000) * 3 * (d.volume / 20_000) ** (2 / 3)
+hcvt.voronoi(d, s[:1000], weights=w[:1000]); t = time.perf_counter(); hcvt.voronoi(d, s, weights=w)
+print(time.perf_counter() - t)
+""",
+    "transport 3D, ball, 20k, equal masses": """
+import time, numpy as np, hcvt
+from hcvt.geometry import shapes
+d = shapes.ball(); s = hcvt.initialise(d, 20_000, method="random", seed=0)
+m = np.full(20_000, d.volume / 20_000)
+t = time.perf_counter(); hcvt.optimal_transport(d, s, m)
+print(time.perf_counter() - t)
+""",
     "mesh + quality, bunny, 10k": """
 import time, hcvt
 from hcvt.export import mesh_quality
@@ -63,13 +79,13 @@ t = time.perf_counter(); mesh_quality(v.mesh())
 print(time.perf_counter() - t)
 """,
 }
-# Before the layers (34a1fc5) the shapes were hcvt.shapes.
+# Before the layers (34a1fc5) the shapes were hcvt.shapes (an old build without hcvt/geometry).
 OLD_NAMES = {"from hcvt.geometry import shapes": "from hcvt import shapes"}
 
 
 def run(case: str, python_dir: Path, data: str, old: bool) -> float:
     code = CASES[case].replace("DATA", json.dumps(data))
-    if old:
+    if old and not (python_dir / "hcvt" / "geometry").is_dir():
         for new_name, old_name in OLD_NAMES.items():
             code = code.replace(new_name, old_name)
     env = {**os.environ, "PYTHONPATH": str(python_dir), "OPENBLAS_NUM_THREADS": "1"}

@@ -15,6 +15,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 import hcvt
+from hcvt.geometry import shapes
 from hcvt.io.readers import read_polygon
 from helpers import DATA, random_inside
 
@@ -95,13 +96,16 @@ def test_2d_power_cells_are_shapelys_half_plane_intersections(geometry, n):
     assert not np.any(empty[diagram.neighbor_sites])
 
 
-def reference_volume_3d(lo, hi, points, weights, i) -> float:
-    """Volume of the power cell of site ``i`` in the box ``[lo, hi]`` (scipy)."""
+def reference_volume_3d(lo, hi, points, weights, i, facets=None) -> float:
+    """Volume of the power cell of site ``i`` in the box ``[lo, hi]`` (scipy), and within
+    the half-spaces ``facets`` (rows ``a, b``: ``a·x + b <= 0``) when given."""
     z, w = points[i], weights[i]
     q = np.delete(points, i, axis=0) - z
     v = np.delete(weights, i)
     # a·x + b <= 0 with a = q, b = -(|q|² + w - v)/2 - q·z
     halfspaces = [np.append(q, (-(np.einsum("ij,ij->i", q, q) + w - v) / 2 - q @ z)[:, None], 1)]
+    if facets is not None:
+        halfspaces.append(facets)
     for k in range(3):
         e = np.eye(3)[k]
         halfspaces.append(np.array([np.append(e, -hi[k]), np.append(-e, lo[k])]))
@@ -133,6 +137,34 @@ def test_3d_power_cells_are_scipys_halfspace_intersections():
     np.testing.assert_allclose(
         hcvt.voronoi(solid, sites, weights=weights).volume, reference, rtol=0, atol=1e-10
     )
+
+
+def test_power_cells_at_a_balls_boundary_are_scipys_halfspace_intersections():
+    """A convex solid's boundary cells, which reach from their sites out to the corners of
+    their box, are bounded by their part in the ball (``InDomain`` in the core): the cells
+    of optimal transport's trials (certified from the last step's neighbours) and of a cold
+    power diagram of the same weights, both against scipy where their centroids lie
+    farthest from their sites."""
+    ball = shapes.ball()
+    n = 2000
+    sites = hcvt.initialise(ball, n, method="random", seed=3)
+    masses = np.full(n, ball.volume / n)
+    run = hcvt.optimal_transport(ball, sites, masses, tol=1e-10)
+    assert run.converged
+    np.testing.assert_allclose(run.diagram.volume, masses, rtol=1e-10, atol=0)
+    cold = hcvt.voronoi(ball, sites, weights=run.weights)
+    np.testing.assert_allclose(cold.volume, run.diagram.volume, rtol=1e-12, atol=0)
+    # Outward facets of the icosphere, a·x + b <= 0 inside.
+    corners = ball.vertices[ball.faces]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    facets = np.column_stack([normals, -np.einsum("ij,ij->i", normals, corners[:, 0])])
+    offset = np.linalg.norm(cold.centroid - sites, axis=1)
+    far = np.argsort(-offset)[:25]
+    assert offset[far].min() > 0.5 * (ball.volume / n) ** (1 / 3), "cells off their sites"
+    lo, hi = ball.bounds
+    reference = [reference_volume_3d(lo, hi, sites, run.weights, i, facets) for i in far]
+    np.testing.assert_allclose(cold.volume[far], reference, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(run.diagram.volume[far], reference, rtol=1e-9, atol=0)
 
 
 def test_bunny_power_cells_fill_the_solid():

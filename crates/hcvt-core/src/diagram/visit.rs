@@ -15,7 +15,7 @@ use super::domain_kind::DomainKind;
 use super::faces::{FaceIntegrand, FaceRow};
 use super::knn::IndexRef;
 use super::output::{Batch, Diagram, BATCH};
-use super::power::{MarginScratch, Power};
+use super::power::{InDomain, MarginScratch, Power};
 use super::voronoi_cell::{voronoi_cell, CellScratch};
 use super::warm::{Moved, WarmStart};
 use super::weighted_sums::WeightedSums;
@@ -60,13 +60,15 @@ where
     /// Power cell `i` from [`Visit::power_start`]'s neighbours (`Power::hinted_cell`), in
     /// `buffer`; `None` without a start, or for a cell left to the stream.
     /// With stored margins, the cell's is tried first; a margin taken is left in `record`
-    /// (`Power::hinted_cell`).
+    /// (`Power::hinted_cell`). With `part` (a convex domain, the site strictly inside), a
+    /// cell spread too far is certified over its part in the domain, cut in `part.0`.
     fn started_cell<'c, C: ConvexCell<D>, K: DomainKind<D>>(
         &self,
         domain: &K,
         i: usize,
         buffer: &'c mut Option<C>,
         record: &mut MarginScratch<D>,
+        part: Option<(&mut Option<C>, &mut Vec<u32>)>,
     ) -> Option<&'c C> {
         record.recorded = false;
         record.skipped = false;
@@ -76,6 +78,14 @@ where
         let bounds = domain.start(self.sites[i]);
         let cell = buffer.get_or_insert_with(|| C::from_box(&bounds));
         let margin = power.margin(i);
+        let site = self.sites[i];
+        let (copy, mut candidates) = part.unzip();
+        let mut cut = |part: &mut C| {
+            if let Some(candidates) = candidates.as_deref_mut() {
+                domain.cut_convex(part, site, candidates);
+            }
+        };
+        let mut in_domain = copy.map(|copy| InDomain::new(copy, &mut cut));
         power
             .hinted_cell(
                 cell,
@@ -86,6 +96,7 @@ where
                 margin.as_ref(),
                 record,
                 power.records(),
+                in_domain.as_mut(),
             )
             .then_some(&*cell)
     }
@@ -113,11 +124,11 @@ where
                     (
                         CellScratch::default(),
                         measuring,
-                        None,
+                        (None, None, Vec::new()),
                         MarginScratch::default(),
                     )
                 },
-                |(scratch, measuring, hinted, margin), (first, chunk)| {
+                |(scratch, measuring, (hinted, part, candidates), margin), (first, chunk)| {
                     let mut batch = Batch::new(chunk.len(), integrand.is_some());
                     if self.record {
                         batch.reserve_lists(chunk.len(), near_per_cell);
@@ -128,13 +139,14 @@ where
                         }
                         let i = i as usize;
                         let winding = self.windings[i];
-                        // A power cell need not hold its site: the early cut by the
-                        // boundary near the cell assumes it does (`cut_by_boundary`).
-                        let convex_inside = convex && winding == Some(1) && self.power.is_none();
+                        // A power cell is not cut to the domain, only bounded by its part
+                        // there (`InDomain`).
+                        let convex_inside = convex && winding == Some(1);
                         let warm = self
                             .warm
                             .and_then(|(w, moved)| w.certified(i, visited, moved));
-                        let started = self.started_cell(domain, i, hinted, margin);
+                        let part = convex_inside.then_some((&mut *part, &mut *candidates));
+                        let started = self.started_cell(domain, i, hinted, margin, part);
                         let (cell, inside) = match started.map_or_else(
                             || {
                                 voronoi_cell::<D, C, K>(

@@ -11,7 +11,7 @@ use crate::geometry::{add, norm2, scale, sub, Euclid, HalfSpace, Space};
 use super::convex_cell::{ConvexCell, Face};
 use super::domain_kind::DomainKind;
 use super::knn::{IndexRef, NearScratch, SiteIndex};
-use super::power::Power;
+use super::power::{at_most, InDomain, Power};
 use super::ring::ring_cell;
 use super::warm::{margin2, WarmList};
 
@@ -274,6 +274,9 @@ where
     } else {
         usize::MAX
     };
+    // A power cell is not cut to the domain (`DomainKind::clip` measures it, its site
+    // perhaps outside it), but its part in the domain bounds its radius ([`InDomain`]).
+    let mut bound2 = f64::INFINITY;
     let mut inside = false;
     let mut near = match warm {
         Some(w) => index.near_warm(site, sites, w.near, w.certified2, &mut scratch.near),
@@ -300,7 +303,7 @@ where
                 Some(p) => p.bisector(q, i, j as usize),
             };
             if cell.clip(&plane, Face::Neighbor(j)) {
-                radius2 = cell.max_dist2();
+                radius2 = at_most(cell.max_dist2(), bound2);
                 if power.is_some() && cell.is_empty() {
                     // An empty power cell: no site can take anything more from it.
                     scratch.reach2 = last2;
@@ -326,8 +329,19 @@ where
         if clipped % preclip_after == 0 && clipped < total_sites && !inside {
             // Every `PRECLIP_K` neighbours until the domain can cut the cell (a solid's
             // and a box's always can at once; a sphere's cell once it is closed).
-            inside = domain.cut_convex(cell, site, &mut scratch.candidates);
-            radius2 = cell.max_dist2();
+            let candidates = &mut scratch.candidates;
+            if power.is_some() {
+                let mut cut = |part: &mut C| {
+                    domain.cut_convex(part, site, candidates);
+                };
+                bound2 = InDomain::new(&mut scratch.part, &mut cut)
+                    .of(cell)
+                    .max_dist2();
+                radius2 = at_most(radius2, bound2);
+            } else {
+                inside = domain.cut_convex(cell, site, candidates);
+                radius2 = cell.max_dist2();
+            }
         }
         if clipped % localise_after == 0 && clipped < total_sites && !inside && !cell.is_empty() {
             // Localise only a cell whose part in the domain is already near the site: a
@@ -354,10 +368,10 @@ where
             }
             last2 = last2.max(dist2);
         }
-        radius2 = cell.max_dist2();
+        radius2 = at_most(cell.max_dist2(), bound2);
         let covered2 = last2.max(stop2(radius2));
         if !cell.is_empty() {
-            p.clip_heavier(cell, sites, i, covered2);
+            p.clip_heavier(cell, sites, i, covered2, bound2);
         }
         scratch.reach2 = covered2.max(p.global_reach2(i, radius2));
         // An empty cell is measured as one inside the domain: nothing.
@@ -379,6 +393,8 @@ where
 pub struct CellScratch<C> {
     near: NearScratch,
     cell: Option<C>,
+    /// A power cell's part in a convex domain ([`InDomain`]).
+    part: Option<C>,
     candidates: Vec<u32>,
     reach2: f64,
     /// The last cell's near sites for a warm start, complete within `record2`, `L²`.
@@ -429,6 +445,7 @@ impl<C> Default for CellScratch<C> {
         Self {
             near: NearScratch::default(),
             cell: None,
+            part: None,
             candidates: Vec::new(),
             reach2: 0.0,
             record: Vec::new(),

@@ -83,6 +83,44 @@ fn cut_reach(r: f64, r2: f64, excess: f64) -> Option<f64> {
 /// Relative margin on a squared reach for the rounding of its roots.
 const ROUNDING: f64 = 1e-12;
 
+/// `r2`, or `bound2` when that is smaller (a `NaN` `r2` kept): a cell's squared radius
+/// about its site, bounded by that of its part in the domain ([`InDomain`]).
+pub(super) fn at_most(r2: f64, bound2: f64) -> f64 {
+    if r2 > bound2 {
+        bound2
+    } else {
+        r2
+    }
+}
+
+/// The part of a power cell in a convex domain, for its bounds only: a copy of the cell
+/// cut by the boundary planes near it ([`super::DomainKind::cut_convex`]). The cell keeps
+/// the power diagram's faces (its boundary is measured by [`super::DomainKind::clip`], which
+/// also measures a cell without its site), but no point of it outside the copy is measured,
+/// so the copy's radius bounds how far the cell must look for the sites that cut what is.
+/// Without it a cell at a ball's boundary reached out to the corners of its box: at 20,000
+/// sites 3% of a transport trial's cells streamed most of the sites and took two thirds of
+/// its time (docs/results/transport.txt §15).
+pub(super) struct InDomain<'b, C> {
+    copy: &'b mut Option<C>,
+    cut: &'b mut dyn FnMut(&mut C),
+}
+
+impl<'b, C: Clone> InDomain<'b, C> {
+    /// Copies kept in `copy`, cut by `cut`.
+    pub(super) fn new(copy: &'b mut Option<C>, cut: &'b mut dyn FnMut(&mut C)) -> Self {
+        Self { copy, cut }
+    }
+
+    /// `cell` cut to the domain, in the copy.
+    pub(super) fn of(&mut self, cell: &C) -> &C {
+        let copy = self.copy.get_or_insert_with(|| cell.clone());
+        copy.clone_from(cell);
+        (self.cut)(copy);
+        copy
+    }
+}
+
 /// A hinted cell ([`Power::hinted_cell`]) whose vertices lie farther than this many blocks
 /// of [`MaxGrid`] from their mean is left to the stream: the certificate would read every
 /// block within that distance (a cell of a non-convex domain open into the domain's box).
@@ -216,18 +254,20 @@ impl<'a, const D: usize> Power<'a, D> {
     /// lies within its own bound `R + √(R² + w_j − w_i)` of the site, `R` the cell's
     /// radius as it shrinks. The blocks are read in order within the bound for `w_max`,
     /// each only if its own largest weight lets one of its sites reach; their sites in
-    /// index order. Stops at an empty cell.
+    /// index order. Stops at an empty cell. `bound2`: a bound on the squared radius of the
+    /// cell's part in the domain ([`InDomain`]; infinite for none).
     pub(super) fn clip_heavier<C: ConvexCell<D>>(
         &self,
         cell: &mut C,
         sites: &[[f64; D]],
         i: usize,
         covered2: f64,
+        bound2: f64,
     ) {
         let own = self.weights[i];
         let site = sites[i];
         let grid = &self.grid;
-        let radius2 = cell.max_dist2();
+        let radius2 = at_most(cell.max_dist2(), bound2);
         let r = radius2.sqrt();
         let Some(outer) = cut_reach(r, radius2, self.slack(i)) else {
             return;
@@ -271,7 +311,7 @@ impl<'a, const D: usize> Power<'a, D> {
                     if cell.is_empty() {
                         return ControlFlow::Break(());
                     }
-                    *radius2 = cell.max_dist2();
+                    *radius2 = at_most(cell.max_dist2(), bound2);
                     *r = radius2.sqrt();
                 }
                 ControlFlow::Continue(())
@@ -333,6 +373,7 @@ impl<'a, const D: usize> Power<'a, D> {
         margin: Option<&StoredMargin<'_, D>>,
         record: &mut MarginScratch<D>,
         take: bool,
+        in_domain: Option<&mut InDomain<'_, C>>,
     ) -> bool {
         record.recorded = false;
         record.skipped = false;
@@ -353,25 +394,40 @@ impl<'a, const D: usize> Power<'a, D> {
         }
         let own = self.weights[i];
         let grid = &self.grid;
-        let centre = cell.vertex_mean();
-        let spread2 = |cell: &C| {
+        let span2 = (HINT_SPAN * grid.side).powi(2);
+        let spread_about = |cell: &C, centre: [f64; D]| {
             cell.vertices()
                 .iter()
                 .fold(0.0, |m: f64, &v| m.max(norm2(sub(v, centre))))
         };
-        let rho2 = spread2(cell);
-        if rho2 > (HINT_SPAN * grid.side).powi(2) {
-            return false;
+        let mut centre = cell.vertex_mean();
+        let mut rho2 = spread_about(cell, centre);
+        // Bounds on the cell's part in the domain (infinite: the cell's own). A cell spread
+        // too far (at a convex domain's boundary, open to its box) is certified over that
+        // part alone, without stored margins (their proof reads the whole cell).
+        let (mut rho_bound2, mut bound2) = (f64::INFINITY, f64::INFINITY);
+        if rho2 > span2 {
+            let Some(part) = in_domain.map(|d| d.of(cell)).filter(|p| !p.is_empty()) else {
+                return false;
+            };
+            centre = part.vertex_mean();
+            rho2 = spread_about(part, centre);
+            (rho_bound2, bound2) = (rho2, part.max_dist2());
+            if rho2 > span2 {
+                return false;
+            }
         }
-        if margin.is_some_and(|m| self.margin_holds(cell, i, neighbours, m)) {
+        let bounded = bound2 < f64::INFINITY;
+        let spread2 = |cell: &C| at_most(spread_about(cell, centre), rho_bound2);
+        if !bounded && margin.is_some_and(|m| self.margin_holds(cell, i, neighbours, m)) {
             record.skipped = true;
             return true;
         }
-        let (rho, radius2) = (rho2.sqrt(), cell.max_dist2());
+        let (rho, radius2) = (rho2.sqrt(), at_most(cell.max_dist2(), bound2));
         let Some(mut outer) = cut_reach(rho, radius2, self.slack(i)) else {
             return true; // no site can cut (cannot happen for a cell holding a point)
         };
-        let recording = take;
+        let recording = take && !bounded;
         let (grow, raise) = (
             MARGIN_REACH * grid.side,
             MARGIN_WEIGHT * grid.side * grid.side,
@@ -451,7 +507,7 @@ impl<'a, const D: usize> Power<'a, D> {
                         return ControlFlow::Break(true);
                     }
                     *rho = spread2(cell).sqrt();
-                    *radius2 = cell.max_dist2();
+                    *radius2 = at_most(cell.max_dist2(), bound2);
                 }
                 ControlFlow::Continue(())
             },
@@ -459,7 +515,7 @@ impl<'a, const D: usize> Power<'a, D> {
         match scanned {
             ControlFlow::Break(done) => done,
             ControlFlow::Continue(()) => {
-                if take {
+                if recording {
                     self.take_margin(cell, site, i, record);
                 }
                 true
