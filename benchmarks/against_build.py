@@ -70,6 +70,15 @@ m = np.full(20_000, d.volume / 20_000)
 t = time.perf_counter(); hcvt.optimal_transport(d, s, m)
 print(time.perf_counter() - t)
 """,
+    "transport 2D, square, 10k, equal masses": """
+import time, numpy as np, hcvt
+from hcvt.geometry import shapes
+d = shapes.unit_square(); s = np.random.default_rng(0).random((10_000, 2))
+m = np.full(10_000, 1 / 10_000)
+hcvt.optimal_transport(d, s[:1000], m[:1000] * 10); t = time.perf_counter()
+hcvt.optimal_transport(d, s, m)
+print(time.perf_counter() - t)
+""",
     "mesh + quality, bunny, 10k": """
 import time, hcvt
 from hcvt.export import mesh_quality

@@ -100,7 +100,7 @@ pub(super) fn at_most(r2: f64, bound2: f64) -> f64 {
 /// so the copy's radius bounds how far the cell must look for the sites that cut what is.
 /// Without it a cell at a ball's boundary reached out to the corners of its box: at 20,000
 /// sites 3% of a transport trial's cells streamed most of the sites and took two thirds of
-/// its time (docs/results/transport.txt §15).
+/// its time (docs/results/transport.txt §23).
 pub(super) struct InDomain<'b, C> {
     copy: &'b mut Option<C>,
     cut: &'b mut dyn FnMut(&mut C),
