@@ -78,14 +78,8 @@ where
         let bounds = domain.start(self.sites[i]);
         let cell = buffer.get_or_insert_with(|| C::from_box(&bounds));
         let margin = power.margin(i);
-        let site = self.sites[i];
-        let (copy, mut candidates) = part.unzip();
-        let mut cut = |part: &mut C| {
-            if let Some(candidates) = candidates.as_deref_mut() {
-                domain.cut_convex(part, site, candidates);
-            }
-        };
-        let mut in_domain = copy.map(|copy| InDomain::new(copy, &mut cut));
+        let in_domain =
+            part.map(|(copy, candidates)| InDomain::new(domain, self.sites[i], copy, candidates));
         power
             .hinted_cell(
                 cell,
@@ -96,7 +90,7 @@ where
                 margin.as_ref(),
                 record,
                 power.records(),
-                in_domain.as_mut(),
+                in_domain,
             )
             .then_some(&*cell)
     }

@@ -332,13 +332,11 @@ where
             let candidates = &mut scratch.candidates;
             if power.is_some() {
                 // Only a cell reaching beyond its neighbours so far (open to its box) is
-                // worth a copy: in a box domain the part is the cell, and copying it cost
-                // 8% of a power diagram.
+                // worth a copy: in a box domain the part is the cell, and copying every
+                // cell cost a power diagram 7% more instructions (docs/results/transport.txt
+                // §23).
                 if radius2 > last2 {
-                    let mut cut = |part: &mut C| {
-                        domain.cut_convex(part, site, candidates);
-                    };
-                    bound2 = InDomain::new(&mut scratch.part, &mut cut)
+                    bound2 = InDomain::new(domain, site, &mut scratch.part, candidates)
                         .of(cell)
                         .max_dist2();
                     radius2 = at_most(radius2, bound2);

@@ -56,6 +56,7 @@ use std::ops::ControlFlow;
 use crate::geometry::{add, dot, norm2, sub, Aabb, HalfSpace};
 
 use super::convex_cell::{ConvexCell, Face};
+use super::domain_kind::DomainKind;
 
 /// The weights of a power diagram, one per site of the computation (a periodic box's
 /// images carry their site's), `L²`: cell `i` is `{x : |x − z_i|² − w_i ≤ |x − z_j|² − w_j}`.
@@ -101,22 +102,36 @@ pub(super) fn at_most(r2: f64, bound2: f64) -> f64 {
 /// Without it a cell at a ball's boundary reached out to the corners of its box: at 20,000
 /// sites 3% of a transport trial's cells streamed most of the sites and took two thirds of
 /// its time (docs/results/transport.txt §23).
-pub(super) struct InDomain<'b, C> {
+pub(super) struct InDomain<'b, const D: usize, K, C> {
+    domain: &'b K,
+    /// The cell's site, `L`.
+    site: [f64; D],
     copy: &'b mut Option<C>,
-    cut: &'b mut dyn FnMut(&mut C),
+    candidates: &'b mut Vec<u32>,
 }
 
-impl<'b, C: Clone> InDomain<'b, C> {
-    /// Copies kept in `copy`, cut by `cut`.
-    pub(super) fn new(copy: &'b mut Option<C>, cut: &'b mut dyn FnMut(&mut C)) -> Self {
-        Self { copy, cut }
+impl<'b, const D: usize, K: DomainKind<D>, C: ConvexCell<D>> InDomain<'b, D, K, C> {
+    /// The parts of the cells of `site` (strictly inside the convex `domain`), cut in
+    /// `copy`; `candidates` is a buffer.
+    pub(super) fn new(
+        domain: &'b K,
+        site: [f64; D],
+        copy: &'b mut Option<C>,
+        candidates: &'b mut Vec<u32>,
+    ) -> Self {
+        Self {
+            domain,
+            site,
+            copy,
+            candidates,
+        }
     }
 
-    /// `cell` cut to the domain, in the copy.
+    /// `cell` (relative to the site) cut to the domain, in the copy.
     pub(super) fn of(&mut self, cell: &C) -> &C {
         let copy = self.copy.get_or_insert_with(|| cell.clone());
         copy.clone_from(cell);
-        (self.cut)(copy);
+        self.domain.cut_convex(copy, self.site, self.candidates);
         copy
     }
 }
@@ -363,7 +378,7 @@ impl<'a, const D: usize> Power<'a, D> {
     /// ≤ ρ_a + e` and `|v'| ≤ R_a + e`, so `f'_j(v') > 0` as in (b). Every clip of the scan
     /// would thus find every vertex inside and return `false` without touching the cell.
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn hinted_cell<C: ConvexCell<D>>(
+    pub(super) fn hinted_cell<C: ConvexCell<D>, K: DomainKind<D>>(
         &self,
         cell: &mut C,
         start: &Aabb<D>,
@@ -373,7 +388,7 @@ impl<'a, const D: usize> Power<'a, D> {
         margin: Option<&StoredMargin<'_, D>>,
         record: &mut MarginScratch<D>,
         take: bool,
-        in_domain: Option<&mut InDomain<'_, C>>,
+        mut in_domain: Option<InDomain<'_, D, K, C>>,
     ) -> bool {
         record.recorded = false;
         record.skipped = false;
@@ -407,7 +422,8 @@ impl<'a, const D: usize> Power<'a, D> {
         // part alone, without stored margins (their proof reads the whole cell).
         let (mut rho_bound2, mut bound2) = (f64::INFINITY, f64::INFINITY);
         if rho2 > span2 {
-            let Some(part) = in_domain.map(|d| d.of(cell)).filter(|p| !p.is_empty()) else {
+            let part = in_domain.as_mut().map(|d| d.of(cell));
+            let Some(part) = part.filter(|p| !p.is_empty()) else {
                 return false;
             };
             centre = part.vertex_mean();
